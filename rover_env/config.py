@@ -1,0 +1,443 @@
+"""Typed, validated configuration: the single source of every physical number.
+
+YAML files in ``configs/`` are loaded into frozen dataclasses. Unknown keys, wrong types,
+out-of-range values and missing files raise :class:`ConfigError` naming the file and the
+dotted key, so a typo never silently falls back to a default.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+import typing
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any, TypeVar
+
+import yaml
+
+from rover_env.tire import TireParams
+
+WHEELS: tuple[str, ...] = ("1L", "1R", "2L", "2R", "3L", "3R")
+DRIVEN_WHEELS: tuple[str, ...] = ("1L", "1R", "2L", "2R")
+FREE_WHEELS: tuple[str, ...] = ("3L", "3R")
+JOINTS: tuple[str, ...] = ("theta_1", "theta_2", "theta_3", "theta_4", "theta_5")
+SEGMENTS: tuple[str, ...] = ("seg1", "seg2", "seg3")
+
+
+class ConfigError(ValueError):
+    """A configuration value is missing, unknown or out of range."""
+
+
+def _positive(name: str, value: float) -> None:
+    if not (math.isfinite(value) and value > 0):
+        raise ConfigError(f"{name} must be a finite number > 0, got {value!r}")
+
+
+def _nonneg(name: str, value: float) -> None:
+    if not (math.isfinite(value) and value >= 0):
+        raise ConfigError(f"{name} must be a finite number >= 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """Lengths in metres; x forward, y left, z up (SPEC §1)."""
+
+    wheel_radius: float = 0.085
+    """Nominal (unloaded) wheel radius d. SPEC §1: Table 2's "170" read as a diameter."""
+    wheel_width: float = 0.05
+    half_track: float = 0.225
+    """r of Table 1: lateral distance from a segment's centre line to each wheel's mid-plane."""
+    axle_spacing: float = 0.36
+    """Distance between adjacent axles (segment 1 to 2, 2 to 3)."""
+    chassis_length: float = 0.26
+    chassis_width: float = 0.30
+    chassis_height: float = 0.16
+    chassis_lift: float = 0.01
+    """Height of the chassis floor above the wheel hubs."""
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            _positive(f"geometry.{f.name}", getattr(self, f.name))
+        if self.chassis_width / 2 > self.half_track - self.wheel_width / 2:
+            raise ConfigError("geometry.chassis_width overlaps the wheels (half_track too small)")
+        if self.axle_spacing <= 2 * self.wheel_radius:
+            raise ConfigError("geometry.axle_spacing must exceed the wheel diameter")
+
+    @property
+    def joint_offset(self) -> float:
+        """Coupling joints sit midway between axles."""
+        return self.axle_spacing / 2
+
+
+@dataclass(frozen=True)
+class Masses:
+    """Table 2: 16.4 kg in all, 4 motors of 0.3 kg, 2 batteries of 0.7 kg."""
+
+    wheel: float = 0.35
+    motor: float = 0.3
+    battery: float = 0.7
+    chassis: tuple[float, float, float] = (4.0, 3.7, 4.0)
+    """Structure and electronics of segments 1..3 (everything but wheels, motors, batteries)."""
+    battery_segments: tuple[int, ...] = (2, 3)
+
+    def __post_init__(self) -> None:
+        _positive("masses.wheel", self.wheel)
+        _positive("masses.motor", self.motor)
+        _positive("masses.battery", self.battery)
+        if len(self.chassis) != 3:
+            raise ConfigError("masses.chassis needs one value per segment (3)")
+        for i, m in enumerate(self.chassis):
+            _positive(f"masses.chassis[{i}]", m)
+        for s in self.battery_segments:
+            if s not in (1, 2, 3):
+                raise ConfigError(f"masses.battery_segments entries must be 1, 2 or 3, got {s}")
+
+    def segment_mass(self, seg: int) -> float:
+        """Segment body mass without its two wheels."""
+        m = self.chassis[seg - 1] + self.battery * self.battery_segments.count(seg)
+        if seg in (1, 2):
+            m += 2 * self.motor
+        return m
+
+    @property
+    def total(self) -> float:
+        return sum(self.segment_mass(s) for s in (1, 2, 3)) + 6 * self.wheel
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    """A passive joint: leaf spring (stiffness) where the paper has one, plus damping."""
+
+    stiffness: float = 0.0
+    damping: float = 0.5
+    limit: float = 0.8
+    """Mechanical stop (rad), symmetric."""
+
+    def __post_init__(self) -> None:
+        _nonneg("joint.stiffness", self.stiffness)
+        _nonneg("joint.damping", self.damping)
+        _positive("joint.limit", self.limit)
+
+
+def _default_joints() -> dict[str, JointSpec]:
+    return {
+        "theta_1": JointSpec(stiffness=0.0, damping=0.5, limit=0.6),
+        "theta_2": JointSpec(stiffness=10.0, damping=1.0, limit=0.8),
+        "theta_3": JointSpec(stiffness=0.0, damping=0.5, limit=0.6),
+        "theta_4": JointSpec(stiffness=20.0, damping=1.0, limit=0.6),
+        "theta_5": JointSpec(stiffness=10.0, damping=1.0, limit=0.8),
+    }
+
+
+@dataclass(frozen=True)
+class MotorSpec:
+    """Geared DC motor with an on-board speed controller, all referred to the wheel shaft."""
+
+    voltage: float = 24.0
+    stall_torque: float = 21.0
+    """N m at the wheel: a 20 W-class motor, 150:1 gearhead at 70 % efficiency."""
+    no_load_speed: float = 6.7
+    """rad/s at the wheel: about 9600 rpm / 150."""
+    torque_limit: float = 3.0
+    """Continuous torque (N m at the wheel) the driver's current limit allows."""
+    armature: float = 0.025
+    """Rotor inertia reflected through the gearhead, N^2 J_rotor (kg m^2)."""
+    speed_gain: float = 2.0
+    """Proportional gain of the speed loop, N m per rad/s."""
+    integral_gain: float = 40.0
+    """Integral gain of the speed loop (N m per rad of accumulated angle error)."""
+    max_angle_error: float = 0.5
+    """Anti-windup: the integrated angle setpoint stays within this of the wheel (rad)."""
+    max_wheel_speed: float = 4.0
+    """Largest speed target accepted (rad/s): actions and controllers are scaled to it."""
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            _positive(f"motor.{f.name}", getattr(self, f.name))
+        if self.max_wheel_speed > self.no_load_speed:
+            raise ConfigError("motor.max_wheel_speed exceeds the motor's no_load_speed")
+
+
+@dataclass(frozen=True)
+class SimSpec:
+    timestep: float = 0.001
+    """Physics substep (s); the tire layer runs on every one."""
+
+    def __post_init__(self) -> None:
+        _positive("sim.timestep", self.timestep)
+        if self.timestep > 0.005:
+            raise ConfigError("sim.timestep above 5 ms is unstable with the tire layer")
+
+
+@dataclass(frozen=True)
+class RoverConfig:
+    """Everything physical about the rover; terrain is configured separately."""
+
+    name: str = "proto_explorer"
+    geometry: Geometry = field(default_factory=Geometry)
+    masses: Masses = field(default_factory=Masses)
+    joints: dict[str, JointSpec] = field(default_factory=_default_joints)
+    motor: MotorSpec = field(default_factory=MotorSpec)
+    tire: TireParams = field(default_factory=TireParams)
+    sim: SimSpec = field(default_factory=SimSpec)
+    extensions: dict[str, dict[str, float]] = field(default_factory=dict)
+    """Model extensions (calibration adds these): extension name -> its parameters.
+
+    Reserved for the discrepancy workflow; no extension is defined yet, so any entry is refused.
+    """
+
+    def __post_init__(self) -> None:
+        if set(self.joints) != set(JOINTS):
+            raise ConfigError(f"joints must name exactly {', '.join(JOINTS)}; got {sorted(self.joints)}")
+        if self.extensions:
+            raise ConfigError(
+                f"extensions: unknown model extension(s) {sorted(self.extensions)}; none are defined yet"
+            )
+
+
+@dataclass(frozen=True)
+class FrictionPatch:
+    """A region of ground with its own friction (e.g. sand, snow, rock)."""
+
+    name: str
+    center: tuple[float, float]
+    size: tuple[float, float]
+    """Full extent in x and y (m) of an axis-aligned rectangle."""
+    mu_x: float
+    mu_y: float
+
+    def __post_init__(self) -> None:
+        _positive(f"friction patch {self.name}: mu_x", self.mu_x)
+        _positive(f"friction patch {self.name}: mu_y", self.mu_y)
+        for v in self.size:
+            _positive(f"friction patch {self.name}: size", v)
+
+
+@dataclass(frozen=True)
+class Bumps:
+    """Sinusoidal bumps: amplitude (m) times sin(2 pi s / wavelength + phase) along a direction."""
+
+    amplitude: float
+    wavelength: float
+    direction_deg: float = 0.0
+    phase: float = 0.0
+    start: float = -1e9
+    """Bumps begin at this distance along their direction (flat before it)."""
+
+    def __post_init__(self) -> None:
+        _nonneg("bumps.amplitude", self.amplitude)
+        _positive("bumps.wavelength", self.wavelength)
+
+
+@dataclass(frozen=True)
+class Roughness:
+    """Smooth random ground: a seeded sum of Fourier modes."""
+
+    rms: float = 0.0
+    correlation_length: float = 0.5
+    modes: int = 24
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        _nonneg("roughness.rms", self.rms)
+        _positive("roughness.correlation_length", self.correlation_length)
+        if self.modes < 1:
+            raise ConfigError("roughness.modes must be >= 1")
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A rigid box (rock, step) that wheels and chassis hit through MuJoCo contacts."""
+
+    name: str
+    pos: tuple[float, float, float]
+    size: tuple[float, float, float]
+    """Half-sizes (m)."""
+    yaw_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        for v in self.size:
+            _positive(f"obstacle {self.name}: size", v)
+
+
+@dataclass(frozen=True)
+class TerrainConfig:
+    name: str = "flat"
+    size: tuple[float, float] = (40.0, 40.0)
+    """Arena extent in x and y (m), centred on the origin; leaving it ends an episode."""
+    resolution: float = 0.05
+    """Heightfield grid spacing (m) of the MuJoCo mesh used for rendering and chassis contacts."""
+    slope_deg: tuple[float, float] = (0.0, 0.0)
+    """Ground rises by tan(slope) per metre along +x and +y."""
+    bumps: tuple[Bumps, ...] = ()
+    roughness: Roughness = field(default_factory=Roughness)
+    mu_x: float | None = None
+    """Default ground friction; None takes the tire's Table 3 values."""
+    mu_y: float | None = None
+    patches: tuple[FrictionPatch, ...] = ()
+    obstacles: tuple[Obstacle, ...] = ()
+
+    def __post_init__(self) -> None:
+        for v in self.size:
+            _positive("terrain.size", v)
+        _positive("terrain.resolution", self.resolution)
+        for s in self.slope_deg:
+            if not -45.0 < s < 45.0:
+                raise ConfigError(f"terrain.slope_deg must be within (-45, 45), got {s}")
+        for m in (self.mu_x, self.mu_y):
+            if m is not None:
+                _positive("terrain.mu", m)
+
+    @property
+    def is_flat(self) -> bool:
+        return (
+            self.slope_deg == (0.0, 0.0)
+            and all(b.amplitude == 0 for b in self.bumps)
+            and self.roughness.rms == 0
+        )
+
+
+# --------------------------------------------------------------------------- loading
+
+T = TypeVar("T")
+
+
+def _convert(tp: Any, value: Any, where: str) -> Any:
+    """Convert a YAML value to the annotated type, naming ``where`` on failure."""
+    origin = typing.get_origin(tp)
+    args = typing.get_args(tp)
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        inner = [a for a in args if a is not type(None)]
+        return _convert(inner[0], value, where)
+    if dataclasses.is_dataclass(tp) and isinstance(tp, type):
+        return from_dict(tp, value, where)
+    if origin is tuple:
+        if not isinstance(value, list | tuple):
+            raise ConfigError(f"{where}: expected a list, got {value!r}")
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_convert(args[0], v, f"{where}[{i}]") for i, v in enumerate(value))
+        if len(value) != len(args):
+            raise ConfigError(f"{where}: expected {len(args)} values, got {len(value)}")
+        return tuple(_convert(a, v, f"{where}[{i}]") for i, (a, v) in enumerate(zip(args, value, strict=True)))
+    if origin is dict:
+        if not isinstance(value, Mapping):
+            raise ConfigError(f"{where}: expected a mapping, got {value!r}")
+        return {str(k): _convert(args[1], v, f"{where}.{k}") for k, v in value.items()}
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ConfigError(f"{where}: expected a number, got {value!r}")
+        return float(value)
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{where}: expected an integer, got {value!r}")
+        return value
+    if tp is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{where}: expected a string, got {value!r}")
+        return value
+    return value
+
+
+def from_dict(cls: type[T], data: Any, where: str = "") -> T:
+    """Build dataclass ``cls`` from a mapping; unknown keys and bad values raise ConfigError."""
+    if data is None:
+        data = {}
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{where or cls.__name__}: expected a mapping, got {data!r}")
+    hints = typing.get_type_hints(cls)
+    names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    unknown = sorted(set(data) - names)
+    if unknown:
+        raise ConfigError(
+            f"{where or cls.__name__}: unknown key(s) {', '.join(map(str, unknown))}; "
+            f"allowed: {', '.join(sorted(names))}"
+        )
+    kwargs = {
+        k: _convert(hints[k], v, f"{where}.{k}" if where else k) for k, v in data.items()
+    }
+    if cls is RoverConfig and "joints" in kwargs:
+        kwargs["joints"] = {**_default_joints(), **kwargs["joints"]}
+    try:
+        return cls(**kwargs)
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: {exc}" if where else str(exc)) from None
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{where or cls.__name__}: {exc}") from None
+
+
+def to_dict(obj: Any) -> Any:
+    """Plain YAML-able form of a config object (tuples become lists)."""
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return {f.name: to_dict(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+    if isinstance(obj, dict):
+        return {k: to_dict(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [to_dict(v) for v in obj]
+    return obj
+
+
+def _shipped(folder: str) -> Path:
+    """A top-level repository folder, or its copy inside an installed wheel.
+
+    A source checkout (and an editable install) reads ``configs/`` and ``assets/`` in place;
+    a wheel carries them as the ``rover_env.configs`` and ``rover_env.assets`` packages.
+    """
+    here = Path(__file__).resolve().parent.parent / folder
+    if here.is_dir():
+        return here
+    return Path(str(resources.files(f"rover_env.{folder}")))
+
+
+def configs_dir() -> Path:
+    """The shipped configuration folder (``configs/`` in the repository)."""
+    return _shipped("configs")
+
+
+def assets_dir() -> Path:
+    """The shipped MJCF folder (``assets/`` in the repository)."""
+    return _shipped("assets")
+
+
+def _resolve(name_or_path: str | Path, kind: str) -> Path:
+    p = Path(name_or_path)
+    if p.suffix in (".yaml", ".yml") or p.exists():
+        if not p.is_file():
+            raise ConfigError(f"{kind} configuration file not found: {p}")
+        return p
+    shipped = configs_dir() / kind / f"{name_or_path}.yaml"
+    if not shipped.is_file():
+        names = sorted(q.stem for q in (configs_dir() / kind).glob("*.yaml"))
+        raise ConfigError(f"no shipped {kind} configuration named {name_or_path!r}; have {names}")
+    return shipped
+
+
+def _load_yaml(path: Path) -> Any:
+    try:
+        with path.open() as fh:
+            return yaml.safe_load(fh)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: malformed YAML: {exc}") from None
+
+
+def load_rover(name_or_path: str | Path = "proto_explorer") -> RoverConfig:
+    """Load a rover configuration by shipped name or path."""
+    path = _resolve(name_or_path, "rover")
+    try:
+        return from_dict(RoverConfig, _load_yaml(path))
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+
+
+def load_terrain(name_or_path: str | Path = "flat") -> TerrainConfig:
+    """Load a terrain configuration by shipped name or path."""
+    path = _resolve(name_or_path, "terrain")
+    try:
+        return from_dict(TerrainConfig, _load_yaml(path))
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None

@@ -1,0 +1,310 @@
+"""The rover simulation: MuJoCo multibody dynamics plus the tire-slip force layer.
+
+MuJoCo integrates the rigid bodies, joints, leaf springs, motors and obstacle contacts; the
+wheels never touch the ground through MuJoCo. On every physics substep the tire layer finds
+each wheel's contact with the analytic terrain, evaluates the Gim–Nikravesh forces in their
+transient-slip form and applies them at the contact point through ``qfrc_applied`` between
+``mj_step1`` and ``mj_step2`` (no global ``mjcb_*`` callbacks, so several simulations can live
+in one process).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from rover_env import tire
+from rover_env.config import (
+    DRIVEN_WHEELS,
+    JOINTS,
+    WHEELS,
+    RoverConfig,
+    TerrainConfig,
+    load_rover,
+    load_terrain,
+)
+from rover_env.sim.model import fill_hfield, scene_xml, static_deflection
+from rover_env.terrain import Terrain
+
+Array = NDArray[np.float64]
+
+
+class SimulationError(RuntimeError):
+    """MuJoCo reported a warning (instability, contact overflow, ...) or the state is not finite."""
+
+
+@dataclass(frozen=True)
+class WheelTruth:
+    """Privileged per-wheel state in ``WHEELS`` order (arrays of shape (6,) or (6, 3))."""
+
+    S: Array
+    """Slip ratio, eq. (10) with SPEC's sign: < 0 spinning, > 0 skidding."""
+    S_alpha: Array
+    F_x: Array
+    F_y: Array
+    F_z: Array
+    delta: Array
+    v_x: Array
+    v_y: Array
+    v_w: Array
+    contact_point: Array
+    patch: NDArray[np.int64]
+    """Friction patch index: 0 default ground, i the terrain's i-th patch."""
+
+
+@dataclass(frozen=True)
+class SegmentTruth:
+    """Per segment (seg1..seg3): pose and velocity, world frame; body-frame rates."""
+
+    pos: Array
+    quat: Array
+    lin_vel: Array
+    ang_vel: Array
+    forward_speed: Array
+    """Velocity of each segment's centre along its own x axis (m/s)."""
+    yaw_rate: Array
+    """Angular velocity about each segment's own z axis (rad/s)."""
+
+
+@dataclass(frozen=True)
+class SensorReadings:
+    """What the real rover measures: potentiometers and encoders, plus an IMU per segment."""
+
+    t: float
+    phi: Array
+    """Wheel angles (6,), WHEELS order, cumulative."""
+    phi_dot: Array
+    theta: Array
+    """Joint angles theta_1..theta_5."""
+    theta_dot: Array
+    imu_quat: Array
+    """(3, 4) attitude of each segment (w, x, y, z)."""
+    imu_gyro: Array
+    imu_accel: Array
+
+
+class RoverSim:
+    """One rover on one terrain.
+
+    Args:
+        rover: rover configuration, a shipped name or a YAML path.
+        terrain: terrain configuration, a shipped name or a YAML path.
+    """
+
+    def __init__(
+        self,
+        rover: RoverConfig | str | Path = "proto_explorer",
+        terrain: TerrainConfig | str | Path = "flat",
+    ) -> None:
+        self.cfg = rover if isinstance(rover, RoverConfig) else load_rover(rover)
+        self.terrain_cfg = terrain if isinstance(terrain, TerrainConfig) else load_terrain(terrain)
+        self.terrain = Terrain(self.terrain_cfg, self.cfg.tire)
+        self.model = mujoco.MjModel.from_xml_string(scene_xml(self.cfg, self.terrain_cfg))
+        fill_hfield(self.model, self.terrain_cfg)
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self.dt = float(m.opt.timestep)
+        self._wheel_body = np.array([m.body(f"wheel_{w}").id for w in WHEELS])
+        self._wheel_jnt = np.array([m.joint(f"wheel_{w}").id for w in WHEELS])
+        self._wheel_dof = m.jnt_dofadr[self._wheel_jnt]
+        self._wheel_qpos = m.jnt_qposadr[self._wheel_jnt]
+        self._carrier = m.body_parentid[self._wheel_body]
+        self._seg_body = np.array([m.body(f"seg{i}").id for i in (1, 2, 3)])
+        self._root = int(m.body_rootid[self._seg_body[0]])
+        self._joint_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in JOINTS])
+        self._joint_dof = np.array([m.jnt_dofadr[m.joint(j).id] for j in JOINTS])
+        act = [m.actuator(f"motor_{w}").id for w in DRIVEN_WHEELS]
+        self._ctrl_pos = m.actuator_ctrladr[act]
+        self._ctrl_vel = self._ctrl_pos + 1
+        self._driven_qpos = self._wheel_qpos[:4]
+        self._driven_dof = self._wheel_dof[:4]
+        self._sensor = {
+            m.sensor(i).name: slice(m.sensor_adr[i], m.sensor_adr[i] + m.sensor_dim[i])
+            for i in range(m.nsensor)
+        }
+        self.radius = self.cfg.geometry.wheel_radius
+        tp = self.cfg.tire
+        self._tire = tp
+        self.speed_targets = np.zeros(4)
+        self.u_x = np.zeros(6)
+        self.u_y = np.zeros(6)
+        self._truth: WheelTruth | None = None
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    @property
+    def time(self) -> float:
+        return float(self.data.time)
+
+    def reset(
+        self,
+        x: float = 0.0,
+        y: float = 0.0,
+        yaw: float = 0.0,
+        settle: float = 0.5,
+    ) -> None:
+        """Place the rover at rest on the ground at (x, y) heading ``yaw``, then let it settle.
+
+        The chassis is oriented to the local ground plane and lifted by the static tire
+        deflection so the settling transient is small; ``settle`` seconds with zero speed
+        targets then bring it to equilibrium and set time back to 0.
+        """
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        h, hx, hy = self.terrain.height_and_gradient(np.array([x]), np.array([y]))
+        n = np.array([-hx[0], -hy[0], 1.0])
+        n /= np.linalg.norm(n)
+        heading = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+        fwd = heading - n * (heading @ n)
+        fwd /= np.linalg.norm(fwd)
+        left = np.cross(n, fwd)
+        rot = np.column_stack([fwd, left, n])
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, rot.ravel())
+        hub = self.radius - static_deflection(self.cfg)
+        # Put axle 1 above the ground point (x, y) along the normal.
+        pos = np.array([x, y, h[0]]) + n * hub
+        d.qpos[0:3] = pos
+        d.qpos[3:7] = quat
+        # Lower the middle and rear axles onto the ground if it is curved.
+        mujoco.mj_forward(m, d)
+        self.speed_targets[:] = 0.0
+        d.ctrl[self._ctrl_vel] = 0.0
+        d.ctrl[self._ctrl_pos] = d.qpos[self._driven_qpos]
+        self.u_x[:] = 0.0
+        self.u_y[:] = 0.0
+        self._truth = None
+        if settle > 0:
+            self.step(int(round(settle / self.dt)))
+            # Start the clock and the wheel angles (encoders) from zero, as a log does.
+            d.time = 0.0
+            d.qpos[self._wheel_qpos] = 0.0
+            d.ctrl[self._ctrl_pos] = 0.0
+            mujoco.mj_forward(m, d)
+
+    def set_speed_targets(self, targets: Array) -> None:
+        """Speed targets (rad/s) of the driven wheels 1L 1R 2L 2R, clipped to the motor's range."""
+        t = np.asarray(targets, dtype=float).reshape(4)
+        if not np.all(np.isfinite(t)):
+            bad = [DRIVEN_WHEELS[i] for i in np.flatnonzero(~np.isfinite(t))]
+            raise ValueError(f"speed targets not finite for wheel(s) {', '.join(bad)}")
+        lim = self.cfg.motor.max_wheel_speed
+        self.speed_targets[:] = np.clip(t, -lim, lim)
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` physics substeps, applying the tire layer on each."""
+        m, d = self.model, self.data
+        dt = self.dt
+        err = self.cfg.motor.max_angle_error
+        for _ in range(n):
+            # Speed loop: integrate the angle setpoint (the controller's I-term), with anti-windup.
+            q = d.qpos[self._driven_qpos]
+            sp = d.ctrl[self._ctrl_pos] + self.speed_targets * dt
+            d.ctrl[self._ctrl_pos] = np.clip(sp, q - err, q + err)
+            d.ctrl[self._ctrl_vel] = self.speed_targets
+            mujoco.mj_step1(m, d)
+            self._apply_tires()
+            mujoco.mj_step2(m, d)
+        self._check()
+
+    def _check(self) -> None:
+        d = self.data
+        warned = [
+            mujoco.mjtWarning(i).name for i in range(len(d.warning)) if d.warning[i].number > 0
+        ]
+        if warned:
+            raise SimulationError(f"MuJoCo warning(s) at t={d.time:.3f}s: {', '.join(warned)}")
+        if not np.all(np.isfinite(d.qpos)) or not np.all(np.isfinite(d.qvel)):
+            raise SimulationError(f"non-finite state at t={d.time:.3f}s")
+
+    def _apply_tires(self) -> None:
+        """The per-substep tire layer (reference implementation, numpy)."""
+        m, d, tp = self.model, self.data, self._tire
+        centre = d.xpos[self._wheel_body]
+        axis = d.xaxis[self._wheel_jnt]
+        c = self.terrain.wheel_contact(centre, axis, self.radius)
+        nrm = c.normal
+        xc = np.cross(axis, nrm)
+        xc /= np.linalg.norm(xc, axis=1, keepdims=True)
+        yc = np.cross(nrm, xc)
+        # Carrier (segment) velocity field evaluated at the contact point and at the hub.
+        cv = d.cvel[self._carrier]
+        w, v0 = cv[:, :3], cv[:, 3:]
+        ref = d.subtree_com[self._root]
+        v_p = v0 + np.cross(w, c.point - ref)
+        v_c = v0 + np.cross(w, centre - ref)
+        v_x = np.sum(v_p * xc, axis=1)
+        v_y = np.sum(v_p * yc, axis=1)
+        rho = np.linalg.norm(c.point - centre, axis=1)
+        v_w = rho * d.qvel[self._wheel_dof]
+        delta_dot = -np.sum(v_c * nrm, axis=1)
+        F_z = tire.normal_force(c.delta, delta_dot, tp)
+        mu_x, mu_y, patch = self.terrain.friction(c.point[:, 0], c.point[:, 1])
+        self.u_x, self.u_y, ux_dot, uy_dot = tire.transient_step(
+            self.u_x, self.u_y, v_x, v_y, v_w, F_z, self.dt, tp, mu_x, mu_y
+        )
+        F_x, F_y = tire.transient_forces(self.u_x, self.u_y, ux_dot, uy_dot, F_z, tp, mu_x, mu_y)
+        force = F_x[:, None] * xc + F_y[:, None] * yc + F_z[:, None] * nrm
+        d.qfrc_applied[:] = 0.0
+        zero = np.zeros(3)
+        for i in range(6):
+            mujoco.mj_applyFT(
+                m, d, force[i], zero, c.point[i], int(self._wheel_body[i]), d.qfrc_applied
+            )
+        self._last = (v_x, v_y, v_w, F_x, F_y, F_z, c.delta, c.point, patch)
+
+    # ------------------------------------------------------------------ outputs
+    def wheel_truth(self) -> WheelTruth:
+        """Privileged tire state from the last substep."""
+        v_x, v_y, v_w, F_x, F_y, F_z, delta, point, patch = self._last
+        tp = self._tire
+        S = tire.slip_ratio(v_x, v_w, tp.v_eps)
+        S_alpha = tire.lateral_slip(v_x, v_y, v_w, S, tp.v_eps)
+        return WheelTruth(
+            S=S, S_alpha=S_alpha, F_x=F_x, F_y=F_y, F_z=F_z, delta=delta, v_x=v_x, v_y=v_y,
+            v_w=v_w, contact_point=point.copy(), patch=patch,
+        )
+
+    def segment_truth(self) -> SegmentTruth:
+        d = self.data
+        b = self._seg_body
+        vel = np.zeros((3, 6))
+        for i, bid in enumerate(b):
+            # Local frame: angular then linear velocity of the body origin in body axes.
+            mujoco.mj_objectVelocity(self.model, d, mujoco.mjtObj.mjOBJ_BODY, int(bid), vel[i], 1)
+        lin_w = np.einsum("bij,bj->bi", d.xmat[b].reshape(3, 3, 3), vel[:, 3:])
+        ang_w = np.einsum("bij,bj->bi", d.xmat[b].reshape(3, 3, 3), vel[:, :3])
+        return SegmentTruth(
+            pos=d.xpos[b].copy(), quat=d.xquat[b].copy(), lin_vel=lin_w, ang_vel=ang_w,
+            forward_speed=vel[:, 3].copy(), yaw_rate=vel[:, 2].copy(),
+        )
+
+    def sensors(self) -> SensorReadings:
+        s, sd = self._sensor, self.data.sensordata
+        return SensorReadings(
+            t=self.time,
+            phi=np.array([sd[s[f"phi_{w}"]][0] for w in WHEELS]),
+            phi_dot=np.array([sd[s[f"phidot_{w}"]][0] for w in WHEELS]),
+            theta=np.array([sd[s[j]][0] for j in JOINTS]),
+            theta_dot=np.array([sd[s[f"{j}_dot"]][0] for j in JOINTS]),
+            imu_quat=np.stack([sd[s[f"imu_seg{i}_quat"]] for i in (1, 2, 3)]),
+            imu_gyro=np.stack([sd[s[f"imu_seg{i}_gyro"]] for i in (1, 2, 3)]),
+            imu_accel=np.stack([sd[s[f"imu_seg{i}_accel"]] for i in (1, 2, 3)]),
+        )
+
+    def motor_torque(self) -> Array:
+        """Torque each driven wheel's motor applies (N m)."""
+        return self.data.actuator_force[: len(DRIVEN_WHEELS)].copy()
+
+    def joint_angles(self) -> Array:
+        return self.data.qpos[self._joint_qpos].copy()
+
+    def flipped(self, max_tilt_deg: float = 100.0) -> bool:
+        """True once any segment's up axis tilts more than ``max_tilt_deg`` from vertical."""
+        up_z = self.data.xmat[self._seg_body, 8]
+        return bool(np.any(up_z < np.cos(np.radians(max_tilt_deg))))

@@ -1,0 +1,162 @@
+"""Analytic ground surface and friction map that the tire layer reads (numpy only).
+
+The ground is a smooth function h(x, y) (slope + sinusoidal bumps + seeded Fourier
+roughness) with an analytic gradient, so each wheel's contact point and normal are exact
+and continuous. MuJoCo gets a heightfield sampled from the same function for rendering and
+for chassis/obstacle contacts only: wheels never touch it through MuJoCo.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rover_env.config import TerrainConfig
+from rover_env.tire import TireParams
+
+Array = NDArray[np.float64]
+
+
+class WheelContact(NamedTuple):
+    """Per-wheel contact geometry, world frame; arrays of shape (n,) or (n, 3)."""
+
+    point: Array
+    """Contact point on the ground surface."""
+    normal: Array
+    """Unit ground normal at the contact point."""
+    delta: Array
+    """Tire compression along the normal (m); negative when the wheel is off the ground."""
+
+
+class Terrain:
+    """Ground surface h(x, y), its normal, and per-point friction."""
+
+    def __init__(self, cfg: TerrainConfig, tire: TireParams | None = None) -> None:
+        tire = tire or TireParams()
+        self.cfg = cfg
+        self.flat = cfg.is_flat
+        self._gx = float(np.tan(np.radians(cfg.slope_deg[0])))
+        self._gy = float(np.tan(np.radians(cfg.slope_deg[1])))
+        # Each wave component: amplitude A, wave vector k (2,), phase p, start along k.
+        amps: list[float] = []
+        ks: list[tuple[float, float]] = []
+        phases: list[float] = []
+        starts: list[float] = []
+        for b in cfg.bumps:
+            th = np.radians(b.direction_deg)
+            kk = 2 * np.pi / b.wavelength
+            amps.append(b.amplitude)
+            ks.append((kk * np.cos(th), kk * np.sin(th)))
+            phases.append(b.phase)
+            starts.append(b.start * kk)
+        r = cfg.roughness
+        if r.rms > 0:
+            rng = np.random.default_rng(r.seed)
+            # Isotropic modes with wavelengths spread around 2*pi*correlation_length.
+            lam = r.correlation_length * 2 * np.pi * rng.uniform(0.5, 2.0, r.modes)
+            ang = rng.uniform(0, 2 * np.pi, r.modes)
+            kmag = 2 * np.pi / lam
+            a = r.rms * np.sqrt(2.0 / r.modes) * np.ones(r.modes)
+            for i in range(r.modes):
+                amps.append(float(a[i]))
+                ks.append((float(kmag[i] * np.cos(ang[i])), float(kmag[i] * np.sin(ang[i]))))
+                phases.append(float(rng.uniform(0, 2 * np.pi)))
+                starts.append(-np.inf)
+        self._amp = np.asarray(amps, dtype=float)
+        self._k = np.asarray(ks, dtype=float).reshape(-1, 2)
+        self._phase = np.asarray(phases, dtype=float)
+        self._start = np.asarray(starts, dtype=float)
+        self.mu_x_default = cfg.mu_x if cfg.mu_x is not None else tire.mu_x
+        self.mu_y_default = cfg.mu_y if cfg.mu_y is not None else tire.mu_y
+        p = cfg.patches
+        self._patch_lo = np.array([[c[0] - s[0] / 2, c[1] - s[1] / 2] for c, s in
+                                   ((q.center, q.size) for q in p)]).reshape(-1, 2)
+        self._patch_hi = np.array([[c[0] + s[0] / 2, c[1] + s[1] / 2] for c, s in
+                                   ((q.center, q.size) for q in p)]).reshape(-1, 2)
+        self._patch_mu = np.array([[q.mu_x, q.mu_y] for q in p]).reshape(-1, 2)
+        self.patch_names: tuple[str, ...] = ("ground", *(q.name for q in p))
+
+    # ------------------------------------------------------------------ surface
+    def height_and_gradient(self, x: Array, y: Array) -> tuple[Array, Array, Array]:
+        """h, dh/dx, dh/dy at points (any matching shapes)."""
+        x = np.asarray(x, dtype=float)
+        y = np.asarray(y, dtype=float)
+        h = self._gx * x + self._gy * y
+        hx = np.full_like(h, self._gx)
+        hy = np.full_like(h, self._gy)
+        if self._amp.size:
+            s = x[..., None] * self._k[:, 0] + y[..., None] * self._k[:, 1]
+            on = s >= self._start
+            arg = s + self._phase
+            h = h + np.sum(np.where(on, self._amp * np.sin(arg), 0.0), axis=-1)
+            c = np.where(on, self._amp * np.cos(arg), 0.0)
+            hx = hx + np.sum(c * self._k[:, 0], axis=-1)
+            hy = hy + np.sum(c * self._k[:, 1], axis=-1)
+        return h, hx, hy
+
+    def height(self, x: Array, y: Array) -> Array:
+        return self.height_and_gradient(x, y)[0]
+
+    def friction(self, x: Array, y: Array) -> tuple[Array, Array, NDArray[np.int64]]:
+        """mu_x, mu_y and patch index (0 = default ground, i = patches[i-1]); last patch wins."""
+        x = np.asarray(x, dtype=float)
+        y = np.asarray(y, dtype=float)
+        mux = np.full(x.shape, self.mu_x_default)
+        muy = np.full(x.shape, self.mu_y_default)
+        idx = np.zeros(x.shape, dtype=np.int64)
+        for i in range(self._patch_mu.shape[0]):
+            inside = (
+                (x >= self._patch_lo[i, 0]) & (x <= self._patch_hi[i, 0])
+                & (y >= self._patch_lo[i, 1]) & (y <= self._patch_hi[i, 1])
+            )
+            mux = np.where(inside, self._patch_mu[i, 0], mux)
+            muy = np.where(inside, self._patch_mu[i, 1], muy)
+            idx = np.where(inside, i + 1, idx)
+        return mux, muy, idx
+
+    # ------------------------------------------------------------------ wheel contact
+    def wheel_contact(
+        self, centre: Array, axis: Array, radius: float, iterations: int = 3
+    ) -> WheelContact:
+        """Contact of thin discs (centre (n,3), unit spin axis (n,3)) with the surface.
+
+        The deepest rim point lies where the rim direction opposes the surface normal
+        projected into the wheel plane; for a plane one pass is exact, for smooth ground a
+        few fixed-point passes converge (curvature radius of the ground >> wheel radius).
+        Compression is measured along the normal: for a plane at distance D from the hub
+        and camber gamma it is radius*cos(gamma) - D, the thin-disc answer.
+        """
+        n = np.tile(np.array([0.0, 0.0, 1.0]), (centre.shape[0], 1))
+        if not self.flat:
+            _, hx, hy = self.height_and_gradient(centre[:, 0], centre[:, 1])
+            n = _normal(hx, hy)
+        for it in range(1 if self.flat else iterations):
+            # Rim direction: minus the normal projected into the wheel plane.
+            u = -(n - np.sum(n * axis, axis=1, keepdims=True) * axis)
+            u /= np.linalg.norm(u, axis=1, keepdims=True)
+            q = centre + radius * u
+            if self.flat:
+                h = np.zeros(q.shape[0])
+                break
+            h, hx, hy = self.height_and_gradient(q[:, 0], q[:, 1])
+            if it < iterations - 1:
+                n = _normal(hx, hy)
+        # Vertical gap to the surface, converted to the normal direction.
+        delta = (h - q[:, 2]) * n[:, 2]
+        point = q + delta[:, None] * n
+        return WheelContact(point=point, normal=n, delta=delta)
+
+    def sample_grid(self, nx: int, ny: int) -> tuple[Array, Array, Array]:
+        """Heights on a regular grid covering the arena (rows along y), for MuJoCo's hfield."""
+        sx, sy = self.cfg.size
+        xs = np.linspace(-sx / 2, sx / 2, nx)
+        ys = np.linspace(-sy / 2, sy / 2, ny)
+        gx, gy = np.meshgrid(xs, ys)
+        return xs, ys, self.height(gx, gy)
+
+
+def _normal(hx: Array, hy: Array) -> Array:
+    n = np.stack([-hx, -hy, np.ones_like(hx)], axis=-1)
+    return n / np.linalg.norm(n, axis=-1, keepdims=True)
