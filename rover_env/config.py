@@ -128,7 +128,7 @@ def _default_joints() -> dict[str, JointSpec]:
         "theta_1": JointSpec(stiffness=0.0, damping=0.5, limit=0.6),
         "theta_2": JointSpec(stiffness=10.0, damping=1.0, limit=0.8),
         "theta_3": JointSpec(stiffness=0.0, damping=0.5, limit=0.6),
-        "theta_4": JointSpec(stiffness=20.0, damping=1.0, limit=0.6),
+        "theta_4": JointSpec(stiffness=2.5, damping=0.5, limit=0.8),
         "theta_5": JointSpec(stiffness=10.0, damping=1.0, limit=0.8),
     }
 

@@ -28,6 +28,7 @@ from rover_env.config import (
     load_terrain,
 )
 from rover_env.sim.model import fill_hfield, scene_xml, static_deflection
+from rover_env.sim.tire_layer import TireLayer
 from rover_env.terrain import Terrain
 
 Array = NDArray[np.float64]
@@ -127,12 +128,10 @@ class RoverSim:
             for i in range(m.nsensor)
         }
         self.radius = self.cfg.geometry.wheel_radius
-        tp = self.cfg.tire
-        self._tire = tp
+        self.tires = TireLayer(
+            m, self._wheel_body, self._wheel_jnt, self.radius, self.terrain, self.cfg.tire
+        )
         self.speed_targets = np.zeros(4)
-        self.u_x = np.zeros(6)
-        self.u_y = np.zeros(6)
-        self._truth: WheelTruth | None = None
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -146,12 +145,14 @@ class RoverSim:
         y: float = 0.0,
         yaw: float = 0.0,
         settle: float = 0.5,
+        theta: Array | None = None,
     ) -> None:
         """Place the rover at rest on the ground at (x, y) heading ``yaw``, then let it settle.
 
         The chassis is oriented to the local ground plane and lifted by the static tire
         deflection so the settling transient is small; ``settle`` seconds with zero speed
-        targets then bring it to equilibrium and set time back to 0.
+        targets then bring it to equilibrium and set time back to 0. ``theta`` sets initial
+        joint angles theta_1..theta_5.
         """
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
@@ -170,14 +171,13 @@ class RoverSim:
         pos = np.array([x, y, h[0]]) + n * hub
         d.qpos[0:3] = pos
         d.qpos[3:7] = quat
-        # Lower the middle and rear axles onto the ground if it is curved.
+        if theta is not None:
+            d.qpos[self._joint_qpos] = np.asarray(theta, dtype=float).reshape(5)
         mujoco.mj_forward(m, d)
         self.speed_targets[:] = 0.0
         d.ctrl[self._ctrl_vel] = 0.0
         d.ctrl[self._ctrl_pos] = d.qpos[self._driven_qpos]
-        self.u_x[:] = 0.0
-        self.u_y[:] = 0.0
-        self._truth = None
+        self.tires.reset()
         if settle > 0:
             self.step(int(round(settle / self.dt)))
             # Start the clock and the wheel angles (encoders) from zero, as a log does.
@@ -208,7 +208,7 @@ class RoverSim:
             d.ctrl[self._ctrl_pos] = np.clip(sp, q - err, q + err)
             d.ctrl[self._ctrl_vel] = self.speed_targets
             mujoco.mj_step1(m, d)
-            self._apply_tires()
+            self.tires.apply(d)
             mujoco.mj_step2(m, d)
         self._check()
 
@@ -222,52 +222,18 @@ class RoverSim:
         if not np.all(np.isfinite(d.qpos)) or not np.all(np.isfinite(d.qvel)):
             raise SimulationError(f"non-finite state at t={d.time:.3f}s")
 
-    def _apply_tires(self) -> None:
-        """The per-substep tire layer (reference implementation, numpy)."""
-        m, d, tp = self.model, self.data, self._tire
-        centre = d.xpos[self._wheel_body]
-        axis = d.xaxis[self._wheel_jnt]
-        c = self.terrain.wheel_contact(centre, axis, self.radius)
-        nrm = c.normal
-        xc = np.cross(axis, nrm)
-        xc /= np.linalg.norm(xc, axis=1, keepdims=True)
-        yc = np.cross(nrm, xc)
-        # Carrier (segment) velocity field evaluated at the contact point and at the hub.
-        cv = d.cvel[self._carrier]
-        w, v0 = cv[:, :3], cv[:, 3:]
-        ref = d.subtree_com[self._root]
-        v_p = v0 + np.cross(w, c.point - ref)
-        v_c = v0 + np.cross(w, centre - ref)
-        v_x = np.sum(v_p * xc, axis=1)
-        v_y = np.sum(v_p * yc, axis=1)
-        rho = np.linalg.norm(c.point - centre, axis=1)
-        v_w = rho * d.qvel[self._wheel_dof]
-        delta_dot = -np.sum(v_c * nrm, axis=1)
-        F_z = tire.normal_force(c.delta, delta_dot, tp)
-        mu_x, mu_y, patch = self.terrain.friction(c.point[:, 0], c.point[:, 1])
-        self.u_x, self.u_y, ux_dot, uy_dot = tire.transient_step(
-            self.u_x, self.u_y, v_x, v_y, v_w, F_z, self.dt, tp, mu_x, mu_y
-        )
-        F_x, F_y = tire.transient_forces(self.u_x, self.u_y, ux_dot, uy_dot, F_z, tp, mu_x, mu_y)
-        force = F_x[:, None] * xc + F_y[:, None] * yc + F_z[:, None] * nrm
-        d.qfrc_applied[:] = 0.0
-        zero = np.zeros(3)
-        for i in range(6):
-            mujoco.mj_applyFT(
-                m, d, force[i], zero, c.point[i], int(self._wheel_body[i]), d.qfrc_applied
-            )
-        self._last = (v_x, v_y, v_w, F_x, F_y, F_z, c.delta, c.point, patch)
-
     # ------------------------------------------------------------------ outputs
     def wheel_truth(self) -> WheelTruth:
         """Privileged tire state from the last substep."""
-        v_x, v_y, v_w, F_x, F_y, F_z, delta, point, patch = self._last
-        tp = self._tire
-        S = tire.slip_ratio(v_x, v_w, tp.v_eps)
-        S_alpha = tire.lateral_slip(v_x, v_y, v_w, S, tp.v_eps)
+        ts = self.tires.last
+        if ts is None:
+            raise RuntimeError("wheel_truth() needs at least one physics substep")
+        eps = self.cfg.tire.v_eps
+        S = tire.slip_ratio(ts.v_x, ts.v_w, eps)
         return WheelTruth(
-            S=S, S_alpha=S_alpha, F_x=F_x, F_y=F_y, F_z=F_z, delta=delta, v_x=v_x, v_y=v_y,
-            v_w=v_w, contact_point=point.copy(), patch=patch,
+            S=S, S_alpha=tire.lateral_slip(ts.v_x, ts.v_y, ts.v_w, S, eps), F_x=ts.F_x,
+            F_y=ts.F_y, F_z=ts.F_z, delta=ts.delta, v_x=ts.v_x, v_y=ts.v_y, v_w=ts.v_w,
+            contact_point=ts.point.copy(), patch=ts.patch,
         )
 
     def segment_truth(self) -> SegmentTruth:

@@ -1,0 +1,83 @@
+"""The ``rover-env`` command line: one subcommand per job."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+
+def _paper_sim(args: argparse.Namespace) -> int:
+    from rover_env.experiments import paper_sim
+
+    out = paper_sim.run(args.out, progress=not args.quiet)
+    print((out / "summary.md").read_text())
+    print(f"wrote {out}/trajectory.png, slip.png, drive.csv, drive.yaml, summary.md")
+    return 0
+
+
+def _build_assets(args: argparse.Namespace) -> int:
+    from rover_env.config import assets_dir, load_rover
+    from rover_env.sim.model import write_assets
+
+    out = Path(args.out) if args.out else assets_dir()
+    for p in write_assets(out, load_rover(args.rover)):
+        print(f"wrote {p}")
+    return 0
+
+
+def _validate(args: argparse.Namespace) -> int:
+    from rover_env.experiments import validation
+
+    report = validation.run(args.out, quick=args.quick)
+    print(report.read_text())
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="rover-env",
+        description="Proto-Explorer rover: simulation, experiments and validation.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("paper-sim", help="the paper's simulation (Figs. 9, 10): trajectory and slip")
+    p.add_argument("--out", default="out/paper-sim", help="output folder (default: out/paper-sim)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_paper_sim)
+
+    p = sub.add_parser("build-assets", help="regenerate assets/*.xml from a rover configuration")
+    p.add_argument("--rover", default="proto_explorer", help="shipped name or YAML path")
+    p.add_argument("--out", default=None, help="folder (default: the package's assets/)")
+    p.set_defaults(func=_build_assets)
+
+    p = sub.add_parser(
+        "validate", help="long physical checks (timestep convergence, 5-minute rough drive)"
+    )
+    p.add_argument("--out", default="out/validation", help="output folder")
+    p.add_argument("--quick", action="store_true", help="shortened runs (smoke test)")
+    p.set_defaults(func=_validate)
+
+    try:
+        from rover_env.experiments import dead_reckoning
+    except ImportError:
+        pass
+    else:
+        dead_reckoning.add_cli(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from rover_env.config import ConfigError
+
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args))
+    except ConfigError as exc:
+        print(f"rover-env: configuration error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

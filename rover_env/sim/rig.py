@@ -1,0 +1,81 @@
+"""Single-wheel test rig: a loaded wheel spun at a fixed rate over ground at a fixed speed.
+
+It imposes slip exactly (carrier speed and wheel rate are held by stiff velocity servos), so
+the longitudinal force the tire layer produces in the MuJoCo loop can be measured from the
+servo that holds the carrier and compared with eq. (13).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from rover_env.config import TerrainConfig
+from rover_env.sim.tire_layer import TireLayer
+from rover_env.terrain import Terrain
+from rover_env.tire import TireParams
+
+RIG_XML = """
+<mujoco model="single wheel rig">
+  <option timestep="{dt}" integrator="implicitfast" jacobian="dense" gravity="0 0 -9.81"/>
+  <worldbody>
+    <body name="carrier" pos="0 0 {z0}">
+      <joint name="x" type="slide" axis="1 0 0"/>
+      <joint name="z" type="slide" axis="0 0 1"/>
+      <inertial pos="0 0 0" mass="{load_mass}" diaginertia="0.01 0.01 0.01"/>
+      <body name="wheel">
+        <joint name="spin" type="hinge" axis="0 1 0"/>
+        <inertial pos="0 0 0" mass="0.35" diaginertia="0.0007 0.00126 0.0007"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <velocity name="drive_x" joint="x" kv="{kv_x}"/>
+    <velocity name="drive_spin" joint="spin" kv="{kv_spin}"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def measure_fx(
+    v_x: float,
+    omega: float,
+    load_mass: float = 2.7,
+    radius: float = 0.085,
+    params: TireParams | None = None,
+    duration: float = 3.0,
+    dt: float = 0.001,
+) -> dict[str, float]:
+    """Run the rig to steady state; return the measured F_x and the layer's own state."""
+    params = params or TireParams()
+    delta0 = (load_mass + 0.35) * 9.81 / params.C_z
+    xml = RIG_XML.format(
+        dt=dt, z0=radius - delta0, load_mass=load_mass, kv_x=2e4, kv_spin=50.0
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    terrain = Terrain(TerrainConfig(name="rig", size=(1e3, 1e3)), params)
+    layer = TireLayer(
+        model, np.array([model.body("wheel").id]), np.array([model.joint("spin").id]),
+        radius, terrain, params,
+    )
+    data.qvel[model.joint("x").dofadr[0]] = v_x
+    data.qvel[model.joint("spin").dofadr[0]] = omega
+    data.ctrl[:] = [v_x, omega]
+    n = int(round(duration / dt))
+    acc = {"F_servo": 0.0, "F_x": 0.0, "F_z": 0.0, "delta": 0.0, "v_x": 0.0, "v_w": 0.0}
+    n_avg = n // 3
+    for k in range(n):
+        mujoco.mj_step1(model, data)
+        layer.apply(data)
+        mujoco.mj_step2(model, data)
+        if k >= n - n_avg:
+            s = layer.last
+            assert s is not None
+            acc["F_servo"] += -float(data.actuator_force[0])
+            acc["F_x"] += float(s.F_x[0])
+            acc["F_z"] += float(s.F_z[0])
+            acc["delta"] += float(s.delta[0])
+            acc["v_x"] += float(s.v_x[0])
+            acc["v_w"] += float(s.v_w[0])
+    return {k: v / n_avg for k, v in acc.items()}

@@ -1,0 +1,91 @@
+"""The layer rule: physics -> simulation -> estimation/control/calibration -> envs -> benchmark -> training."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import rover_env
+
+PKG = Path(rover_env.__file__).parent
+
+# Rank of each part of the package; a module may import rover_env modules of equal or lower rank.
+RANKS = {
+    "rover_env.tire": 0,
+    "rover_env.terrain": 0,
+    "rover_env.kinematics": 0,
+    "rover_env.config": 0,
+    "rover_env.logs": 0,
+    "rover_env.sim": 1,
+    "rover_env.estimation": 2,
+    "rover_env.control": 2,
+    "rover_env.calibration": 2,
+    "rover_env.experiments": 3,
+    "rover_env.envs": 4,
+    "rover_env.benchmark": 5,
+    "rover_env.training": 6,
+    "rover_env.cli": 7,
+    "rover_env.validation": 7,
+    "rover_env": 7,
+}
+# Third-party packages each rank may not import.
+BANNED = {
+    0: {"mujoco", "gymnasium", "stable_baselines3", "torch"},
+    1: {"gymnasium", "stable_baselines3", "torch"},
+    2: {"gymnasium", "stable_baselines3", "torch"},
+    3: {"gymnasium", "stable_baselines3", "torch"},
+    4: {"stable_baselines3", "torch"},
+    5: {"stable_baselines3", "torch"},
+    6: set(),
+    7: {"stable_baselines3", "torch"},
+}
+# The benchmark's lazily loaded policy controller is the one rank-5 module allowed torch/SB3.
+EXEMPT = {"rover_env.benchmark.policy"}
+
+
+def _rank(module: str) -> int:
+    best = max((k for k in RANKS if module == k or module.startswith(k + ".")), key=len)
+    return RANKS[best]
+
+
+def _modules() -> list[tuple[str, Path]]:
+    out = []
+    for path in sorted(PKG.rglob("*.py")):
+        rel = path.relative_to(PKG.parent).with_suffix("")
+        name = ".".join(rel.parts)
+        out.append((name.removesuffix(".__init__"), path))
+    return out
+
+
+def _imports(path: Path) -> list[str]:
+    names = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.append(node.module)
+    return names
+
+
+def test_layer_rule() -> None:
+    violations = []
+    for module, path in _modules():
+        rank = _rank(module)
+        for imp in _imports(path):
+            top = imp.split(".")[0]
+            if top in BANNED[rank] and module not in EXEMPT:
+                violations.append(f"{module} (rank {rank}) imports {imp}")
+            if top == "rover_env" and imp != "rover_env" and _rank(imp) > rank:
+                violations.append(f"{module} (rank {rank}) imports higher layer {imp}")
+    assert not violations, "\n".join(violations)
+
+
+def test_rule_catches_a_violation(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.py"
+    bad.write_text("import mujoco\nfrom rover_env.sim import simulator\n")
+    assert "mujoco" in _imports(bad) and _rank("rover_env.sim.simulator") > _rank("rover_env.tire")
+
+
+def test_tire_module_is_numpy_only() -> None:
+    tops = {i.split(".")[0] for i in _imports(PKG / "tire.py")}
+    assert tops <= {"numpy", "dataclasses", "typing", "collections", "math", "__future__"}, tops
