@@ -42,7 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True)
 
-    p = sub.add_parser("paper-sim", help="the paper's simulation (Figs. 9, 10): trajectory and slip")
+    p = sub.add_parser(
+        "paper-sim", help="the paper's simulation (Figs. 9, 10): trajectory and slip"
+    )
     p.add_argument("--out", default="out/paper-sim", help="output folder (default: out/paper-sim)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_paper_sim)
@@ -59,12 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="shortened runs (smoke test)")
     p.set_defaults(func=_validate)
 
-    try:
-        from rover_env.experiments import dead_reckoning
-    except ImportError:
-        pass
-    else:
-        dead_reckoning.add_cli(sub)
+    from rover_env.experiments import dead_reckoning
+
+    dead_reckoning.add_cli(sub)
     return parser
 
 

@@ -192,7 +192,9 @@ class RoverConfig:
 
     def __post_init__(self) -> None:
         if set(self.joints) != set(JOINTS):
-            raise ConfigError(f"joints must name exactly {', '.join(JOINTS)}; got {sorted(self.joints)}")
+            raise ConfigError(
+                f"joints must name exactly {', '.join(JOINTS)}; got {sorted(self.joints)}"
+            )
         if self.extensions:
             raise ConfigError(
                 f"extensions: unknown model extension(s) {sorted(self.extensions)}; none are defined yet"
@@ -324,7 +326,10 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
             return tuple(_convert(args[0], v, f"{where}[{i}]") for i, v in enumerate(value))
         if len(value) != len(args):
             raise ConfigError(f"{where}: expected {len(args)} values, got {len(value)}")
-        return tuple(_convert(a, v, f"{where}[{i}]") for i, (a, v) in enumerate(zip(args, value, strict=True)))
+        return tuple(
+            _convert(a, v, f"{where}[{i}]")
+            for i, (a, v) in enumerate(zip(args, value, strict=True))
+        )
     if origin is dict:
         if not isinstance(value, Mapping):
             raise ConfigError(f"{where}: expected a mapping, got {value!r}")
@@ -358,9 +363,7 @@ def from_dict(cls: type[T], data: Any, where: str = "") -> T:
             f"{where or cls.__name__}: unknown key(s) {', '.join(map(str, unknown))}; "
             f"allowed: {', '.join(sorted(names))}"
         )
-    kwargs = {
-        k: _convert(hints[k], v, f"{where}.{k}" if where else k) for k, v in data.items()
-    }
+    kwargs = {k: _convert(hints[k], v, f"{where}.{k}" if where else k) for k, v in data.items()}
     if cls is RoverConfig and "joints" in kwargs:
         kwargs["joints"] = {**_default_joints(), **kwargs["joints"]}
     try:

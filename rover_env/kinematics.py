@@ -110,24 +110,35 @@ def axis_rotation(axis: str, angle: npt.ArrayLike) -> Array:
 class ChainGeometry:
     """The numbers the kinematics needs, taken from a :class:`RoverConfig`.
 
-    ``wheel_radius`` is the radius that converts wheel rates to speeds (the estimator passes
-    its effective rolling radius); the link vectors are in metres, x forward, y left, z up.
+    ``wheel_radii`` convert wheel rates to speeds, one per wheel in WHEELS order (the
+    estimator passes its effective rolling radii); lengths in metres, x forward, y left, z up.
     """
 
     half_track: float
-    wheel_radius: float
+    wheel_radii: tuple[float, ...]
     child_offset: tuple[float, float, float]
     """c: a child segment's origin in its parent's axes with its joints at zero."""
     joint_anchor: tuple[float, float, float]
     """j: the coupling joints' common anchor in the child segment's axes."""
 
+    def __post_init__(self) -> None:
+        radii = tuple(float(r) for r in self.wheel_radii)
+        if len(radii) != 6 or not all(np.isfinite(r) and r > 0 for r in radii):
+            raise ValueError(f"wheel_radii must be 6 finite numbers > 0, got {self.wheel_radii!r}")
+        object.__setattr__(self, "wheel_radii", radii)
+
     @classmethod
-    def from_config(cls, cfg: RoverConfig, wheel_radius: float | None = None) -> ChainGeometry:
-        """Geometry of ``cfg``; ``wheel_radius`` defaults to the nominal (unloaded) d."""
+    def from_config(
+        cls, cfg: RoverConfig, wheel_radius: npt.ArrayLike | None = None
+    ) -> ChainGeometry:
+        """Geometry of ``cfg``; ``wheel_radius`` (one, or one per wheel) defaults to d."""
         g = cfg.geometry
+        r = np.broadcast_to(
+            np.asarray(g.wheel_radius if wheel_radius is None else wheel_radius, dtype=float), (6,)
+        )
         return cls(
             half_track=g.half_track,
-            wheel_radius=g.wheel_radius if wheel_radius is None else float(wheel_radius),
+            wheel_radii=tuple(float(x) for x in r),
             child_offset=(-g.axle_spacing, 0.0, 0.0),
             joint_anchor=(g.joint_offset, 0.0, 0.0),
         )
@@ -201,21 +212,21 @@ def _joint_axes_in_child(theta: Array, names: tuple[str, ...]) -> list[Array]:
     return axes
 
 
-def segment3_twist(
-    phi_dot_free: npt.ArrayLike, chain: ChainGeometry
-) -> tuple[Array, Array]:
+def segment3_twist(phi_dot_free: npt.ArrayLike, chain: ChainGeometry) -> tuple[Array, Array]:
     """Eq. (1): angular and linear velocity (..., 3) of segment 3 in its own axes.
 
     ``phi_dot_free`` is (..., 2): rates of 3L and 3R. The free wheels are taken not to slip
     and the segment not to slide sideways, pitch or roll: all the paper's model knows.
     """
     pd = np.asarray(phi_dot_free, dtype=np.float64)
-    left, right = pd[..., 0], pd[..., 1]
-    d, r = chain.wheel_radius, chain.half_track
+    # Tread speeds d * phi_dot, with each free wheel's own rolling radius.
+    left = chain.wheel_radii[4] * pd[..., 0]
+    right = chain.wheel_radii[5] * pd[..., 1]
+    r = chain.half_track
     w = np.zeros((*pd.shape[:-1], 3))
     v = np.zeros((*pd.shape[:-1], 3))
-    w[..., 2] = d * (right - left) / (2.0 * r)
-    v[..., 0] = d * (right + left) / 2.0
+    w[..., 2] = (right - left) / (2.0 * r)
+    v[..., 0] = (right + left) / 2.0
     return w, v
 
 
@@ -289,12 +300,13 @@ def nominal_wheel_rates(motion: ChainMotion, chain: ChainGeometry) -> Array:
     The hub of the left wheel moves at v + ω × (+r j), the right at v + ω × (−r j); only the
     forward (i) component rolls the wheel: (v_x ∓ r ω_z) / d in the segment's own axes.
     """
-    r, d = chain.half_track, chain.wheel_radius
+    r = chain.half_track
     vx = motion.velocity[..., :2, 0]
     wz = motion.omega[..., :2, 2]
-    left = (vx - r * wz) / d
-    right = (vx + r * wz) / d
-    return np.stack([left[..., 0], right[..., 0], left[..., 1], right[..., 1]], axis=-1)
+    left = vx - r * wz
+    right = vx + r * wz
+    hub = np.stack([left[..., 0], right[..., 0], left[..., 1], right[..., 1]], axis=-1)
+    return np.asarray(hub / np.asarray(chain.wheel_radii[:4]), dtype=np.float64)
 
 
 def slippage(actual_rate: npt.ArrayLike, nominal_rate: npt.ArrayLike) -> Array:
@@ -305,13 +317,15 @@ def slippage(actual_rate: npt.ArrayLike, nominal_rate: npt.ArrayLike) -> Array:
 def slip_ratio(
     actual_rate: npt.ArrayLike,
     nominal_rate: npt.ArrayLike,
-    wheel_radius: float,
+    wheel_radius: npt.ArrayLike,
     v_eps: float = 1e-3,
 ) -> Array:
     """Eq. (10) with SPEC §3's sign (< 0 spinning, > 0 skidding), via ``rover_env.tire``.
 
-    v_x = d·φ̇_nominal (the hub's travel) and v_w = d·φ̇_actual (the tread's speed).
+    v_x = d·φ̇_nominal (the hub's travel) and v_w = d·φ̇_actual (the tread's speed);
+    ``wheel_radius`` is one radius or one per wheel (broadcast against the rates).
     """
-    vx = wheel_radius * np.asarray(nominal_rate, dtype=np.float64)
-    vw = wheel_radius * np.asarray(actual_rate, dtype=np.float64)
+    d = np.asarray(wheel_radius, dtype=np.float64)
+    vx = d * np.asarray(nominal_rate, dtype=np.float64)
+    vw = d * np.asarray(actual_rate, dtype=np.float64)
     return _tire_slip_ratio(vx, vw, v_eps)

@@ -71,10 +71,12 @@ class Terrain:
         self.mu_x_default = cfg.mu_x if cfg.mu_x is not None else tire.mu_x
         self.mu_y_default = cfg.mu_y if cfg.mu_y is not None else tire.mu_y
         p = cfg.patches
-        self._patch_lo = np.array([[c[0] - s[0] / 2, c[1] - s[1] / 2] for c, s in
-                                   ((q.center, q.size) for q in p)]).reshape(-1, 2)
-        self._patch_hi = np.array([[c[0] + s[0] / 2, c[1] + s[1] / 2] for c, s in
-                                   ((q.center, q.size) for q in p)]).reshape(-1, 2)
+        self._patch_lo = np.array(
+            [[c[0] - s[0] / 2, c[1] - s[1] / 2] for c, s in ((q.center, q.size) for q in p)]
+        ).reshape(-1, 2)
+        self._patch_hi = np.array(
+            [[c[0] + s[0] / 2, c[1] + s[1] / 2] for c, s in ((q.center, q.size) for q in p)]
+        ).reshape(-1, 2)
         self._patch_mu = np.array([[q.mu_x, q.mu_y] for q in p]).reshape(-1, 2)
         self.patch_names: tuple[str, ...] = ("ground", *(q.name for q in p))
 
@@ -108,8 +110,10 @@ class Terrain:
         idx = np.zeros(x.shape, dtype=np.int64)
         for i in range(self._patch_mu.shape[0]):
             inside = (
-                (x >= self._patch_lo[i, 0]) & (x <= self._patch_hi[i, 0])
-                & (y >= self._patch_lo[i, 1]) & (y <= self._patch_hi[i, 1])
+                (x >= self._patch_lo[i, 0])
+                & (x <= self._patch_hi[i, 0])
+                & (y >= self._patch_lo[i, 1])
+                & (y <= self._patch_hi[i, 1])
             )
             mux = np.where(inside, self._patch_mu[i, 0], mux)
             muy = np.where(inside, self._patch_mu[i, 1], muy)

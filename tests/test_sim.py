@@ -34,7 +34,9 @@ def test_assets_are_generated_from_the_default_config(tmp_path: Path, cfg) -> No
     for p in written:
         shipped = assets_dir() / p.name
         assert shipped.exists(), f"{shipped} missing: run `rover-env build-assets`"
-        assert filecmp.cmp(p, shipped, shallow=False), f"{shipped} is stale: run `rover-env build-assets`"
+        assert filecmp.cmp(p, shipped, shallow=False), (
+            f"{shipped} is stale: run `rover-env build-assets`"
+        )
 
 
 @pytest.mark.parametrize("scene", ["scene_flat.xml", "scene_rough.xml"])
@@ -45,7 +47,9 @@ def test_scene_files_compile_and_step_without_warnings(scene: str) -> None:
     assert all(data.warning[i].number == 0 for i in range(len(data.warning)))
 
 
-@pytest.mark.parametrize("terrain", sorted(p.stem for p in (configs_dir() / "terrain").glob("*.yaml")))
+@pytest.mark.parametrize(
+    "terrain", sorted(p.stem for p in (configs_dir() / "terrain").glob("*.yaml"))
+)
 def test_every_terrain_builds_and_steps_with_tires(terrain: str) -> None:
     sim = RoverSim(terrain=terrain)  # settles 0.5 s; RoverSim.step raises on any MuJoCo warning
     sim.set_speed_targets([2.0, 2.0, 2.0, 2.0])

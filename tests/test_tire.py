@@ -144,7 +144,7 @@ def test_broadcasting_to_common_shape() -> None:
 # ---------------------------------------------------------------------------------------
 
 
-@SETTINGS
+@settings(max_examples=200, deadline=None)  # each example is a batch of up to 12 contacts
 @given(states=many_states)
 def test_friction_bounds_and_finiteness(states: list[tuple[float, ...]]) -> None:
     v_x, v_y, v_w, delta, delta_dot = _columns(states)
@@ -161,7 +161,7 @@ def test_friction_bounds_and_finiteness(states: list[tuple[float, ...]]) -> None
     assert np.all(out.F_x * (v_x - v_w) <= 0.0)
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(
     states=many_states,
     mu=st.lists(st.tuples(st.floats(0.01, 2.0), st.floats(0.01, 2.0)), min_size=1, max_size=1),

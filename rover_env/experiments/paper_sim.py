@@ -76,7 +76,9 @@ def _plots(rec: DriveRecorder, out: Path) -> None:
         ax.set_ylabel(f"slip ratio S ({side})")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper right")
-    axes[0].set_title("Slip ratio of the driven wheels (S < 0 spinning, S > 0 skidding; turns shaded)")
+    axes[0].set_title(
+        "Slip ratio of the driven wheels (S < 0 spinning, S > 0 skidding; turns shaded)"
+    )
     axes[1].set_xlabel("t [s]")
     fig.tight_layout()
     fig.savefig(out / "slip.png", dpi=120)
@@ -129,7 +131,9 @@ def run(out_dir: str | Path, progress: bool = True) -> Path:
     duration = PHASES[-1].end
     rec = run_drive(sim, schedule, duration, sample_rate_hz=50.0, progress=progress)
     log = rec.to_log(
-        "proto_explorer", terrain="flat", notes="rover-env paper-sim: the paper's section 7 drive",
+        "proto_explorer",
+        terrain="flat",
+        notes="rover-env paper-sim: the paper's section 7 drive",
         pose_rate_hz=None,
     )
     write_log(log, out / "drive.csv", overwrite=True)

@@ -12,6 +12,7 @@ import dataclasses
 import time
 from pathlib import Path
 
+import mujoco
 import numpy as np
 from tqdm import tqdm
 
@@ -27,10 +28,10 @@ def convergence(duration: float = 20.0) -> dict[str, float]:
     for div in (1, 4):
         cfg = dataclasses.replace(base, sim=SimSpec(timestep=base.sim.timestep / div))
         sim = RoverSim(cfg)
-        n = int(round(0.1 / sim.dt))
+        n = round(0.1 / sim.dt)
         p_prev = sim.segment_truth().pos[1].copy()
         dist = 0.0
-        for k in range(int(round(duration / 0.1))):
+        for k in range(round(duration / 0.1)):
             t = k * 0.1
             sim.set_speed_targets([1.5, 3.0, 1.5, 3.0] if t >= 2.0 else [2.5] * 4)
             sim.step(n)
@@ -53,10 +54,10 @@ def endurance(duration: float = 300.0, seed: int = 0, hold: float = 2.0) -> dict
     sim = RoverSim(terrain="rough")
     half = np.array(sim.terrain_cfg.size) / 2 - 1.0
     lim = sim.cfg.motor.max_wheel_speed
-    n = int(round(hold / sim.dt))
+    n = round(hold / sim.dt)
     flips = exits = 0
     fz_max = 0.0
-    steps = int(round(duration / hold))
+    steps = round(duration / hold)
     for _ in tqdm(range(steps), desc="rough drive", unit="cmd", leave=False):
         sim.set_speed_targets(rng.uniform(-lim, lim, 4))
         sim.step(n)  # raises SimulationError on any MuJoCo warning or NaN
@@ -71,6 +72,22 @@ def endurance(duration: float = 300.0, seed: int = 0, hold: float = 2.0) -> dict
     return {"duration": duration, "flips": flips, "exits": exits, "max_F_z": fz_max}
 
 
+def tip_over(roll_deg: float = 62.0, duration: float = 2.0) -> dict[str, float]:
+    """Release the rover rolled past its tipping angle: it must fall and be reported flipped."""
+    sim = RoverSim()
+    sim.reset(settle=0.0)
+    q = np.zeros(4)
+    mujoco.mju_axisAngle2Quat(q, np.array([1.0, 0.0, 0.0]), np.radians(roll_deg))
+    sim.data.qpos[3:7] = q
+    sim.data.qpos[2] += 0.05
+    flipped_at = float("nan")
+    for _ in range(int(round(duration / 0.01))):
+        sim.step(10)
+        if sim.flipped() and not np.isfinite(flipped_at):
+            flipped_at = sim.time
+    return {"roll_deg": roll_deg, "flipped": float(sim.flipped()), "flipped_at": flipped_at}
+
+
 def run(out_dir: str | Path, quick: bool = False) -> Path:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -79,6 +96,8 @@ def run(out_dir: str | Path, quick: bool = False) -> Path:
     t1 = time.perf_counter()
     end = endurance(20.0 if quick else 300.0)
     t2 = time.perf_counter()
+    tip = tip_over(62.0)
+    ctl = tip_over(50.0)
     ok_conv = conv["gap_percent"] < 1.0
     lines = [
         "# Validation report (`rover-env validate`)",
@@ -93,6 +112,17 @@ def run(out_dir: str | Path, quick: bool = False) -> Path:
         " no NaN (the simulator raises on either).",
         f"- Flips detected and reset: {end['flips']}; arena exits reset: {end['exits']};"
         f" largest F_z {end['max_F_z']:.1f} N. Wall time {t2 - t1:.0f} s.",
+        "",
+        "## Flip detection",
+        f"- Rover released rolled {tip['roll_deg']:.0f} deg (past its ~58 deg tipping angle) on"
+        " flat ground: "
+        + (
+            f"falls over, flip reported at t = {tip['flipped_at']:.2f} s (PASS)."
+            if tip["flipped"]
+            else "no flip reported (FAIL)."
+        ),
+        f"- Control, released rolled {ctl['roll_deg']:.0f} deg: "
+        + ("rights itself, no flip reported (PASS)." if not ctl["flipped"] else "flip (FAIL)."),
     ]
     report = out / "validation.md"
     report.write_text("\n".join(lines) + "\n")

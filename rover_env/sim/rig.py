@@ -49,20 +49,22 @@ def measure_fx(
     """Run the rig to steady state; return the measured F_x and the layer's own state."""
     params = params or TireParams()
     delta0 = (load_mass + 0.35) * 9.81 / params.C_z
-    xml = RIG_XML.format(
-        dt=dt, z0=radius - delta0, load_mass=load_mass, kv_x=2e4, kv_spin=50.0
-    )
+    xml = RIG_XML.format(dt=dt, z0=radius - delta0, load_mass=load_mass, kv_x=2e4, kv_spin=50.0)
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
     terrain = Terrain(TerrainConfig(name="rig", size=(1e3, 1e3)), params)
     layer = TireLayer(
-        model, np.array([model.body("wheel").id]), np.array([model.joint("spin").id]),
-        radius, terrain, params,
+        model,
+        np.array([model.body("wheel").id]),
+        np.array([model.joint("spin").id]),
+        radius,
+        terrain,
+        params,
     )
     data.qvel[model.joint("x").dofadr[0]] = v_x
     data.qvel[model.joint("spin").dofadr[0]] = omega
     data.ctrl[:] = [v_x, omega]
-    n = int(round(duration / dt))
+    n = round(duration / dt)
     acc = {"F_servo": 0.0, "F_x": 0.0, "F_z": 0.0, "delta": 0.0, "v_x": 0.0, "v_w": 0.0}
     n_avg = n // 3
     for k in range(n):

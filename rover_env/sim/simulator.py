@@ -15,7 +15,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from rover_env import tire
 from rover_env.config import (
@@ -179,14 +179,14 @@ class RoverSim:
         d.ctrl[self._ctrl_pos] = d.qpos[self._driven_qpos]
         self.tires.reset()
         if settle > 0:
-            self.step(int(round(settle / self.dt)))
+            self.step(round(settle / self.dt))
             # Start the clock and the wheel angles (encoders) from zero, as a log does.
             d.time = 0.0
             d.qpos[self._wheel_qpos] = 0.0
             d.ctrl[self._ctrl_pos] = 0.0
             mujoco.mj_forward(m, d)
 
-    def set_speed_targets(self, targets: Array) -> None:
+    def set_speed_targets(self, targets: ArrayLike) -> None:
         """Speed targets (rad/s) of the driven wheels 1L 1R 2L 2R, clipped to the motor's range."""
         t = np.asarray(targets, dtype=float).reshape(4)
         if not np.all(np.isfinite(t)):
@@ -231,9 +231,17 @@ class RoverSim:
         eps = self.cfg.tire.v_eps
         S = tire.slip_ratio(ts.v_x, ts.v_w, eps)
         return WheelTruth(
-            S=S, S_alpha=tire.lateral_slip(ts.v_x, ts.v_y, ts.v_w, S, eps), F_x=ts.F_x,
-            F_y=ts.F_y, F_z=ts.F_z, delta=ts.delta, v_x=ts.v_x, v_y=ts.v_y, v_w=ts.v_w,
-            contact_point=ts.point.copy(), patch=ts.patch,
+            S=S,
+            S_alpha=tire.lateral_slip(ts.v_x, ts.v_y, ts.v_w, S, eps),
+            F_x=ts.F_x,
+            F_y=ts.F_y,
+            F_z=ts.F_z,
+            delta=ts.delta,
+            v_x=ts.v_x,
+            v_y=ts.v_y,
+            v_w=ts.v_w,
+            contact_point=ts.point.copy(),
+            patch=ts.patch,
         )
 
     def segment_truth(self) -> SegmentTruth:
@@ -246,8 +254,12 @@ class RoverSim:
         lin_w = np.einsum("bij,bj->bi", d.xmat[b].reshape(3, 3, 3), vel[:, 3:])
         ang_w = np.einsum("bij,bj->bi", d.xmat[b].reshape(3, 3, 3), vel[:, :3])
         return SegmentTruth(
-            pos=d.xpos[b].copy(), quat=d.xquat[b].copy(), lin_vel=lin_w, ang_vel=ang_w,
-            forward_speed=vel[:, 3].copy(), yaw_rate=vel[:, 2].copy(),
+            pos=d.xpos[b].copy(),
+            quat=d.xquat[b].copy(),
+            lin_vel=lin_w,
+            ang_vel=ang_w,
+            forward_speed=vel[:, 3].copy(),
+            yaw_rate=vel[:, 2].copy(),
         )
 
     def sensors(self) -> SensorReadings:
@@ -270,7 +282,11 @@ class RoverSim:
     def joint_angles(self) -> Array:
         return self.data.qpos[self._joint_qpos].copy()
 
-    def flipped(self, max_tilt_deg: float = 100.0) -> bool:
-        """True once any segment's up axis tilts more than ``max_tilt_deg`` from vertical."""
+    def flipped(self, max_tilt_deg: float = 75.0) -> bool:
+        """True once any segment tilts more than ``max_tilt_deg`` from upright.
+
+        A segment tips over near 58 deg (half-track 0.225 m, centre of mass ~0.14 m above the
+        ground), so beyond 75 deg it is lying on its side or back and cannot drive on.
+        """
         up_z = self.data.xmat[self._seg_body, 8]
         return bool(np.any(up_z < np.cos(np.radians(max_tilt_deg))))

@@ -109,7 +109,12 @@ class TireLayer:
         zero = np.zeros(3)
         for i in range(len(self.bodies)):
             mujoco.mj_applyFT(
-                self.model, data, force[i], zero, c.point[i], int(self.bodies[i]),
+                self.model,
+                data,
+                force[i],
+                zero,
+                c.point[i],
+                int(self.bodies[i]),
                 data.qfrc_applied,
             )
         self.last = TireState(v_x, v_y, v_w, F_x, F_y, F_z, c.delta, c.point, nrm, patch)
