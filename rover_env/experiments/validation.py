@@ -81,7 +81,7 @@ def tip_over(roll_deg: float = 62.0, duration: float = 2.0) -> dict[str, float]:
     sim.data.qpos[3:7] = q
     sim.data.qpos[2] += 0.05
     flipped_at = float("nan")
-    for _ in range(int(round(duration / 0.01))):
+    for _ in range(round(duration / 0.01)):
         sim.step(10)
         if sim.flipped() and not np.isfinite(flipped_at):
             flipped_at = sim.time
