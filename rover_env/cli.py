@@ -28,9 +28,18 @@ def _build_assets(args: argparse.Namespace) -> int:
 
 
 def _validate(args: argparse.Namespace) -> int:
+    from rover_env.envs.checks import random_steps
     from rover_env.experiments import validation
 
     report = validation.run(args.out, quick=args.quick)
+    r = random_steps(steps=500 if args.quick else 10_000)
+    with report.open("a") as fh:
+        fh.write(
+            "\n## Environment endurance\n"
+            f"- `rover_env/ProtoExplorerRough-v0`, {r['steps']} random-action steps (seed 0): no NaN,"
+            f" no MuJoCo warning, no crash; {r['episodes']} episodes ended, {r['flips']} flips,"
+            f" {r['exits']} arena exits. Wall time {r['wall_s']:.0f} s.\n"
+        )
     print(report.read_text())
     return 0
 

@@ -110,7 +110,7 @@ class EstimatorConfig:
     d - static deflection (:func:`static_rolling_radius`). See :func:`axle_load_radii`."""
     rate_method: Literal["lsq", "lowpass"] = "lsq"
     """How angles are differentiated (module docstring)."""
-    rate_window: float = 0.3
+    rate_window: float = 0.5
     """Window (lsq) or time constant (lowpass) of the differentiator (s)."""
     min_speed: float = 0.02
     """Speed (m/s) below which segment 3 counts as standing and a wheel as too slow."""

@@ -27,7 +27,7 @@ from rover_env.config import (
     load_rover,
     load_terrain,
 )
-from rover_env.sim.model import fill_hfield, scene_xml, static_deflection
+from rover_env.sim.model import fill_hfield, hfield_data, scene_xml, static_deflection
 from rover_env.sim.tire_layer import TireLayer
 from rover_env.terrain import Terrain
 
@@ -128,6 +128,7 @@ class RoverSim:
             for i in range(m.nsensor)
         }
         self.radius = self.cfg.geometry.wheel_radius
+        self._obstacle_names = {ob.name for ob in self.terrain_cfg.obstacles}
         self.tires = TireLayer(
             m, self._wheel_body, self._wheel_jnt, self.radius, self.terrain, self.cfg.tire
         )
@@ -185,6 +186,45 @@ class RoverSim:
             d.qpos[self._wheel_qpos] = 0.0
             d.ctrl[self._ctrl_pos] = 0.0
             mujoco.mj_forward(m, d)
+
+    def set_terrain(self, terrain: TerrainConfig) -> None:
+        """Swap the ground without recompiling: new relief, friction map and obstacle poses.
+
+        The arena size, grid resolution and number of obstacles must match the compiled
+        model (per-episode terrain randomisation changes values, not structure). Call
+        :meth:`reset` afterwards.
+        """
+        old = self.terrain_cfg
+        if terrain.is_flat != old.is_flat or (not old.is_flat and (
+            terrain.size != old.size or terrain.resolution != old.resolution
+        )):
+            raise ValueError("set_terrain: arena size, resolution and flatness must not change")
+        if len(terrain.obstacles) != len(old.obstacles):
+            raise ValueError("set_terrain: the number of obstacles must not change")
+        m = self.model
+        if not terrain.is_flat:
+            # The compiled elevation range (and so the ground's bounding box) stays fixed.
+            data, lo, span = hfield_data(terrain)
+            cap = float(m.hfield_size[0, 2])
+            if span > cap * (1 + 1e-9):
+                raise ValueError(
+                    f"set_terrain: relief spans {span:.3f} m, more than the compiled {cap:.3f} m;"
+                    " build the simulator with the largest terrain first"
+                )
+            m.hfield_data[:] = (data * (span / cap)).ravel()
+            m.geom_pos[m.geom("ground").id, 2] = lo
+        for ob in terrain.obstacles:
+            gid = m.geom(ob.name).id if ob.name in self._obstacle_names else None
+            if gid is None:
+                raise ValueError(f"set_terrain: obstacle {ob.name!r} is not in the model")
+            m.geom_pos[gid] = ob.pos
+            m.geom_size[gid] = ob.size
+            quat = np.zeros(4)
+            mujoco.mju_axisAngle2Quat(quat, np.array([0.0, 0.0, 1.0]), np.radians(ob.yaw_deg))
+            m.geom_quat[gid] = quat
+        self.terrain_cfg = terrain
+        self.terrain = Terrain(terrain, self.cfg.tire)
+        self.tires.terrain = self.terrain
 
     def set_speed_targets(self, targets: ArrayLike) -> None:
         """Speed targets (rad/s) of the driven wheels 1L 1R 2L 2R, clipped to the motor's range."""

@@ -1,0 +1,5 @@
+"""Gymnasium environments (the only layer that imports gymnasium)."""
+
+from rover_env.envs.registration import ENV_IDS, register_envs
+
+__all__ = ["ENV_IDS", "register_envs"]

@@ -1,0 +1,26 @@
+"""Gymnasium registration (Gymnasium 1.x has no plugin auto-loading: ``import rover_env`` does it)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+ENV_IDS = ("rover_env/ProtoExplorer-v0", "rover_env/ProtoExplorerRough-v0")
+MAX_EPISODE_STEPS = 300
+"""30 s at the default 10 Hz control frequency."""
+
+
+def register_envs() -> None:
+    """Register the rover environments once per process."""
+    if ENV_IDS[0] in gym.registry:
+        return
+    gym.register(
+        id=ENV_IDS[0],
+        entry_point="rover_env.envs.proto_explorer:ProtoExplorerEnv",
+        max_episode_steps=MAX_EPISODE_STEPS,
+    )
+    gym.register(
+        id=ENV_IDS[1],
+        entry_point="rover_env.envs.proto_explorer:ProtoExplorerEnv",
+        max_episode_steps=MAX_EPISODE_STEPS,
+        kwargs={"terrain": "rough", "randomize_terrain": True},
+    )

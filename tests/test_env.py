@@ -1,0 +1,184 @@
+"""The Gymnasium environment: API conformance, determinism, actions, slip term, rendering."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import rover_env
+from rover_env.config import FrictionPatch, TerrainConfig
+from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
+
+gym.register_envs(rover_env)
+ID = "rover_env/ProtoExplorer-v0"
+
+
+def test_gymnasium_check_env() -> None:
+    env = gym.make(ID)
+    check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+def test_sb3_check_env() -> None:
+    sb3_env_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+    env = gym.make(ID)
+    sb3_env_checker.check_env(env, warn=True)
+    env.close()
+
+
+def test_registration_from_a_fresh_interpreter() -> None:
+    code = (
+        "import gymnasium as gym\n"
+        "env = gym.make('rover_env:rover_env/ProtoExplorer-v0')\n"
+        "print(env.spec.max_episode_steps, env.observation_space.shape)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["300", f"({len(OBS_NAMES)},)"]
+
+
+def _rollout(seed: int, actions: np.ndarray) -> list:
+    env = gym.make(ID)
+    obs, info = env.reset(seed=seed)
+    out = [(obs, info)]
+    for a in actions:
+        out.append(env.step(a))
+    env.close()
+    return out
+
+
+def _same(a, b) -> None:
+    if isinstance(a, dict):
+        assert a.keys() == b.keys()
+        for k in a:
+            _same(a[k], b[k])
+    elif isinstance(a, tuple | list):
+        assert len(a) == len(b)
+        for x, y in zip(a, b, strict=True):
+            _same(x, y)
+    else:
+        np.testing.assert_array_equal(a, b)
+
+
+def test_same_seed_and_actions_are_bit_identical() -> None:
+    actions = np.random.default_rng(0).uniform(-1, 1, (12, 4)).astype(np.float32)
+    _same(_rollout(3, actions), _rollout(3, actions))
+    first_obs_other_seed = _rollout(4, actions[:1])[0][0]
+    assert not np.array_equal(first_obs_other_seed, _rollout(3, actions[:1])[0][0])
+
+
+def test_non_finite_action_names_the_entry() -> None:
+    env = gym.make(ID)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="2L=nan"):
+        env.step(np.array([0.1, 0.1, np.nan, 0.1], dtype=np.float32))
+    with pytest.raises(ValueError, match="right=inf"):
+        gym.make(ID, action_layout="sides").unwrapped.step(np.array([0.0, np.inf]))
+
+
+def test_out_of_range_actions_are_clipped() -> None:
+    env = ProtoExplorerEnv()
+    env.reset(seed=0)
+    env.step(np.array([5.0, 5.0, -5.0, -5.0]))
+    np.testing.assert_allclose(env.sim.speed_targets, [4.0, 4.0, -4.0, -4.0])
+
+
+def test_higher_targets_turn_the_wheels_faster() -> None:
+    rates = []
+    for a in (0.2, 0.8):
+        env = ProtoExplorerEnv(sensor_noise="none")
+        env.reset(seed=0)
+        for _ in range(10):
+            obs, *_ = env.step(np.full(4, a, dtype=np.float32))
+        rates.append(obs[:4])
+    assert np.all(rates[1] > rates[0] + 1.0), rates
+
+
+def test_slip_term_rises_on_a_low_friction_patch() -> None:
+    ice = FrictionPatch(name="ice", center=(10.0, 0.25), size=(22.0, 0.2), mu_x=0.05, mu_y=0.06)
+    slip = []
+    for patches in ((), (ice,)):
+        env = ProtoExplorerEnv(terrain=TerrainConfig(patches=patches), sensor_noise="none")
+        env.reset(seed=0, options={"yaw": 0.0})
+        terms = []
+        for _ in range(30):
+            _, _, _, _, info = env.step(np.array([0.9, 0.6, 0.9, 0.6], dtype=np.float32))
+            terms.append(info["reward_slip"])
+        assert (info["wheel_mu"][0, 0] == 0.05) == bool(patches)  # 1L is on the ice
+        slip.append(np.mean(terms))
+    assert slip[1] < slip[0] - 0.02, slip
+
+
+def test_info_has_every_reward_term_and_privileged_truth_only_there() -> None:
+    env = ProtoExplorerEnv()
+    obs, _ = env.reset(seed=0)
+    _, reward, _, _, info = env.step(env.action_space.sample())
+    terms = [k for k in info if k.startswith("reward_")]
+    assert sorted(terms) == ["reward_energy", "reward_slip", "reward_tracking"]
+    assert reward == pytest.approx(sum(info[k] for k in terms))
+    for key in ("slip_true", "slip_estimate", "tracking_error_speed", "tracking_error_yaw_rate"):
+        assert key in info
+    assert obs.shape == (len(OBS_NAMES),)
+    assert not any("true" in n or "F_z" in n or "mu" in n for n in OBS_NAMES)
+
+
+def test_flip_terminates() -> None:
+    env = ProtoExplorerEnv()
+    env.reset(seed=0)
+    env.sim.data.qpos[3:7] = [0.0, 1.0, 0.0, 0.0]
+    _, _, terminated, truncated, info = env.step(np.zeros(4, dtype=np.float32))
+    assert terminated and not truncated and info["flipped"]
+
+
+def test_rough_variant_randomises_terrain_per_episode() -> None:
+    env = gym.make("rover_env/ProtoExplorerRough-v0")
+    env.reset(seed=1)
+    t1 = env.unwrapped.sim.terrain_cfg
+    env.reset()
+    t2 = env.unwrapped.sim.terrain_cfg
+    assert t1 != t2
+    env.reset(seed=1)
+    assert env.unwrapped.sim.terrain_cfg == t1
+    for _ in range(5):
+        env.step(env.action_space.sample())
+    env.close()
+
+
+def test_async_vector_env_runs() -> None:
+    envs = gym.make_vec(ID, num_envs=2, vectorization_mode="async")
+    obs, _ = envs.reset(seed=0)
+    for _ in range(3):
+        obs, rew, term, trunc, info = envs.step(envs.action_space.sample())
+    assert obs.shape == (2, len(OBS_NAMES)) and np.all(np.isfinite(obs))
+    envs.close()
+
+
+def _has_gl() -> str | None:
+    if os.environ.get("MUJOCO_GL") not in (None, "egl"):
+        return None
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    try:
+        import mujoco
+
+        r = mujoco.Renderer(mujoco.MjModel.from_xml_string("<mujoco/>"), 32, 32)
+        r.close()
+    except Exception as exc:  # any backend failure means: no OpenGL here
+        return f"no OpenGL backend for MuJoCo rendering ({type(exc).__name__}: {exc})"
+    return None
+
+
+def test_rgb_array_render() -> None:
+    reason = _has_gl()
+    if reason:
+        pytest.skip(reason)
+    env = gym.make(ID, render_mode="rgb_array", width=160, height=120)
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.shape == (120, 160, 3) and frame.std() > 1.0
+    assert env.metadata["render_fps"] == 10
+    env.close()
