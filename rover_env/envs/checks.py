@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 
 import gymnasium as gym
@@ -20,7 +21,7 @@ def random_steps(
     t0 = time.perf_counter()
     for _ in tqdm(range(steps), desc=f"{env_id} random actions", unit="step", leave=False):
         obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
-        if not (np.all(np.isfinite(obs)) and np.isfinite(reward)):
+        if not (np.all(np.isfinite(obs)) and math.isfinite(float(reward))):
             raise FloatingPointError(f"non-finite observation or reward at episode {episodes}")
         flips += int(info["flipped"])
         exits += int(info["out_of_arena"])
