@@ -73,6 +73,9 @@ def build_parser() -> argparse.ArgumentParser:
     from rover_env.experiments import dead_reckoning
 
     dead_reckoning.add_cli(sub)
+    from rover_env.benchmark.cli import add_cli as add_benchmark_cli
+
+    add_benchmark_cli(sub)
     return parser
 
 

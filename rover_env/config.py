@@ -13,7 +13,6 @@ import types
 import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -391,10 +390,11 @@ def _shipped(folder: str) -> Path:
     A source checkout (and an editable install) reads ``configs/`` and ``assets/`` in place;
     a wheel carries them as the ``rover_env.configs`` and ``rover_env.assets`` packages.
     """
-    here = Path(__file__).resolve().parent.parent / folder
-    if here.is_dir():
-        return here
-    return Path(str(resources.files(f"rover_env.{folder}")))
+    pkg = Path(__file__).resolve().parent
+    for here in (pkg / folder, pkg.parent / folder):
+        if here.is_dir():
+            return here
+    raise ConfigError(f"shipped folder {folder!r} not found beside {pkg}; is rover_env installed?")
 
 
 def configs_dir() -> Path:

@@ -48,7 +48,7 @@ def test_wrong_type_is_named(tmp_path: Path) -> None:
 
 
 def test_missing_file_is_named(tmp_path: Path) -> None:
-    with pytest.raises(ConfigError, match="nope.yaml"):
+    with pytest.raises(ConfigError, match=r"nope\.yaml"):
         load_rover(tmp_path / "nope.yaml")
     with pytest.raises(ConfigError, match="no shipped terrain configuration named 'lava'"):
         load_terrain("lava")
@@ -57,7 +57,7 @@ def test_missing_file_is_named(tmp_path: Path) -> None:
 def test_malformed_yaml_is_named(tmp_path: Path) -> None:
     p = tmp_path / "bad.yaml"
     p.write_text("geometry: [unclosed\n")
-    with pytest.raises(ConfigError, match="bad.yaml.*malformed YAML"):
+    with pytest.raises(ConfigError, match=r"bad\.yaml.*malformed YAML"):
         load_rover(p)
 
 

@@ -153,7 +153,7 @@ def test_async_vector_env_runs() -> None:
     envs = gym.make_vec(ID, num_envs=2, vectorization_mode="async")
     obs, _ = envs.reset(seed=0)
     for _ in range(3):
-        obs, rew, term, trunc, info = envs.step(envs.action_space.sample())
+        obs, _rew, _term, _trunc, _info = envs.step(envs.action_space.sample())
     assert obs.shape == (2, len(OBS_NAMES)) and np.all(np.isfinite(obs))
     envs.close()
 

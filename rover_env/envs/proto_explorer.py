@@ -425,6 +425,35 @@ class ProtoExplorerEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
             "wheel_mu": np.stack([mu_x, mu_y], axis=1),
         }
 
+    # --- controller adapter (issue 6)
+    def controller_input(self, obs: NDArray[np.floating[Any]] | None = None) -> Any:
+        """The ``rover_env.control.ControllerInput`` a controller on the rover would see now.
+
+        Built from the newest noisy sensor samples only: the estimator's last output
+        (``self._est``), the joint angles as the potentiometers read them and the current task
+        command; never the simulator's truth. The IMU is taken from ``obs``, the observation
+        the env just returned, when given (else left out): the env draws IMU noise when it
+        builds an observation, and drawing again here would shift that noise stream.
+        """
+        from rover_env.control.base import ControllerInput
+
+        est = self._est
+        assert est is not None
+        gyro = gravity = None
+        if obs is not None:
+            o = np.asarray(obs, dtype=np.float64).reshape(-1)
+            i_g, i_w = OBS_NAMES.index("gravity_seg1_x"), OBS_NAMES.index("gyro_seg1_x")
+            gravity, gyro = o[i_g : i_g + 9].reshape(3, 3), o[i_w : i_w + 9].reshape(3, 3)
+        return ControllerInput(
+            t=float(est.t),
+            estimate=est,
+            theta=self._theta_meas.copy(),
+            speed_command=float(self._command[0]),
+            yaw_rate_command=float(self._command[1]),
+            imu_gyro=gyro,
+            imu_gravity=gravity,
+        )
+
     def _obs(self) -> NDArray[np.float32]:
         est = self._est
         assert est is not None

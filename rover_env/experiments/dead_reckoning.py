@@ -310,7 +310,7 @@ def run(
                 st = slip_stats(r.estimates[(sname, model)], r.truth["S"][:, :4])
                 pooled_err2.append(st["err2"])
                 pooled_ok.append(r.estimates[(sname, model)].reliable)
-                why = ", ".join(f"{k} {100 * v:.1f} %" for k, v in st["flag_share"].items() if v)
+                why = ", ".join(f"{k} {100 * v:.2f} %" for k, v in st["flag_share"].items() if v)
                 slip_md.append(
                     f"| {r.weave.name} | "
                     + " | ".join(_fmt(x, 4) for x in st["rms"])
@@ -384,6 +384,12 @@ def run(
         *slip_md,
         "",
         *[f"![{p.stem}]({p.name})" for p in slip_figs],
+        "\nWhat the kinematic model of SPEC §2 cannot see, and so what these errors are made "
+        "of: the simulated wheels roll on their loaded radius d − δ, and δ follows each "
+        "wheel's load (C_z), which shifts between axles and sides as the rover weaves; and "
+        "segment 3 is assumed not to slide sideways, while in turns it is dragged sideways "
+        "by the chain. The estimator's own approximations (differentiation lag, noise) are "
+        "the rest.\n",
         "\n## In turns: outer vs inner driven wheels (paper Fig. 7)\n",
         "Mean slip ratio while the segment's estimated yaw rate exceeds 0.02 rad/s; the "
         "paper: outer wheels negative (spinning), inner positive (skidding).\n",

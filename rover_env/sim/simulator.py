@@ -27,8 +27,9 @@ from rover_env.config import (
     load_rover,
     load_terrain,
 )
+from rover_env.sim.fast import PluginView, inject_plugin
 from rover_env.sim.model import fill_hfield, hfield_data, scene_xml, static_deflection
-from rover_env.sim.tire_layer import TireLayer
+from rover_env.sim.tire_layer import TireLayer, TireState
 from rover_env.terrain import Terrain
 
 Array = NDArray[np.float64]
@@ -94,17 +95,35 @@ class RoverSim:
     Args:
         rover: rover configuration, a shipped name or a YAML path.
         terrain: terrain configuration, a shipped name or a YAML path.
+        backend: ``"numpy"`` (the reference tire layer, run from Python on every substep) or
+            ``"plugin"`` (the same layer as a compiled MuJoCo engine plugin, see
+            :mod:`rover_env.sim.fast`; needs a C compiler on first use).
     """
 
     def __init__(
         self,
         rover: RoverConfig | str | Path = "proto_explorer",
         terrain: TerrainConfig | str | Path = "flat",
+        backend: str = "numpy",
     ) -> None:
         self.cfg = rover if isinstance(rover, RoverConfig) else load_rover(rover)
         self.terrain_cfg = terrain if isinstance(terrain, TerrainConfig) else load_terrain(terrain)
         self.terrain = Terrain(self.terrain_cfg, self.cfg.tire)
-        self.model = mujoco.MjModel.from_xml_string(scene_xml(self.cfg, self.terrain_cfg))
+        # --- fast-backend integration point (rover_env.sim.fast) ---
+        if backend not in ("numpy", "plugin"):
+            raise ValueError(f"backend must be 'numpy' or 'plugin', got {backend!r}")
+        if backend == "plugin" and self.cfg.extensions:
+            raise NotImplementedError(
+                f"backend='plugin' does not implement model extension(s) "
+                f"{sorted(self.cfg.extensions)}; use backend='numpy'"
+            )
+        self.backend = backend
+        xml = scene_xml(self.cfg, self.terrain_cfg)
+        if backend == "plugin":
+            xml = inject_plugin(xml, self.cfg, self.terrain)
+        self.model = mujoco.MjModel.from_xml_string(xml)
+        self._plugin = PluginView(self.model) if backend == "plugin" else None
+        # --- end of integration point ---
         fill_hfield(self.model, self.terrain_cfg)
         self.data = mujoco.MjData(self.model)
         m = self.model
@@ -179,12 +198,17 @@ class RoverSim:
         d.ctrl[self._ctrl_vel] = 0.0
         d.ctrl[self._ctrl_pos] = d.qpos[self._driven_qpos]
         self.tires.reset()
+        if self._plugin is not None:  # fast backend: the plugin owns setpoints and tire states
+            self._plugin.set_setpoints(d.plugin_state, d.ctrl[self._ctrl_pos])
+            self._plugin.reset_tires(d.plugin_state)
         if settle > 0:
             self.step(round(settle / self.dt))
             # Start the clock and the wheel angles (encoders) from zero, as a log does.
             d.time = 0.0
             d.qpos[self._wheel_qpos] = 0.0
             d.ctrl[self._ctrl_pos] = 0.0
+            if self._plugin is not None:  # fast backend
+                self._plugin.set_setpoints(d.plugin_state, d.ctrl[self._ctrl_pos])
             mujoco.mj_forward(m, d)
 
     def set_terrain(self, terrain: TerrainConfig) -> None:
@@ -194,10 +218,12 @@ class RoverSim:
         model (per-episode terrain randomisation changes values, not structure). Call
         :meth:`reset` afterwards.
         """
+        if self._plugin is not None:  # fast backend: refuse before anything changes
+            self._plugin.check_terrain(self.model, Terrain(terrain, self.cfg.tire))
         old = self.terrain_cfg
-        if terrain.is_flat != old.is_flat or (not old.is_flat and (
-            terrain.size != old.size or terrain.resolution != old.resolution
-        )):
+        if terrain.is_flat != old.is_flat or (
+            not old.is_flat and (terrain.size != old.size or terrain.resolution != old.resolution)
+        ):
             raise ValueError("set_terrain: arena size, resolution and flatness must not change")
         if len(terrain.obstacles) != len(old.obstacles):
             raise ValueError("set_terrain: the number of obstacles must not change")
@@ -225,6 +251,8 @@ class RoverSim:
         self.terrain_cfg = terrain
         self.terrain = Terrain(terrain, self.cfg.tire)
         self.tires.terrain = self.terrain
+        if self._plugin is not None:  # fast backend: the plugin reads the ground from the model
+            self._plugin.write_terrain(m, self.terrain)
 
     def set_speed_targets(self, targets: ArrayLike) -> None:
         """Speed targets (rad/s) of the driven wheels 1L 1R 2L 2R, clipped to the motor's range."""
@@ -239,6 +267,13 @@ class RoverSim:
     def step(self, n: int = 1) -> None:
         """Advance ``n`` physics substeps, applying the tire layer on each."""
         m, d = self.model, self.data
+        if self._plugin is not None:
+            # Fast backend: the plugin integrates the setpoints and applies the tire forces
+            # inside mj_step (rover_env.sim.fast), so no Python runs per substep.
+            d.ctrl[self._ctrl_vel] = self.speed_targets
+            mujoco.mj_step(m, d, n)
+            self._check()
+            return
         dt = self.dt
         err = self.cfg.motor.max_angle_error
         for _ in range(n):
@@ -266,6 +301,10 @@ class RoverSim:
     def wheel_truth(self) -> WheelTruth:
         """Privileged tire state from the last substep."""
         ts = self.tires.last
+        if self._plugin is not None:  # fast backend: the last committed substep's outputs
+            pv = self._plugin
+            tr = pv.truth(self.data.plugin_state)
+            ts = TireState(*tr) if pv.nstep(self.data.plugin_state) > 0 else None
         if ts is None:
             raise RuntimeError("wheel_truth() needs at least one physics substep")
         eps = self.cfg.tire.v_eps

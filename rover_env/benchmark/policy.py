@@ -1,0 +1,89 @@
+"""The ``ppo:PATH`` controller: a stable-baselines3 PPO policy acting on the env's observation.
+
+Imported only when a ``ppo:`` controller is asked for (``make_controller``), so the rest of the
+benchmark never loads torch. PATH is a ``.zip`` saved by ``PPO.save`` or a run folder holding
+one (``best_model.zip`` preferred, then ``final_model.zip``, ``model.zip``, or the only
+``.zip``). VecNormalize statistics saved beside it (``vecnormalize.pkl`` or
+``vec_normalize.pkl``) normalise the observation as in training, frozen (no updates).
+
+The policy must have been trained on the plain ``ProtoExplorerEnv`` observation (46 values,
+``OBS_NAMES``); its action space decides the env's action layout (4 values: "wheels",
+2: "sides"). Actions are the deterministic (mean) ones.
+"""
+
+from __future__ import annotations
+
+import pickle
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from rover_env.envs.proto_explorer import ProtoExplorerEnv
+
+__all__ = ["PPOController", "resolve_model_path"]
+
+Obs = npt.NDArray[np.float32]
+
+_MODEL_NAMES = ("best_model.zip", "final_model.zip", "model.zip")
+_STATS_NAMES = ("vecnormalize.pkl", "vec_normalize.pkl")
+
+
+def resolve_model_path(path: str | Path) -> tuple[Path, Path | None]:
+    """(model .zip, VecNormalize stats or None) for a run folder or a .zip path."""
+    p = Path(path)
+    if p.is_dir():
+        found = [p / n for n in _MODEL_NAMES if (p / n).is_file()]
+        if not found:
+            zips = sorted(p.glob("*.zip"))
+            if len(zips) != 1:
+                raise FileNotFoundError(
+                    f"{p}: no {', '.join(_MODEL_NAMES)} and {len(zips)} other .zip files"
+                )
+            found = zips
+        model = found[0]
+    elif p.is_file() or p.with_suffix(".zip").is_file():
+        model = p if p.is_file() else p.with_suffix(".zip")
+    else:
+        raise FileNotFoundError(f"PPO model not found: {p}")
+    stats = next((model.parent / n for n in _STATS_NAMES if (model.parent / n).is_file()), None)
+    return model, stats
+
+
+class PPOController:
+    """Deterministic PPO actions from the (normalised) env observation."""
+
+    def __init__(self, path: str | Path, name: str | None = None) -> None:
+        import torch
+        from stable_baselines3 import PPO
+
+        torch.set_num_threads(1)  # one benchmark worker per core
+        self.model_path, self.stats_path = resolve_model_path(path)
+        self.name = name or f"ppo:{path}"
+        self.model: Any = PPO.load(str(self.model_path), device="cpu")
+        self.normalizer: Any = None
+        if self.stats_path is not None:
+            with self.stats_path.open("rb") as fh:
+                self.normalizer = pickle.load(fh)  # a VecNormalize without its venv
+            self.normalizer.training = False
+        shape = tuple(self.model.action_space.shape or ())
+        if shape not in ((4,), (2,)):
+            raise ValueError(f"{self.model_path}: action space {shape}, expected (4,) or (2,)")
+        self.action_layout = "wheels" if shape == (4,) else "sides"
+        obs_shape = tuple(self.model.observation_space.shape or ())
+        if obs_shape != (46,):
+            raise ValueError(
+                f"{self.model_path}: observation space {obs_shape}; the benchmark feeds the "
+                "plain ProtoExplorerEnv observation (46,)"
+            )
+
+    def reset(self, env: ProtoExplorerEnv) -> None:
+        """Stateless (a feed-forward MLP policy)."""
+
+    def action(self, env: ProtoExplorerEnv, obs: Obs) -> Obs:
+        o = np.asarray(obs, dtype=np.float32)
+        if self.normalizer is not None:
+            o = np.asarray(self.normalizer.normalize_obs(o), dtype=np.float32)
+        act, _ = self.model.predict(o, deterministic=True)
+        return np.asarray(act, dtype=np.float32).reshape(-1)

@@ -1,0 +1,294 @@
+"""Tables and plots of a benchmark: mean +- 95 % CI per metric, and paired differences.
+
+Intervals are Student-t intervals: over episodes for a controller's mean, over seeds for the
+paired difference of two controllers run on the same seeds (the paired t-interval, which
+removes the between-seed spread the two share). With one episode there is no spread to
+estimate; the half-width is then reported as 0 and the tables say n = 1.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rover_env.control.runner import METRICS
+
+__all__ = ["UNITS", "paired", "summarise", "t_interval", "write_report"]
+
+UNITS: dict[str, str] = {
+    "mean_abs_slip": "1",
+    "p95_abs_slip": "1",
+    "rms_speed_error": "m/s",
+    "rms_yaw_rate_error": "rad/s",
+    "energy_per_metre": "J/m",
+    "distance_made_good": "m",
+    "success": "share",
+    "flipped": "share",
+}
+LOWER_IS_BETTER = {m: m not in ("distance_made_good", "success") for m in METRICS}
+
+
+def t_interval(x: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
+    """(mean, low, high) of the Student-t interval for the mean of ``x``."""
+    from scipy import stats
+
+    a = np.asarray(x, dtype=np.float64)
+    m = float(np.mean(a))
+    if a.size < 2:
+        return m, m, m
+    sd = float(np.std(a, ddof=1))
+    hw = float(stats.t.ppf(0.5 + level / 2, a.size - 1)) * sd / math.sqrt(a.size)
+    return m, m - hw, m + hw
+
+
+def summarise(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per (controller, scenario, metric): n, mean, sd, ci_low, ci_high."""
+    out = []
+    for ctrl in _unique(r["controller"] for r in rows):
+        for scen in _unique(r["scenario"] for r in rows):
+            sel = [r for r in rows if r["controller"] == ctrl and r["scenario"] == scen]
+            if not sel:
+                continue
+            for m in METRICS:
+                x = [float(r[m]) for r in sel]
+                mean, lo, hi = t_interval(x)
+                sd = float(np.std(x, ddof=1)) if len(x) > 1 else 0.0
+                out.append(
+                    {
+                        "controller": ctrl,
+                        "scenario": scen,
+                        "metric": m,
+                        "n": len(x),
+                        "mean": mean,
+                        "sd": sd,
+                        "ci_low": lo,
+                        "ci_high": hi,
+                    }
+                )
+    return out
+
+
+def paired(rows: Sequence[dict[str, Any]], baseline: str) -> list[dict[str, Any]]:
+    """Every other controller minus ``baseline``, per scenario and metric, on shared seeds."""
+    out = []
+    ctrls = [c for c in _unique(r["controller"] for r in rows) if c != baseline]
+    for other in ctrls:
+        for scen in _unique(r["scenario"] for r in rows):
+            a = {
+                r["seed"]: r for r in rows if r["controller"] == baseline and r["scenario"] == scen
+            }
+            b = {r["seed"]: r for r in rows if r["controller"] == other and r["scenario"] == scen}
+            shared = sorted(set(a) & set(b))
+            if not shared:
+                continue
+            for m in METRICS:
+                d = [float(b[s][m]) - float(a[s][m]) for s in shared]
+                mean, lo, hi = t_interval(d)
+                base_mean = float(np.mean([float(a[s][m]) for s in shared]))
+                better = LOWER_IS_BETTER[m]
+                if lo > 0:
+                    verdict = "worse" if better else "better"
+                elif hi < 0:
+                    verdict = "better" if better else "worse"
+                else:
+                    verdict = "no difference"
+                if len(shared) < 2:
+                    verdict = "n = 1"
+                out.append(
+                    {
+                        "controller": other,
+                        "baseline": baseline,
+                        "scenario": scen,
+                        "metric": m,
+                        "n": len(shared),
+                        "baseline_mean": base_mean,
+                        "diff_mean": mean,
+                        "ci_low": lo,
+                        "ci_high": hi,
+                        "relative": mean / base_mean if base_mean != 0 else float("nan"),
+                        "verdict": verdict,
+                    }
+                )
+    return out
+
+
+def _unique(items: Any) -> list[Any]:
+    seen: dict[Any, None] = {}
+    for i in items:
+        seen.setdefault(i, None)
+    return list(seen)
+
+
+def _fmt(x: float) -> str:
+    if not math.isfinite(x):
+        return "nan"
+    if x == 0:
+        return "0"
+    a = abs(x)
+    if a >= 100:
+        return f"{x:.0f}"
+    if a >= 1:
+        return f"{x:.2f}"
+    if a >= 0.01:
+        return f"{x:.3f}"
+    return f"{x:.2e}"
+
+
+def _write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
+    if not rows:
+        path.write_text("")
+        return
+    with path.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+
+
+def _markdown(
+    summary: Sequence[dict[str, Any]],
+    pairs: Sequence[dict[str, Any]],
+    meta: dict[str, Any],
+) -> str:
+    lines = ["# Controller benchmark", ""]
+    for k, v in meta.items():
+        lines.append(f"- {k}: {v}")
+    lines += [
+        "",
+        "Mean ± half-width of the 95 % Student-t interval over episodes (seeds). Metrics: "
+        "`rover_env.control.runner.episode_metrics`; slip is the simulator's true slip of the "
+        "driven wheels.",
+        "",
+    ]
+    ctrls = _unique(r["controller"] for r in summary)
+    for scen in _unique(r["scenario"] for r in summary):
+        lines += [f"## {scen}", ""]
+        head = "| controller | n | " + " | ".join(f"{m} [{UNITS[m]}]" for m in METRICS) + " |"
+        lines += [head, "|" + "---|" * (len(METRICS) + 2)]
+        for c in ctrls:
+            sel = {
+                r["metric"]: r for r in summary if r["controller"] == c and r["scenario"] == scen
+            }
+            if not sel:
+                continue
+            n = next(iter(sel.values()))["n"]
+            cells = [
+                f"{_fmt(sel[m]['mean'])} ± {_fmt((sel[m]['ci_high'] - sel[m]['ci_low']) / 2)}"
+                for m in METRICS
+            ]
+            lines.append(f"| {c} | {n} | " + " | ".join(cells) + " |")
+        lines.append("")
+    if pairs:
+        lines += [
+            "## Paired differences (controller − baseline, same seeds)",
+            "",
+            "95 % paired t-interval of the per-seed difference; *relative* is the mean "
+            "difference over the baseline's mean. *better*/*worse*: the interval excludes 0.",
+            "",
+            "| scenario | controller − baseline | metric | n | baseline mean | difference "
+            "[95 % CI] | relative | verdict |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for r in pairs:
+            rel = f"{100 * r['relative']:+.1f} %" if math.isfinite(r["relative"]) else "–"
+            lines.append(
+                f"| {r['scenario']} | {r['controller']} − {r['baseline']} | {r['metric']} | "
+                f"{r['n']} | {_fmt(r['baseline_mean'])} | {_fmt(r['diff_mean'])} "
+                f"[{_fmt(r['ci_low'])}, {_fmt(r['ci_high'])}] | {rel} | {r['verdict']} |"
+            )
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _plots(
+    out: Path, summary: Sequence[dict[str, Any]], pairs: Sequence[dict[str, Any]]
+) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    files = []
+    ctrls = _unique(r["controller"] for r in summary)
+    scens = _unique(r["scenario"] for r in summary)
+    fig, axes = plt.subplots(2, 4, figsize=(18, 8))
+    width = 0.8 / max(len(ctrls), 1)
+    x = np.arange(len(scens))
+    for ax, m in zip(axes.ravel(), METRICS, strict=True):
+        for i, c in enumerate(ctrls):
+            sel = {r["scenario"]: r for r in summary if r["controller"] == c and r["metric"] == m}
+            means = np.array([sel[s]["mean"] if s in sel else np.nan for s in scens])
+            lo = np.array([sel[s]["ci_low"] if s in sel else np.nan for s in scens])
+            hi = np.array([sel[s]["ci_high"] if s in sel else np.nan for s in scens])
+            ax.bar(
+                x + (i - (len(ctrls) - 1) / 2) * width,
+                means,
+                width,
+                label=c,
+                yerr=np.vstack([means - lo, hi - means]),
+                capsize=2,
+            )
+        ax.set_title(f"{m} [{UNITS[m]}]")
+        ax.set_xticks(x, scens, rotation=30, ha="right", fontsize=8)
+        if m == "energy_per_metre":
+            ax.set_yscale("log")
+    axes[0, 0].legend(fontsize=8)
+    fig.suptitle("Benchmark: mean and 95 % CI per scenario")
+    fig.tight_layout()
+    files.append(out / "metrics.png")
+    fig.savefig(files[-1], dpi=110)
+    plt.close(fig)
+
+    for other in _unique(r["controller"] for r in pairs):
+        mine = [r for r in pairs if r["controller"] == other]
+        base = mine[0]["baseline"]
+        fig, axes = plt.subplots(2, 4, figsize=(18, 8))
+        for ax, m in zip(axes.ravel(), METRICS, strict=True):
+            by = {r["scenario"]: r for r in mine if r["metric"] == m}
+            d = np.array([by[s]["diff_mean"] if s in by else np.nan for s in scens])
+            lo = np.array([by[s]["ci_low"] if s in by else np.nan for s in scens])
+            hi = np.array([by[s]["ci_high"] if s in by else np.nan for s in scens])
+            ax.errorbar(x, d, yerr=np.vstack([d - lo, hi - d]), fmt="o", capsize=3)
+            ax.axhline(0.0, color="k", lw=0.8)
+            ax.set_title(f"{m} [{UNITS[m]}]")
+            ax.set_xticks(x, scens, rotation=30, ha="right", fontsize=8)
+        fig.suptitle(f"Paired difference {other} − {base} (95 % paired t-interval)")
+        fig.tight_layout()
+        safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in f"{other}_vs_{base}")
+        files.append(out / f"paired_{safe}.png")
+        fig.savefig(files[-1], dpi=110)
+        plt.close(fig)
+    return files
+
+
+def write_report(
+    out: str | Path,
+    rows: Sequence[dict[str, Any]],
+    meta: dict[str, Any] | None = None,
+    plots: bool = True,
+) -> dict[str, Path]:
+    """Write episodes.csv, summary.csv, paired.csv, benchmark.md and the PNG plots."""
+    d = Path(out)
+    d.mkdir(parents=True, exist_ok=True)
+    summary = summarise(rows)
+    ctrls = _unique(r["controller"] for r in rows)
+    pairs = paired(rows, ctrls[0]) if len(ctrls) > 1 else []
+    files = {
+        "episodes": d / "episodes.csv",
+        "summary": d / "summary.csv",
+        "paired": d / "paired.csv",
+        "markdown": d / "benchmark.md",
+    }
+    _write_csv(files["episodes"], rows)
+    _write_csv(files["summary"], summary)
+    _write_csv(files["paired"], pairs)
+    files["markdown"].write_text(_markdown(summary, pairs, meta or {}))
+    if plots:
+        for p in _plots(d, summary, pairs):
+            files[p.stem] = p
+    return files

@@ -1,0 +1,320 @@
+"""Slip feedback (the paper's Fig. 8): a PI per driven wheel on its estimated slip ratio.
+
+Each wheel's open-loop target is scaled by ``1 + u`` with ``u = Kp e + I`` and ``e`` the
+wheel's estimated slip S less a reference shared by all wheels (zero unless they all slip,
+see below), beyond a deadband (SPEC §3 sign: S < 0 spinning, S > 0 skidding). So a
+spinning wheel is slowed and a dragged one sped up, relative to its own feed-forward: slip is
+a ratio, so a relative correction has the same loop gain at every speed and keeps the sign of
+the target (reversing works unchanged).
+
+Why each piece is there:
+
+* Deadband: |S - reference| below ``deadband`` is ignored, so that estimator noise and the
+  small differences it cannot resolve do not keep the integrators wandering.
+* Slip radius: the estimator uses one rolling radius for all wheels, but the axles carry
+  different loads and roll on radii about 3 % apart (``axle_load_radii``); the rover's
+  speed-controlled wheels then fight each other (front axle spinning, middle axle dragged, at
+  about 1.7 % each on flat ground), which the one-radius estimate cannot see. With
+  ``slip_radius: axle_load`` the loop recomputes the slip from the estimate's filtered rates
+  and the measured joint angles with per-axle loaded radii (the rover model's masses and
+  tire stiffness: a calibration a real rover would measure instead).
+* Traction allowance: in this tire model the force curve has no peak (SPEC §3), so slip
+  shared by all wheels (a slope, an acceleration, digging in) is what carries the load, and
+  slowing the wheels only slows the rover at the same slip ratio: it buys neither traction
+  nor energy per metre. Each rolling wheel's slip is therefore measured against a reference,
+  the median slip of the usable rolling wheels clipped to +-``traction_allowance``: slip
+  inconsistent between wheels (a wheel spinning on an obstacle while the others roll, axles
+  of different loaded radius fighting each other) is always corrected, slip shared by all
+  only beyond the allowance. The shipped allowance is 1 (never: the one case where slowing
+  pays, a rover that stands while its wheels turn, is the stuck detector's, below), and
+  ``traction_allowance: 0`` gives the paper's plain loop, every wheel's slip toward zero.
+  The median rather than the mean, so that one spinning wheel does not drag the reference
+  and make the loop speed up the three healthy wheels. The reference also absorbs errors the
+  estimate shares across wheels: on bumps it reads the same -0.4 on all four wheels for
+  seconds while the true slip is a few per cent (``docs/benchmark/README.md``), and a PI
+  cannot tell such a common error from slip, since speeding every wheel up by the same ratio
+  leaves every slip ratio unchanged.
+* Common-mode leak: within the allowance only the wheels' slip *differences* are observable,
+  so where the four integrators settle together is set by history (a start-up transient,
+  the deadband stopping each wheel anywhere within it), and a common offset of a few tenths
+  of a per cent changes the rover's speed from the feed-forward's. While the shared slip is
+  within the allowance and no wheel is stuck, the median of the integrators leaks back to
+  zero with time constant ``common_mode_leak_time``: the feed-forward sets the speed, the
+  loop only moves wheels relative to each other. The median, so that one wheel held at a
+  limit is not "leaked" into speeding up the others.
+* Turn schedule: a skid-steer turn *needs* slip (outer wheels spin, inner ones skid) and a
+  PI that removes it removes the turn. The deadband widens with the commanded turn
+  ``half_track |w| / max(|v|, speed_floor)`` times ``turn_deadband_gain``.
+* Output limits: ``min_correction`` bounds how far a wheel may be slowed, ``max_correction``
+  how far sped up; the motor's ``max_wheel_speed`` caps the result. The default lower limit
+  -1 stops a wheel entirely: a wheel that makes no progress has S = -1 at any speed above
+  zero, so only stopping it removes its slip. ``retry_interval`` then releases the
+  integrator of a wheel held at that limit (its estimate frozen, as a stopped wheel's is)
+  so it tries again instead of giving up for good.
+* Anti-windup: the integrator is clamped to the output limits and stops integrating in the
+  direction of a saturated output (conditional integration), so it leaves a limit on the
+  first sample the error changes sign.
+* Frozen integrators: while a wheel's estimate is flagged unreliable (warm-up, free wheels
+  contradicting the chain, standstill, slow wheel) the integrator holds its value and the
+  proportional term is off; so does it while the wheel's feed-forward is zero (nothing to
+  correct, and a stop must not wind anything up).
+* Stuck detector, the one exception: when the rover has stood still (FLAG_STANDSTILL, no
+  warm-up or free-wheel flag) for ``stuck_time`` seconds while a wheel is driven, that wheel
+  makes no progress whatever its speed, so its slip is taken as -1 (eq. 10 divides by the
+  tread speed when the hub stands; the estimator's flag is about the hub's speed as a
+  divisor). This is the stuck wheel the controller exists for, and the estimator flags it
+  unreliable. The persistence keeps a start from rest or a turn on the spot out of it.
+  Stuck wheels are driven toward zero slip (reference 0), so they are stopped.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from rover_env import kinematics as kin
+from rover_env.config import ConfigError, RoverConfig, configs_dir, from_dict
+from rover_env.control.base import Controller, ControllerInput
+from rover_env.control.open_loop import OpenLoop
+from rover_env.estimation.estimator import (
+    FLAG_FREE_WHEELS,
+    FLAG_STANDSTILL,
+    FLAG_WARMUP,
+    axle_load_radii,
+    static_rolling_radius,
+)
+
+__all__ = ["SlipPI", "SlipPIConfig", "load_slip_pi_config"]
+
+Array = npt.NDArray[np.float64]
+
+_SLIP_RADII = ("estimator", "axle_load")
+
+
+@dataclass(frozen=True)
+class SlipPIConfig:
+    """Gains and limits of :class:`SlipPI`; validated on construction (ConfigError)."""
+
+    kp: float = 0.3
+    """Relative speed correction per unit of slip beyond the deadband (1)."""
+    ki: float = 1.0
+    """Integral gain (1/s): relative correction per unit slip per second."""
+    deadband: float = 0.01
+    """|S - reference| below this is ignored (estimator noise, module docstring)."""
+    turn_deadband_gain: float = 0.5
+    """Extra deadband per unit of commanded turn ratio half_track |w| / |v|."""
+    max_deadband: float = 0.5
+    speed_floor: float = 0.05
+    """Floor (m/s) of |v| in the turn ratio, so a turn on the spot does not divide by 0."""
+    min_correction: float = -1.0
+    """Lowest u: a wheel is slowed to no less than (1 + min_correction) of its target."""
+    max_correction: float = 0.5
+    """Highest u: a wheel is sped up to no more than (1 + max_correction) of its target."""
+    traction_allowance: float = 1.0
+    """Largest |slip| shared by all wheels that is left alone (module docstring)."""
+    retry_interval: float = 5.0
+    """Seconds a wheel may sit frozen at ``min_correction`` before its integrator is released
+    (0: never)."""
+    slip_radius: str = "axle_load"
+    """Rolling radii the slip is measured with: "estimator" uses the estimate as given;
+    "axle_load" recomputes it from the same filtered rates with per-axle loaded radii
+    (:func:`rover_env.estimation.estimator.axle_load_radii`), which sees the fight between
+    axles of different loaded radius that one common radius hides."""
+    stuck_time: float = 1.0
+    """Seconds of standstill while driven before a wheel counts as stuck (0: never)."""
+    common_mode_leak_time: float = 2.0
+    """Time constant (s) of the common-mode leak (module docstring; 0: no leak)."""
+
+    def __post_init__(self) -> None:
+        for name in (
+            "kp",
+            "ki",
+            "deadband",
+            "turn_deadband_gain",
+            "max_deadband",
+            "traction_allowance",
+            "retry_interval",
+            "stuck_time",
+            "common_mode_leak_time",
+        ):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (math.isfinite(v) and v >= 0):
+                raise ConfigError(f"slip_pi.{name} must be a finite number >= 0, got {v!r}")
+        for name in ("speed_floor",):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (math.isfinite(v) and v > 0):
+                raise ConfigError(f"slip_pi.{name} must be a finite number > 0, got {v!r}")
+        if not -1.0 <= self.min_correction <= 0.0:
+            raise ConfigError(
+                f"slip_pi.min_correction must lie in [-1, 0], got {self.min_correction!r}"
+            )
+        if not (math.isfinite(self.max_correction) and self.max_correction >= 0):
+            raise ConfigError(f"slip_pi.max_correction must be >= 0, got {self.max_correction!r}")
+        if self.deadband > self.max_deadband:
+            raise ConfigError("slip_pi.deadband exceeds slip_pi.max_deadband")
+        if self.slip_radius not in _SLIP_RADII:
+            raise ConfigError(
+                f"slip_pi.slip_radius must be one of {', '.join(_SLIP_RADII)}, "
+                f"got {self.slip_radius!r}"
+            )
+
+
+def load_slip_pi_config(name_or_path: str | Path = "slip_pi") -> SlipPIConfig:
+    """A shipped name (``configs/control/<name>.yaml``) or a YAML path."""
+    import yaml
+
+    p = Path(name_or_path)
+    if p.suffix not in (".yaml", ".yml") and not p.exists():
+        p = configs_dir() / "control" / f"{name_or_path}.yaml"
+    if not p.is_file():
+        raise ConfigError(f"slip PI configuration file not found: {p}")
+    try:
+        with p.open() as fh:
+            data = yaml.safe_load(fh)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{p}: malformed YAML: {exc}") from None
+    try:
+        return from_dict(SlipPIConfig, data)
+    except ConfigError as exc:
+        raise ConfigError(f"{p}: {exc}") from None
+
+
+def _deadzone(x: Array, width: Array) -> Array:
+    return np.asarray(np.sign(x) * np.maximum(np.abs(x) - width, 0.0), dtype=np.float64)
+
+
+class SlipPI(Controller):
+    """Open-loop skid-steer feed-forward corrected per wheel by a PI on estimated slip.
+
+    ``dt`` is the control period the integrator assumes when the input's time stamps cannot
+    tell it (the first call after :meth:`reset`); afterwards it integrates over the actual
+    time between calls.
+    """
+
+    name = "slip-pi"
+
+    def __init__(
+        self,
+        rover_cfg: RoverConfig,
+        cfg: SlipPIConfig | None = None,
+        dt: float = 0.1,
+        rolling_radius: npt.ArrayLike | None = None,
+    ) -> None:
+        self.cfg = cfg or SlipPIConfig()
+        self.rover_cfg = rover_cfg
+        self.feedforward = OpenLoop(rover_cfg, rolling_radius)
+        self.max_wheel_speed = rover_cfg.motor.max_wheel_speed
+        self.dt = float(dt)
+        self.v_eps = rover_cfg.tire.v_eps
+        radii = (
+            axle_load_radii(rover_cfg)
+            if self.cfg.slip_radius == "axle_load"
+            else (static_rolling_radius(rover_cfg),) * 6
+        )
+        self._radii = np.asarray(radii, dtype=np.float64)
+        self._chain = kin.ChainGeometry.from_config(rover_cfg, self._radii)
+        self.reset()
+
+    def reset(self) -> None:
+        self.integral = np.zeros(4)
+        self._t_prev: float | None = None
+        self._standing = np.zeros(4)
+        """Seconds each wheel has been driven while the rover stood still."""
+        self._held = np.zeros(4)
+        """Seconds each wheel has sat at the lower limit while stuck or frozen."""
+        self.last_slip = np.zeros(4)
+        self.last_active = np.zeros(4, dtype=bool)
+        self.last_stuck = np.zeros(4, dtype=bool)
+        self.last_correction = np.zeros(4)
+
+    # ------------------------------------------------------------------ pieces
+    def measured_slip(self, obs: ControllerInput) -> Array:
+        """The slip ratio the loop acts on (the estimate, or re-based on per-axle radii)."""
+        if self.cfg.slip_radius == "estimator":
+            return obs.slip_ratio
+        est = obs.estimate
+        w3, v3 = kin.segment3_twist(np.asarray(est.phi_rate)[4:], self._chain)
+        motion = kin.chain_motion(w3, v3, obs.theta, np.asarray(est.theta_rate), self._chain)
+        nominal = kin.nominal_wheel_rates(motion, self._chain)
+        return kin.slip_ratio(np.asarray(est.phi_rate)[:4], nominal, self._radii[:4], self.v_eps)
+
+    def deadband(self, obs: ControllerInput) -> float:
+        """Deadband for this command: wider in turns, which need slip."""
+        c = self.cfg
+        ratio = (
+            self.rover_cfg.geometry.half_track
+            * abs(obs.yaw_rate_command)
+            / max(abs(obs.speed_command), c.speed_floor)
+        )
+        return min(c.deadband + c.turn_deadband_gain * ratio, c.max_deadband)
+
+    def shared_slip(self, slip: Array, ok: npt.NDArray[np.bool_]) -> float:
+        """Median slip of the usable wheels (0 when none is usable)."""
+        return float(np.median(slip[ok])) if ok.any() else 0.0
+
+    def reference(self, slip: Array, ok: npt.NDArray[np.bool_]) -> float:
+        """Slip shared by the usable wheels, up to the traction allowance."""
+        a = self.cfg.traction_allowance
+        return float(np.clip(self.shared_slip(slip, ok), -a, a))
+
+    # ------------------------------------------------------------------ step
+    def act(self, obs: ControllerInput) -> Array:
+        c = self.cfg
+        ff = self.feedforward.feedforward(obs.speed_command, obs.yaw_rate_command)
+        dt = self.dt if self._t_prev is None else max(obs.t - self._t_prev, 0.0)
+        self._t_prev = obs.t
+        driven = ff != 0
+        flags = obs.flags
+        soft = (flags & (FLAG_WARMUP | FLAG_FREE_WHEELS)) != 0
+        standing = ((flags & FLAG_STANDSTILL) != 0) & ~soft & driven
+        self._standing = np.where(standing, self._standing + dt, 0.0)
+        stuck = standing & (c.stuck_time > 0) & (self._standing >= c.stuck_time)
+
+        slip = np.asarray(self.measured_slip(obs), dtype=np.float64)
+        ok = (flags == 0) & np.isfinite(slip) & driven
+        slip = np.where(stuck, -1.0, np.nan_to_num(slip))
+        moving = ok & ~stuck
+        ok |= stuck
+        # Stuck wheels are measured against zero slip, rolling ones against their shared slip.
+        ref = self.reference(slip, moving)
+        e = np.where(ok, _deadzone(slip - ref, np.asarray(self.deadband(obs))), 0.0)
+
+        # Highest u the motor allows for each wheel, never below the lower limit.
+        with np.errstate(divide="ignore"):
+            motor_cap = np.where(driven, self.max_wheel_speed / np.abs(ff) - 1.0, np.inf)
+        hi = np.maximum(np.minimum(c.max_correction, motor_cap), c.min_correction)
+        lo = np.full(4, c.min_correction)
+        u_raw = c.kp * e + self.integral
+        # Conditional integration: never push further into a saturated limit.
+        blocked = ((u_raw >= hi) & (e > 0)) | ((u_raw <= lo) & (e < 0))
+        self.integral = np.clip(self.integral + np.where(ok & ~blocked, c.ki * e * dt, 0.0), lo, hi)
+        shared = self.shared_slip(slip, moving)
+        calm = not stuck.any() and abs(shared) <= c.traction_allowance
+        if c.common_mode_leak_time > 0 and calm and driven.any():
+            common = float(np.median(self.integral[driven]))
+            leak = min(1.0, dt / c.common_mode_leak_time) * common
+            self.integral = np.where(driven, np.clip(self.integral - leak, lo, hi), self.integral)
+        u = np.clip(c.kp * e + self.integral, lo, hi)
+        if c.retry_interval > 0:
+            held = (u <= lo) & (stuck | ~ok) & driven
+            self._held = np.where(held, self._held + dt, 0.0)
+            retry = self._held >= c.retry_interval
+            self.integral[retry] = 0.0
+            self._held[retry] = 0.0
+            self._standing[retry] = 0.0
+            u[retry] = 0.0
+        self.last_slip, self.last_active, self.last_stuck, self.last_correction = slip, ok, stuck, u
+        targets = ff * (1.0 + u)
+        return np.asarray(
+            np.clip(targets, -self.max_wheel_speed, self.max_wheel_speed), dtype=np.float64
+        )
+
+
+def replace(cfg: SlipPIConfig, **changes: float | str | bool) -> SlipPIConfig:
+    """A copy with some fields changed (validated): the tuner's way to try gains."""
+    return dataclasses.replace(cfg, **changes)  # type: ignore[arg-type]

@@ -1,0 +1,676 @@
+// rover_env tire layer as a MuJoCo engine plugin (passive-force capability).
+//
+// The C twin of rover_env/sim/tire_layer.py + rover_env/tire.py (transient-slip
+// Gim-Nikravesh form) + rover_env/terrain.py (analytic ground): the numpy code is
+// the reference, and this file follows it operation by operation (same formulas,
+// same order of floating-point operations, numpy's pairwise summation for sums),
+// so that results agree to the last bit or few. Compile with -ffp-contract=off:
+// a fused multiply-add would change the rounding.
+//
+// It also integrates the driven wheels' dcmotor position setpoints (the speed
+// loop's I-term) so that no Python runs per physics substep.
+//
+// Pipeline: compute() runs inside mj_passive (mj_fwdVelocity, i.e. in mj_forward
+// before mj_fwdActuation). It is a pure function of (qpos, qvel, ctrl[vel],
+// committed plugin state): it writes this substep's setpoints into ctrl[pos]
+// (read by the actuators later in the same mj_forward), adds the tire forces to
+// qfrc_passive, and stores everything it computed in a *pending* block of
+// plugin_state. advance() (called by mj_advance after integration) commits the
+// pending block. Repeated mj_forward calls are therefore idempotent, exactly as
+// the numpy layer (which only runs inside RoverSim.step) leaves the state alone.
+//
+// plugin_state layout for nw wheels and nd driven wheels (offsets in mjtNum):
+//   [0, nw)            u_x       committed tire deflections (m)
+//   [nw, 2nw)          u_y
+//   [2nw, 2nw+nd)      sp        committed position setpoints of the driven wheels (rad)
+//   [2nw+nd]           nstep     number of committed substeps (0: no truth yet)
+//   next 14 nw         truth     committed outputs of the last substep:
+//                                v_x, v_y, v_w, F_x, F_y, F_z, delta (nw each),
+//                                point (nw x 3), normal (nw x 3), patch (nw)
+//   next 2 nw + nd     pending   u_x, u_y, sp computed by the last compute()
+//   next 14 nw         pending truth, same layout as truth
+// rover_env.sim.fast.layout() mirrors this.
+//
+// Configuration (MJCF <config key=... value=...>, all strings):
+//   wheels           body names of the wheels (nw)
+//   joints           hinge joint names of the wheels (nw, same order)
+//   motors           dcmotor actuator names (nd <= nw) with input="pos vel";
+//                    the setpoint clamps to the angle of the joint each one drives
+//   radius           nominal wheel radius (m)
+//   tire             11 numbers in TireParams field order
+//   max_angle_error  anti-windup bound of the setpoint around the wheel angle (rad)
+//   terrain          name of the <numeric> element holding the ground (read at every
+//                    compute, so it may change at run time and per simulation):
+//     [0] layout version (1)  [1] flat (0/1)  [2] contact iterations
+//     [3] dh/dx slope  [4] dh/dy slope  [5] default mu_x  [6] default mu_y
+//     [7] nwave  [8] npatch  [9] wave capacity W  [10] patch capacity P
+//     then W x (amplitude, k_x, k_y, phase, start), then P x (lo_x, lo_y, hi_x, hi_y, mu_x, mu_y)
+
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <mujoco/mujoco.h>
+
+#define PLUGIN_NAME "rover_env.tire"
+#define NTIRE 11
+#define TERRAIN_VERSION 1
+#define TERRAIN_HEADER 11
+#define WAVE_STRIDE 5
+#define PATCH_STRIDE 6
+#define NTRUTH 14
+#define X_FLOOR 1e-300
+#define MAX_WAVES 4096
+#define NAME_LEN 256
+
+// tire parameter indices (TireParams field order)
+enum { MU_X, MU_Y, C_S, C_ALPHA, C_Z, D_Z, V_EPS, SIGMA_X, SIGMA_Y, D_X, D_Y };
+
+// truth block field offsets, in units of nw
+enum { T_VX = 0, T_VY = 1, T_VW = 2, T_FX = 3, T_FY = 4, T_FZ = 5, T_DELTA = 6,
+       T_POINT = 7, T_NORMAL = 10, T_PATCH = 13 };
+
+static const char* kAttributes[] = {
+  "wheels", "joints", "motors", "radius", "tire", "max_angle_error", "terrain"
+};
+
+typedef struct {
+  int nw, nd;
+  int *body, *jnt, *dof, *carrier, *root;
+  int *ctrl_pos, *ctrl_vel, *driven_qpos;
+  double radius, max_err;
+  double tire[NTIRE];
+  // per-model constants of the hot path, each computed exactly as the numpy code does per call
+  double three_over_cs, three_over_calpha, three_sy_over_calpha;
+  int terrain;  // numeric id
+  int capw;     // wave capacity the scratch is sized for
+  // scratch of the MjData this configuration belongs to (one per thread in mujoco.batch)
+  double* qfrc;  // nv
+  double* buf;   // 3 x wave capacity
+} Config;
+
+typedef struct {
+  int ux, uy, sp, nstep, truth, pux, puy, psp, ptruth, total;
+} Layout;
+
+static Layout layout_of(int nw, int nd) {
+  Layout L;
+  L.ux = 0;
+  L.uy = nw;
+  L.sp = 2*nw;
+  L.nstep = 2*nw + nd;
+  L.truth = L.nstep + 1;
+  L.pux = L.truth + NTRUTH*nw;
+  L.puy = L.pux + nw;
+  L.psp = L.puy + nw;
+  L.ptruth = L.psp + nd;
+  L.total = L.ptruth + NTRUTH*nw;
+  return L;
+}
+
+//---------------------------------------------------------------- numpy-compatible arithmetic
+
+// np.maximum / np.minimum on finite values (NaN propagates as in numpy)
+static inline double np_max(double a, double b) { return (a >= b || isnan(a)) ? a : b; }
+static inline double np_min(double a, double b) { return (a <= b || isnan(a)) ? a : b; }
+static inline double np_sign(double a) {
+  return a > 0.0 ? 1.0 : (a < 0.0 ? -1.0 : (a == 0.0 ? 0.0 : a));
+}
+
+// numpy's pairwise summation (add.reduce of a contiguous double array)
+static double pairwise_sum(const double* a, int n) {
+  if (n < 8) {
+    double res = -0.0;
+    for (int i = 0; i < n; i++) res += a[i];
+    return res;
+  } else if (n <= 128) {
+    double r[8];
+    int i;
+    for (int j = 0; j < 8; j++) r[j] = a[j];
+    for (i = 8; i < n - (n % 8); i += 8) {
+      for (int j = 0; j < 8; j++) r[j] += a[i + j];
+    }
+    double res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+    for (; i < n; i++) res += a[i];
+    return res;
+  } else {
+    int n2 = n / 2;
+    n2 -= n2 % 8;
+    return pairwise_sum(a, n2) + pairwise_sum(a + n2, n - n2);
+  }
+}
+
+// np.sum(a * b) over 3 components: (a0 b0 + a1 b1) + a2 b2
+static inline double dot3(const double a[3], const double b[3]) {
+  return (a[0]*b[0] + a[1]*b[1]) + a[2]*b[2];
+}
+
+// np.cross
+static inline void cross3(double r[3], const double a[3], const double b[3]) {
+  r[0] = a[1]*b[2] - a[2]*b[1];
+  r[1] = a[2]*b[0] - a[0]*b[2];
+  r[2] = a[0]*b[1] - a[1]*b[0];
+}
+
+// np.linalg.norm of a 3-vector
+static inline double norm3(const double a[3]) { return sqrt(dot3(a, a)); }
+
+// mj_applyFT(m, d, f, 0, point, body, qfrc) for a pure force, without building the dense
+// Jacobians: the same arithmetic as mj_jac (dense) followed by mju_mulMatTVec (which skips
+// zero entries of the vector), but only over the dofs of the body's ancestor chain, the
+// only non-zero columns. About three times faster; checked bit-exact against mj_applyFT.
+static void apply_force(const mjModel* m, const mjData* d, const double f[3],
+                        const double point[3], int body, double* qfrc) {
+  const double* com = d->subtree_com + 3*m->body_rootid[body];
+  const double offset[3] = {point[0] - com[0], point[1] - com[1], point[2] - com[2]};
+  while (body && !m->body_dofnum[body]) body = m->body_parentid[body];
+  if (!body) return;
+  int i = m->body_dofadr[body] + m->body_dofnum[body] - 1;
+  while (i >= 0) {
+    const double* cdof = d->cdof + 6*i;
+    double tmp[3];
+    cross3(tmp, cdof, offset);
+    double r = 0.0;
+    if (f[0]) r += (cdof[3] + tmp[0])*f[0];
+    if (f[1]) r += (cdof[4] + tmp[1])*f[1];
+    if (f[2]) r += (cdof[5] + tmp[2])*f[2];
+    qfrc[i] += r;
+    i = m->dof_parentid[i];
+  }
+}
+
+//---------------------------------------------------------------- terrain
+
+typedef struct {
+  const double* p;   // numeric data
+  int flat, iterations, nwave, npatch, capw, capp;
+  const double* wave;
+  const double* patch;
+} TerrainView;
+
+// read the terrain block; 0 if it is malformed (then the plugin adds no force)
+static int terrain_view(const mjModel* m, int id, TerrainView* t) {
+  if (id < 0 || id >= m->nnumeric) return 0;
+  int size = m->numeric_size[id];
+  const double* p = m->numeric_data + m->numeric_adr[id];
+  if (size < TERRAIN_HEADER || p[0] != TERRAIN_VERSION) return 0;
+  int capw = (int)p[9], capp = (int)p[10];
+  if (capw < 0 || capp < 0 || capw > MAX_WAVES
+      || size != TERRAIN_HEADER + WAVE_STRIDE*capw + PATCH_STRIDE*capp) {
+    return 0;
+  }
+  int nwave = (int)p[7], npatch = (int)p[8];
+  if (nwave < 0 || nwave > capw || npatch < 0 || npatch > capp) return 0;
+  t->p = p;
+  t->flat = p[1] != 0.0;
+  t->iterations = (int)p[2];
+  if (t->iterations < 1) t->iterations = 1;
+  t->nwave = nwave;
+  t->npatch = npatch;
+  t->capw = capw;
+  t->capp = capp;
+  t->wave = p + TERRAIN_HEADER;
+  t->patch = p + TERRAIN_HEADER + WAVE_STRIDE*capw;
+  return 1;
+}
+
+// Terrain.height_and_gradient at one point; buf holds 3 nwave doubles. The contact search
+// uses either the height or the gradient of each evaluation, never both, so the unused
+// half (sines or cosines) is skipped: the values that are used are the same.
+static void height_and_gradient(const TerrainView* t, double x, double y, int need_h,
+                                double* h, double* hx, double* hy, double* buf) {
+  double gx = t->p[3], gy = t->p[4];
+  double hh = gx*x + gy*y, hhx = gx, hhy = gy;
+  int K = t->nwave;
+  if (K) {
+    double *ts = buf, *tcx = buf + K, *tcy = buf + 2*K;
+    for (int c = 0; c < K; c++) {
+      const double* w = t->wave + WAVE_STRIDE*c;
+      double amp = w[0], k0 = w[1], k1 = w[2], phase = w[3], start = w[4];
+      double s = x*k0 + y*k1;
+      int on = s >= start;
+      double arg = s + phase;
+      if (need_h) {
+        ts[c] = on ? amp*sin(arg) : 0.0;
+      } else {
+        double cc = on ? amp*cos(arg) : 0.0;
+        tcx[c] = cc*k0;
+        tcy[c] = cc*k1;
+      }
+    }
+    if (need_h) {
+      hh = hh + pairwise_sum(ts, K);
+    } else {
+      hhx = hhx + pairwise_sum(tcx, K);
+      hhy = hhy + pairwise_sum(tcy, K);
+    }
+  }
+  *h = hh;
+  *hx = hhx;
+  *hy = hhy;
+}
+
+// terrain._normal
+static void ground_normal(double n[3], double hx, double hy) {
+  double v[3] = {-hx, -hy, 1.0};
+  double len = norm3(v);
+  n[0] = v[0] / len;
+  n[1] = v[1] / len;
+  n[2] = v[2] / len;
+}
+
+// Terrain.wheel_contact for one wheel
+static void wheel_contact(const TerrainView* t, const double centre[3], const double axis[3],
+                          double radius, double point[3], double n[3], double* delta,
+                          double* buf) {
+  double h = 0.0, hx, hy, q[3] = {0, 0, 0};
+  if (t->flat) {
+    n[0] = 0.0;
+    n[1] = 0.0;
+    n[2] = 1.0;
+  } else {
+    height_and_gradient(t, centre[0], centre[1], 0, &h, &hx, &hy, buf);
+    ground_normal(n, hx, hy);
+  }
+  int iterations = t->flat ? 1 : t->iterations;
+  for (int it = 0; it < iterations; it++) {
+    double na = dot3(n, axis);
+    double u[3];
+    for (int k = 0; k < 3; k++) u[k] = -(n[k] - na*axis[k]);
+    double len = norm3(u);
+    for (int k = 0; k < 3; k++) u[k] /= len;
+    for (int k = 0; k < 3; k++) q[k] = centre[k] + radius*u[k];
+    if (t->flat) {
+      h = 0.0;
+      break;
+    }
+    int last = it == iterations - 1;
+    height_and_gradient(t, q[0], q[1], last, &h, &hx, &hy, buf);
+    if (!last) ground_normal(n, hx, hy);
+  }
+  double dl = (h - q[2])*n[2];
+  for (int k = 0; k < 3; k++) point[k] = q[k] + dl*n[k];
+  *delta = dl;
+}
+
+// Terrain.friction at one point
+static void friction(const TerrainView* t, double x, double y,
+                     double* mux, double* muy, int* patch) {
+  *mux = t->p[5];
+  *muy = t->p[6];
+  *patch = 0;
+  for (int i = 0; i < t->npatch; i++) {
+    const double* p = t->patch + PATCH_STRIDE*i;
+    if (x >= p[0] && x <= p[2] && y >= p[1] && y <= p[3]) {
+      *mux = p[4];
+      *muy = p[5];
+      *patch = i + 1;
+    }
+  }
+}
+
+//---------------------------------------------------------------- tire (rover_env.tire)
+
+// _gim_magnitude: returns |F|, sets the bound mu F_z; three_over_k = 3.0 / stiffness
+static inline double gim_magnitude(double slip, double fz, double mu, double three_over_k,
+                                   double* bound) {
+  double mu_fz = mu*fz;
+  double slip_c = mu_fz*three_over_k;
+  double q = np_min(slip, slip_c) / np_max(slip_c, X_FLOOR);
+  *bound = mu_fz;
+  return mu_fz*q*(3.0 + q*(q - 3.0));
+}
+
+//---------------------------------------------------------------- config parsing
+
+static int count_tokens(const char* s) {
+  int n = 0;
+  while (s && *s) {
+    while (*s == ' ' || *s == '\t' || *s == '\n' || *s == '\r') s++;
+    if (!*s) break;
+    n++;
+    while (*s && *s != ' ' && *s != '\t' && *s != '\n' && *s != '\r') s++;
+  }
+  return n;
+}
+
+// copy the next whitespace-separated token into buf; returns the rest or NULL
+static const char* next_token(const char* s, char* buf, int size) {
+  while (*s == ' ' || *s == '\t' || *s == '\n' || *s == '\r') s++;
+  if (!*s) return NULL;
+  int n = 0;
+  while (*s && *s != ' ' && *s != '\t' && *s != '\n' && *s != '\r') {
+    if (n < size - 1) buf[n++] = *s;
+    s++;
+  }
+  buf[n] = 0;
+  return s;
+}
+
+// parse exactly n numbers; 0 on failure
+static int parse_numbers(const char* s, double* out, int n) {
+  if (!s || count_tokens(s) != n) return 0;
+  char buf[NAME_LEN];
+  for (int i = 0; i < n; i++) {
+    s = next_token(s, buf, NAME_LEN);
+    if (!s) return 0;
+    char* end;
+    out[i] = strtod(buf, &end);
+    if (*end || !isfinite(out[i])) return 0;
+  }
+  return 1;
+}
+
+static const char* config(const mjModel* m, int instance, const char* key) {
+  const char* s = mj_getPluginConfig(m, instance, key);
+  return s ? s : "";
+}
+
+static void free_config(Config* c) {
+  if (!c) return;
+  free(c->body);
+  free(c->jnt);
+  free(c->dof);
+  free(c->carrier);
+  free(c->root);
+  free(c->ctrl_pos);
+  free(c->ctrl_vel);
+  free(c->driven_qpos);
+  free(c->qfrc);
+  free(c->buf);
+  free(c);
+}
+
+static int fail(Config* c, const char* msg, const char* detail) {
+  mju_warning("%s plugin: %s%s", PLUGIN_NAME, msg, detail ? detail : "");
+  free_config(c);
+  return -1;
+}
+
+// parse and check the configuration; 0 on success (*out set), -1 after a warning
+static int parse_config(const mjModel* m, int instance, Config** out) {
+  *out = NULL;
+  Config* c = calloc(1, sizeof(Config));
+  if (!c) return fail(NULL, "out of memory", NULL);
+  const char* wheels = config(m, instance, "wheels");
+  const char* joints = config(m, instance, "joints");
+  const char* motors = config(m, instance, "motors");
+  c->nw = count_tokens(wheels);
+  c->nd = count_tokens(motors);
+  int nw = c->nw, nd = c->nd;
+  if (nw < 1) return fail(c, "config 'wheels' names no body", NULL);
+  if (count_tokens(joints) != nw) {
+    return fail(c, "config 'joints' must name one hinge per wheel", NULL);
+  }
+  if (nd > nw) return fail(c, "config 'motors' names more motors than wheels", NULL);
+  c->body = calloc(nw, sizeof(int));
+  c->jnt = calloc(nw, sizeof(int));
+  c->dof = calloc(nw, sizeof(int));
+  c->carrier = calloc(nw, sizeof(int));
+  c->root = calloc(nw, sizeof(int));
+  c->ctrl_pos = calloc(nd + 1, sizeof(int));
+  c->ctrl_vel = calloc(nd + 1, sizeof(int));
+  c->driven_qpos = calloc(nd + 1, sizeof(int));
+  if (!c->body || !c->jnt || !c->dof || !c->carrier || !c->root || !c->ctrl_pos
+      || !c->ctrl_vel || !c->driven_qpos) {
+    return fail(c, "out of memory", NULL);
+  }
+  char name[NAME_LEN];
+  const char* s = wheels;
+  for (int i = 0; i < nw; i++) {
+    s = next_token(s, name, NAME_LEN);
+    int b = mj_name2id(m, mjOBJ_BODY, name);
+    if (b <= 0) return fail(c, "config 'wheels': no such body: ", name);
+    c->body[i] = b;
+    c->carrier[i] = m->body_parentid[b];
+    c->root[i] = m->body_rootid[c->carrier[i]];
+  }
+  s = joints;
+  for (int i = 0; i < nw; i++) {
+    s = next_token(s, name, NAME_LEN);
+    int j = mj_name2id(m, mjOBJ_JOINT, name);
+    if (j < 0) return fail(c, "config 'joints': no such joint: ", name);
+    if (m->jnt_type[j] != mjJNT_HINGE || m->jnt_bodyid[j] != c->body[i]) {
+      return fail(c, "config 'joints': not a hinge of its wheel body: ", name);
+    }
+    c->jnt[i] = j;
+    c->dof[i] = m->jnt_dofadr[j];
+  }
+  s = motors;
+  for (int i = 0; i < nd; i++) {
+    s = next_token(s, name, NAME_LEN);
+    int a = mj_name2id(m, mjOBJ_ACTUATOR, name);
+    if (a < 0) return fail(c, "config 'motors': no such actuator: ", name);
+    if (m->actuator_ctrlnum[a] != 2 || m->actuator_trntype[a] != mjTRN_JOINT) {
+      return fail(c, "config 'motors': need a joint dcmotor with input=\"pos vel\": ", name);
+    }
+    c->ctrl_pos[i] = m->actuator_ctrladr[a];
+    c->ctrl_vel[i] = m->actuator_ctrladr[a] + 1;
+    c->driven_qpos[i] = m->jnt_qposadr[m->actuator_trnid[2*a]];
+  }
+  if (!parse_numbers(config(m, instance, "radius"), &c->radius, 1) || c->radius <= 0) {
+    return fail(c, "config 'radius' must be one positive number", NULL);
+  }
+  if (!parse_numbers(config(m, instance, "max_angle_error"), &c->max_err, 1)
+      || c->max_err <= 0) {
+    return fail(c, "config 'max_angle_error' must be one positive number", NULL);
+  }
+  if (!parse_numbers(config(m, instance, "tire"), c->tire, NTIRE)) {
+    return fail(c, "config 'tire' must hold the 11 TireParams numbers", NULL);
+  }
+  const char* tname = config(m, instance, "terrain");
+  c->terrain = mj_name2id(m, mjOBJ_NUMERIC, tname);
+  TerrainView tv;
+  if (c->terrain < 0) return fail(c, "config 'terrain': no such numeric: ", tname);
+  if (!terrain_view(m, c->terrain, &tv)) {
+    return fail(c, "config 'terrain': malformed terrain numeric: ", tname);
+  }
+  c->qfrc = calloc(m->nv + 1, sizeof(double));
+  c->capw = tv.capw;
+  c->buf = calloc(3*tv.capw + 1, sizeof(double));
+  if (!c->qfrc || !c->buf) return fail(c, "out of memory", NULL);
+  c->three_over_cs = 3.0/c->tire[C_S];
+  c->three_over_calpha = 3.0/c->tire[C_ALPHA];
+  c->three_sy_over_calpha = 3.0*c->tire[SIGMA_Y]/c->tire[C_ALPHA];
+  if (m->opt.integrator == mjINT_RK4) {
+    return fail(c, "the RK4 integrator is not supported (it evaluates forces at"
+                " intermediate stages); use Euler, implicit or implicitfast", NULL);
+  }
+  Layout L = layout_of(nw, nd);
+  if (m->plugin_statenum[instance] != L.total) {
+    return fail(c, "plugin state size does not match the configuration", NULL);
+  }
+  *out = c;
+  return 0;
+}
+
+//---------------------------------------------------------------- callbacks
+
+static int tire_nstate(const mjModel* m, int instance) {
+  int nw = count_tokens(config(m, instance, "wheels"));
+  int nd = count_tokens(config(m, instance, "motors"));
+  return layout_of(nw, nd).total;
+}
+
+static int tire_init(const mjModel* m, mjData* d, int instance) {
+  Config* c;
+  if (parse_config(m, instance, &c)) return -1;
+  d->plugin_data[instance] = (uintptr_t)c;
+  return 0;
+}
+
+static void tire_destroy(mjData* d, int instance) {
+  free_config((Config*)d->plugin_data[instance]);
+  d->plugin_data[instance] = 0;
+}
+
+static void tire_copy(mjData* dest, const mjModel* m, const mjData* src, int instance) {
+  // the destination normally keeps the configuration its own init parsed
+  if (!dest->plugin_data[instance] || dest->plugin_data[instance] == src->plugin_data[instance]) {
+    Config* c;
+    dest->plugin_data[instance] = parse_config(m, instance, &c) ? 0 : (uintptr_t)c;
+  }
+}
+
+static void tire_reset(const mjModel* m, mjtNum* plugin_state, void* plugin_data,
+                       int instance) {
+  (void)plugin_data;
+  memset(plugin_state, 0, sizeof(mjtNum) * m->plugin_statenum[instance]);
+}
+
+static void tire_compute(const mjModel* m, mjData* d, int instance, int capability_bit) {
+  (void)capability_bit;
+  const Config* c = (const Config*)d->plugin_data[instance];
+  if (!c) return;
+  const int nw = c->nw, nd = c->nd, nv = m->nv;
+  const Layout L = layout_of(nw, nd);
+  mjtNum* st = d->plugin_state + m->plugin_stateadr[instance];
+  const double dt = m->opt.timestep;
+  const double* tp = c->tire;
+
+  // speed loop: integrate the angle setpoints with anti-windup (RoverSim.step)
+  for (int k = 0; k < nd; k++) {
+    double q = d->qpos[c->driven_qpos[k]];
+    double sp = st[L.sp + k] + d->ctrl[c->ctrl_vel[k]]*dt;
+    double v = np_min(np_max(sp, q - c->max_err), q + c->max_err);
+    d->ctrl[c->ctrl_pos[k]] = v;
+    st[L.psp + k] = v;
+  }
+
+  TerrainView tv;
+  if (!terrain_view(m, c->terrain, &tv)) {
+    mju_warning("%s plugin: malformed terrain numeric; no tire forces", PLUGIN_NAME);
+    return;
+  }
+
+  // the terrain's wave capacity may not exceed the one the scratch was sized for
+  if (tv.capw > c->capw) {
+    mju_warning("%s plugin: terrain numeric resized after compilation; no tire forces",
+                PLUGIN_NAME);
+    return;
+  }
+  mjtNum* qfrc = c->qfrc;
+  mjtNum* buf = c->buf;
+  mju_zero(qfrc, nv);
+  mjtNum* out = st + L.ptruth;
+  const double sx = tp[SIGMA_X], sy = tp[SIGMA_Y];
+  const double dt_sx = dt/sx, dt_sy = dt/sy;
+
+  for (int i = 0; i < nw; i++) {
+    const double* centre = d->xpos + 3*c->body[i];
+    const double* axis = d->xaxis + 3*c->jnt[i];
+    double point[3], nrm[3], delta;
+    wheel_contact(&tv, centre, axis, c->radius, point, nrm, &delta, buf);
+
+    double xc[3], yc[3];
+    cross3(xc, axis, nrm);
+    double len = norm3(xc);
+    for (int k = 0; k < 3; k++) xc[k] /= len;
+    cross3(yc, nrm, xc);
+
+    // velocity field of the carrier, at the contact point and at the hub
+    const double* cv = d->cvel + 6*c->carrier[i];
+    const double* ref = d->subtree_com + 3*c->root[i];
+    double rp[3], rc[3], wp[3], wc[3], v_p[3], v_c[3];
+    for (int k = 0; k < 3; k++) {
+      rp[k] = point[k] - ref[k];
+      rc[k] = centre[k] - ref[k];
+    }
+    cross3(wp, cv, rp);
+    cross3(wc, cv, rc);
+    for (int k = 0; k < 3; k++) {
+      v_p[k] = cv[3 + k] + wp[k];
+      v_c[k] = cv[3 + k] + wc[k];
+    }
+    double v_x = dot3(v_p, xc);
+    double v_y = dot3(v_p, yc);
+    double dp[3] = {point[0] - centre[0], point[1] - centre[1], point[2] - centre[2]};
+    double rho = norm3(dp);
+    double v_w = rho*d->qvel[c->dof[i]];
+    double delta_dot = -dot3(v_c, nrm);
+
+    // tire.normal_force
+    double fzn = np_max(tp[C_Z]*delta + tp[D_Z]*delta_dot, 0.0);
+    double F_z = delta > 0.0 ? fzn : 0.0;
+
+    double mu_x, mu_y;
+    int patch;
+    friction(&tv, point[0], point[1], &mu_x, &mu_y, &patch);
+
+    // tire.transient_step
+    double ux = st[L.ux + i], uy = st[L.uy + i];
+    double speed = np_max(fabs(v_x), fabs(v_w));
+    double x = np_max(speed*dt_sx, X_FLOOR);
+    double y = np_max(speed*dt_sy, X_FLOOR);
+    double em_x = expm1(-x);
+    double em_y = y == x ? em_x : expm1(-y);  // sigma_x == sigma_y by default: one call
+    double ux_new = ux*(em_x + 1.0) - (v_x - v_w)*(dt*em_x/x);
+    double uy_new = uy*(em_y + 1.0) - v_y*(dt*em_y/y);
+    double fz = np_max(F_z, 0.0);
+    double lim_x = sx*np_min((fz*mu_x)*c->three_over_cs, 1.0);
+    double lim_y = (fz*mu_y)*c->three_sy_over_calpha;
+    ux_new = np_min(np_max(ux_new, -lim_x), lim_x);
+    uy_new = np_min(np_max(uy_new, -lim_y), lim_y);
+    double ux_dot = (ux_new - ux)/dt;
+    double uy_dot = (uy_new - uy)/dt;
+
+    // tire.transient_forces
+    double bound_x, bound_y;
+    double mag_x = gim_magnitude(fabs(ux_new)/sx, fz, mu_x, c->three_over_cs, &bound_x);
+    double mag_y = gim_magnitude(fabs(uy_new)/sy, fz, mu_y, c->three_over_calpha, &bound_y);
+    double f_x = -np_sign(ux_new)*mag_x - tp[D_X]*ux_dot;
+    double f_y = -np_sign(uy_new)*mag_y - tp[D_Y]*uy_dot;
+    double F_x = np_min(np_max(f_x, -bound_x), bound_x);
+    double F_y = np_min(np_max(f_y, -bound_y), bound_y);
+
+    double force[3];
+    for (int k = 0; k < 3; k++) force[k] = (F_x*xc[k] + F_y*yc[k]) + F_z*nrm[k];
+    apply_force(m, d, force, point, c->body[i], qfrc);
+
+    st[L.pux + i] = ux_new;
+    st[L.puy + i] = uy_new;
+    out[T_VX*nw + i] = v_x;
+    out[T_VY*nw + i] = v_y;
+    out[T_VW*nw + i] = v_w;
+    out[T_FX*nw + i] = F_x;
+    out[T_FY*nw + i] = F_y;
+    out[T_FZ*nw + i] = F_z;
+    out[T_DELTA*nw + i] = delta;
+    for (int k = 0; k < 3; k++) {
+      out[T_POINT*nw + 3*i + k] = point[k];
+      out[T_NORMAL*nw + 3*i + k] = nrm[k];
+    }
+    out[T_PATCH*nw + i] = patch;
+  }
+  mju_addTo(d->qfrc_passive, qfrc, nv);
+}
+
+static void tire_advance(const mjModel* m, mjData* d, int instance) {
+  const Config* c = (const Config*)d->plugin_data[instance];
+  if (!c) return;
+  const Layout L = layout_of(c->nw, c->nd);
+  mjtNum* st = d->plugin_state + m->plugin_stateadr[instance];
+  // pending u_x, u_y, sp -> committed, pending truth -> truth
+  memcpy(st + L.ux, st + L.pux, sizeof(mjtNum) * (2*c->nw + c->nd));
+  memcpy(st + L.truth, st + L.ptruth, sizeof(mjtNum) * NTRUTH*c->nw);
+  st[L.nstep] += 1.0;
+}
+
+mjPLUGIN_LIB_INIT(rover_env_tire) {
+  mjpPlugin plugin;
+  mjp_defaultPlugin(&plugin);
+  plugin.name = PLUGIN_NAME;
+  plugin.capabilityflags = mjPLUGIN_PASSIVE;
+  plugin.nattribute = sizeof(kAttributes) / sizeof(kAttributes[0]);
+  plugin.attributes = kAttributes;
+  plugin.nstate = tire_nstate;
+  plugin.init = tire_init;
+  plugin.destroy = tire_destroy;
+  plugin.copy = tire_copy;
+  plugin.reset = tire_reset;
+  plugin.compute = tire_compute;
+  plugin.advance = tire_advance;
+  mjp_registerPlugin(&plugin);
+}

@@ -1,0 +1,112 @@
+"""Command lines behind ``train/ppo.py`` and ``train/evaluate.py`` (kept here so they install)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from rover_env.config import ConfigError
+
+
+def train_main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="train/ppo.py",
+        description="Train PPO on a rover env; hyperparameters from a YAML entry keyed by env id.",
+    )
+    ap.add_argument("--env-id", help="e.g. rover_env/ProtoExplorer-v0 (resume: from the run dir)")
+    ap.add_argument(
+        "--config", default="ppo", help="hyperparameter YAML, or a shipped name (default: ppo)"
+    )
+    ap.add_argument("--seed", type=int, help="run seed (resume: from the run dir)")
+    ap.add_argument("--out", help="run directory")
+    ap.add_argument(
+        "--resume",
+        nargs="?",
+        const=True,
+        default=False,
+        metavar="DIR",
+        help="continue the run in DIR (or --out) from its newest checkpoint",
+    )
+    ap.add_argument(
+        "--total-timesteps", type=int, help="total env steps of the run (overrides n_timesteps)"
+    )
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ap.add_argument("-v", "--verbose", action="count", default=0, help="print SB3's log table")
+    args = ap.parse_args(argv)
+
+    out = args.out
+    if isinstance(args.resume, str):
+        if out is not None and Path(out) != Path(args.resume):
+            ap.error(f"--resume {args.resume} and --out {out} name different runs")
+        out = args.resume
+    if out is None:
+        ap.error("--out is required (or --resume DIR)")
+    resume = args.resume is not False
+    if not resume and (args.env_id is None or args.seed is None):
+        ap.error("a new run needs --env-id and --seed")
+
+    from rover_env.training.ppo import train
+
+    try:
+        res = train(
+            args.env_id,
+            None if resume else args.config,
+            args.seed,
+            out,
+            resume=resume,
+            total_timesteps=args.total_timesteps,
+            progress=not args.no_progress,
+            verbose=args.verbose,
+        )
+    except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    resumed = f" (resumed at step {res.resumed_from})" if res.resumed_from is not None else ""
+    print(
+        f"{res.run_dir}: {res.num_timesteps} steps{resumed}, {res.steps_per_second:.1f} steps/s, "
+        f"best validation return {res.best_mean_reward:.2f}"
+    )
+    return 0
+
+
+def evaluate_main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="train/evaluate.py",
+        description="Benchmark a trained run's agent (ppo:RUN_DIR) on the test seeds.",
+    )
+    ap.add_argument("run_dir", help="run directory written by train/ppo.py")
+    ap.add_argument("--episodes", type=int, default=20, help="test seeds per scenario (20)")
+    ap.add_argument("--scenarios", default="all", help="comma list of benchmark scenarios, or all")
+    ap.add_argument(
+        "--baselines", default="", help="controllers on the same seeds first, e.g. open-loop"
+    )
+    ap.add_argument(
+        "--which", choices=("best", "final"), default="best", help="agent: best (default) or final"
+    )
+    ap.add_argument("--duration", type=float, default=None, help="episode length override (s)")
+    ap.add_argument("--workers", type=int, default=1, help="benchmark processes (1)")
+    ap.add_argument("--out", default=None, help="output directory (default RUN_DIR/benchmark)")
+    ap.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = ap.parse_args(argv)
+
+    from rover_env.training.evaluate import evaluate
+
+    try:
+        report = evaluate(
+            args.run_dir,
+            episodes=args.episodes,
+            out=args.out,
+            scenarios=None if args.scenarios == "all" else args.scenarios.split(","),
+            baselines=[b for b in args.baselines.split(",") if b],
+            which=args.which,
+            duration=args.duration,
+            workers=args.workers,
+            progress=not args.quiet,
+        )
+    except (ConfigError, FileNotFoundError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(report)
+    return 0

@@ -1,0 +1,90 @@
+"""A trained run on the benchmark: its agent as the ``ppo:RUN_DIR`` controller on the test seeds.
+
+The benchmark (``rover_env.benchmark``) owns the scenarios, the seed plan, the metrics and
+the tables, so a trained agent is judged exactly like the hand-built controllers.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from rover_env.benchmark.cli import run_benchmark
+from rover_env.benchmark.controllers import parse_specs
+from rover_env.benchmark.policy import resolve_model_path
+from rover_env.benchmark.scenarios import load_scenario, scenario_names
+from rover_env.config import ConfigError
+
+# env_kwargs that change only the reward, not what the agent sees or how the rover moves.
+_REWARD_ONLY = {"reward_weights", "slip_source"}
+
+
+def agent_spec(run_dir: str | Path, which: str = "best") -> str:
+    """The controller spec of a run's agent: ``best`` (validation-selected, if any) or ``final``."""
+    run = Path(run_dir)
+    if not (run / "config.yaml").is_file():
+        raise FileNotFoundError(f"{run} is not a training run dir: no config.yaml")
+    if which == "final":
+        if not (run / "model.zip").is_file():
+            raise FileNotFoundError(f"{run}: no model.zip (the run has not finished)")
+        return f"ppo:{run / 'model.zip'}"
+    if which != "best":
+        raise ConfigError(f"which must be 'best' or 'final', got {which!r}")
+    data = yaml.safe_load((run / "config.yaml").read_text()) or {}
+    entry: dict[str, Any] = next(iter(data.values()), {}) or {}
+    other = sorted(set(entry.get("env_kwargs") or {}) - _REWARD_ONLY)
+    if other:
+        warnings.warn(
+            f"{run} was trained with env_kwargs {other}; the benchmark runs the default env",
+            stacklevel=2,
+        )
+    model, stats = resolve_model_path(run)
+    best_stats = run / "best_vecnormalize.pkl"
+    if model.name == "best_model.zip" and best_stats.is_file() and stats != best_stats:
+        warnings.warn(
+            f"the benchmark pairs {model.name} with {stats.name if stats else 'no statistics'}, "
+            f"not with the statistics it was selected with ({best_stats.name}); "
+            "use which='final' for a consistent pair",
+            stacklevel=2,
+        )
+    return f"ppo:{run}"
+
+
+def evaluate(
+    run_dir: str | Path,
+    episodes: int | None = None,
+    out: str | Path | None = None,
+    scenarios: Sequence[str] | None = None,
+    baselines: Sequence[str] = (),
+    which: str = "best",
+    duration: float | None = None,
+    workers: int = 1,
+    progress: bool = True,
+) -> str:
+    """Benchmark the run's agent on the first ``episodes`` test seeds (default 20) per scenario.
+
+    ``baselines`` (e.g. ``["open-loop"]``) run on the same seeds; the first is the reference
+    of the paired differences. Writes the benchmark's tables and plots to ``out`` (default
+    ``RUN_DIR/benchmark``) and returns its Markdown report.
+    """
+    run = Path(run_dir)
+    spec = agent_spec(run, which)
+    names = list(scenarios) if scenarios else scenario_names()
+    for n in names:
+        load_scenario(n)  # a typo fails before any episode runs
+    controllers = parse_specs(",".join([*baselines, spec]))
+    files = run_benchmark(
+        controllers,
+        names,
+        20 if episodes is None else episodes,
+        run / "benchmark" if out is None else out,
+        split="test",
+        duration=duration,
+        workers=workers,
+        progress=progress,
+    )
+    return files["markdown"].read_text()
