@@ -48,7 +48,7 @@ ParamValue = float | FloatArray
 _X_FLOOR = 1e-300
 
 # Fields that are damping coefficients: zero damping is a legitimate (undamped) tire.
-_MAY_BE_ZERO = frozenset({"D_x", "D_y", "D_z"})
+_MAY_BE_ZERO = frozenset({"D_x", "D_y", "D_z", "k_re"})
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,6 +58,10 @@ class TireParams:
     C_s and C_alpha are stiffnesses per unit slip (N), not N/m as the paper labels them.
     sigma_x, sigma_y (m) and D_x, D_y (N s/m) belong to the transient form only; the
     relaxation length of ~2 cm is of the order of a small wheel's contact half-length.
+    k_re sets the rolling radius used for v_w: r_e = d - k_re * delta (SPEC §3 leaves it
+    between d - delta and d). 1/3 is the usual deflected-tire value: the tread is not
+    compressed along the wheel's circumference, so a loaded wheel rolls nearly as far per
+    turn as an unloaded one, and rolling speed depends little on load.
     """
 
     mu_x: float = 0.4
@@ -71,6 +75,7 @@ class TireParams:
     sigma_y: float = 0.02
     D_x: float = 100.0
     D_y: float = 100.0
+    k_re: float = 1.0 / 3.0
 
     def __post_init__(self) -> None:
         # Reject bad constants here, once, so the hot per-substep paths need no checks.
@@ -89,6 +94,8 @@ class TireParams:
                     raise ValueError(f"TireParams.{f.name} must be >= 0, got {value!r}")
             elif not (math.isfinite(x) and x > 0.0):
                 raise ValueError(f"TireParams.{f.name} must be > 0, got {value!r}")
+        if self.k_re > 1.0:
+            raise ValueError(f"TireParams.k_re must be in [0, 1], got {self.k_re!r}")
 
     def as_arrays(self, n: int | None = None) -> TireArrays:
         """Plain-number view for the hot path: floats, or shape-(n,) arrays if n is given."""
@@ -117,6 +124,7 @@ class TireArrays(NamedTuple):
     sigma_y: ParamValue
     D_x: ParamValue
     D_y: ParamValue
+    k_re: ParamValue
 
 
 def stack_params(params: Sequence[TireParams]) -> TireArrays:

@@ -41,10 +41,10 @@ def _stack(samples, field):
 # --------------------------------------------------------------------------- configuration
 
 
-def test_default_radius_is_d_minus_static_deflection(cfg) -> None:
+def test_default_radius_is_d_minus_k_re_static_deflection(cfg) -> None:
     from rover_env.sim.model import static_deflection
 
-    expected = cfg.geometry.wheel_radius - static_deflection(cfg)
+    expected = cfg.geometry.wheel_radius - cfg.tire.k_re * static_deflection(cfg)
     assert static_rolling_radius(cfg) == pytest.approx(expected, rel=1e-12)
     np.testing.assert_allclose(EstimatorConfig().radii(cfg), expected)
     np.testing.assert_allclose(EstimatorConfig(rolling_radius=0.07).radii(cfg), 0.07)

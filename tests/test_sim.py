@@ -146,7 +146,7 @@ def test_nan_speed_target_is_refused() -> None:
 def test_single_wheel_rig_matches_eq_13(S: float) -> None:
     params = TireParams()
     v_x = 0.2
-    rho = 0.085 - (2.7 + 0.35) * G / params.C_z
+    rho = 0.085 - params.k_re * (2.7 + 0.35) * G / params.C_z  # rolling radius r_e
     v_w = v_x / (1 + S) if S < 0 else v_x * (1 - S)
     r = measure_fx(v_x, v_w / rho, load_mass=2.7, params=params)
     expected = tire_forces(r["v_x"], 0.0, r["v_w"], r["delta"], 0.0, params)

@@ -109,6 +109,12 @@ def test_params_reject_bad_values(name: str, bad: float) -> None:
     assert repr(bad) in str(info.value)
 
 
+def test_params_k_re_is_a_fraction() -> None:
+    assert TireParams(k_re=1.0).k_re == 1.0
+    with pytest.raises(ValueError, match=r"TireParams\.k_re must be in \[0, 1\], got 1\.5"):
+        TireParams(k_re=1.5)
+
+
 def test_params_error_message_format() -> None:
     with pytest.raises(ValueError) as info:
         TireParams(mu_x=-0.1)
@@ -117,7 +123,7 @@ def test_params_error_message_format() -> None:
 
 @pytest.mark.parametrize("name", ALL_FIELDS)
 def test_params_zero_allowed_only_for_dampings(name: str) -> None:
-    if name in DAMPINGS:
+    if name in (*DAMPINGS, "k_re"):
         assert getattr(TireParams(**{name: 0.0}), name) == 0.0
     else:
         with pytest.raises(ValueError, match=rf"TireParams\.{name} must be > 0, got 0.0"):

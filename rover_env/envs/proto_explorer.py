@@ -135,7 +135,9 @@ class ProtoExplorerEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
     SensorConfig), ``action_layout`` ("wheels" | "sides"), ``max_speed_command`` (m/s, 0.2),
     ``max_yaw_rate_command`` (rad/s, 0.3), ``command_interval`` ((min, max) s between command
     changes, (4, 8)), ``randomize_terrain`` (bool), ``estimator_rate`` (Hz, 50), ``imu_noise``
-    (rad/s; default 0.002, 0 with ``sensor_noise="none"``),
+    (rad/s; default 0.002, 0 with ``sensor_noise="none"``), ``backend`` ("auto" | "plugin" |
+    "numpy": the compiled tire plugin where it builds, else the numpy reference layer; the
+    two agree to ~1e-16 m over a drive, see ``rover_env.sim.fast``),
     ``render_mode`` (None | "rgb_array" | "human"), ``width``, ``height``.
 
     ## Version history
@@ -159,6 +161,7 @@ class ProtoExplorerEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         randomize_terrain: bool = False,
         estimator_rate: float = 50.0,
         imu_noise: float | None = None,
+        backend: Literal["auto", "plugin", "numpy"] = "auto",
         render_mode: str | None = None,
         width: int = 640,
         height: int = 480,
@@ -202,7 +205,7 @@ class ProtoExplorerEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
             raise ValueError(f"command_interval must be 0 < min <= max, got {command_interval}")
 
         first = self._envelope_terrain(base_terrain) if self.randomize_terrain else base_terrain
-        self.sim = RoverSim(self.rover_cfg, first)
+        self.sim = RoverSim(self.rover_cfg, first, backend=backend)
         dt = self.sim.dt
         self.substeps_per_sample = max(1, round(1.0 / (estimator_rate * dt)))
         self.samples_per_step = max(

@@ -76,17 +76,18 @@ _BLOCK = 4096
 
 
 def static_rolling_radius(cfg: RoverConfig) -> float:
-    """d minus the tire compression with the weight shared equally by the six wheels.
+    """The rolling radius d - k_re * delta with the weight shared equally by the six wheels.
 
-    The simulator rolls each wheel on its loaded radius; this is the one radius that fits
-    all wheels at rest on average (``rover_env.sim.model.static_deflection``, restated here so
-    the estimator needs no simulator import).
+    The simulator rolls each wheel on r_e = d - k_re * delta (``TireParams.k_re``); this is
+    the one radius that fits all wheels at rest on average (the static deflection of
+    ``rover_env.sim.model.static_deflection``, restated so the estimator needs no simulator).
     """
-    return cfg.geometry.wheel_radius - cfg.masses.total * GRAVITY / 6 / cfg.tire.C_z
+    delta = cfg.masses.total * GRAVITY / 6 / cfg.tire.C_z
+    return cfg.geometry.wheel_radius - cfg.tire.k_re * delta
 
 
 def axle_load_radii(cfg: RoverConfig) -> tuple[float, ...]:
-    """Loaded radius of each wheel (WHEELS order) with each segment's weight on its own axle.
+    """Rolling radius of each wheel (WHEELS order) with each segment's weight on its own axle.
 
     The segments' masses differ (motors on 1 and 2, batteries on 2 and 3), so at rest the
     axles carry different loads and, with the soft tire (C_z), roll on radii a few per cent
@@ -97,7 +98,7 @@ def axle_load_radii(cfg: RoverConfig) -> tuple[float, ...]:
     out: list[float] = []
     for seg in (1, 2, 3):
         load = (cfg.masses.segment_mass(seg) + 2 * cfg.masses.wheel) * GRAVITY / 2
-        out += [cfg.geometry.wheel_radius - load / cfg.tire.C_z] * 2
+        out += [cfg.geometry.wheel_radius - cfg.tire.k_re * load / cfg.tire.C_z] * 2
     return tuple(out)
 
 

@@ -10,6 +10,7 @@ in one process).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,7 +28,7 @@ from rover_env.config import (
     load_rover,
     load_terrain,
 )
-from rover_env.sim.fast import PluginView, inject_plugin
+from rover_env.sim.fast import FastBackendError, PluginView, inject_plugin, load_plugin
 from rover_env.sim.model import fill_hfield, hfield_data, scene_xml, static_deflection
 from rover_env.sim.tire_layer import TireLayer, TireState
 from rover_env.terrain import Terrain
@@ -89,15 +90,34 @@ class SensorReadings:
     imu_accel: Array
 
 
+def resolve_auto_backend(cfg: RoverConfig) -> str:
+    """``backend="auto"``: the compiled plugin where it can run this model, else numpy."""
+    if cfg.extensions:
+        return "numpy"
+    try:
+        load_plugin()
+    except FastBackendError as exc:
+        warnings.warn(
+            f"backend='auto': using the numpy tire layer (~10x slower) because the fast "
+            f"plugin is unavailable: {exc}",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        return "numpy"
+    return "plugin"
+
+
 class RoverSim:
     """One rover on one terrain.
 
     Args:
         rover: rover configuration, a shipped name or a YAML path.
         terrain: terrain configuration, a shipped name or a YAML path.
-        backend: ``"numpy"`` (the reference tire layer, run from Python on every substep) or
+        backend: ``"numpy"`` (the reference tire layer, run from Python on every substep),
             ``"plugin"`` (the same layer as a compiled MuJoCo engine plugin, see
-            :mod:`rover_env.sim.fast`; needs a C compiler on first use).
+            :mod:`rover_env.sim.fast`; needs a C compiler on first use), or ``"auto"``: the
+            plugin when it builds and the configuration has no model extensions, otherwise
+            numpy with a warning that says why.
     """
 
     def __init__(
@@ -110,8 +130,10 @@ class RoverSim:
         self.terrain_cfg = terrain if isinstance(terrain, TerrainConfig) else load_terrain(terrain)
         self.terrain = Terrain(self.terrain_cfg, self.cfg.tire)
         # --- fast-backend integration point (rover_env.sim.fast) ---
-        if backend not in ("numpy", "plugin"):
-            raise ValueError(f"backend must be 'numpy' or 'plugin', got {backend!r}")
+        if backend not in ("numpy", "plugin", "auto"):
+            raise ValueError(f"backend must be 'numpy', 'plugin' or 'auto', got {backend!r}")
+        if backend == "auto":
+            backend = resolve_auto_backend(self.cfg)
         if backend == "plugin" and self.cfg.extensions:
             raise NotImplementedError(
                 f"backend='plugin' does not implement model extension(s) "

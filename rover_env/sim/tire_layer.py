@@ -94,9 +94,10 @@ class TireLayer:
         v_c = v0 + np.cross(w, centre - ref)
         v_x = np.sum(v_p * xc, axis=1)
         v_y = np.sum(v_p * yc, axis=1)
-        # Rolling radius: the loaded radius |contact - hub| = d - delta (see assets/README.md).
-        rho = np.linalg.norm(c.point - centre, axis=1)
-        v_w = rho * data.qvel[self.dofs]
+        # Rolling radius r_e = d - k_re * delta (TireParams; see assets/README.md). The
+        # force still acts at the contact point, so the torque arm is the loaded radius.
+        r_e = self.radius - tp.k_re * np.maximum(c.delta, 0.0)
+        v_w = r_e * data.qvel[self.dofs]
         delta_dot = -np.sum(v_c * nrm, axis=1)
         F_z = tire.normal_force(c.delta, delta_dot, tp)
         mu_x, mu_y, patch = self.terrain.friction(c.point[:, 0], c.point[:, 1])

@@ -55,7 +55,7 @@
 #include <mujoco/mujoco.h>
 
 #define PLUGIN_NAME "rover_env.tire"
-#define NTIRE 11
+#define NTIRE 12
 #define TERRAIN_VERSION 1
 #define TERRAIN_HEADER 11
 #define WAVE_STRIDE 5
@@ -66,7 +66,7 @@
 #define NAME_LEN 256
 
 // tire parameter indices (TireParams field order)
-enum { MU_X, MU_Y, C_S, C_ALPHA, C_Z, D_Z, V_EPS, SIGMA_X, SIGMA_Y, D_X, D_Y };
+enum { MU_X, MU_Y, C_S, C_ALPHA, C_Z, D_Z, V_EPS, SIGMA_X, SIGMA_Y, D_X, D_Y, K_RE };
 
 // truth block field offsets, in units of nw
 enum { T_VX = 0, T_VY = 1, T_VW = 2, T_FX = 3, T_FY = 4, T_FZ = 5, T_DELTA = 6,
@@ -586,9 +586,9 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
     }
     double v_x = dot3(v_p, xc);
     double v_y = dot3(v_p, yc);
-    double dp[3] = {point[0] - centre[0], point[1] - centre[1], point[2] - centre[2]};
-    double rho = norm3(dp);
-    double v_w = rho*d->qvel[c->dof[i]];
+    // rolling radius r_e = d - k_re*delta (TireParams.k_re)
+    double r_e = c->radius - tp[K_RE]*np_max(delta, 0.0);
+    double v_w = r_e*d->qvel[c->dof[i]];
     double delta_dot = -dot3(v_c, nrm);
 
     // tire.normal_force
