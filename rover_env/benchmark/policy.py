@@ -8,7 +8,9 @@ one (``best_model.zip`` preferred, then ``final_model.zip``, ``model.zip``, or t
 
 The policy must have been trained on the plain ``ProtoExplorerEnv`` observation (46 values,
 ``OBS_NAMES``); its action space decides the env's action layout (4 values: "wheels",
-2: "sides"). Actions are the deterministic (mean) ones.
+2: "sides"). Actions are the deterministic (mean) ones. If the run's ``config.yaml`` beside
+the model sets ``env_kwargs.action_residual`` (``ScenarioMixEnv``), the policy's action is a
+residual on the open-loop feed-forward and is mapped the same way here.
 """
 
 from __future__ import annotations
@@ -19,7 +21,9 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+import yaml
 
+from rover_env.benchmark.mixture import residual_action
 from rover_env.envs.proto_explorer import ProtoExplorerEnv
 
 __all__ = ["PPOController", "resolve_model_path"]
@@ -67,6 +71,13 @@ class PPOController:
             with self.stats_path.open("rb") as fh:
                 self.normalizer = pickle.load(fh)  # a VecNormalize without its venv
             self.normalizer.training = False
+        self.action_residual: float | None = None
+        cfg_file = self.model_path.parent / "config.yaml"
+        if cfg_file.is_file():
+            data = yaml.safe_load(cfg_file.read_text()) or {}
+            entry = next(iter(data.values()), {}) or {}
+            res = (entry.get("env_kwargs") or {}).get("action_residual")
+            self.action_residual = None if res is None else float(res)
         shape = tuple(self.model.action_space.shape or ())
         if shape not in ((4,), (2,)):
             raise ValueError(f"{self.model_path}: action space {shape}, expected (4,) or (2,)")
@@ -86,4 +97,7 @@ class PPOController:
         if self.normalizer is not None:
             o = np.asarray(self.normalizer.normalize_obs(o), dtype=np.float32)
         act, _ = self.model.predict(o, deterministic=True)
-        return np.asarray(act, dtype=np.float32).reshape(-1)
+        a = np.asarray(act, dtype=np.float32).reshape(-1)
+        if self.action_residual is not None:
+            a = residual_action(a, np.asarray(obs), env.rover_cfg, self.action_residual)
+        return a

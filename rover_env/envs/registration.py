@@ -5,6 +5,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 ENV_IDS = ("rover_env/ProtoExplorer-v0", "rover_env/ProtoExplorerRough-v0")
+MIX_ENV_ID = "rover_env/ProtoExplorerScenarioMix-v0"
 MAX_EPISODE_STEPS = 300
 """30 s at the default 10 Hz control frequency."""
 
@@ -23,4 +24,11 @@ def register_envs() -> None:
         entry_point="rover_env.envs.proto_explorer:ProtoExplorerEnv",
         max_episode_steps=MAX_EPISODE_STEPS,
         kwargs={"terrain": "rough", "randomize_terrain": True},
+    )
+    # The benchmark's scenarios as a training ground (one drawn per episode). It lives with
+    # the benchmark, above this layer, so it is named by string and imported only on make.
+    gym.register(
+        id=MIX_ENV_ID,
+        entry_point="rover_env.benchmark.mixture:ScenarioMixEnv",
+        max_episode_steps=MAX_EPISODE_STEPS,
     )

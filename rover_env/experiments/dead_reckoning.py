@@ -385,7 +385,7 @@ def run(
         "",
         *[f"![{p.stem}]({p.name})" for p in slip_figs],
         "\nWhat the kinematic model of SPEC §2 cannot see, and so what these errors are made "
-        "of: the simulated wheels roll on their loaded radius d − δ, and δ follows each "
+        "of: the simulated wheels roll on r_e = d − δ/3 (TireParams.k_re), and δ follows each "
         "wheel's load (C_z), which shifts between axles and sides as the rover weaves; and "
         "segment 3 is assumed not to slide sideways, while in turns it is dragged sideways "
         "by the chain. The estimator's own approximations (differentiation lag, noise) are "

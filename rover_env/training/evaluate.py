@@ -20,7 +20,16 @@ from rover_env.benchmark.scenarios import load_scenario, scenario_names
 from rover_env.config import ConfigError
 
 # env_kwargs that change only the reward, not what the agent sees or how the rover moves.
-_REWARD_ONLY = {"reward_weights", "slip_source"}
+# Also the ScenarioMixEnv's training-distribution keys; its action_residual is applied by the
+# ppo: controller itself (rover_env.benchmark.policy).
+_REWARD_ONLY = {
+    "reward_weights",
+    "slip_source",
+    "scenarios",
+    "speed_scale",
+    "yaw_scale",
+    "action_residual",
+}
 
 
 def agent_spec(run_dir: str | Path, which: str = "best") -> str:

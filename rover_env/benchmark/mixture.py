@@ -1,0 +1,165 @@
+"""A training ground made of the benchmark's scenarios, and the residual action of its agents.
+
+``ScenarioMixEnv`` (registered as ``rover_env/ProtoExplorerScenarioMix-v0``) runs, each
+episode, one scenario of ``configs/scenarios`` drawn by the env's seeded generator, with a
+jitter seed drawn from the seed plan's *training* block (so training never meets a test or
+validation episode) and the commanded speed and yaw rate scaled at random, so a policy
+learns the situations (ice, split friction, a blocked wheel, slopes, bumps, turns) rather
+than one command. The observation and action are ``ProtoExplorerEnv``'s.
+
+``action_residual`` (fraction of the maximum wheel speed, e.g. 0.5) makes the action a
+correction to the open-loop skid-steer feed-forward of the current command
+(:func:`residual_action`) instead of an absolute target: a zero action then drives like the
+open-loop controller, and learning starts from a rover that already tracks the command.
+The feed-forward is kinematics only (no feedback), the same the open-loop baseline uses;
+the ``ppo:`` benchmark controller applies the same mapping, read from the run's config.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import numpy.typing as npt
+
+from rover_env.benchmark.run import ScenarioWrapper
+from rover_env.benchmark.scenarios import Episode, load_scenario
+from rover_env.benchmark.seeds import SPLITS
+from rover_env.config import RoverConfig
+from rover_env.control.base import CommandSchedule
+from rover_env.control.open_loop import skid_steer_targets
+from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
+from rover_env.estimation.estimator import static_rolling_radius
+
+__all__ = ["DEFAULT_MIX", "ScenarioMixEnv", "residual_action"]
+
+Obs = npt.NDArray[np.float32]
+
+_I_CMD = OBS_NAMES.index("command_speed")
+
+DEFAULT_MIX: dict[str, float] = {
+    "stuck-wheel": 2.0,
+    "split-mu": 2.0,
+    "ice-patch": 2.0,
+    "flat-turns": 1.0,
+    "slope": 1.0,
+    "bumps": 1.0,
+}
+"""Scenario weights: where slip is wasted counts double."""
+
+
+def residual_action(action: npt.ArrayLike, obs: Obs, rover_cfg: RoverConfig, scale: float) -> Obs:
+    """Env action (normalised wheel targets 1L 1R 2L 2R) = feed-forward + scale * action.
+
+    The feed-forward is the open-loop targets of the command in ``obs`` (its
+    ``command_speed``, ``command_yaw_rate`` entries) over the maximum wheel speed.
+    """
+    a = np.asarray(action, dtype=np.float64).reshape(-1)
+    if a.shape != (4,):
+        raise ValueError(f"residual action must have 4 entries (1L 1R 2L 2R), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"residual action has non-finite entries: {a}")
+    v, w = float(obs[_I_CMD]), float(obs[_I_CMD + 1])
+    ff = skid_steer_targets(
+        v, w, rover_cfg.geometry.half_track, static_rolling_radius(rover_cfg)
+    ) / float(rover_cfg.motor.max_wheel_speed)
+    return np.clip(ff + scale * np.clip(a, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
+
+
+def _scaled(schedule: CommandSchedule, speed: float, yaw: float) -> CommandSchedule:
+    return CommandSchedule(
+        schedule.times,
+        tuple(v * speed for v in schedule.speeds),
+        tuple(w * yaw for w in schedule.yaw_rates),
+    )
+
+
+class ScenarioMixEnv(gym.Env[Obs, Obs]):
+    """Benchmark scenarios drawn per episode, for training (see the module docstring).
+
+    Args:
+        scenarios: scenario name -> weight (default :data:`DEFAULT_MIX`), or a list of names
+            (equal weights).
+        action_residual: None for absolute targets (the plain env's action), or the scale of
+            a residual on the open-loop feed-forward (fraction of the maximum wheel speed).
+        speed_scale: range of the factor on every commanded speed of an episode.
+        yaw_scale: range of the factor on every commanded yaw rate (its sign is drawn too).
+        **env_kwargs: passed to every scenario's ``ProtoExplorerEnv`` (e.g. reward_weights);
+            ``terrain`` comes from the scenario.
+    """
+
+    metadata = {"render_modes": [], "render_fps": 10}  # noqa: RUF012
+
+    def __init__(
+        self,
+        scenarios: dict[str, float] | Sequence[str] | None = None,
+        action_residual: float | None = None,
+        speed_scale: tuple[float, float] = (0.6, 1.3),
+        yaw_scale: tuple[float, float] = (0.5, 1.5),
+        **env_kwargs: Any,
+    ) -> None:
+        mix = DEFAULT_MIX if scenarios is None else scenarios
+        if not isinstance(mix, dict):
+            mix = dict.fromkeys(mix, 1.0)
+        if not mix or any(not (w > 0) for w in mix.values()):
+            raise ValueError(f"scenarios need positive weights, got {mix}")
+        if "terrain" in env_kwargs:
+            raise ValueError("ScenarioMixEnv: the terrain comes from each scenario, not env_kwargs")
+        if action_residual is not None and not 0 < action_residual <= 2:
+            raise ValueError(f"action_residual must be in (0, 2] or None, got {action_residual}")
+        if action_residual is not None and env_kwargs.get("action_layout", "wheels") != "wheels":
+            raise ValueError("action_residual needs action_layout='wheels'")
+        self.names = list(mix)
+        self.cfgs = [load_scenario(n) for n in self.names]
+        p = np.array([mix[n] for n in self.names], dtype=np.float64)
+        self.p = p / p.sum()
+        self.action_residual = action_residual
+        self.speed_scale = (float(speed_scale[0]), float(speed_scale[1]))
+        self.yaw_scale = (float(yaw_scale[0]), float(yaw_scale[1]))
+        self.env_kwargs = dict(env_kwargs)
+        self._wrappers: dict[str, ScenarioWrapper] = {}
+        first = self._wrapper(self.cfgs[0].episode(SPLITS["training"].start))
+        self.rover_cfg = first.base.rover_cfg
+        self.observation_space = first.observation_space
+        self.action_space = first.action_space
+        self._active: ScenarioWrapper = first
+        self._obs: Obs = np.zeros(self.observation_space.shape, dtype=np.float32)
+
+    def _wrapper(self, episode: Episode) -> ScenarioWrapper:
+        if episode.scenario not in self._wrappers:
+            env = ProtoExplorerEnv(terrain=episode.terrain, **self.env_kwargs)
+            self._wrappers[episode.scenario] = ScenarioWrapper(env)
+        return self._wrappers[episode.scenario]
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Obs, dict[str, Any]]:
+        super().reset(seed=seed)
+        rng = self.np_random
+        i = int(rng.choice(len(self.cfgs), p=self.p))
+        block = SPLITS["training"]
+        episode = self.cfgs[i].episode(int(rng.integers(block.start, block.stop)))
+        yaw = float(rng.uniform(*self.yaw_scale)) * (1.0 if rng.random() < 0.5 else -1.0)
+        schedule = _scaled(episode.schedule, float(rng.uniform(*self.speed_scale)), yaw)
+        episode = dataclasses.replace(episode, schedule=schedule)
+        self._active = self._wrapper(episode)
+        self._active.set_episode(episode)
+        obs, info = self._active.reset()
+        info["scenario"] = episode.scenario
+        self._obs = obs
+        return obs, info
+
+    def step(self, action: Obs) -> tuple[Obs, float, bool, bool, dict[str, Any]]:
+        a = action
+        if self.action_residual is not None:
+            a = residual_action(action, self._obs, self.rover_cfg, self.action_residual)
+        obs, reward, terminated, truncated, info = self._active.step(a)
+        self._obs = obs
+        return obs, reward, terminated, truncated, info
+
+    def close(self) -> None:
+        for w in self._wrappers.values():
+            w.close()
