@@ -126,7 +126,7 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         self.observation_space = first.observation_space
         self.action_space = first.action_space
         self._active: ScenarioWrapper = first
-        self._obs: Obs = np.zeros(self.observation_space.shape, dtype=np.float32)
+        self._obs: Obs = np.zeros(len(OBS_NAMES), dtype=np.float32)
 
     def _wrapper(self, episode: Episode) -> ScenarioWrapper:
         if episode.scenario not in self._wrappers:

@@ -75,7 +75,7 @@ class PPOController:
         cfg_file = self.model_path.parent / "config.yaml"
         if cfg_file.is_file():
             data = yaml.safe_load(cfg_file.read_text()) or {}
-            entry = next(iter(data.values()), {}) or {}
+            entry: dict[str, Any] = next(iter(data.values()), {}) or {}
             res = (entry.get("env_kwargs") or {}).get("action_residual")
             self.action_residual = None if res is None else float(res)
         shape = tuple(self.model.action_space.shape or ())
