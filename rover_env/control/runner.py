@@ -168,7 +168,7 @@ def run_on_sim(
     Sensor noise is drawn from ``np.random.default_rng(case.seed)``.
     """
     if sim is None:
-        sim = RoverSim(terrain=case.terrain)
+        sim = RoverSim(terrain=case.terrain, backend="auto")
     elif sim.terrain_cfg != case.terrain:
         sim.set_terrain(case.terrain)
     sim.reset(x=case.start[0], y=case.start[1], yaw=case.start[2])

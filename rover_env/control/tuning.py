@@ -95,7 +95,7 @@ def _sim_for(rover: RoverConfig, case: DriveCase) -> RoverSim:
     t = case.terrain
     key = f"{rover.name}/{t.name}/{t.is_flat}/{len(t.obstacles)}/{t.size}/{t.slope_deg}"
     if key not in _SIMS:
-        _SIMS[key] = RoverSim(rover, t)
+        _SIMS[key] = RoverSim(rover, t, backend="auto")
     return _SIMS[key]
 
 

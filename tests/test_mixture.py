@@ -1,0 +1,68 @@
+"""The scenario-mix training env and the residual action of its agents."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import rover_env
+from rover_env.benchmark.mixture import ScenarioMixEnv, residual_action
+from rover_env.benchmark.seeds import SPLITS
+from rover_env.config import RoverConfig
+from rover_env.control.open_loop import OpenLoop
+from rover_env.envs.proto_explorer import OBS_NAMES
+
+I_CMD = OBS_NAMES.index("command_speed")
+
+
+def _obs(v: float, w: float) -> np.ndarray:
+    o = np.zeros(len(OBS_NAMES), dtype=np.float32)
+    o[I_CMD : I_CMD + 2] = (v, w)
+    return o
+
+
+@pytest.mark.parametrize(("v", "w"), [(0.15, 0.0), (0.1, 0.2), (-0.12, -0.3)])
+def test_zero_residual_is_the_open_loop_controller(v: float, w: float) -> None:
+    cfg = RoverConfig()
+    ol = OpenLoop(cfg)
+    expected = np.clip(ol.feedforward(v, w), -4, 4) / cfg.motor.max_wheel_speed
+    got = residual_action(np.zeros(4), _obs(v, w), cfg, 0.5)
+    np.testing.assert_allclose(got, expected, rtol=1e-6)
+    # A full positive residual adds half the maximum wheel speed, clipped at the limit.
+    up = residual_action(np.ones(4), _obs(v, w), cfg, 0.5)
+    np.testing.assert_allclose(up, np.clip(expected + 0.5, -1, 1), rtol=1e-6)
+
+
+def test_residual_rejects_bad_actions() -> None:
+    with pytest.raises(ValueError, match="4 entries"):
+        residual_action(np.zeros(2), _obs(0.1, 0), RoverConfig(), 0.5)
+    with pytest.raises(ValueError, match="non-finite"):
+        residual_action([0, np.nan, 0, 0], _obs(0.1, 0), RoverConfig(), 0.5)
+
+
+def test_mix_draws_training_seeds_reproducibly() -> None:
+    gym.register_envs(rover_env)
+    env = gym.make(
+        "rover_env/ProtoExplorerScenarioMix-v0",
+        scenarios=["split-mu", "ice-patch"],
+        action_residual=0.5,
+    )
+    mix = env.unwrapped
+    assert isinstance(mix, ScenarioMixEnv)
+    runs = []
+    for _ in range(2):
+        obs, info = env.reset(seed=7)
+        ep = mix._active.episode
+        assert ep is not None and ep.seed in SPLITS["training"]
+        assert info["scenario"] in ("split-mu", "ice-patch")
+        traj = [obs]
+        for _ in range(5):
+            obs, *_ = env.step(np.zeros(4, dtype=np.float32))
+            traj.append(obs)
+        runs.append((info["scenario"], ep.seed, np.array(traj)))
+    assert runs[0][:2] == runs[1][:2]
+    np.testing.assert_array_equal(runs[0][2], runs[1][2])
+    env.close()
+    with pytest.raises(ValueError, match="terrain comes from each scenario"):
+        ScenarioMixEnv(terrain="flat")
