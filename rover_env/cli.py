@@ -76,6 +76,11 @@ def build_parser() -> argparse.ArgumentParser:
     from rover_env.benchmark.cli import add_cli as add_benchmark_cli
 
     add_benchmark_cli(sub)
+    from rover_env.calibration.diagnose import add_cli as add_diagnose_cli
+    from rover_env.calibration.make_logs import add_cli as add_make_logs_cli
+
+    add_make_logs_cli(sub)
+    add_diagnose_cli(sub)
     return parser
 
 

@@ -18,6 +18,7 @@ from typing import Any, TypeVar
 
 import yaml
 
+from rover_env.effects import EffectError, validate_extensions
 from rover_env.tire import TireParams
 
 WHEELS: tuple[str, ...] = ("1L", "1R", "2L", "2R", "3L", "3R")
@@ -186,7 +187,10 @@ class RoverConfig:
     extensions: dict[str, dict[str, float]] = field(default_factory=dict)
     """Model extensions (calibration adds these): extension name -> its parameters.
 
-    Reserved for the discrepancy workflow; no extension is defined yet, so any entry is refused.
+    Names and parameters come from the catalogue in :mod:`rover_env.effects` (e.g.
+    ``{"rolling_resistance": {"c_rr": 0.05}}``); unknown names, unknown parameters and values
+    outside their bounds raise ConfigError naming the key. Missing parameters take their
+    "off" value.
     """
 
     def __post_init__(self) -> None:
@@ -195,9 +199,10 @@ class RoverConfig:
                 f"joints must name exactly {', '.join(JOINTS)}; got {sorted(self.joints)}"
             )
         if self.extensions:
-            raise ConfigError(
-                f"extensions: unknown model extension(s) {sorted(self.extensions)}; none are defined yet"
-            )
+            try:
+                validate_extensions(self.extensions)
+            except EffectError as exc:
+                raise ConfigError(str(exc)) from None
 
 
 @dataclass(frozen=True)

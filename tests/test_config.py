@@ -61,10 +61,15 @@ def test_malformed_yaml_is_named(tmp_path: Path) -> None:
         load_rover(p)
 
 
-def test_extensions_place_is_reserved(tmp_path: Path) -> None:
-    p = _write(tmp_path, {"extensions": {"rolling_resistance": {"c_rr": 0.05}}})
-    with pytest.raises(ConfigError, match="rolling_resistance"):
-        load_rover(p)
+def test_extensions_are_validated_against_the_catalogue(tmp_path: Path) -> None:
+    # Extensions come from rover_env.effects; anything else is refused naming the key.
+    assert load_rover(
+        _write(tmp_path, {"extensions": {"rolling_resistance": {"c_rr": 0.05}}})
+    ).extensions == {"rolling_resistance": {"c_rr": 0.05}}
+    with pytest.raises(ConfigError, match="rolling_resistence"):
+        load_rover(_write(tmp_path, {"extensions": {"rolling_resistence": {"c_rr": 0.05}}}))
+    with pytest.raises(ConfigError, match=r"extensions\.rolling_resistance\.c_rr"):
+        load_rover(_write(tmp_path, {"extensions": {"rolling_resistance": {"c_rr": 5.0}}}))
 
 
 def test_wheel_radius_is_a_configuration_value(tmp_path: Path) -> None:

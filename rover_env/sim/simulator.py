@@ -10,6 +10,7 @@ in one process).
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +29,7 @@ from rover_env.config import (
     load_rover,
     load_terrain,
 )
+from rover_env.effects import CommandEffect, TireEffect, build_effects, plugin_refusals
 from rover_env.sim.fast import FastBackendError, PluginView, inject_plugin, load_plugin
 from rover_env.sim.model import fill_hfield, hfield_data, scene_xml, static_deflection
 from rover_env.sim.tire_layer import TireLayer, TireState
@@ -92,7 +94,7 @@ class SensorReadings:
 
 def resolve_auto_backend(cfg: RoverConfig) -> str:
     """``backend="auto"``: the compiled plugin where it can run this model, else numpy."""
-    if cfg.extensions:
+    if plugin_refusals(cfg.extensions):
         return "numpy"
     try:
         load_plugin()
@@ -116,8 +118,13 @@ class RoverSim:
         backend: ``"numpy"`` (the reference tire layer, run from Python on every substep),
             ``"plugin"`` (the same layer as a compiled MuJoCo engine plugin, see
             :mod:`rover_env.sim.fast`; needs a C compiler on first use), or ``"auto"``: the
-            plugin when it builds and the configuration has no model extensions, otherwise
-            numpy with a warning that says why.
+            plugin when it builds and the configuration has no model extension that only the
+            numpy layer implements, otherwise numpy (with a warning if the plugin failed).
+
+    Model extensions (``cfg.extensions``, catalogue in :mod:`rover_env.effects`) are applied
+    here: through the configuration the physics is built from (``self.phys_cfg``), the
+    compiled model's arrays, the speed targets (per substep) and the numpy tire layer.
+    ``self.cfg`` stays the configuration as given.
     """
 
     def __init__(
@@ -128,22 +135,35 @@ class RoverSim:
     ) -> None:
         self.cfg = rover if isinstance(rover, RoverConfig) else load_rover(rover)
         self.terrain_cfg = terrain if isinstance(terrain, TerrainConfig) else load_terrain(terrain)
-        self.terrain = Terrain(self.terrain_cfg, self.cfg.tire)
         # --- fast-backend integration point (rover_env.sim.fast) ---
         if backend not in ("numpy", "plugin", "auto"):
             raise ValueError(f"backend must be 'numpy', 'plugin' or 'auto', got {backend!r}")
         if backend == "auto":
             backend = resolve_auto_backend(self.cfg)
-        if backend == "plugin" and self.cfg.extensions:
+        refused = plugin_refusals(self.cfg.extensions)
+        if backend == "plugin" and refused:
             raise NotImplementedError(
                 f"backend='plugin' does not implement model extension(s) "
-                f"{sorted(self.cfg.extensions)}; use backend='numpy'"
+                f"{', '.join(refused)} (numpy tire layer only); use backend='numpy' or 'auto'"
             )
         self.backend = backend
-        xml = scene_xml(self.cfg, self.terrain_cfg)
+        # --- model extensions (rover_env.effects) ---
+        self.effects = [e for e in build_effects(self.cfg.extensions) if not e.is_off]
+        phys = self.cfg
+        for e in self.effects:
+            phys = e.apply_config(phys)
+        if self.cfg.extensions:
+            phys = dataclasses.replace(phys, extensions={})
+        self.phys_cfg = phys
+        self._cmd_effects = [e for e in self.effects if isinstance(e, CommandEffect)]
+        # --- end of model extensions ---
+        self.terrain = Terrain(self.terrain_cfg, self.phys_cfg.tire)
+        xml = scene_xml(self.phys_cfg, self.terrain_cfg)
         if backend == "plugin":
-            xml = inject_plugin(xml, self.cfg, self.terrain)
+            xml = inject_plugin(xml, self.phys_cfg, self.terrain)
         self.model = mujoco.MjModel.from_xml_string(xml)
+        for e in self.effects:
+            e.apply_model(self.model, self.phys_cfg)
         self._plugin = PluginView(self.model) if backend == "plugin" else None
         # --- end of integration point ---
         fill_hfield(self.model, self.terrain_cfg)
@@ -171,7 +191,13 @@ class RoverSim:
         self.radius = self.cfg.geometry.wheel_radius
         self._obstacle_names = {ob.name for ob in self.terrain_cfg.obstacles}
         self.tires = TireLayer(
-            m, self._wheel_body, self._wheel_jnt, self.radius, self.terrain, self.cfg.tire
+            m,
+            self._wheel_body,
+            self._wheel_jnt,
+            self.radius,
+            self.terrain,
+            self.phys_cfg.tire,
+            effects=[e for e in self.effects if isinstance(e, TireEffect)],
         )
         self.speed_targets = np.zeros(4)
         self.reset()
@@ -208,7 +234,7 @@ class RoverSim:
         rot = np.column_stack([fwd, left, n])
         quat = np.zeros(4)
         mujoco.mju_mat2Quat(quat, rot.ravel())
-        hub = self.radius - static_deflection(self.cfg)
+        hub = self.radius - static_deflection(self.phys_cfg)
         # Put axle 1 above the ground point (x, y) along the normal.
         pos = np.array([x, y, h[0]]) + n * hub
         d.qpos[0:3] = pos
@@ -220,6 +246,8 @@ class RoverSim:
         d.ctrl[self._ctrl_vel] = 0.0
         d.ctrl[self._ctrl_pos] = d.qpos[self._driven_qpos]
         self.tires.reset()
+        for ce in self._cmd_effects:
+            ce.reset(np.zeros(4))
         if self._plugin is not None:  # fast backend: the plugin owns setpoints and tire states
             self._plugin.set_setpoints(d.plugin_state, d.ctrl[self._ctrl_pos])
             self._plugin.reset_tires(d.plugin_state)
@@ -241,7 +269,7 @@ class RoverSim:
         :meth:`reset` afterwards.
         """
         if self._plugin is not None:  # fast backend: refuse before anything changes
-            self._plugin.check_terrain(self.model, Terrain(terrain, self.cfg.tire))
+            self._plugin.check_terrain(self.model, Terrain(terrain, self.phys_cfg.tire))
         old = self.terrain_cfg
         if terrain.is_flat != old.is_flat or (
             not old.is_flat and (terrain.size != old.size or terrain.resolution != old.resolution)
@@ -271,7 +299,7 @@ class RoverSim:
             mujoco.mju_axisAngle2Quat(quat, np.array([0.0, 0.0, 1.0]), np.radians(ob.yaw_deg))
             m.geom_quat[gid] = quat
         self.terrain_cfg = terrain
-        self.terrain = Terrain(terrain, self.cfg.tire)
+        self.terrain = Terrain(terrain, self.phys_cfg.tire)
         self.tires.terrain = self.terrain
         if self._plugin is not None:  # fast backend: the plugin reads the ground from the model
             self._plugin.write_terrain(m, self.terrain)
@@ -289,6 +317,9 @@ class RoverSim:
     def step(self, n: int = 1) -> None:
         """Advance ``n`` physics substeps, applying the tire layer on each."""
         m, d = self.model, self.data
+        if self._cmd_effects:
+            self._step_commanded(n)
+            return
         if self._plugin is not None:
             # Fast backend: the plugin integrates the setpoints and applies the tire forces
             # inside mj_step (rover_env.sim.fast), so no Python runs per substep.
@@ -308,6 +339,51 @@ class RoverSim:
             self.tires.apply(d)
             mujoco.mj_step2(m, d)
         self._check()
+
+    def _command(self) -> Array:
+        """Speed targets after the command effects (lag, delay), advanced one substep."""
+        u = self.speed_targets.copy()
+        for ce in self._cmd_effects:
+            u = ce.step(u, self.dt)
+        return u
+
+    def _step_commanded(self, n: int) -> None:
+        """``step`` with command effects: the motors' targets change on every substep."""
+        m, d = self.model, self.data
+        dt = self.dt
+        err = self.phys_cfg.motor.max_angle_error
+        for _ in range(n):
+            u = self._command()
+            if self._plugin is not None:  # the plugin integrates ctrl[vel] itself
+                d.ctrl[self._ctrl_vel] = u
+                mujoco.mj_step(m, d, 1)
+                continue
+            q = d.qpos[self._driven_qpos]
+            sp = d.ctrl[self._ctrl_pos] + u * dt
+            d.ctrl[self._ctrl_pos] = np.clip(sp, q - err, q + err)
+            d.ctrl[self._ctrl_vel] = u
+            mujoco.mj_step1(m, d)
+            self.tires.apply(d)
+            mujoco.mj_step2(m, d)
+        self._check()
+
+    def prime_commands(self, t: ArrayLike, cmd: ArrayLike) -> None:
+        """Fill the command effects' memory as if ``cmd[k]`` had been sent from ``t[k]``.
+
+        For starting a simulation mid-drive (replay windows): times are those of the log
+        the rover's clock now continues (``self.time`` is the log's time of now).
+        """
+        tt = np.asarray(t, dtype=float)
+        cc = np.asarray(cmd, dtype=float).reshape(-1, 4)
+        for ce in self._cmd_effects:
+            ce.prime(tt, cc, self.time, self.dt)
+
+    def set_setpoints(self, setpoints: ArrayLike) -> None:
+        """Set the speed controllers' integrated angle setpoints of 1L 1R 2L 2R (rad)."""
+        sp = np.asarray(setpoints, dtype=float).reshape(4)
+        self.data.ctrl[self._ctrl_pos] = sp
+        if self._plugin is not None:
+            self._plugin.set_setpoints(self.data.plugin_state, sp)
 
     def _check(self) -> None:
         d = self.data

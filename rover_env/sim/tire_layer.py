@@ -7,6 +7,7 @@ rover share one implementation. Forces go into ``qfrc_applied`` at the contact p
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import mujoco
@@ -14,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rover_env import tire
+from rover_env.effects import TireEffect
 from rover_env.terrain import Terrain
 from rover_env.tire import TireParams
 
@@ -45,6 +47,8 @@ class TireLayer:
         radius: nominal (unloaded) wheel radius d.
         terrain: ground surface and friction map.
         params: tire parameters (Table 3 and the transient-form constants).
+        effects: model extensions acting inside the layer (friction hooks, force
+            post-processing; :class:`rover_env.effects.TireEffect`). None: the reference layer.
     """
 
     def __init__(
@@ -55,6 +59,7 @@ class TireLayer:
         radius: float,
         terrain: Terrain,
         params: TireParams,
+        effects: Sequence[TireEffect] = (),
     ) -> None:
         self.model = model
         self.bodies = np.asarray(wheel_bodies)
@@ -65,6 +70,7 @@ class TireLayer:
         self.radius = radius
         self.terrain = terrain
         self.params = params
+        self.effects = list(effects)
         self.dt = float(model.opt.timestep)
         n = len(self.bodies)
         self.u_x = np.zeros(n)
@@ -101,10 +107,14 @@ class TireLayer:
         delta_dot = -np.sum(v_c * nrm, axis=1)
         F_z = tire.normal_force(c.delta, delta_dot, tp)
         mu_x, mu_y, patch = self.terrain.friction(c.point[:, 0], c.point[:, 1])
+        for e in self.effects:  # model extensions (none in the reference layer)
+            mu_x, mu_y = e.friction(mu_x, mu_y, F_z)
         self.u_x, self.u_y, ux_dot, uy_dot = tire.transient_step(
             self.u_x, self.u_y, v_x, v_y, v_w, F_z, self.dt, tp, mu_x, mu_y
         )
         F_x, F_y = tire.transient_forces(self.u_x, self.u_y, ux_dot, uy_dot, F_z, tp, mu_x, mu_y)
+        for e in self.effects:
+            F_x, F_y = e.forces(F_x, F_y, F_z, mu_x, mu_y)
         force = F_x[:, None] * xc + F_y[:, None] * yc + F_z[:, None] * nrm
         data.qfrc_applied[:] = 0.0
         zero = np.zeros(3)

@@ -1,0 +1,149 @@
+"""Candidate effects for the diagnosis: free variables, bounds and the map to extensions.
+
+One candidate per catalogue effect (:mod:`rover_env.effects`), with its parameters as free
+variables, except where a reparameterisation fits better: the slope's (tilt, heading) pair
+is fitted as the two components of the tilt vector (smooth through zero tilt, where the
+heading is undefined). A switch (combined slip) has no free variable: it is tried on.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rover_env.effects import CATALOGUE
+
+Array = NDArray[np.float64]
+Extensions = dict[str, dict[str, float]]
+
+
+@dataclass(frozen=True)
+class Candidate:
+    name: str
+    labels: tuple[str, ...]
+    lo: tuple[float, ...]
+    hi: tuple[float, ...]
+    off: tuple[float, ...]
+    probe: tuple[float, ...] | None
+    """A clearly-present value tried before fitting (effects with no gradient at "off")."""
+    to_ext: Callable[[Array], Extensions]
+    discrete: bool = False
+    plugin_ok: bool = True
+
+    @property
+    def k(self) -> int:
+        """Number of fitted parameters (a switch counts as one model choice)."""
+        return max(1, len(self.labels))
+
+    def reported(self, x: Array) -> dict[str, float]:
+        """Physical parameter values (the effect's own names) for fitted variables x."""
+        return dict(next(iter(self.to_ext(x).values())))
+
+
+def _simple(name: str) -> Candidate:
+    cls = CATALOGUE[name]
+    p = cls.params[0]
+
+    def to_ext(x: Array, name: str = name, pname: str = p.name) -> Extensions:
+        return {name: {pname: float(x[0])}}
+
+    if p.discrete:
+
+        def switch_on(
+            x: Array, name: str = name, pname: str = p.name, on: float = p.hi
+        ) -> Extensions:
+            return {name: {pname: on}}
+
+        return Candidate(name, (), (), (), (), None, switch_on, True, cls.plugin_ok)
+    return Candidate(
+        name, (p.name,), (p.lo,), (p.hi,), (p.off,), (p.moderate,), to_ext, False, cls.plugin_ok
+    )
+
+
+def _slope() -> Candidate:
+    def to_ext(x: Array) -> Extensions:
+        deg = math.hypot(float(x[0]), float(x[1]))
+        head = math.degrees(math.atan2(float(x[1]), float(x[0]))) if deg > 0 else 0.0
+        return {"slope": {"deg": deg, "heading_deg": head}}
+
+    return Candidate(
+        "slope",
+        ("tilt_x_deg", "tilt_y_deg"),
+        (-14.0, -14.0),
+        (14.0, 14.0),
+        (0.0, 0.0),
+        None,
+        to_ext,
+    )
+
+
+def catalogue(names: list[str] | None = None) -> list[Candidate]:
+    """Candidates for all catalogue effects (or the named ones), in catalogue order."""
+    out = []
+    for n in CATALOGUE:
+        if names is not None and n not in names:
+            continue
+        out.append(_slope() if n == "slope" else _simple(n))
+    return out
+
+
+def merge(*exts: Extensions) -> Extensions:
+    out: Extensions = {}
+    for e in exts:
+        for k, v in e.items():
+            out.setdefault(k, {}).update(v)
+    return out
+
+
+SEPARATING_PLANS: dict[frozenset[str], tuple[str, str]] = {
+    frozenset({"rolling_resistance", "slope"}): (
+        "reversals",
+        "drive the same line forwards and backwards and turn through 180°: a slope helps one"
+        " way and hinders the other, rolling resistance opposes both",
+    ),
+    frozenset({"friction", "combined_slip"}): (
+        "turn-accel",
+        "accelerate and brake while turning: only the friction ellipse couples the"
+        " longitudinal and lateral grip",
+    ),
+    frozenset({"command_lag", "command_delay"}): (
+        "steps",
+        "command steps of many sizes and hold times: a lag responds at once and gradually,"
+        " a delay not at all and then fully",
+    ),
+    frozenset({"rolling_radius", "friction"}): (
+        "speeds",
+        "slow steady runs at several speeds: a smaller radius scales travel at every load and"
+        " speed, slip grows with traction demand",
+    ),
+    frozenset({"rolling_radius", "rolling_resistance"}): (
+        "speeds",
+        "slow steady runs at several speeds: radius scales all travel, resistance adds a"
+        " constant slip",
+    ),
+    frozenset({"torque_limit", "command_lag"}): (
+        "steps",
+        "small and large command steps: a torque limit only slows the large ones",
+    ),
+    frozenset({"friction", "load_dependent_friction"}): (
+        "turn-accel",
+        "hard accelerations in turns move load between wheels: only load-dependent friction"
+        " responds to that",
+    ),
+}
+
+
+def separating_plan(a: str, b: str) -> tuple[str, str]:
+    """(make-logs plan, why) for a drive that separates effects a and b."""
+    return SEPARATING_PLANS.get(
+        frozenset({a, b}),
+        ("test", "a longer test drive with a new seed: more turns, reversals and speed steps"),
+    )
+
+
+def to_array(x: tuple[float, ...] | list[float]) -> Array:
+    return np.asarray(x, dtype=np.float64)

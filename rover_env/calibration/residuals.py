@@ -1,0 +1,161 @@
+"""Residual bookkeeping: noise floors, per-signal and per-regime tables, the noise test.
+
+Sensor noise is estimated from the logs themselves, not assumed: the encoder and
+potentiometer resolution from the smallest step in the data, white noise from the robust
+spread (MAD) of high-order differences (smooth motion cancels there). The test against
+noise is deliberately conservative about the strong autocorrelation inside a window: each
+window contributes one degree of freedom, its mean square divided by the noise variance
+(a chi-square with as many degrees of freedom as windows under "noise only").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import stats
+
+from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
+
+Array = NDArray[np.float64]
+
+REGIMES = (
+    "all",
+    "straight",
+    "left_turn",
+    "right_turn",
+    "accelerating",
+    "braking",
+    "reversing",
+    "high_slip",
+)
+
+
+def _resolution(x: Array) -> float:
+    d = np.abs(np.diff(x, axis=0)).ravel()
+    d = d[d > 1e-12]
+    if d.size == 0:
+        return 0.0
+    small = float(np.percentile(d, 1))
+    # Quantised data: the smallest steps are (multiples of) the resolution.
+    return small if np.mean(np.isclose(d / small, np.round(d / small), atol=0.02)) > 0.9 else 0.0
+
+
+def _mad_noise(x: Array, order: int) -> Array:
+    d = np.diff(x, n=order, axis=0)
+    norm = {2: np.sqrt(6.0), 3: np.sqrt(20.0)}[order]
+    med = np.median(d, axis=0)
+    return np.asarray(1.4826 * np.median(np.abs(d - med), axis=0) / norm, dtype=np.float64)
+
+
+def noise_floor(logs: list[PreparedLog]) -> dict[str, float]:
+    """Standard deviation of each residual signal expected from sensor noise alone."""
+    phi = np.concatenate([p.log.phi for p in logs])
+    theta = np.concatenate([p.log.theta for p in logs])
+    res_w, res_j = _resolution(phi), _resolution(theta)
+    s_w = np.maximum(_mad_noise(phi, 2), res_w / np.sqrt(12))
+    s_j = np.maximum(_mad_noise(theta, 2), res_j / np.sqrt(12))
+    out: dict[str, float] = {}
+    for i, name in enumerate(SIGNALS[:6]):
+        out[name] = float(max(s_w[i] * np.sqrt(2), 1e-6))  # increment = difference of two
+    for i, name in enumerate(SIGNALS[6:11]):
+        out[name] = float(max(s_j[i], 1e-6))
+    poses = [p.log.pose[np.isfinite(p.log.pose[:, 0])] for p in logs]
+    poses = [q for q in poses if len(q) >= 6]
+    if poses:
+        s_p = np.median(np.array([_mad_noise(q[1:], 3) for q in poses]), axis=0)
+    else:
+        s_p = np.full(3, np.nan)
+    for i, name in enumerate(SIGNALS[11:]):
+        out[name] = float(max(s_p[i] * np.sqrt(2), 1e-4)) if np.isfinite(s_p[i]) else 1e-2
+    return out
+
+
+@dataclass
+class Stacked:
+    """All scored residual rows of a set of windows, with their window and regime labels."""
+
+    resid: Array
+    """(n, 14): wheels (6), joints (5), pose (3; NaN on rows without a pose sample)."""
+    window: NDArray[np.intp]
+    regime: dict[str, NDArray[np.bool_]]
+
+
+def stack(results: list[WindowResult], logs: list[PreparedLog]) -> Stacked:
+    rows, wins = [], []
+    reg: dict[str, list[NDArray[np.bool_]]] = {r: [] for r in REGIMES}
+    for wi, r in enumerate(results):
+        p = logs[r.window.log_index]
+        n, m = len(r.idx), len(r.pose_idx)
+        block = np.full((n + m, 14), np.nan)
+        block[:n, :11] = r.resid
+        block[n:, 11:] = r.pose_resid
+        rows.append(block)
+        wins.append(np.full(n + m, wi))
+        idx = np.concatenate([r.idx, r.pose_idx])
+        for name in REGIMES:
+            reg[name].append(p.regimes[name][idx])
+    if not rows:
+        return Stacked(np.zeros((0, 14)), np.zeros(0, dtype=np.intp), {})
+    return Stacked(
+        np.concatenate(rows),
+        np.concatenate(wins).astype(np.intp),
+        {k: np.concatenate(v) for k, v in reg.items()},
+    )
+
+
+def residual_vector(results: list[WindowResult], scale: dict[str, float]) -> Array:
+    """All residuals divided by their signal's scale, as one vector (for least squares)."""
+    sw = np.array([scale[s] for s in SIGNALS[:11]])
+    sp = np.array([scale[s] for s in SIGNALS[11:]])
+    parts = []
+    for r in results:
+        parts.append((r.resid / sw).ravel())
+        parts.append((r.pose_resid / sp).ravel())
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def window_losses(results: list[WindowResult], scale: dict[str, float]) -> Array:
+    """Sum of squared scaled residuals per window."""
+    return np.array([float(np.sum(residual_vector([r], scale) ** 2)) for r in results])
+
+
+def window_slices(results: list[WindowResult]) -> list[slice]:
+    """Where each window's residuals sit in :func:`residual_vector`'s output."""
+    out, a = [], 0
+    for r in results:
+        n = r.resid.size + r.pose_resid.size
+        out.append(slice(a, a + n))
+        a += n
+    return out
+
+
+@dataclass
+class Cell:
+    rms: float
+    n: int
+    ratio: float
+    """RMS / noise floor."""
+    p: float
+    """p-value of "noise only" (conservative chi-square, one dof per window)."""
+
+
+def table(st: Stacked, noise: dict[str, float]) -> dict[str, dict[str, Cell]]:
+    """RMS, ratio to noise and noise-test p per signal (rows) and regime (columns)."""
+    out: dict[str, dict[str, Cell]] = {}
+    for j, sig in enumerate(SIGNALS):
+        out[sig] = {}
+        for reg in REGIMES:
+            mask = st.regime.get(reg, np.zeros(0, dtype=bool)) & np.isfinite(st.resid[:, j])
+            if mask.sum() < 3:
+                out[sig][reg] = Cell(float("nan"), int(mask.sum()), float("nan"), float("nan"))
+                continue
+            r = st.resid[mask, j]
+            w = st.window[mask]
+            ms = np.array([np.mean(r[w == k] ** 2) for k in np.unique(w)])
+            stat = float(np.sum(ms) / noise[sig] ** 2)
+            p = float(stats.chi2.sf(stat, len(ms)))
+            rms = float(np.sqrt(np.mean(r**2)))
+            out[sig][reg] = Cell(rms, int(mask.sum()), rms / noise[sig], p)
+    return out

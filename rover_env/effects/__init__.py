@@ -1,0 +1,459 @@
+"""Catalogue of named model extensions ("effects") that calibration can add to the rover.
+
+Each effect is one small class: a name, named parameters with units, bounds and an "off"
+value, and the hooks it needs. A rover configuration switches effects on through its
+``extensions`` mapping (effect name -> {parameter: value}); :class:`rover_env.sim.simulator.
+RoverSim` builds them with :func:`build_effects` and applies them:
+
+* through the configuration (``apply_config``: tire friction, motor torque limit, rolling
+  radius factor) and the compiled model (``apply_model``: gravity direction, wheel-hinge
+  friction), which both tire backends honour unchanged;
+* through the speed targets (``CommandEffect``: lag, delay), applied per physics substep;
+* inside the numpy tire layer (``TireEffect``: friction ellipse, load-dependent friction):
+  the compiled plugin does not implement these, so ``RoverSim(backend="plugin")`` refuses
+  them with a message naming them (``backend="auto"`` falls back to numpy).
+
+Adding an effect: subclass :class:`Effect`, declare ``name``, ``params`` (tuple of
+:class:`Param`), ``plugin_ok``, implement the hook(s), decorate with :func:`register`.
+
+This module is numpy-only (rank 0 of the layer rule): it touches compiled models only
+through their numpy arrays, so the configuration can validate extensions without importing
+the simulator.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+if TYPE_CHECKING:  # pragma: no cover
+    from rover_env.config import RoverConfig
+
+Array = NDArray[np.float64]
+GRAVITY = 9.81
+
+__all__ = [
+    "CATALOGUE",
+    "CommandEffect",
+    "Effect",
+    "EffectError",
+    "Param",
+    "TireEffect",
+    "build_effects",
+    "effect_class",
+    "validate_extensions",
+]
+
+
+class EffectError(ValueError):
+    """An extension name or parameter is unknown or out of bounds (the message names it)."""
+
+
+@dataclass(frozen=True)
+class Param:
+    """One physical parameter of an effect."""
+
+    name: str
+    unit: str
+    lo: float
+    hi: float
+    off: float
+    doc: str
+    discrete: bool = False
+    """Only ``off`` and ``hi`` are meaningful (a switch): fitted by trying it, not by gradient."""
+    moderate: float = 0.0
+    """A typical clearly-present value: the scale of finite differences and of plots."""
+
+
+class Effect:
+    """Base class of a model extension; instances hold validated parameter values."""
+
+    name: ClassVar[str] = ""
+    doc: ClassVar[str] = ""
+    params: ClassVar[tuple[Param, ...]] = ()
+    plugin_ok: ClassVar[bool] = True
+    """The compiled tire plugin honours it (through configuration or model arrays)."""
+
+    def __init__(self, values: Mapping[str, float] | None = None) -> None:
+        values = dict(values or {})
+        known = {p.name for p in self.params}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise EffectError(
+                f"extensions.{self.name}: unknown parameter(s) {', '.join(unknown)}; "
+                f"allowed: {', '.join(sorted(known))}"
+            )
+        self.values: dict[str, float] = {}
+        for p in self.params:
+            v = values.get(p.name, p.off)
+            if isinstance(v, bool):
+                v = float(v)
+            if not isinstance(v, int | float) or not math.isfinite(float(v)):
+                raise EffectError(f"extensions.{self.name}.{p.name}: expected a number, got {v!r}")
+            v = float(v)
+            if not (p.lo <= v <= p.hi):
+                raise EffectError(
+                    f"extensions.{self.name}.{p.name}: {v!r} outside [{p.lo}, {p.hi}] {p.unit}"
+                )
+            if p.discrete and v not in (p.off, p.hi):
+                raise EffectError(
+                    f"extensions.{self.name}.{p.name}: a switch, must be {p.off} or {p.hi}"
+                )
+            self.values[p.name] = v
+
+    def __getitem__(self, key: str) -> float:
+        return self.values[key]
+
+    @property
+    def is_off(self) -> bool:
+        return all(self.values[p.name] == p.off for p in self.params)
+
+    def apply_config(self, cfg: RoverConfig) -> RoverConfig:
+        """The configuration the physics is built from (default: unchanged)."""
+        return cfg
+
+    def apply_model(self, model: Any, cfg: RoverConfig) -> None:
+        """Change compiled-model arrays after compilation (default: nothing)."""
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.values})"
+
+
+class CommandEffect(Effect):
+    """Transforms the speed targets on their way to the motor controllers, per substep."""
+
+    def reset(self, targets: Array) -> None:
+        """Start in steady state at ``targets`` (a rover at rest: zeros)."""
+        raise NotImplementedError
+
+    def step(self, targets: Array, dt: float) -> Array:
+        """Advance one substep with ``targets`` commanded; return what the motors get."""
+        raise NotImplementedError
+
+    def prime(self, t: Array, cmd: Array, t_now: float, dt: float) -> None:
+        """Set the internal state as if commands ``cmd[k]`` (held from ``t[k]``) had run.
+
+        Used to start a replay window mid-drive with the effect's memory filled.
+        """
+        raise NotImplementedError
+
+
+class TireEffect(Effect):
+    """Hooks inside the numpy tire layer (not implemented by the compiled plugin)."""
+
+    plugin_ok: ClassVar[bool] = False
+
+    def friction(self, mu_x: Array, mu_y: Array, F_z: Array) -> tuple[Array, Array]:
+        """Friction coefficients for this substep (default: unchanged)."""
+        return mu_x, mu_y
+
+    def forces(
+        self, F_x: Array, F_y: Array, F_z: Array, mu_x: Array, mu_y: Array
+    ) -> tuple[Array, Array]:
+        """Post-process the contact forces (default: unchanged)."""
+        return F_x, F_y
+
+
+CATALOGUE: dict[str, type[Effect]] = {}
+
+
+def register(cls: type[Effect]) -> type[Effect]:
+    if not cls.name or cls.name in CATALOGUE:
+        raise ValueError(f"effect name {cls.name!r} empty or registered twice")
+    CATALOGUE[cls.name] = cls
+    return cls
+
+
+def effect_class(name: str) -> type[Effect]:
+    try:
+        return CATALOGUE[name]
+    except KeyError:
+        raise EffectError(
+            f"extensions: unknown model extension {name!r}; known: {', '.join(sorted(CATALOGUE))}"
+        ) from None
+
+
+def _static_wheel_load(cfg: RoverConfig) -> float:
+    return cfg.masses.total * GRAVITY / 6
+
+
+# --------------------------------------------------------------------------- the catalogue
+
+
+@register
+class RollingResistance(Effect):
+    """Rolling resistance: a moment c_rr * F_z0 * r_e opposing each wheel's spin.
+
+    Applied as dry friction of the wheel hinges (MuJoCo ``frictionloss``) with the static
+    wheel load F_z0 = m g / 6 and the static rolling radius, so the ground must push back
+    with c_rr * F_z0 per wheel: the classic load-proportional resistance at nominal load.
+    Free wheels slow down, driven wheels need more torque and slip more.
+    """
+
+    name = "rolling_resistance"
+    params = (Param("c_rr", "-", 0.0, 0.3, 0.0, "rolling resistance coefficient", moderate=0.05),)
+
+    def apply_model(self, model: Any, cfg: RoverConfig) -> None:
+        c = self["c_rr"]
+        if c == 0.0:
+            return
+        fz0 = _static_wheel_load(cfg)
+        r_e = cfg.geometry.wheel_radius - cfg.tire.k_re * fz0 / cfg.tire.C_z
+        for i in range(model.njnt):
+            if model.joint(i).name.startswith("wheel_"):
+                model.dof_frictionloss[model.jnt_dofadr[i]] += c * fz0 * r_e
+
+
+@register
+class Slope(Effect):
+    """Constant ground tilt: gravity rotated so the ground rises ``deg`` toward ``heading_deg``.
+
+    ``heading_deg`` is measured in the world (log) frame, counter-clockwise from +x. The
+    terrain stays as configured; only the direction of gravity changes.
+    """
+
+    name = "slope"
+    params = (
+        Param("deg", "deg", -20.0, 20.0, 0.0, "tilt of the ground", moderate=5.0),
+        Param("heading_deg", "deg", -180.0, 180.0, 0.0, "direction in which the ground rises"),
+    )
+
+    def gravity(self) -> Array:
+        th, ps = math.radians(self["deg"]), math.radians(self["heading_deg"])
+        return np.array(
+            [
+                -GRAVITY * math.sin(th) * math.cos(ps),
+                -GRAVITY * math.sin(th) * math.sin(ps),
+                -GRAVITY * math.cos(th),
+            ]
+        )
+
+    def apply_model(self, model: Any, cfg: RoverConfig) -> None:
+        if self["deg"] != 0.0:
+            model.opt.gravity[:] = self.gravity()
+
+
+@register
+class RollingRadius(Effect):
+    """Effective rolling radius changed by ``fraction`` at static load (deflection, sinkage).
+
+    The loss grows with load like the deflection: k_re (r_e = d - k_re delta) becomes
+    k_re - fraction * d / delta_0, delta_0 the static deflection, so at static load r_e
+    changes by fraction * d (-0.08: 8 % of the wheel radius less travel per turn).
+    """
+
+    name = "rolling_radius"
+    params = (
+        Param("fraction", "-", -0.25, 0.1, 0.0, "change of r_e at static load", moderate=-0.08),
+    )
+
+    def apply_config(self, cfg: RoverConfig) -> RoverConfig:
+        f = self["fraction"]
+        if f == 0.0:
+            return cfg
+        delta0 = _static_wheel_load(cfg) / cfg.tire.C_z
+        k = cfg.tire.k_re - f * cfg.geometry.wheel_radius / delta0
+        if not 0.0 <= k <= 1.0:
+            raise EffectError(
+                f"extensions.rolling_radius.fraction: {f!r} needs k_re = {k:.3f}, outside [0, 1]"
+            )
+        return dataclasses.replace(cfg, tire=dataclasses.replace(cfg.tire, k_re=k))
+
+
+@register
+class TorqueLimit(Effect):
+    """Motor torque limit (driver current limit) changed by ``fraction``."""
+
+    name = "torque_limit"
+    params = (
+        Param("fraction", "-", -0.8, 1.0, 0.0, "change of motor.torque_limit", moderate=-0.5),
+    )
+
+    def apply_config(self, cfg: RoverConfig) -> RoverConfig:
+        f = self["fraction"]
+        if f == 0.0:
+            return cfg
+        motor = dataclasses.replace(cfg.motor, torque_limit=cfg.motor.torque_limit * (1 + f))
+        return dataclasses.replace(cfg, motor=motor)
+
+
+@register
+class Friction(Effect):
+    """Tire-ground friction level (mu_x and mu_y of the tire) changed by ``fraction``.
+
+    Scales the tire's Table 3 values, which the default ground uses; terrain friction
+    patches with their own mu keep them.
+    """
+
+    name = "friction"
+    params = (Param("fraction", "-", -0.7, 1.0, 0.0, "change of mu_x and mu_y", moderate=-0.3),)
+
+    def apply_config(self, cfg: RoverConfig) -> RoverConfig:
+        f = self["fraction"]
+        if f == 0.0:
+            return cfg
+        t = cfg.tire
+        return dataclasses.replace(
+            cfg, tire=dataclasses.replace(t, mu_x=t.mu_x * (1 + f), mu_y=t.mu_y * (1 + f))
+        )
+
+
+@register
+class CommandLag(CommandEffect):
+    """First-order lag of the speed targets (motor driver input filter): tau dx/dt = u - x."""
+
+    name = "command_lag"
+    params = (Param("tau", "s", 0.0, 2.0, 0.0, "time constant", moderate=0.3),)
+
+    def __init__(self, values: Mapping[str, float] | None = None) -> None:
+        super().__init__(values)
+        self.x = np.zeros(4)
+
+    def reset(self, targets: Array) -> None:
+        self.x = np.array(targets, dtype=np.float64)
+
+    def step(self, targets: Array, dt: float) -> Array:
+        tau = self["tau"]
+        if tau == 0.0:
+            self.x = np.array(targets, dtype=np.float64)
+        else:
+            self.x = targets + (self.x - targets) * math.exp(-dt / tau)
+        return self.x
+
+    def prime(self, t: Array, cmd: Array, t_now: float, dt: float) -> None:
+        tau = self["tau"]
+        x = np.zeros(4)
+        for k in range(len(t)):
+            if t[k] >= t_now - 1e-12:
+                break
+            t_end = min(t[k + 1] if k + 1 < len(t) else t_now, t_now)
+            n = round((t_end - t[k]) / dt)
+            x = cmd[k] + (x - cmd[k]) * (math.exp(-n * dt / tau) if tau > 0 else 0.0)
+        self.x = x
+
+
+@register
+class CommandDelay(CommandEffect):
+    """Pure delay of the speed targets (communication, driver latency)."""
+
+    name = "command_delay"
+    params = (Param("delay", "s", 0.0, 1.0, 0.0, "dead time", moderate=0.15),)
+
+    def __init__(self, values: Mapping[str, float] | None = None) -> None:
+        super().__init__(values)
+        self._hist: deque[Array] = deque()
+        self._fill = np.zeros(4)
+
+    def reset(self, targets: Array) -> None:
+        self._hist = deque()
+        self._fill = np.array(targets, dtype=np.float64)
+
+    def step(self, targets: Array, dt: float) -> Array:
+        n = round(self["delay"] / dt)
+        if n == 0:
+            return np.array(targets, dtype=np.float64)
+        self._hist.append(np.array(targets, dtype=np.float64))
+        if len(self._hist) > n:
+            return self._hist.popleft()
+        return self._fill
+
+    def prime(self, t: Array, cmd: Array, t_now: float, dt: float) -> None:
+        n = round(self["delay"] / dt)
+        self._fill = np.zeros(4)
+        self._hist = deque()
+        for j in range(n, 0, -1):
+            tj = t_now - j * dt
+            k = int(np.searchsorted(t, tj + 1e-9, side="right")) - 1
+            self._hist.append(np.zeros(4) if k < 0 else np.array(cmd[k], dtype=np.float64))
+
+
+@register
+class CombinedSlip(TireEffect):
+    """Friction ellipse (Gim and Nikravesh part 2): longitudinal and lateral forces share grip.
+
+    With ``on`` = 1 the force pair is scaled down so (F_x / mu_x F_z)^2 + (F_y / mu_y F_z)^2
+    <= 1; off, each direction saturates independently (the paper's eqs. 13, 14).
+    """
+
+    name = "combined_slip"
+    params = (
+        Param("on", "-", 0.0, 1.0, 0.0, "friction ellipse switch", discrete=True, moderate=1),
+    )
+
+    def forces(
+        self, F_x: Array, F_y: Array, F_z: Array, mu_x: Array, mu_y: Array
+    ) -> tuple[Array, Array]:
+        if self["on"] == 0.0:
+            return F_x, F_y
+        fz = np.maximum(F_z, 1e-12)
+        n = np.hypot(F_x / (mu_x * fz), F_y / (mu_y * fz))
+        s = 1.0 / np.maximum(n, 1.0)
+        return F_x * s, F_y * s
+
+
+@register
+class LoadDependentFriction(TireEffect):
+    """Friction falling with load: mu * (1 - fall * clip((F_z - F_z0) / F_z0, -1/2, 1/2)).
+
+    F_z0 = m g / 6 the static wheel load; mu falls by ``fall`` (a fraction of the nominal
+    mu) across the operating range F_z0 / 2 .. 3 F_z0 / 2, and is nominal at static load.
+    """
+
+    name = "load_dependent_friction"
+    params = (
+        Param("fall", "-", 0.0, 0.8, 0.0, "relative fall of mu across the range", moderate=0.3),
+    )
+
+    def __init__(self, values: Mapping[str, float] | None = None) -> None:
+        super().__init__(values)
+        self.fz0 = 1.0
+
+    def apply_model(self, model: Any, cfg: RoverConfig) -> None:
+        self.fz0 = _static_wheel_load(cfg)
+
+    def friction(self, mu_x: Array, mu_y: Array, F_z: Array) -> tuple[Array, Array]:
+        a = self["fall"]
+        if a == 0.0:
+            return mu_x, mu_y
+        k = 1.0 - a * np.clip((F_z - self.fz0) / self.fz0, -0.5, 0.5)
+        return mu_x * k, mu_y * k
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def build_effects(extensions: Mapping[str, Mapping[str, float]]) -> list[Effect]:
+    """Effect instances in catalogue order (so application order never depends on YAML order)."""
+    if not isinstance(extensions, Mapping):
+        raise EffectError(f"extensions: expected a mapping, got {extensions!r}")
+    for name, values in extensions.items():
+        effect_class(name)
+        if values is not None and not isinstance(values, Mapping):
+            raise EffectError(
+                f"extensions.{name}: expected a mapping of parameters, got {values!r}"
+            )
+    return [cls(extensions[n] or {}) for n, cls in CATALOGUE.items() if n in extensions]
+
+
+def validate_extensions(extensions: Mapping[str, Mapping[str, float]]) -> None:
+    """Raise :class:`EffectError` naming the key if any entry is unknown or out of bounds."""
+    build_effects(extensions)
+
+
+def plugin_refusals(extensions: Mapping[str, Mapping[str, float]]) -> list[str]:
+    """Names of switched-on extensions that the compiled plugin cannot run.
+
+    Unknown names count as refused (a configuration that bypassed validation must not be
+    run silently without them).
+    """
+    unknown = sorted(str(n) for n in extensions if n not in CATALOGUE)
+    if unknown:
+        return unknown
+    return [e.name for e in build_effects(extensions) if not e.plugin_ok and not e.is_off]
