@@ -73,6 +73,9 @@ def build_parser() -> argparse.ArgumentParser:
     from rover_env.experiments import dead_reckoning
 
     dead_reckoning.add_cli(sub)
+    from rover_env.envs.recording import add_cli as add_record_cli
+
+    add_record_cli(sub)
     from rover_env.benchmark.cli import add_cli as add_benchmark_cli
 
     add_benchmark_cli(sub)

@@ -182,3 +182,20 @@ def test_rgb_array_render() -> None:
     assert frame.shape == (120, 160, 3) and frame.std() > 1.0
     assert env.metadata["render_fps"] == 10
     env.close()
+
+
+def test_record_command_writes_a_gif(tmp_path) -> None:
+    reason = _has_gl()
+    if reason:
+        pytest.skip(reason)
+    import imageio.v2 as imageio
+
+    from rover_env.cli import main
+
+    out = tmp_path / "ep.gif"
+    assert main(["record", "--seconds", "0.5", "--out", str(out)]) == 0
+    frames = imageio.mimread(out)
+    assert len(frames) == 6  # the reset frame + 5 control steps at 10 Hz
+    assert np.std(frames[-1]) > 1.0
+    with pytest.raises(ValueError, match=r"\.gif or \.mp4"):
+        main(["record", "--out", str(tmp_path / "ep.avi")])
