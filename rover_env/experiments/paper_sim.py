@@ -117,7 +117,7 @@ def summarise(rec: DriveRecorder) -> tuple[str, dict[str, np.ndarray]]:
             "What it shows, as in the paper's Figs. 7 and 10: in a turn the outer driven wheels",
             "spin (negative slip) and the inner ones skid (positive slip); skid steering needs",
             "that slip. Driving straight, the front and middle wheels slip slightly against each",
-            "other because they carry different loads and so roll on different loaded radii.",
+            "other because they carry different loads and so roll on different rolling radii (r_e = d − δ/3).",
         ]
     )
     return text + "\n", means
