@@ -12,9 +12,9 @@ Why each piece is there:
 * Deadband: |S - reference| below ``deadband`` is ignored, so that estimator noise and the
   small differences it cannot resolve do not keep the integrators wandering.
 * Slip radius: the estimator uses one rolling radius for all wheels, but the axles carry
-  different loads and roll on radii about 3 % apart (``axle_load_radii``); the rover's
+  different loads and roll on radii about 1 % apart (r_e = d − δ/3) (``axle_load_radii``); the rover's
   speed-controlled wheels then fight each other (front axle spinning, middle axle dragged, at
-  about 1.7 % each on flat ground), which the one-radius estimate cannot see. With
+  a few tenths of a per cent each on flat ground), which the one-radius estimate cannot see. With
   ``slip_radius: axle_load`` the loop recomputes the slip from the estimate's filtered rates
   and the measured joint angles with per-axle loaded radii (the rover model's masses and
   tire stiffness: a calibration a real rover would measure instead).
