@@ -8,11 +8,13 @@ learns the situations (ice, split friction, a blocked wheel, slopes, bumps, turn
 than one command. The observation and action are ``ProtoExplorerEnv``'s.
 
 ``action_residual`` (fraction of the maximum wheel speed, e.g. 0.5) makes the action a
-correction to the open-loop skid-steer feed-forward of the current command
-(:func:`residual_action`) instead of an absolute target: a zero action then drives like the
-open-loop controller, and learning starts from a rover that already tracks the command.
-The feed-forward is kinematics only (no feedback), the same the open-loop baseline uses;
-the ``ppo:`` benchmark controller applies the same mapping, read from the run's config.
+correction added to a base controller's targets (:class:`Residual`; residual policy
+learning) instead of an absolute target: a zero action then drives like the base, and
+learning starts from a rover that already tracks the command. ``residual_base`` names the
+base with a benchmark controller spec: ``"open-loop"`` (the skid-steer feed-forward,
+kinematics only, :func:`residual_action`) or ``"slip-pi"`` (the tuned slip PI, whose
+integrators then also remove any steady bias the policy adds). The ``ppo:`` benchmark
+controller applies the same mapping, read from the run's config.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from rover_env.control.open_loop import skid_steer_targets
 from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
 from rover_env.estimation.estimator import static_rolling_radius
 
-__all__ = ["DEFAULT_MIX", "ScenarioMixEnv", "residual_action"]
+__all__ = ["DEFAULT_MIX", "Residual", "ScenarioMixEnv", "residual_action"]
 
 Obs = npt.NDArray[np.float32]
 
@@ -69,6 +71,30 @@ def residual_action(action: npt.ArrayLike, obs: Obs, rover_cfg: RoverConfig, sca
     return np.clip(ff + scale * np.clip(a, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
 
 
+class Residual:
+    """Env action = base controller's env action + scale * policy action, clipped to [-1, 1]."""
+
+    def __init__(self, base: str, scale: float) -> None:
+        from rover_env.benchmark.controllers import make_controller
+
+        if base.startswith("ppo"):
+            raise ValueError(f"residual_base must be a classical controller, got {base!r}")
+        if not 0 < scale <= 2:
+            raise ValueError(f"action_residual must be in (0, 2], got {scale}")
+        self.base = make_controller(base)
+        self.scale = float(scale)
+
+    def reset(self, env: ProtoExplorerEnv) -> None:
+        self.base.reset(env)
+
+    def __call__(self, action: npt.ArrayLike, env: ProtoExplorerEnv, obs: Obs) -> Obs:
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if a.shape != (4,) or not np.all(np.isfinite(a)):
+            raise ValueError(f"residual action must be 4 finite entries (1L 1R 2L 2R), got {a}")
+        base = np.asarray(self.base.action(env, obs), dtype=np.float64)
+        return np.clip(base + self.scale * np.clip(a, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
+
+
 def _scaled(schedule: CommandSchedule, speed: float, yaw: float) -> CommandSchedule:
     return CommandSchedule(
         schedule.times,
@@ -84,7 +110,8 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         scenarios: scenario name -> weight (default :data:`DEFAULT_MIX`), or a list of names
             (equal weights).
         action_residual: None for absolute targets (the plain env's action), or the scale of
-            a residual on the open-loop feed-forward (fraction of the maximum wheel speed).
+            a residual on the base controller (fraction of the maximum wheel speed).
+        residual_base: the base controller's spec, "open-loop" or "slip-pi" (module docstring).
         speed_scale: range of the factor on every commanded speed of an episode.
         yaw_scale: range of the factor on every commanded yaw rate (its sign is drawn too).
         **env_kwargs: passed to every scenario's ``ProtoExplorerEnv`` (e.g. reward_weights);
@@ -97,6 +124,7 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         self,
         scenarios: dict[str, float] | Sequence[str] | None = None,
         action_residual: float | None = None,
+        residual_base: str = "open-loop",
         speed_scale: tuple[float, float] = (0.6, 1.3),
         yaw_scale: tuple[float, float] = (0.5, 1.5),
         **env_kwargs: Any,
@@ -108,15 +136,15 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
             raise ValueError(f"scenarios need positive weights, got {mix}")
         if "terrain" in env_kwargs:
             raise ValueError("ScenarioMixEnv: the terrain comes from each scenario, not env_kwargs")
-        if action_residual is not None and not 0 < action_residual <= 2:
-            raise ValueError(f"action_residual must be in (0, 2] or None, got {action_residual}")
+        self.residual = (
+            None if action_residual is None else Residual(residual_base, action_residual)
+        )
         if action_residual is not None and env_kwargs.get("action_layout", "wheels") != "wheels":
             raise ValueError("action_residual needs action_layout='wheels'")
         self.names = list(mix)
         self.cfgs = [load_scenario(n) for n in self.names]
         p = np.array([mix[n] for n in self.names], dtype=np.float64)
         self.p = p / p.sum()
-        self.action_residual = action_residual
         self.speed_scale = (float(speed_scale[0]), float(speed_scale[1]))
         self.yaw_scale = (float(yaw_scale[0]), float(yaw_scale[1]))
         self.env_kwargs = dict(env_kwargs)
@@ -148,14 +176,16 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         self._active = self._wrapper(episode)
         self._active.set_episode(episode)
         obs, info = self._active.reset()
+        if self.residual is not None:
+            self.residual.reset(self._active.base)
         info["scenario"] = episode.scenario
         self._obs = obs
         return obs, info
 
     def step(self, action: Obs) -> tuple[Obs, float, bool, bool, dict[str, Any]]:
         a = action
-        if self.action_residual is not None:
-            a = residual_action(action, self._obs, self.rover_cfg, self.action_residual)
+        if self.residual is not None:
+            a = self.residual(action, self._active.base, self._obs)
         obs, reward, terminated, truncated, info = self._active.step(a)
         self._obs = obs
         return obs, reward, terminated, truncated, info

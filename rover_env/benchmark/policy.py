@@ -10,7 +10,7 @@ The policy must have been trained on the plain ``ProtoExplorerEnv`` observation 
 ``OBS_NAMES``); its action space decides the env's action layout (4 values: "wheels",
 2: "sides"). Actions are the deterministic (mean) ones. If the run's ``config.yaml`` beside
 the model sets ``env_kwargs.action_residual`` (``ScenarioMixEnv``), the policy's action is a
-residual on the open-loop feed-forward and is mapped the same way here.
+residual on a base controller (``env_kwargs.residual_base``) and is mapped the same way here.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from rover_env.benchmark.mixture import residual_action
+from rover_env.benchmark.mixture import Residual
 from rover_env.envs.proto_explorer import ProtoExplorerEnv
 
 __all__ = ["PPOController", "resolve_model_path"]
@@ -71,13 +71,15 @@ class PPOController:
             with self.stats_path.open("rb") as fh:
                 self.normalizer = pickle.load(fh)  # a VecNormalize without its venv
             self.normalizer.training = False
-        self.action_residual: float | None = None
+        self.residual: Residual | None = None
         cfg_file = self.model_path.parent / "config.yaml"
         if cfg_file.is_file():
             data = yaml.safe_load(cfg_file.read_text()) or {}
             entry: dict[str, Any] = next(iter(data.values()), {}) or {}
-            res = (entry.get("env_kwargs") or {}).get("action_residual")
-            self.action_residual = None if res is None else float(res)
+            kw = entry.get("env_kwargs") or {}
+            if kw.get("action_residual") is not None:
+                base = str(kw.get("residual_base", "open-loop"))
+                self.residual = Residual(base, float(kw["action_residual"]))
         shape = tuple(self.model.action_space.shape or ())
         if shape not in ((4,), (2,)):
             raise ValueError(f"{self.model_path}: action space {shape}, expected (4,) or (2,)")
@@ -90,7 +92,9 @@ class PPOController:
             )
 
     def reset(self, env: ProtoExplorerEnv) -> None:
-        """Stateless (a feed-forward MLP policy)."""
+        """The MLP is stateless; a residual's base controller is reset."""
+        if self.residual is not None:
+            self.residual.reset(env)
 
     def action(self, env: ProtoExplorerEnv, obs: Obs) -> Obs:
         o = np.asarray(obs, dtype=np.float32)
@@ -98,6 +102,6 @@ class PPOController:
             o = np.asarray(self.normalizer.normalize_obs(o), dtype=np.float32)
         act, _ = self.model.predict(o, deterministic=True)
         a = np.asarray(act, dtype=np.float32).reshape(-1)
-        if self.action_residual is not None:
-            a = residual_action(a, np.asarray(obs), env.rover_cfg, self.action_residual)
+        if self.residual is not None:
+            a = self.residual(a, env, np.asarray(obs, dtype=np.float32))
         return a

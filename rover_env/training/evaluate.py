@@ -29,6 +29,7 @@ _REWARD_ONLY = {
     "speed_scale",
     "yaw_scale",
     "action_residual",
+    "residual_base",
 }
 
 
