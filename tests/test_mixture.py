@@ -66,3 +66,33 @@ def test_mix_draws_training_seeds_reproducibly() -> None:
     env.close()
     with pytest.raises(ValueError, match="terrain comes from each scenario"):
         ScenarioMixEnv(terrain="flat")
+
+
+def test_zero_residual_on_slip_pi_drives_exactly_like_slip_pi() -> None:
+    from rover_env.benchmark.controllers import make_controller
+    from rover_env.benchmark.mixture import Residual
+    from rover_env.benchmark.run import ScenarioWrapper
+    from rover_env.benchmark.scenarios import load_scenario
+    from rover_env.envs.proto_explorer import ProtoExplorerEnv
+
+    episode = load_scenario("stuck-wheel").episode(SPLITS["tuning"].start, duration=3.0)
+    actions = []
+    for ctrl in (make_controller("slip-pi"), Residual("slip-pi", 0.5)):
+        w = ScenarioWrapper(ProtoExplorerEnv(terrain=episode.terrain))
+        w.set_episode(episode)
+        obs, _ = w.reset()
+        ctrl.reset(w.base)
+        acts = []
+        for _ in range(30):
+            a = (
+                ctrl(np.zeros(4), w.base, obs)
+                if isinstance(ctrl, Residual)
+                else ctrl.action(w.base, obs)
+            )
+            acts.append(a)
+            obs, *_ = w.step(a)
+        actions.append(np.array(acts))
+    np.testing.assert_allclose(actions[1], actions[0], atol=1e-7)
+    assert np.ptp(actions[0]) > 0.01  # the PI acted (the wheel meets the box)
+    with pytest.raises(ValueError, match="classical controller"):
+        Residual("ppo:x", 0.5)
