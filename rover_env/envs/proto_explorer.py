@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import gymnasium as gym
 import mujoco
 import numpy as np
 from gymnasium import spaces
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from rover_env.config import (
     DRIVEN_WHEELS,
@@ -23,9 +24,21 @@ from rover_env.config import (
     load_rover,
     load_terrain,
 )
-from rover_env.estimation.estimator import EstimatorConfig, SlipEstimate, SlipEstimator
+from rover_env.estimation.estimator import (
+    _WINDOW_SLACK,
+    FLAG_WARMUP,
+    EstimatorConfig,
+    SlipEstimate,
+    SlipEstimator,
+    _check_sample,
+    _kinematic_part,
+    _lsq_slope,
+    _odometry_increments,
+)
 from rover_env.estimation.sensors import SensorConfig, SensorModel
+from rover_env.sim.batch import RoverIndex
 from rover_env.sim.simulator import RoverSim
+from rover_env.terrain import Terrain
 
 Array = NDArray[np.float64]
 
@@ -64,7 +77,581 @@ class RewardWeights:
             raise ValueError("reward sigmas must be > 0")
 
 
-class ProtoExplorerEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
+# --------------------------------------------------------------------------- settings
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvSettings:
+    """The validated constructor arguments of the env, shared by its single and vector forms."""
+
+    rover_cfg: RoverConfig
+    base_terrain: TerrainConfig
+    randomize_terrain: bool
+    control_frequency: float
+    reward_weights: RewardWeights
+    slip_source: str
+    sensor_cfg: SensorConfig
+    imu_noise: float
+    action_layout: str
+    max_speed_command: float
+    max_yaw_rate_command: float
+    command_interval: tuple[float, float]
+    estimator_rate: float
+
+    MAX_SLOPE_DEG: ClassVar[float] = 5.0
+
+    @classmethod
+    def build(
+        cls,
+        rover: RoverConfig | str | Path = "proto_explorer",
+        terrain: TerrainConfig | str | Path = "flat",
+        control_frequency: float = 10.0,
+        reward_weights: RewardWeights | dict[str, float] | None = None,
+        slip_source: Literal["true", "estimate"] = "true",
+        sensor_noise: Literal["default", "none"] | SensorConfig = "default",
+        action_layout: Literal["wheels", "sides"] = "wheels",
+        max_speed_command: float = 0.2,
+        max_yaw_rate_command: float = 0.3,
+        command_interval: tuple[float, float] = (4.0, 8.0),
+        randomize_terrain: bool = False,
+        estimator_rate: float = 50.0,
+        imu_noise: float | None = None,
+        render_mode: str | None = None,
+        render_modes: Sequence[str] = (),
+    ) -> EnvSettings:
+        rover_cfg = rover if isinstance(rover, RoverConfig) else load_rover(rover)
+        base_terrain = terrain if isinstance(terrain, TerrainConfig) else load_terrain(terrain)
+        if randomize_terrain and base_terrain.is_flat:
+            raise ValueError("randomize_terrain needs a non-flat terrain (e.g. 'rough')")
+        if slip_source not in ("true", "estimate"):
+            raise ValueError(f"slip_source must be 'true' or 'estimate', got {slip_source!r}")
+        if action_layout not in ("wheels", "sides"):
+            raise ValueError(f"action_layout must be 'wheels' or 'sides', got {action_layout!r}")
+        if not (math.isfinite(control_frequency) and control_frequency > 0):
+            raise ValueError(f"control_frequency must be > 0, got {control_frequency!r}")
+        if render_mode is not None and render_mode not in render_modes:
+            raise ValueError(f"render_mode must be one of {list(render_modes)}")
+        weights = (
+            reward_weights
+            if isinstance(reward_weights, RewardWeights)
+            else RewardWeights(**(reward_weights or {}))
+        )
+        sensor_cfg = (
+            sensor_noise
+            if isinstance(sensor_noise, SensorConfig)
+            else {"default": SensorConfig(), "none": SensorConfig.ideal()}[sensor_noise]
+        )
+        # IMU white noise (rad/s on rates, and on the unit gravity vector): MEMS-class.
+        imu = (0.0 if sensor_noise == "none" else 0.002) if imu_noise is None else imu_noise
+        if not (math.isfinite(imu) and imu >= 0):
+            raise ValueError(f"imu_noise must be finite and >= 0, got {imu_noise!r}")
+        interval = (float(command_interval[0]), float(command_interval[1]))
+        if not 0 < interval[0] <= interval[1]:
+            raise ValueError(f"command_interval must be 0 < min <= max, got {command_interval}")
+        return cls(
+            rover_cfg=rover_cfg,
+            base_terrain=base_terrain,
+            randomize_terrain=bool(randomize_terrain),
+            control_frequency=control_frequency,
+            reward_weights=weights,
+            slip_source=slip_source,
+            sensor_cfg=sensor_cfg,
+            imu_noise=imu,
+            action_layout=action_layout,
+            max_speed_command=float(max_speed_command),
+            max_yaw_rate_command=float(max_yaw_rate_command),
+            command_interval=interval,
+            estimator_rate=estimator_rate,
+        )
+
+    @property
+    def n_act(self) -> int:
+        return 4 if self.action_layout == "wheels" else 2
+
+    def first_terrain(self) -> TerrainConfig:
+        """The terrain the simulator is compiled with (the envelope when randomising)."""
+        base = self.base_terrain
+        return self.envelope_terrain(base) if self.randomize_terrain else base
+
+    def envelope_terrain(self, base: TerrainConfig) -> TerrainConfig:
+        """The steepest terrain the randomiser can draw: sizes the compiled heightfield."""
+        rough = dataclasses.replace(base.roughness, rms=0.04)
+        return dataclasses.replace(
+            base, slope_deg=(self.MAX_SLOPE_DEG, self.MAX_SLOPE_DEG), roughness=rough
+        )
+
+    def random_terrain(self, rng: np.random.Generator) -> TerrainConfig:
+        base = self.base_terrain
+        sx, sy = base.size
+        patches = []
+        for i in range(int(rng.integers(2, 5))):
+            mu_x = float(rng.uniform(0.1, 0.45))
+            patches.append(
+                FrictionPatch(
+                    name=f"patch{i}",
+                    center=(
+                        float(rng.uniform(-sx / 3, sx / 3)),
+                        float(rng.uniform(-sy / 3, sy / 3)),
+                    ),
+                    size=(float(rng.uniform(1.0, 4.0)), float(rng.uniform(1.0, 4.0))),
+                    mu_x=mu_x,
+                    mu_y=mu_x * 1.25,
+                )
+            )
+        obstacles = []
+        for ob in base.obstacles:
+            r = float(rng.uniform(2.0, min(sx, sy) / 2 - 1.0))
+            a = float(rng.uniform(-np.pi, np.pi))
+            obstacles.append(
+                Obstacle(
+                    name=ob.name,
+                    pos=(r * math.cos(a), r * math.sin(a), ob.pos[2]),
+                    size=ob.size,
+                    yaw_deg=float(rng.uniform(-180, 180)),
+                )
+            )
+        return dataclasses.replace(
+            base,
+            slope_deg=(
+                float(rng.uniform(-self.MAX_SLOPE_DEG, self.MAX_SLOPE_DEG)),
+                float(rng.uniform(-self.MAX_SLOPE_DEG, self.MAX_SLOPE_DEG)),
+            ),
+            roughness=Roughness(
+                rms=float(rng.uniform(0.005, 0.04)),
+                correlation_length=base.roughness.correlation_length,
+                modes=base.roughness.modes,
+                seed=int(rng.integers(2**31)),
+            ),
+            patches=tuple(patches),
+            obstacles=tuple(obstacles),
+        )
+
+
+# --------------------------------------------------------------------------- estimator
+
+
+class BatchSlipEstimator:
+    """``SlipEstimator.update`` for ``n`` rovers at once, each estimate computed on demand.
+
+    :meth:`push` takes one sample per listed rover (what ``update`` stores: the rate
+    window, the dead-reckoned pose); :meth:`estimate` returns what ``update`` would have
+    returned for each rover's newest sample, with the estimator's own functions
+    (``_lsq_slope``, ``_kinematic_part``) on arrays with a leading rover axis, bit for bit
+    (rovers whose windows hold the same number of samples share a call). Rate samples the
+    env never looks at are therefore never evaluated. Least-squares rates only.
+    """
+
+    def __init__(self, rover_cfg: RoverConfig, n: int, est_cfg: EstimatorConfig | None = None):
+        one = SlipEstimator(rover_cfg, est_cfg)
+        if one.est_cfg.rate_method != "lsq":
+            raise NotImplementedError("BatchSlipEstimator implements rate_method='lsq' only")
+        self.est_cfg = one.est_cfg
+        self.chain = one.chain
+        self.v_eps = one.v_eps
+        self.n = int(n)
+        self._limit = self.est_cfg.rate_window * (1 + _WINDOW_SLACK)
+        cap = 8
+        self._t = np.zeros((n, cap))
+        self._y = np.zeros((n, cap, 11))
+        self._count = np.zeros(n, dtype=np.int64)
+        self._started = np.zeros(n, dtype=bool)
+        self._t0 = np.zeros(n)
+        self._last_theta = np.zeros((n, 5))
+        self._pose = np.zeros((n, 3))
+        self._arange = np.arange(1024)
+
+    def reset(self, ids: ArrayLike | None = None) -> None:
+        """Forget rovers ``ids`` (default all): their next sample starts a new drive."""
+        sel = slice(None) if ids is None else np.asarray(ids, dtype=np.int64).reshape(-1)
+        self._count[sel] = 0
+        self._started[sel] = False
+        self._pose[sel] = 0.0
+
+    def _grow(self) -> None:
+        n, cap = self._t.shape
+        self._t = np.concatenate([np.zeros((n, cap)), self._t], axis=1)
+        self._y = np.concatenate([np.zeros((n, cap, 11)), self._y], axis=1)
+
+    def _rows(self, ids: ArrayLike | None) -> tuple[NDArray[np.int64] | slice, int]:
+        if ids is None:
+            return slice(None), self.n
+        sel = np.asarray(ids, dtype=np.int64).reshape(-1)
+        return sel, sel.size
+
+    def push(self, ids: ArrayLike | None, t: ArrayLike, phi: ArrayLike, theta: ArrayLike) -> None:
+        """One sample for each rover of ``ids`` (None: all): times (k,), wheel angles
+        (k, 6), joint angles (k, 5)."""
+        sel, k = self._rows(ids)
+        if k == 0:
+            return
+        t_a = np.array(t, dtype=np.float64).reshape(k)
+        phi_a = np.array(phi, dtype=np.float64).reshape(k, -1)
+        theta_a = np.array(theta, dtype=np.float64).reshape(k, -1)
+        _check_sample(phi_a, theta_a)
+        if not np.isfinite(t_a).all():
+            raise ValueError(f"time must be finite, got {t_a!r}")
+        started = self._started[sel]
+        prev_t = self._t[sel, -1]
+        back = started & (t_a <= prev_t)
+        if back.any():
+            i = int(np.flatnonzero(back)[0])
+            raise ValueError(f"time must increase: {prev_t[i]!r} then {t_a[i]!r}")
+        if self._count[sel].max() >= self._t.shape[1] - 1:
+            self._grow()
+        tb, yb = self._t, self._y
+        cap = tb.shape[1]
+        tb[sel, :-1] = tb[sel, 1:]
+        tb[sel, -1] = t_a
+        yb[sel, :-1] = yb[sel, 1:]
+        yb[sel, -1, :6] = phi_a
+        yb[sel, -1, 6:] = theta_a
+        # The streaming window: the newest samples no older than the window (a suffix).
+        cnt = self._count[sel] + 1
+        inside = (self._arange[:cap] >= cap - cnt[:, None]) & ~(
+            t_a[:, None] - tb[sel] > self._limit
+        )
+        self._count[sel] = inside.sum(axis=1)
+        # Dead reckoning from the free wheels' angle increments, as SlipEstimator.update.
+        if not started.all():
+            first = np.arange(self.n)[sel][~started]
+            self._t0[first] = t_a[~started]
+        cont = np.flatnonzero(started)
+        if cont.size:
+            rows = np.arange(self.n)[sel][cont]
+            ds, dpsi = _odometry_increments(phi_a[cont, 4:6] - yb[rows, -2, 4:6], self.chain)
+            pose = self._pose[rows]
+            heading = pose[:, 2] + dpsi / 2.0
+            cos = np.array([math.cos(h) for h in heading.tolist()])
+            sin = np.array([math.sin(h) for h in heading.tolist()])
+            self._pose[rows] = pose + np.stack([ds * cos, ds * sin, dpsi], axis=1)
+        self._last_theta[sel] = theta_a
+        self._started[sel] = True
+
+    def estimate(self, ids: ArrayLike | None = None) -> list[SlipEstimate]:
+        """The estimate at each listed rover's newest sample (as ``SlipEstimator.update``)."""
+        sel = np.arange(self.n) if ids is None else np.asarray(ids, dtype=np.int64).reshape(-1)
+        if not self._started[sel].all():
+            raise RuntimeError("estimate() needs at least one sample since reset")
+        cap = self._t.shape[1]
+        cnt = self._count[sel]
+        t = self._t[sel, -1]
+        y = self._y[sel, -1]
+        rates = np.empty((sel.size, 11))
+        for c in np.unique(cnt).tolist():
+            g = np.flatnonzero(cnt == c)
+            rows = sel[g]
+            tau = self._t[rows, cap - c :] - t[g, None]
+            z = self._y[rows, cap - c :] - y[g, None, :]
+            rates[g] = _lsq_slope(tau, z, np.ones(tau.shape, dtype=bool))
+        part = _kinematic_part(rates, self._last_theta[sel], self.chain, self.est_cfg, self.v_eps)
+        warm = (t - self._t0[sel]) < self.est_cfg.rate_window
+        part["flags"] = np.where(warm[:, None], part["flags"] | FLAG_WARMUP, part["flags"])
+        return [
+            SlipEstimate(
+                t=np.array(t[j]),
+                pose=self._pose[i].copy(),
+                **{name: v[j] for name, v in part.items()},
+            )
+            for j, i in enumerate(sel.tolist())
+        ]
+
+
+# --------------------------------------------------------------------------- step sums
+
+
+class StepSums:
+    """What a control step accumulates over its estimator samples, for ``n`` rovers."""
+
+    def __init__(self, n: int) -> None:
+        self.err_v2 = np.zeros(n)
+        self.err_w2 = np.zeros(n)
+        self.energy = np.zeros(n)
+        self.slip = np.zeros((n, 4))
+
+    def add(
+        self,
+        command: Array,
+        speed: Array,
+        yaw_rate: Array,
+        tau: Array,
+        omega: Array,
+        slip: Array,
+        copper: float,
+        h: float,
+    ) -> None:
+        """One sample: commands (n, 2), true speed and yaw rate (n,), motor torque and speed
+        (n, 4), true slip of the driven wheels (n, 4); h the time the sample stands for."""
+        dv = command[:, 0] - speed
+        dw = command[:, 1] - yaw_rate
+        # Scalar powers, as the single env has always squared (libm pow, not x * x).
+        for i in range(dv.shape[0]):
+            self.err_v2[i] += dv[i] ** 2
+            self.err_w2[i] += dw[i] ** 2
+        power = np.sum(np.maximum(tau * omega + copper * tau**2, 0.0), axis=-1)
+        self.energy += power * h
+        self.slip += np.abs(slip)
+
+
+# --------------------------------------------------------------------------- per-rover logic
+
+
+class RoverEpisode:
+    """One rover's episode state and the env's logic on it: commands, actions, reward, info
+    and observation from values read off the simulation. ``ProtoExplorerEnv`` is one; the
+    vector env keeps one per rover, so both compute the same numbers the same way.
+    """
+
+    settings: EnvSettings
+    sensor_model: SensorModel
+    _command: Array
+    _next_command_t: float
+    _prev_action: Array
+    _est: SlipEstimate | None
+    _theta_meas: Array
+    _imu_rng: np.random.Generator
+
+    def _configure(self, settings: EnvSettings, dt: float, arena_size: tuple[float, float]) -> None:
+        """Everything that follows from the settings and the simulator's timestep."""
+        s = self.settings = settings
+        self.rover_cfg = s.rover_cfg
+        self.base_terrain = s.base_terrain
+        self.randomize_terrain = s.randomize_terrain
+        self.slip_source = s.slip_source
+        self.action_layout = s.action_layout
+        self.reward_weights = s.reward_weights
+        self.sensor_cfg = s.sensor_cfg
+        self.imu_noise = s.imu_noise
+        self.max_speed_command = s.max_speed_command
+        self.max_yaw_rate_command = s.max_yaw_rate_command
+        self.command_interval = s.command_interval
+        self.substeps_per_sample = max(1, round(1.0 / (s.estimator_rate * dt)))
+        self.samples_per_step = max(
+            1, round(1.0 / (s.control_frequency * dt * self.substeps_per_sample))
+        )
+        self.control_dt = self.samples_per_step * self.substeps_per_sample * dt
+        self.sample_dt = self.substeps_per_sample * dt
+        self.max_wheel_speed = s.rover_cfg.motor.max_wheel_speed
+        motor = s.rover_cfg.motor
+        k = motor.voltage / motor.no_load_speed
+        self._copper = (k * motor.voltage / motor.stall_torque) / k**2  # R / K^2
+        half = np.array(arena_size) / 2
+        self._arena_half = half - 0.5
+        self._prev_action = np.zeros(4)
+        self._command = np.zeros(2)
+        self._next_command_t = 0.0
+        self._est = None
+        self._theta_meas = np.zeros(5)
+        self._imu_rng = np.random.default_rng(0)
+
+    # --- episode start
+    def _start_pose(self, rng: np.random.Generator, options: dict[str, Any] | None) -> tuple:
+        opts = options or {}
+        unknown = set(opts) - {"x", "y", "yaw"}
+        if unknown:
+            raise ValueError(f"reset options: unknown key(s) {sorted(unknown)}; allowed x, y, yaw")
+        yaw = float(opts["yaw"]) if "yaw" in opts else float(rng.uniform(-np.pi, np.pi))
+        return float(opts.get("x", 0.0)), float(opts.get("y", 0.0)), yaw
+
+    def _reset_sim(
+        self, sim: RoverSim, rng: np.random.Generator, options: dict[str, Any] | None
+    ) -> None:
+        """Draw this episode's terrain and start pose and put ``sim`` there."""
+        if self.randomize_terrain:
+            sim.set_terrain(self.settings.random_terrain(rng))
+        x, y, yaw = self._start_pose(rng, options)
+        sim.reset(x=x, y=y, yaw=yaw)
+
+    def _start_episode(self, rng: np.random.Generator) -> None:
+        """Sensors, IMU noise stream, previous action and first command of a new episode."""
+        sensor_seed = int(rng.integers(2**63))
+        self.sensor_model = SensorModel(self.sensor_cfg, np.random.default_rng(sensor_seed))
+        self._imu_rng = np.random.default_rng(sensor_seed + 1)
+        self._prev_action = np.zeros(4)
+        self._new_command(rng, 0.0)
+
+    def _new_command(self, rng: np.random.Generator, t: float) -> None:
+        v = float(rng.uniform(0.3, 1.0)) * self.max_speed_command
+        # A third of the commands go straight: the rover must also hold a heading.
+        w = 0.0 if rng.random() < 1 / 3 else float(rng.uniform(-1, 1)) * self.max_yaw_rate_command
+        self._command = np.array([v, w])
+        self._next_command_t = t + float(rng.uniform(*self.command_interval))
+
+    def _read_sensors(self, phi: Array, theta: Array) -> tuple[Array, Array]:
+        """The rover's electronics on one sample; the joint reading is kept for controllers."""
+        p, th = self.sensor_model.read(phi, theta)
+        self._theta_meas = th
+        return p, th
+
+    # --- reading one simulator (the single env always, the vector env on reset)
+    def _push_sample_from(
+        self, sim: RoverSim, index: RoverIndex, est: BatchSlipEstimator, ids: ArrayLike | None
+    ) -> None:
+        d = sim.data
+        phi, theta = self._read_sensors(*index.phi_theta(d.sensordata))
+        est.push(ids, d.time, phi, theta)
+
+    def _info_from(self, sim: RoverSim, index: RoverIndex, vel: Array) -> dict[str, Any]:
+        """The info of a new episode, read off ``sim`` (``vel``: scratch of 6)."""
+        speed, yaw_rate = segment_velocity(sim, index, vel)
+        wt = sim.wheel_truth()
+        mu = wheel_friction(sim.terrain, wt.contact_point)
+        return self._static_info(
+            speed, yaw_rate, sim.data.xpos[index.seg_body[1]], wt.F_z.copy(), mu
+        )
+
+    def _obs_from(self, sim: RoverSim, index: RoverIndex) -> NDArray[np.float32]:
+        d = sim.data
+        return self._observation(index.gravity(d.xmat), index.gyro_rates(d.sensordata))
+
+    def _begin_episode(
+        self,
+        sim: RoverSim,
+        index: RoverIndex,
+        est: BatchSlipEstimator,
+        ids: ArrayLike | None,
+        rng: np.random.Generator,
+        options: dict[str, Any] | None,
+        vel: Array,
+    ) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        """A new episode on ``sim`` (rows ``ids`` of ``est``): terrain, start pose,
+        sensors, first command and sample; returns the first observation and info."""
+        self._reset_sim(sim, rng, options)
+        self._start_episode(rng)
+        est.reset(ids)
+        self._push_sample_from(sim, index, est, ids)
+        self._est = est.estimate(ids)[0]
+        info = self._info_from(sim, index, vel)
+        return self._obs_from(sim, index), info
+
+    # --- actions
+    def _targets(self, action: NDArray[Any]) -> Array:
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        shape = (self.settings.n_act,)
+        if a.shape != shape:
+            raise ValueError(f"action must have shape {shape}, got {a.shape}")
+        bad = ~np.isfinite(a)
+        if bad.any():
+            names = DRIVEN_WHEELS if self.action_layout == "wheels" else ("left", "right")
+            raise ValueError(
+                "action has non-finite entries: "
+                + ", ".join(f"{names[i]}={a[i]}" for i in np.flatnonzero(bad))
+            )
+        a = np.clip(a, -1.0, 1.0)
+        if self.action_layout == "sides":
+            a = np.array([a[0], a[1], a[0], a[1]])
+        return a
+
+    # --- end of a step
+    def _finish_step(
+        self,
+        a4: Array,
+        sums: StepSums,
+        row: int,
+        slip_true: Array,
+        pos0: Array,
+        pos: Array,
+        flipped: bool,
+        t: float,
+        rng: np.random.Generator,
+        speed: float,
+        yaw_rate: float,
+        wheel_F_z: Array,
+        wheel_mu: Array,
+    ) -> tuple[float, bool, dict[str, Any]]:
+        """Reward, termination and info of a step whose sums are ``sums[row]``; draws the next
+        command from ``rng`` when due. ``self._est`` must hold the step's last estimate."""
+        n = self.samples_per_step
+        e_v, e_w = math.sqrt(sums.err_v2[row] / n), math.sqrt(sums.err_w2[row] / n)
+        est = self._est
+        assert est is not None
+        slip_mean = float(np.mean(sums.slip[row] / n))
+        mean_abs_slip = (
+            slip_mean if self.slip_source == "true" else float(np.mean(np.abs(est.slip_ratio)))
+        )
+        w = self.reward_weights
+        r_track = (
+            w.tracking
+            * 0.5
+            * (math.exp(-((e_v / w.sigma_speed) ** 2)) + math.exp(-((e_w / w.sigma_yaw_rate) ** 2)))
+        )
+        r_slip = -w.slip * mean_abs_slip
+        energy = float(sums.energy[row])
+        r_energy = -w.energy * energy / self.control_dt
+        reward = r_track + r_slip + r_energy
+        self._prev_action = a4
+        out = bool(np.any(np.abs(pos[:2]) > self._arena_half))
+        if t >= self._next_command_t:
+            self._new_command(rng, t)
+        info = self._static_info(speed, yaw_rate, pos, wheel_F_z, wheel_mu)
+        info.update(
+            reward_tracking=r_track,
+            reward_slip=r_slip,
+            reward_energy=r_energy,
+            tracking_error_speed=e_v,
+            tracking_error_yaw_rate=e_w,
+            slip_true=slip_true,
+            slip_true_mean_abs=slip_mean,
+            energy=energy,
+            distance=float(np.linalg.norm(pos[:2] - pos0[:2])),
+            flipped=flipped,
+            out_of_arena=out,
+        )
+        return float(reward), bool(flipped or out), info
+
+    def _static_info(
+        self, speed: float, yaw_rate: float, position: Array, wheel_F_z: Array, wheel_mu: Array
+    ) -> dict[str, Any]:
+        est = self._est
+        assert est is not None
+        return {
+            "command": self._command.copy(),
+            "slip_estimate": est.slip_ratio.copy(),
+            "slip_estimate_reliable": est.reliable.copy(),
+            "speed": float(speed),
+            "yaw_rate": float(yaw_rate),
+            "position": position.copy(),
+            "wheel_F_z": wheel_F_z,
+            "wheel_mu": wheel_mu,
+        }
+
+    def _observation(self, gravity: Array, gyro: Array) -> NDArray[np.float32]:
+        """The observation vector from the IMU's attitude and rates (3, 3) and the estimate."""
+        est = self._est
+        assert est is not None
+        if self.imu_noise > 0:
+            gravity = gravity + self._imu_rng.normal(0.0, self.imu_noise, gravity.shape)
+            gyro = gyro + self._imu_rng.normal(0.0, self.imu_noise, gyro.shape)
+        obs = np.concatenate(
+            [
+                est.phi_rate,
+                self._theta_meas,
+                est.theta_rate,
+                gravity.ravel(),
+                gyro.ravel(),
+                est.slip_ratio,
+                [est.seg_velocity[1, 0], est.seg_yaw_rate[1]],
+                self._command,
+                self._prev_action,
+            ]
+        )
+        return obs.astype(np.float32)
+
+
+def segment_velocity(sim: RoverSim, index: RoverIndex, vel: Array) -> tuple[Any, Any]:
+    """Forward speed and yaw rate of the middle segment, as ``sim.segment_truth()`` has them
+    (``vel``: a scratch array of 6)."""
+    seg2 = int(index.seg_body[1])
+    mujoco.mj_objectVelocity(sim.model, sim.data, mujoco.mjtObj.mjOBJ_BODY, seg2, vel, 1)
+    return vel[3], vel[2]
+
+
+def wheel_friction(terrain: Terrain, contact_point: Array) -> Array:
+    """Ground friction (mu_x, mu_y) under each wheel's contact point, (..., 2)."""
+    mu_x, mu_y, _ = terrain.friction(contact_point[..., 0], contact_point[..., 1])
+    return np.stack([mu_x, mu_y], axis=-1)
+
+
+class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.float32]]):
     """Drive the Proto-Explorer rover at a commanded speed and yaw rate while wasting little slip.
 
     ## Description
@@ -146,6 +733,8 @@ class ProtoExplorerEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}  # noqa: RUF012
 
+    MAX_SLOPE_DEG = EnvSettings.MAX_SLOPE_DEG
+
     def __init__(
         self,
         rover: RoverConfig | str | Path = "proto_explorer",
@@ -166,267 +755,121 @@ class ProtoExplorerEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         width: int = 640,
         height: int = 480,
     ) -> None:
-        self.rover_cfg = rover if isinstance(rover, RoverConfig) else load_rover(rover)
-        base_terrain = terrain if isinstance(terrain, TerrainConfig) else load_terrain(terrain)
-        self.base_terrain = base_terrain
-        self.randomize_terrain = bool(randomize_terrain)
-        if self.randomize_terrain and base_terrain.is_flat:
-            raise ValueError("randomize_terrain needs a non-flat terrain (e.g. 'rough')")
-        if slip_source not in ("true", "estimate"):
-            raise ValueError(f"slip_source must be 'true' or 'estimate', got {slip_source!r}")
-        if action_layout not in ("wheels", "sides"):
-            raise ValueError(f"action_layout must be 'wheels' or 'sides', got {action_layout!r}")
-        if not (math.isfinite(control_frequency) and control_frequency > 0):
-            raise ValueError(f"control_frequency must be > 0, got {control_frequency!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']}")
-        self.slip_source = slip_source
-        self.action_layout = action_layout
-        self.reward_weights = (
-            reward_weights
-            if isinstance(reward_weights, RewardWeights)
-            else RewardWeights(**(reward_weights or {}))
+        settings = EnvSettings.build(
+            rover=rover,
+            terrain=terrain,
+            control_frequency=control_frequency,
+            reward_weights=reward_weights,
+            slip_source=slip_source,
+            sensor_noise=sensor_noise,
+            action_layout=action_layout,
+            max_speed_command=max_speed_command,
+            max_yaw_rate_command=max_yaw_rate_command,
+            command_interval=command_interval,
+            randomize_terrain=randomize_terrain,
+            estimator_rate=estimator_rate,
+            imu_noise=imu_noise,
+            render_mode=render_mode,
+            render_modes=self.metadata["render_modes"],
         )
-        self.sensor_cfg = (
-            sensor_noise
-            if isinstance(sensor_noise, SensorConfig)
-            else {"default": SensorConfig(), "none": SensorConfig.ideal()}[sensor_noise]
-        )
-        # IMU white noise (rad/s on rates, and on the unit gravity vector): MEMS-class.
-        self.imu_noise = (
-            (0.0 if sensor_noise == "none" else 0.002) if imu_noise is None else imu_noise
-        )
-        if not (math.isfinite(self.imu_noise) and self.imu_noise >= 0):
-            raise ValueError(f"imu_noise must be finite and >= 0, got {imu_noise!r}")
-        self.max_speed_command = float(max_speed_command)
-        self.max_yaw_rate_command = float(max_yaw_rate_command)
-        self.command_interval = (float(command_interval[0]), float(command_interval[1]))
-        if not 0 < self.command_interval[0] <= self.command_interval[1]:
-            raise ValueError(f"command_interval must be 0 < min <= max, got {command_interval}")
-
-        first = self._envelope_terrain(base_terrain) if self.randomize_terrain else base_terrain
-        self.sim = RoverSim(self.rover_cfg, first, backend=backend)
-        dt = self.sim.dt
-        self.substeps_per_sample = max(1, round(1.0 / (estimator_rate * dt)))
-        self.samples_per_step = max(
-            1, round(1.0 / (control_frequency * dt * self.substeps_per_sample))
-        )
-        self.control_dt = self.samples_per_step * self.substeps_per_sample * dt
+        self.sim = RoverSim(settings.rover_cfg, settings.first_terrain(), backend=backend)
+        self._configure(settings, self.sim.dt, self.sim.terrain_cfg.size)
         self.metadata = {**self.metadata, "render_fps": round(1.0 / self.control_dt)}
-        self.estimator = SlipEstimator(self.rover_cfg, EstimatorConfig())
+        self.estimator = BatchSlipEstimator(self.rover_cfg, 1, EstimatorConfig())
         self.sensor_model = SensorModel(self.sensor_cfg, np.random.default_rng(0))
-        self.max_wheel_speed = self.rover_cfg.motor.max_wheel_speed
-        motor = self.rover_cfg.motor
-        k = motor.voltage / motor.no_load_speed
-        self._copper = (k * motor.voltage / motor.stall_torque) / k**2  # R / K^2
-        n_act = 4 if action_layout == "wheels" else 2
-        self.action_space = spaces.Box(-1.0, 1.0, (n_act,), dtype=np.float32)
+        self._index = RoverIndex(self.sim)
+        self._vel = np.zeros(6)  # scratch of mj_objectVelocity
+        self.action_space = spaces.Box(-1.0, 1.0, (settings.n_act,), dtype=np.float32)
         self.observation_space = spaces.Box(-np.inf, np.inf, (len(OBS_NAMES),), dtype=np.float32)
         self.render_mode = render_mode
         self.width, self.height = int(width), int(height)
         self._renderer: mujoco.Renderer | None = None
         self._viewer: Any = None
-        half = np.array(self.sim.terrain_cfg.size) / 2
-        self._arena_half = half - 0.5
-        self._prev_action = np.zeros(4)
-        self._command = np.zeros(2)
-        self._next_command_t = 0.0
-        self._est: SlipEstimate | None = None
-        self._theta_meas = np.zeros(5)
-        self._imu_rng = np.random.default_rng(0)
 
     # ------------------------------------------------------------------ terrain randomisation
-    MAX_SLOPE_DEG = 5.0
-
     def _envelope_terrain(self, base: TerrainConfig) -> TerrainConfig:
         """The steepest terrain the randomiser can draw: sizes the compiled heightfield."""
-        rough = dataclasses.replace(base.roughness, rms=0.04)
-        return dataclasses.replace(
-            base, slope_deg=(self.MAX_SLOPE_DEG, self.MAX_SLOPE_DEG), roughness=rough
-        )
+        return self.settings.envelope_terrain(base)
 
     def _random_terrain(self, rng: np.random.Generator) -> TerrainConfig:
-        base = self.base_terrain
-        sx, sy = base.size
-        patches = []
-        for i in range(int(rng.integers(2, 5))):
-            mu_x = float(rng.uniform(0.1, 0.45))
-            patches.append(
-                FrictionPatch(
-                    name=f"patch{i}",
-                    center=(
-                        float(rng.uniform(-sx / 3, sx / 3)),
-                        float(rng.uniform(-sy / 3, sy / 3)),
-                    ),
-                    size=(float(rng.uniform(1.0, 4.0)), float(rng.uniform(1.0, 4.0))),
-                    mu_x=mu_x,
-                    mu_y=mu_x * 1.25,
-                )
-            )
-        obstacles = []
-        for ob in base.obstacles:
-            r = float(rng.uniform(2.0, min(sx, sy) / 2 - 1.0))
-            a = float(rng.uniform(-np.pi, np.pi))
-            obstacles.append(
-                Obstacle(
-                    name=ob.name,
-                    pos=(r * math.cos(a), r * math.sin(a), ob.pos[2]),
-                    size=ob.size,
-                    yaw_deg=float(rng.uniform(-180, 180)),
-                )
-            )
-        return dataclasses.replace(
-            base,
-            slope_deg=(
-                float(rng.uniform(-self.MAX_SLOPE_DEG, self.MAX_SLOPE_DEG)),
-                float(rng.uniform(-self.MAX_SLOPE_DEG, self.MAX_SLOPE_DEG)),
-            ),
-            roughness=Roughness(
-                rms=float(rng.uniform(0.005, 0.04)),
-                correlation_length=base.roughness.correlation_length,
-                modes=base.roughness.modes,
-                seed=int(rng.integers(2**31)),
-            ),
-            patches=tuple(patches),
-            obstacles=tuple(obstacles),
-        )
+        return self.settings.random_terrain(rng)
 
     # ------------------------------------------------------------------ gym API
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[NDArray[np.float32], dict[str, Any]]:
         super().reset(seed=seed)
-        rng = self.np_random
-        if self.randomize_terrain:
-            self.sim.set_terrain(self._random_terrain(rng))
-        opts = options or {}
-        unknown = set(opts) - {"x", "y", "yaw"}
-        if unknown:
-            raise ValueError(f"reset options: unknown key(s) {sorted(unknown)}; allowed x, y, yaw")
-        yaw = float(opts["yaw"]) if "yaw" in opts else float(rng.uniform(-np.pi, np.pi))
-        self.sim.reset(x=float(opts.get("x", 0.0)), y=float(opts.get("y", 0.0)), yaw=yaw)
+        obs, info = self._begin_episode(
+            self.sim, self._index, self.estimator, None, self.np_random, options, self._vel
+        )
         if self._renderer is not None and self.randomize_terrain:
             self._upload_terrain()
-        sensor_seed = int(rng.integers(2**63))
-        self.sensor_model = SensorModel(self.sensor_cfg, np.random.default_rng(sensor_seed))
-        self._imu_rng = np.random.default_rng(sensor_seed + 1)
-        self.estimator.reset()
-        self._prev_action = np.zeros(4)
-        self._new_command(rng, 0.0)
-        self._est = self._sample()
-        info = self._info_static()
-        return self._obs(), info
-
-    def _new_command(self, rng: np.random.Generator, t: float) -> None:
-        v = float(rng.uniform(0.3, 1.0)) * self.max_speed_command
-        # A third of the commands go straight: the rover must also hold a heading.
-        w = 0.0 if rng.random() < 1 / 3 else float(rng.uniform(-1, 1)) * self.max_yaw_rate_command
-        self._command = np.array([v, w])
-        self._next_command_t = t + float(rng.uniform(*self.command_interval))
+        return obs, info
 
     def _sample(self) -> SlipEstimate:
-        s = self.sim.sensors()
-        phi, theta = self.sensor_model.read(s.phi, s.theta)
-        self._theta_meas = theta
-        return self.estimator.update(s.t, phi, theta)
+        """Read the sensors now, feed the estimator and return its estimate."""
+        self._push_sample_from(self.sim, self._index, self.estimator, None)
+        return self.estimator.estimate()[0]
 
-    def _targets(self, action: NDArray[Any]) -> Array:
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.shape != self.action_space.shape:
-            raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
-        bad = ~np.isfinite(a)
-        if bad.any():
-            names = DRIVEN_WHEELS if self.action_layout == "wheels" else ("left", "right")
-            raise ValueError(
-                "action has non-finite entries: "
-                + ", ".join(f"{names[i]}={a[i]}" for i in np.flatnonzero(bad))
-            )
-        a = np.clip(a, -1.0, 1.0)
-        if self.action_layout == "sides":
-            a = np.array([a[0], a[1], a[0], a[1]])
-        return a
+    def _driven_slip(self) -> Array:
+        if self._index.plugin is not None:
+            return self._index.driven_slip(self.sim.data.plugin_state)
+        return self.sim.wheel_truth().S[:4]
 
     def step(
         self, action: NDArray[Any]
     ) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
         a4 = self._targets(action)
-        sim = self.sim
+        sim, index, est, vel = self.sim, self._index, self.estimator, self._vel
+        d = sim.data
         sim.set_speed_targets(a4 * self.max_wheel_speed)
-        pos0 = sim.segment_truth().pos[1].copy()
-        err_v2 = err_w2 = 0.0
-        energy = 0.0
-        slip_true_acc = np.zeros(4)
-        h = self.substeps_per_sample * sim.dt
+        seg2 = index.seg_body[1]
+        pos0 = d.xpos[seg2].copy()
+        sums = StepSums(1)
+        command = self._command[None]
+        speed = yaw_rate = np.float64(0.0)
+        slip = np.zeros(4)
         for _ in range(self.samples_per_step):
             sim.step(self.substeps_per_sample)
-            self._est = self._sample()
-            seg = sim.segment_truth()
-            err_v2 += (self._command[0] - seg.forward_speed[1]) ** 2
-            err_w2 += (self._command[1] - seg.yaw_rate[1]) ** 2
-            tau = sim.motor_torque()
-            omega = sim.data.qvel[sim._driven_dof]
-            power = float(np.sum(np.maximum(tau * omega + self._copper * tau**2, 0.0)))
-            energy += power * h
-            slip_true_acc += np.abs(sim.wheel_truth().S[:4])
-        n = self.samples_per_step
-        e_v, e_w = math.sqrt(err_v2 / n), math.sqrt(err_w2 / n)
-        slip_true = sim.wheel_truth().S[:4].copy()
-        est = self._est
-        assert est is not None
-        mean_abs_slip = (
-            float(np.mean(slip_true_acc / n))
-            if self.slip_source == "true"
-            else float(np.mean(np.abs(est.slip_ratio)))
-        )
-        w = self.reward_weights
-        r_track = (
-            w.tracking
-            * 0.5
-            * (math.exp(-((e_v / w.sigma_speed) ** 2)) + math.exp(-((e_w / w.sigma_yaw_rate) ** 2)))
-        )
-        r_slip = -w.slip * mean_abs_slip
-        r_energy = -w.energy * energy / self.control_dt
-        reward = r_track + r_slip + r_energy
-        self._prev_action = a4
-        pos = sim.segment_truth().pos[1]
-        flipped = sim.flipped()
-        out = bool(np.any(np.abs(pos[:2]) > self._arena_half))
-        if sim.time >= self._next_command_t:
-            self._new_command(self.np_random, sim.time)
-        info = self._info_static()
-        info.update(
-            reward_tracking=r_track,
-            reward_slip=r_slip,
-            reward_energy=r_energy,
-            tracking_error_speed=e_v,
-            tracking_error_yaw_rate=e_w,
-            slip_true=slip_true,
-            slip_true_mean_abs=float(np.mean(slip_true_acc / n)),
-            energy=energy,
-            distance=float(np.linalg.norm(pos[:2] - pos0[:2])),
-            flipped=flipped,
-            out_of_arena=out,
+            self._push_sample_from(sim, index, est, None)
+            speed, yaw_rate = segment_velocity(sim, index, vel)
+            slip = self._driven_slip()
+            sums.add(
+                command,
+                np.array([speed]),
+                np.array([yaw_rate]),
+                d.actuator_force[None, :4],
+                d.qvel[None, index.driven_dof],
+                slip[None],
+                self._copper,
+                self.sample_dt,
+            )
+        self._est = est.estimate()[0]
+        wt = sim.wheel_truth()
+        reward, terminated, info = self._finish_step(
+            a4,
+            sums,
+            0,
+            slip.copy(),
+            pos0,
+            d.xpos[seg2].copy(),
+            sim.flipped(),
+            sim.time,
+            self.np_random,
+            speed,
+            yaw_rate,
+            wt.F_z.copy(),
+            wheel_friction(sim.terrain, wt.contact_point),
         )
         if self.render_mode == "human":
             self.render()
-        return self._obs(), float(reward), bool(flipped or out), False, info
+        return self._obs(), reward, terminated, False, info
 
     def _info_static(self) -> dict[str, Any]:
-        est = self._est
-        assert est is not None
-        seg = self.sim.segment_truth()
-        wt = self.sim.wheel_truth()
-        mu_x, mu_y, _ = self.sim.terrain.friction(wt.contact_point[:, 0], wt.contact_point[:, 1])
-        return {
-            "command": self._command.copy(),
-            "slip_estimate": est.slip_ratio.copy(),
-            "slip_estimate_reliable": est.reliable.copy(),
-            "speed": float(seg.forward_speed[1]),
-            "yaw_rate": float(seg.yaw_rate[1]),
-            "position": seg.pos[1].copy(),
-            "wheel_F_z": wt.F_z.copy(),
-            "wheel_mu": np.stack([mu_x, mu_y], axis=1),
-        }
+        return self._info_from(self.sim, self._index, self._vel)
+
+    def _obs(self) -> NDArray[np.float32]:
+        return self._obs_from(self.sim, self._index)
 
     # --- controller adapter (issue 6)
     def controller_input(self, obs: NDArray[np.floating[Any]] | None = None) -> Any:
@@ -456,32 +899,6 @@ class ProtoExplorerEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
             imu_gyro=gyro,
             imu_gravity=gravity,
         )
-
-    def _obs(self) -> NDArray[np.float32]:
-        est = self._est
-        assert est is not None
-        s = self.sim.sensors()
-        d = self.sim.data
-        seg_ids = self.sim._seg_body
-        gravity = -d.xmat[seg_ids].reshape(3, 3, 3)[:, 2, :]  # world -z in each segment's axes
-        gyro = s.imu_gyro
-        if self.imu_noise > 0:
-            gravity = gravity + self._imu_rng.normal(0.0, self.imu_noise, gravity.shape)
-            gyro = gyro + self._imu_rng.normal(0.0, self.imu_noise, gyro.shape)
-        obs = np.concatenate(
-            [
-                est.phi_rate,
-                self._theta_meas,
-                est.theta_rate,
-                gravity.ravel(),
-                gyro.ravel(),
-                est.slip_ratio,
-                [est.seg_velocity[1, 0], est.seg_yaw_rate[1]],
-                self._command,
-                self._prev_action,
-            ]
-        )
-        return obs.astype(np.float32)
 
     # ------------------------------------------------------------------ rendering
     def _upload_terrain(self) -> None:

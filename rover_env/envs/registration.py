@@ -8,20 +8,25 @@ ENV_IDS = ("rover_env/ProtoExplorer-v0", "rover_env/ProtoExplorerRough-v0")
 MIX_ENV_ID = "rover_env/ProtoExplorerScenarioMix-v0"
 MAX_EPISODE_STEPS = 300
 """30 s at the default 10 Hz control frequency."""
+VECTOR_ENTRY_POINT = "rover_env.envs.vector:ProtoExplorerVectorEnv"
 
 
 def register_envs() -> None:
     """Register the rover environments once per process."""
     if ENV_IDS[0] in gym.registry:
         return
+    # vector_entry_point: gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")
+    # steps N rovers together on mujoco.batch (rover_env.envs.vector).
     gym.register(
         id=ENV_IDS[0],
         entry_point="rover_env.envs.proto_explorer:ProtoExplorerEnv",
+        vector_entry_point=VECTOR_ENTRY_POINT,
         max_episode_steps=MAX_EPISODE_STEPS,
     )
     gym.register(
         id=ENV_IDS[1],
         entry_point="rover_env.envs.proto_explorer:ProtoExplorerEnv",
+        vector_entry_point=VECTOR_ENTRY_POINT,
         max_episode_steps=MAX_EPISODE_STEPS,
         kwargs={"terrain": "rough", "randomize_terrain": True},
     )

@@ -6,9 +6,15 @@ every per-rover quantity (tire deflections, setpoints, last per-wheel outputs) l
 simulation's ``plugin_state`` row. Results equal N separate ``RoverSim(backend="plugin")``
 runs stepped the same way, at any thread count.
 
-Per-simulation ground (``batch.expand("numeric_data")`` with
-:func:`rover_env.sim.fast.terrain_block` rows) is possible but not wrapped here: the
-heightfield and obstacles used for chassis contacts would have to follow.
+Per-simulation ground: :meth:`BatchRoverSim.set_models` runs each rover on a model of its
+own (``mujoco.batch.Batch.set_models``), for instance copies of a template simulator's model
+after :meth:`RoverSim.set_terrain`, which carry the heightfield, the obstacles and the
+plugin's terrain block together. :meth:`BatchRoverSim.load` copies a single simulator's
+whole state (plugin state included) into rows, so resets can be done by a ``RoverSim``.
+
+:class:`RoverIndex` reads what an environment needs (encoders, potentiometers, gyros,
+segment velocities, driven-wheel slip) from MjData arrays with any leading axes: one
+``RoverSim.data`` or the ``(n, ...)`` arrays bound from the batch, with the same arithmetic.
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from rover_env import tire
-from rover_env.config import DRIVEN_WHEELS, RoverConfig, TerrainConfig
+from rover_env.config import DRIVEN_WHEELS, JOINTS, WHEELS, RoverConfig, TerrainConfig
 from rover_env.sim.fast import PluginView
 from rover_env.sim.simulator import RoverSim, SimulationError, WheelTruth
 
@@ -30,8 +36,92 @@ Array = NDArray[np.float64]
 _INTEGRATION = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
+class RoverIndex:
+    """Where a compiled rover model keeps what is read from it; reads arrays of any leading shape.
+
+    Every reader takes MjData fields as arrays whose last axes are MjData's (``data.sensordata``
+    of one ``RoverSim``, or ``(n, nsensordata)`` bound from a batch) and repeats the
+    simulator's arithmetic operation by operation, so one rover read either way gives the
+    same bits.
+    """
+
+    def __init__(self, sim: RoverSim) -> None:
+        m = sim.model
+        self.seg_body = sim._seg_body.copy()
+        self.seg_root = m.body_rootid[self.seg_body].copy()
+        self.driven_dof = sim._driven_dof.copy()
+        s = sim._sensor
+        self.phi = np.array([s[f"phi_{w}"].start for w in WHEELS])
+        self.theta = np.array([s[j].start for j in JOINTS])
+        self.gyro = np.concatenate(
+            [np.arange(s[f"imu_seg{i}_gyro"].start, s[f"imu_seg{i}_gyro"].stop) for i in (1, 2, 3)]
+        )
+        self.n_driven = len(DRIVEN_WHEELS)
+        self.v_eps = sim.cfg.tire.v_eps
+        self.plugin = PluginView(m) if sim.backend == "plugin" else None
+        self.max_tilt_cos = float(np.cos(np.radians(75.0)))
+
+    def phi_theta(self, sensordata: Array) -> tuple[Array, Array]:
+        """Wheel angles (..., 6) and joint angles (..., 5), as ``RoverSim.sensors()``."""
+        return sensordata[..., self.phi], sensordata[..., self.theta]
+
+    def gyro_rates(self, sensordata: Array) -> Array:
+        """IMU angular rates (..., 3, 3) [segment, xyz]."""
+        g = sensordata[..., self.gyro]
+        return g.reshape(*g.shape[:-1], 3, 3)
+
+    def gravity(self, xmat: Array) -> Array:
+        """World -z in each segment's axes (..., 3, 3): the IMUs' attitude."""
+        rows = xmat[..., self.seg_body, 6:9]
+        return -rows
+
+    def segment_velocity(
+        self, cvel: Array, xipos: Array, ximat: Array, subtree_com: Array, seg: int = 1
+    ) -> tuple[Array, Array]:
+        """Forward speed and yaw rate of segment ``seg`` in its own axes (…), as
+        ``RoverSim.segment_truth()`` (``mj_objectVelocity`` with ``flg_local``; same operations)."""
+        b = int(self.seg_body[seg])
+        cv = cvel[..., b, :]
+        w0, w1, w2 = cv[..., 0], cv[..., 1], cv[..., 2]
+        com = subtree_com[..., int(self.seg_root[seg]), :]
+        p = xipos[..., b, :]
+        d0, d1, d2 = p[..., 0] - com[..., 0], p[..., 1] - com[..., 1], p[..., 2] - com[..., 2]
+        # mju_transformSpatial: lin - dif x ang, then rotated into the body's axes.
+        t0 = cv[..., 3] - (d1 * w2 - d2 * w1)
+        t1 = cv[..., 4] - (d2 * w0 - d0 * w2)
+        t2 = cv[..., 5] - (d0 * w1 - d1 * w0)
+        r = ximat[..., b, :]
+        forward = r[..., 0] * t0 + r[..., 3] * t1 + r[..., 6] * t2
+        yaw_rate = r[..., 2] * w0 + r[..., 5] * w1 + r[..., 8] * w2
+        return forward, yaw_rate
+
+    def flipped(self, xmat: Array) -> NDArray[np.bool_]:
+        """``RoverSim.flipped()`` (75 deg) over the leading axes."""
+        return np.asarray(np.any(xmat[..., self.seg_body, 8] < self.max_tilt_cos, axis=-1))
+
+    def _truth_part(self, plugin_state: Array, i: int, width: int = 1) -> Array:
+        pv = self.plugin
+        assert pv is not None, "needs the plugin backend"
+        nw = pv.layout.nw
+        start = pv.slice.start + pv.layout.truth + i * nw
+        return plugin_state[..., start : start + width * nw]
+
+    def driven_slip(self, plugin_state: Array) -> Array:
+        """True slip ratio S of the driven wheels (..., 4) from the last committed substep."""
+        nd = self.n_driven
+        v_x = self._truth_part(plugin_state, 0)[..., :nd]
+        v_w = self._truth_part(plugin_state, 2)[..., :nd]
+        return tire.slip_ratio(v_x, v_w, self.v_eps)
+
+    def wheel_load(self, plugin_state: Array) -> tuple[Array, Array]:
+        """Normal force (..., 6) and contact point (..., 6, 3) of every wheel (copies)."""
+        f_z = self._truth_part(plugin_state, 5).copy()
+        pt = self._truth_part(plugin_state, 7, 3).copy()
+        return f_z, pt.reshape(*pt.shape[:-1], -1, 3)
+
+
 class BatchRoverSim:
-    """``n`` rovers on one terrain, stepped on ``nthread`` threads (0: all CPUs).
+    """``n`` rovers, stepped on ``nthread`` threads (0: all CPUs).
 
     Args:
         n: number of rovers.
@@ -39,6 +129,10 @@ class BatchRoverSim:
         terrain: terrain configuration, a shipped name or a YAML path.
         nthread: threads of the batch, the caller's included.
         persistent: keep one MjData per rover (see ``mujoco.batch.Batch``).
+        template: a ``RoverSim(backend="plugin")`` to build from instead of ``rover`` and
+            ``terrain``; it settles start poses (:meth:`reset`) and its model is the batch's.
+        derived: extra MjData fields to bind (``xpos``, ``cvel``, ...), available as
+            :meth:`field`; derived fields must be bound before the calls that fill them.
     """
 
     def __init__(
@@ -48,11 +142,15 @@ class BatchRoverSim:
         terrain: TerrainConfig | str | Path = "flat",
         nthread: int = 0,
         persistent: bool = False,
+        template: RoverSim | None = None,
+        derived: tuple[str, ...] = (),
     ) -> None:
         if n < 1:
             raise ValueError(f"n must be >= 1, got {n}")
+        if template is not None and template.backend != "plugin":
+            raise ValueError("BatchRoverSim needs a template with backend='plugin'")
         # One single-rover simulator builds the model and settles each start pose.
-        self.template = RoverSim(rover, terrain, backend="plugin")
+        self.template = RoverSim(rover, terrain, backend="plugin") if template is None else template
         self.cfg = self.template.cfg
         self.model = self.template.model
         self.dt = self.template.dt
@@ -70,8 +168,33 @@ class BatchRoverSim:
         self._time = self.batch.bind("time")
         self.sensordata = self.batch.bind("sensordata")
         """(n, nsensordata), read-only: refreshed by each call, one substep behind as with mj_step."""
+        self._fields = {name: self.batch.bind(name) for name in derived}
         self.speed_targets = np.zeros((n, len(DRIVEN_WHEELS)))
         self.reset()
+
+    def field(self, name: str) -> Array:
+        """A bound derived field (given in ``derived``): live ``(n, ...)``, read-only."""
+        return self._fields[name]
+
+    def set_models(self, models: list[mujoco.MjModel] | None) -> None:
+        """Run rover ``i`` on ``models[i]`` (same sizes as the batch's model), or all on the
+        batch's model (None). Call again after editing one of them (``RoverSim.set_terrain``
+        on the model's simulator)."""
+        self.batch.set_models(models)
+
+    def load(self, ids: ArrayLike, sim: RoverSim, forward: bool = False) -> None:
+        """Copy ``sim``'s whole state (time, plugin state, speed targets) into rows ``ids``.
+
+        With ``forward`` the rows' derived fields are recomputed (``mj_forward``); else they
+        keep the values of the rows' last call until their next one.
+        """
+        sel = np.asarray(ids, dtype=np.int64).reshape(-1)
+        state = np.empty(self.batch.nstate)
+        mujoco.mj_getState(sim.model, sim.data, state, _INTEGRATION)
+        self.batch.state[sel] = state
+        self.speed_targets[sel] = sim.speed_targets
+        if forward:
+            self.batch.forward(sel)
 
     @property
     def time(self) -> Array:
@@ -118,11 +241,19 @@ class BatchRoverSim:
         self.speed_targets[:] = np.clip(t, -lim, lim)
         self.ctrl[:, self._ctrl_vel] = self.speed_targets
 
-    def step(self, nstep: int = 1) -> None:
-        """Advance every rover ``nstep`` physics substeps."""
+    def step(self, nstep: int = 1, ids: ArrayLike | None = None) -> None:
+        """Advance rovers ``ids`` (default all) ``nstep`` physics substeps."""
         self.ctrl[:, self._ctrl_vel] = self.speed_targets
-        self.batch.step(nstep=nstep)
-        warned = np.flatnonzero(self.batch.warning[..., 0].any(axis=1))
+        if ids is None:
+            self.batch.step(nstep=nstep)
+            sel: NDArray[np.int64] | slice = slice(None)
+        else:
+            sel = np.asarray(ids, dtype=np.int64).reshape(-1)
+            if sel.size == 0:
+                return
+            self.batch.step(sel, nstep=nstep)
+        rows = np.arange(self.n)[sel]
+        warned = rows[self.batch.warning[sel, :, 0].any(axis=1)]
         if warned.size:
             names = [
                 mujoco.mjtWarning(int(i)).name
@@ -131,9 +262,10 @@ class BatchRoverSim:
             raise SimulationError(
                 f"MuJoCo warning(s) in rover(s) {warned.tolist()}: {', '.join(names)}"
             )
-        bad = ~(np.isfinite(self.qpos).all(axis=1) & np.isfinite(self.qvel).all(axis=1))
+        q, v = self.qpos[sel], self.qvel[sel]
+        bad = ~(np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1))
         if bad.any():
-            raise SimulationError(f"non-finite state in rover(s) {np.flatnonzero(bad).tolist()}")
+            raise SimulationError(f"non-finite state in rover(s) {rows[bad].tolist()}")
 
     def wheel_truth(self) -> WheelTruth:
         """Per-wheel truth of the last substep, arrays with a leading rover axis (n, 6, ...)."""

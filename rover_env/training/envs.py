@@ -9,7 +9,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.monitor import Monitor
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecMonitor
 
 import rover_env
 from rover_env.config import ConfigError
@@ -94,7 +94,14 @@ def make_vec_env(
     prefix: str,
     append: bool = False,
 ) -> VecEnv:
-    """``n`` envs, env ``i`` drawing its resets from ``seeds[i]``; subprocesses if configured and n > 1."""
+    """``n`` envs, env ``i`` drawing its resets from ``seeds[i]``; subprocesses if configured and n > 1.
+
+    ``vec_env: batch`` steps all ``n`` rovers in this process on ``mujoco.batch`` (the env id's
+    ``vector_entry_point``, :mod:`rover_env.envs.vector`) behind the same-step adapter
+    :class:`rover_env.training.vec_adapter.GymnasiumVecEnv`, with one ``VecMonitor`` file.
+    """
+    if cfg.vec_env == "batch":
+        return make_batch_vec_env(env_id, cfg, n, seeds, monitor_dir, prefix)
     fns: list[Callable[[], gym.Env[Any, Any]]] = []
     for i in range(n):
         mfile = None if monitor_dir is None else monitor_dir / f"{prefix}_{i}.monitor.csv"
@@ -106,6 +113,29 @@ def make_vec_env(
     if cfg.vec_env == "subproc" and n > 1:
         return SubprocVecEnv(fns)
     return DummyVecEnv(fns)
+
+
+def make_batch_vec_env(
+    env_id: str,
+    cfg: PPOConfig,
+    n: int,
+    seeds: Sequence[Sequence[int]],
+    monitor_dir: Path | None,
+    prefix: str,
+) -> VecEnv:
+    """``n`` rovers of ``env_id``'s vector env (``gym.make_vec(..., "vector_entry_point")``)."""
+    from rover_env.training.vec_adapter import GymnasiumVecEnv
+
+    gym.register_envs(rover_env)
+    kwargs: dict[str, Any] = dict(cfg.env_kwargs)
+    if cfg.max_episode_steps is not None:
+        kwargs["max_episode_steps"] = cfg.max_episode_steps
+    try:
+        venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+    except gym.error.Error as exc:
+        raise ConfigError(f"vec_env: batch: {env_id} has no batched vector env ({exc})") from None
+    filename = None if monitor_dir is None else str(monitor_dir / f"{prefix}_batch")
+    return VecMonitor(GymnasiumVecEnv(venv, seeds), filename)
 
 
 def split_episodes(seeds: Sequence[int], n_episodes: int, n_envs: int) -> list[list[int]]:
