@@ -28,8 +28,9 @@ class Candidate:
     lo: tuple[float, ...]
     hi: tuple[float, ...]
     off: tuple[float, ...]
-    probe: tuple[float, ...] | None
-    """A clearly-present value tried before fitting (effects with no gradient at "off")."""
+    probe: tuple[tuple[float, ...], ...] | None
+    """Clearly-present values tried before fitting (effects with no gradient at "off", or
+    a strongly nonlinear response): the fit starts from the best of these and "off"."""
     to_ext: Callable[[Array], Extensions]
     discrete: bool = False
     plugin_ok: bool = True
@@ -60,7 +61,7 @@ def _simple(name: str) -> Candidate:
 
         return Candidate(name, (), (), (), (), None, switch_on, True, cls.plugin_ok)
     return Candidate(
-        name, (p.name,), (p.lo,), (p.hi,), (p.off,), (p.moderate,), to_ext, False, cls.plugin_ok
+        name, (p.name,), (p.lo,), (p.hi,), (p.off,), ((p.moderate,),), to_ext, False, cls.plugin_ok
     )
 
 
@@ -76,7 +77,7 @@ def _slope() -> Candidate:
         (-14.0, -14.0),
         (14.0, 14.0),
         (0.0, 0.0),
-        None,
+        ((4.0, 0.0), (0.0, 4.0), (-4.0, 0.0), (0.0, -4.0)),
         to_ext,
     )
 

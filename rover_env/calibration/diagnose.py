@@ -1,7 +1,415 @@
-"""placeholder"""
+"""``rover-env diagnose LOG.csv ... --out DIR``: name the effect missing from the model.
 
+Steps (each printed as it runs):
+
+1. Read the logs (SPEC §6) and the rover they name. Split: the last log (by file name) is
+   held out, the others are training; with a single log, alternate windows are held out.
+2. Replay every drive by multiple shooting (:mod:`.replay`) with the current model; estimate
+   the sensor noise from the logs and tabulate residuals per signal and regime with a test
+   against that noise (:mod:`.residuals`).
+3. Fit each candidate effect of the catalogue on the training windows (bounded least
+   squares, cluster-robust 95 % intervals; :mod:`.fit`), score it on the held-out windows.
+4. Rank by held-out error; name a winner only if it is significant: held-out error down by
+   at least ``min_gain`` with a one-sided Wilcoxon signed-rank test over held-out windows
+   at ``alpha``, and a lower BIC on training. If the runner-up is statistically
+   indistinguishable on held-out windows, report a tie and the drive that separates them.
+5. Forward selection: refit the winner together with each of the next best candidates and
+   keep a second effect under the same rules against the winner alone.
+6. Write the updated rover configuration (``rover.yaml``: the logs' rover plus the chosen
+   effects with fitted values, loadable by RoverSim and the environments as it is), the
+   held-out replay before/after, a Markdown report with figures (:mod:`.report`) and
+   ``result.json`` (machine-readable summary).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+from scipy import stats
+
+from rover_env.calibration import residuals as rs
+from rover_env.calibration.candidates import (
+    Candidate,
+    catalogue,
+    merge,
+    separating_plan,
+)
+from rover_env.calibration.fit import Evaluator, Fit, fit, information_criteria
+from rover_env.calibration.replay import (
+    SIGNALS,
+    Replayer,
+    ReplaySettings,
+    Window,
+    make_windows,
+    prepare,
+    replay_config,
+)
+from rover_env.config import RoverConfig, load_rover, to_dict
+from rover_env.logs import DriveLog, LogError, read_log
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class Options:
+    settings: ReplaySettings = field(default_factory=ReplaySettings)
+    alpha: float = 0.01
+    min_gain: float = 0.10
+    """Smallest relative held-out improvement that can name an effect."""
+    tie_alpha: float = 0.05
+    numpy_every: int = 3
+    """Numpy-only candidates are fitted on every n-th training window (they are ~20x slower)."""
+    max_nfev: int = 4
+    second: int = 3
+    """Partners tried in forward selection."""
+    candidates: list[str] | None = None
+    progress: bool = True
+
+
+@dataclass
+class Scored:
+    fit: Fit
+    held_cost: float
+    held_losses: Array
+    gain: float
+    """Relative held-out reduction against the reference model."""
+    p: float
+    """One-sided Wilcoxon p that held-out windows improved."""
+    d_aic: float
+    d_bic: float
+    n_train: int
+    significant: bool = False
+
+
+def _p_improved(before: Array, after: Array) -> float:
+    d = before - after
+    if np.allclose(d, 0.0):
+        return 1.0
+    try:
+        return float(stats.wilcoxon(d, alternative="greater", zero_method="zsplit").pvalue)
+    except ValueError:
+        return 1.0
+
+
+def _rover_of(log: DriveLog) -> RoverConfig:
+    name = log.meta.rover
+    p = Path(name)
+    if log.path is not None and not p.is_absolute() and (log.path.parent / p).is_file():
+        return load_rover(log.path.parent / p)
+    return load_rover(name)
+
+
+def diagnose(
+    paths: list[str | Path], out: str | Path, opts: Options | None = None
+) -> dict[str, Any]:
+    opts = opts or Options()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    t_start = time.perf_counter()
+
+    def say(msg: str) -> None:
+        if opts.progress:
+            print(f"[diagnose {time.perf_counter() - t_start:6.1f}s] {msg}", flush=True)
+
+    # 1. logs and split
+    if not paths:
+        raise LogError("no logs given")
+    files = sorted(Path(p) for p in paths)
+    logs = [read_log(p) for p in files]
+    rovers = {lg.meta.rover for lg in logs}
+    if len(rovers) > 1:
+        raise LogError(f"the logs name different rovers ({', '.join(sorted(rovers))})", files[0])
+    base = _rover_of(logs[0])
+    st = opts.settings
+    prepared = [prepare(lg, base, f.name, st) for lg, f in zip(logs, files, strict=True)]
+    all_w = make_windows(prepared, st)
+    if len(logs) >= 2:
+        held_logs = [len(logs) - 1]
+        train_w = [w for w in all_w if w.log_index not in held_logs]
+        held_w = [w for w in all_w if w.log_index in held_logs]
+        split = f"training: {', '.join(f.name for f in files[:-1])}; held out: {files[-1].name}"
+    else:
+        train_w, held_w = all_w[0::2], all_w[1::2]
+        split = f"one log ({files[0].name}): even windows training, odd windows held out"
+    if len(train_w) < 3 or len(held_w) < 3:
+        raise LogError("too little data: need at least 3 training and 3 held-out windows", files[0])
+    sub_w = train_w[:: max(1, opts.numpy_every)]
+    sets: dict[str, list[Window]] = {"train": train_w, "train_sub": sub_w, "held": held_w}
+    say(f"{len(logs)} log(s), {split}; windows {len(train_w)} training, {len(held_w)} held out")
+
+    ev = Evaluator(base, st, prepared, sets)
+    # 2. baseline replay, noise, localisation
+    sensor_noise = rs.noise_floor(prepared)
+    # Replay floor: what a perfect model leaves, from the model's own twin of each drive.
+    rng = np.random.default_rng(0)
+    res = rs.resolutions(prepared)
+    twins = [
+        prepare(rs.twin_log(p, base, sensor_noise, res, rng), base, p.name + " twin", st)
+        for p in prepared
+    ]
+    tw = rs.stack(Replayer(base, st).run(twins, all_w), twins)
+    noise = {}
+    for j, sname in enumerate(SIGNALS):
+        col = tw.resid[:, j]
+        col = col[np.isfinite(col)]
+        floor = float(np.sqrt(np.mean(col**2))) if col.size else 0.0
+        noise[sname] = max(floor, sensor_noise[sname])
+    say(
+        "replay floor from the model's twin drives: "
+        + ", ".join(f"{k} {v:.3g}" for k, v in noise.items())
+    )
+    base_train = ev.run({}, "train")
+    base_held = ev.run({}, "held")
+    say(f"baseline replay done ({ev.seconds:.1f}s, backend {base_backend(base)})")
+    st_train = rs.stack(base_train, prepared)
+    scale = {}
+    for j, sg in enumerate(SIGNALS):
+        col = st_train.resid[:, j]
+        col = col[np.isfinite(col)]
+        rms = float(np.sqrt(np.mean(col**2))) if col.size else 0.0
+        scale[sg] = max(rms, noise[sg])
+    ev.scale = scale
+    all_results = base_train + base_held
+    table_before = rs.table(rs.stack(all_results, prepared), noise)
+
+    # 3. fit candidates
+    cands = [c for c in catalogue(opts.candidates) if c.name not in base.extensions]
+    held0 = rs.window_losses(base_held, scale)
+    cost0 = {
+        k: float(np.sum(rs.window_losses(ev.run({}, k), scale))) for k in ("train", "train_sub")
+    }
+    scored: list[Scored] = []
+
+    def score(f: Fit, ref_held: Array, ref_cost: float, k: int | None = None) -> Scored:
+        hl = rs.window_losses(ev.run(f.ext, "held"), scale)
+        gain = 1.0 - float(hl.sum()) / max(float(ref_held.sum()), 1e-300)
+        n = len(sets[f.which])
+        d_aic, d_bic = information_criteria(f.cost, ref_cost, n, f.k if k is None else k)
+        return Scored(f, float(hl.sum()), hl, gain, _p_improved(ref_held, hl), d_aic, d_bic, n)
+
+    for c in cands:
+        which = "train" if plugin_capable(c) else "train_sub"
+        f = fit(ev, [c], which, max_nfev=opts.max_nfev)
+        s = score(f, held0, cost0[which])
+        s.significant = s.gain >= opts.min_gain and s.p < opts.alpha and s.d_bic < 0
+        scored.append(s)
+        say(
+            f"{c.name:24s} {_fmt_phys(f)}  held-out {-100 * s.gain:+6.1f}%  p={s.p:.2g}"
+            f"  dBIC={s.d_bic:+.1f}  ({f.nfev} fits, {f.seconds:.1f}s)"
+        )
+    ranked = sorted(scored, key=lambda s: s.held_cost)
+
+    # 4. decision
+    sig = [s for s in ranked if s.significant]
+    winner = sig[0] if sig else None
+    tie: dict[str, Any] | None = None
+    if winner is not None and len(sig) >= 2:
+        ru = sig[1]
+        p_diff = _p_improved(ru.held_losses, winner.held_losses)
+        if p_diff > opts.tie_alpha:
+            plan, why = separating_plan(winner.fit.name, ru.fit.name)
+            tie = {
+                "effects": [winner.fit.name, ru.fit.name],
+                "p_winner_better": p_diff,
+                "held_gain": [winner.gain, ru.gain],
+                "plan": plan,
+                "why": why,
+            }
+            say(
+                f"tie: {winner.fit.name} vs {ru.fit.name} (p={p_diff:.2g}); separate with plan {plan!r}"
+            )
+
+    # 5. forward selection
+    second: Scored | None = None
+    chosen: list[Scored] = [winner] if winner is not None else []
+    tried: list[Scored] = []
+    left = (
+        _unexplained(rs.table(rs.stack(ev.run(winner.fit.ext, "held"), prepared), noise), noise)
+        if winner is not None
+        else []
+    )
+    if winner is not None and not left:
+        say("after the winner no held-out signal exceeds noise: no second effect sought")
+    if winner is not None and left:
+        say(f"still above noise after {winner.fit.name}: {', '.join(left)}; forward selection")
+        w_cands = winner.fit.candidates
+        others = [
+            s
+            for s in ranked
+            if s is not winner and (tie is None or s.fit.name not in tie["effects"])
+        ]
+        for s in others[: opts.second]:
+            both = [*w_cands, *s.fit.candidates]
+            which = "train" if all(plugin_capable(c) for c in both) else "train_sub"
+            xs = np.concatenate([winner.fit.x, s.fit.x])
+            x0 = xs if xs.size else None
+            if which == winner.fit.which:
+                ref_cost = winner.fit.cost
+            else:
+                ref_cost = float(np.sum(rs.window_losses(ev.run(winner.fit.ext, which), scale)))
+            f2 = fit(ev, both, which, x_start=x0, max_nfev=max(3, opts.max_nfev - 2), probe=False)
+            s2 = score(f2, winner.held_losses, ref_cost, k=s.fit.k)
+            s2.significant = s2.gain >= opts.min_gain and s2.p < opts.alpha and s2.d_bic < 0
+            tried.append(s2)
+            say(
+                f"second: {f2.name:40s} {_fmt_phys(f2)}  held-out {-100 * s2.gain:+6.1f}% vs winner  p={s2.p:.2g}  dBIC={s2.d_bic:+.1f}"
+            )
+        best2 = sorted([s for s in tried if s.significant], key=lambda s: s.held_cost)
+        if best2:
+            second = best2[0]
+            chosen = [second]
+
+    # 6. outputs
+    final_ext = merge(base.extensions, *(s.fit.ext for s in chosen))
+    final_cfg = replace(base, extensions=final_ext)
+    cfg_path = out / "rover.yaml"
+    cfg_path.write_text(
+        "# Written by rover-env diagnose: the logs' rover plus the effects it found.\n"
+        + yaml.safe_dump(to_dict(final_cfg), sort_keys=False)
+    )
+    load_rover(cfg_path)  # must load as is
+    held_log_objs = [logs[i] for i in sorted({w.log_index for w in held_w})]
+    replay_before = replay_config(base, held_log_objs, st)
+    replay_after = replay_config(cfg_path, held_log_objs, st)
+    arrays: dict[str, Any] = {f"before_{k}": v for k, v in replay_before.items()}
+    arrays.update({f"after_{k}": v for k, v in replay_after.items()})
+    np.savez(out / "replay_heldout.npz", **arrays)
+    held_final = ev.run(merge(*(s.fit.ext for s in chosen)) if chosen else {}, "held")
+    table_held_before = rs.table(rs.stack(base_held, prepared), noise)
+    table_held_after = rs.table(rs.stack(held_final, prepared), noise)
+    main_sig = max(SIGNALS, key=lambda s: np.nan_to_num(table_held_before[s]["all"].ratio))
+    rb, ra = table_held_before[main_sig]["all"].rms, table_held_after[main_sig]["all"].rms
+    elapsed = time.perf_counter() - t_start
+    named = [n for s in chosen for n in (c.name for c in s.fit.candidates)]
+    result: dict[str, Any] = {
+        "logs": [str(f) for f in files],
+        "split": split,
+        "named": named,
+        "tie": tie,
+        "fits": {s.fit.name: _fit_dict(s) for s in ranked},
+        "second_tried": {s.fit.name: _fit_dict(s) for s in tried},
+        "final": {s.fit.name: _fit_dict(s) for s in chosen},
+        "main_signal": main_sig,
+        "main_rms_before": rb,
+        "main_rms_after": ra,
+        "main_reduction": 1.0 - ra / rb if rb > 0 else 0.0,
+        "noise": noise,
+        "sensor_noise": sensor_noise,
+        "seconds": elapsed,
+        "replays": ev.replays,
+        "replay_seconds": ev.seconds,
+        "config": str(cfg_path),
+        "unexplained": _unexplained(table_held_after, noise),
+    }
+    (out / "result.json").write_text(json.dumps(result, indent=2, default=float))
+    from rover_env.calibration.report import write_report
+
+    write_report(
+        out,
+        result=result,
+        ranked=ranked,
+        tried=tried,
+        chosen=chosen,
+        tie=tie,
+        opts=opts,
+        table_before=table_before,
+        table_held_before=table_held_before,
+        table_held_after=table_held_after,
+        noise=noise,
+        sensor_noise=sensor_noise,
+        prepared=prepared,
+        base_held=base_held,
+        final_held=held_final,
+        base=base,
+    )
+    say(
+        f"named: {', '.join(named) if named else 'nothing'}; main residual {main_sig} "
+        f"{rb:.4g} -> {ra:.4g}; wrote {out}/report.md, rover.yaml ({elapsed:.0f}s)"
+    )
+    return result
+
+
+def _unexplained(table: dict[str, dict[str, rs.Cell]], noise: dict[str, float]) -> list[str]:
+    """Signals whose held-out residual (after the chosen effects) still exceeds noise."""
+    out = []
+    for s in SIGNALS:
+        c = table[s]["all"]
+        if np.isfinite(c.p) and c.p < 0.001 and c.ratio > 1.5:
+            out.append(s)
+    return out
+
+
+def plugin_capable(c: Candidate) -> bool:
+    return c.plugin_ok
+
+
+def base_backend(cfg: RoverConfig) -> str:
+    from rover_env.sim.simulator import resolve_auto_backend
+
+    return resolve_auto_backend(cfg)
+
+
+def _fmt_phys(f: Fit) -> str:
+    parts = []
+    for eff, params in f.physical().items():
+        for k, (v, lo, hi) in params.items():
+            if k == "heading_deg":
+                parts.append(f"{k}={v:.0f}")
+            elif np.isfinite(lo) and lo != hi:
+                parts.append(f"{k}={v:.4g} [{lo:.3g}, {hi:.3g}]")
+            else:
+                parts.append(f"{k}={v:.4g}")
+        del eff
+    return ", ".join(parts)
+
+
+def _fit_dict(s: Scored) -> dict[str, Any]:
+    return {
+        "params": {e: {k: list(v) for k, v in p.items()} for e, p in s.fit.physical().items()},
+        "train_cost": s.fit.cost,
+        "held_cost": s.held_cost,
+        "held_gain": s.gain,
+        "p": s.p,
+        "d_aic": s.d_aic,
+        "d_bic": s.d_bic,
+        "significant": s.significant,
+        "nfev": s.fit.nfev,
+        "seconds": s.fit.seconds,
+    }
+
+
+def _cli(args: argparse.Namespace) -> int:
+    st = ReplaySettings(window=args.window, burn_in=args.burn_in)
+    opts = Options(
+        settings=st,
+        candidates=args.candidates.split(",") if args.candidates else None,
+        progress=not args.quiet,
+    )
+    try:
+        diagnose(args.logs, args.out, opts)
+    except LogError as exc:
+        print(f"rover-env diagnose: bad log: {exc}")
+        return 2
+    return 0
 
 
 def add_cli(sub: Any) -> None:
-    pass
+    p = sub.add_parser(
+        "diagnose",
+        help="find where model and measured logs disagree and name the missing effect",
+    )
+    p.add_argument("logs", nargs="+", help="SPEC §6 log CSVs (YAML beside each)")
+    p.add_argument("--out", required=True, help="output folder (report.md, rover.yaml, PNGs)")
+    p.add_argument("--window", type=float, default=3.0, help="shooting window (s)")
+    p.add_argument("--burn-in", type=float, default=0.4, help="unscored start of each window (s)")
+    p.add_argument("--candidates", default=None, help="comma-separated subset of the catalogue")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=_cli)

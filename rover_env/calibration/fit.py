@@ -133,13 +133,12 @@ def _to_ext(cands: list[Candidate], x: Array) -> Extensions:
 
 def _diff_step(c: Candidate) -> list[float]:
     out = []
-    for lab, lo, hi, probe in zip(
-        c.labels, c.lo, c.hi, c.probe or (None,) * len(c.labels), strict=True
-    ):
+    scale = np.max(np.abs(np.array(c.probe)), axis=0) if c.probe else None
+    for i, (lab, lo, hi) in enumerate(zip(c.labels, c.lo, c.hi, strict=True)):
         if lab == "delay":
             out.append(0.02)  # 20 substeps: the delay is quantised to the physics step
-        elif probe:
-            out.append(max(abs(probe) * 0.1, 1e-3))
+        elif scale is not None and scale[i] > 0:
+            out.append(float(scale[i]) * 0.1)
         else:
             out.append((hi - lo) * 0.01)
     return out
@@ -172,14 +171,16 @@ def fit(
         nfev += 1
         return ev.vector(merge(fixed, _to_ext(free, x)), which)
 
-    if probe and x_start is None:
-        # Effects with no gradient at "off" (a torque limit never reached) need a start
-        # where they act: try the clearly-present value too and start from the better.
-        trial = np.concatenate([c.probe if c.probe else c.off for c in free])
-        if not np.array_equal(trial, x0):
-            r0, r1 = fun(x0), fun(trial)
-            if r1 @ r1 < r0 @ r0:
-                x0 = trial
+    if probe and x_start is None and len(free) == 1 and free[0].probe:
+        # Effects with no gradient at "off" (a torque limit never reached) or a strongly
+        # nonlinear response (a slope's direction) need a start where they act: try the
+        # clearly-present values too and start from the best.
+        best = fun(x0)
+        best_cost = float(best @ best)
+        for trial in free[0].probe:
+            r1 = fun(np.clip(np.array(trial, dtype=float), lo, hi))
+            if float(r1 @ r1) < best_cost:
+                best_cost, x0 = float(r1 @ r1), np.clip(np.array(trial, dtype=float), lo, hi)
     x0 = np.clip(x0, lo, hi)
     diff = np.concatenate([_diff_step(c) for c in free])
     # least_squares' 2-point step is diff_step * max(1, |x|): give it absolute steps.

@@ -35,7 +35,7 @@ import yaml
 from numpy.typing import NDArray
 
 from rover_env.config import ConfigError, RoverConfig, load_rover, to_dict
-from rover_env.effects import CATALOGUE, effect_class
+from rover_env.effects import CATALOGUE, EffectError, effect_class
 from rover_env.estimation.sensors import SensorConfig, apply_sensors
 from rover_env.logs import DriveLog, write_log
 from rover_env.sim.recorder import run_drive
@@ -150,7 +150,10 @@ def parse_effects(items: list[str]) -> dict[str, dict[str, float]]:
         if not sep:
             raise ConfigError(f"--effect {item!r}: expected NAME=VALUE")
         name, _, param = key.strip().partition(".")
-        cls = effect_class(name)
+        try:
+            cls = effect_class(name)
+        except EffectError as exc:
+            raise ConfigError(f"--effect {item!r}: {exc}") from None
         pname = param or cls.params[0].name
         if pname not in {p.name for p in cls.params}:
             raise ConfigError(f"--effect {item!r}: {name} has no parameter {pname!r}")

@@ -17,6 +17,8 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
+from rover_env.config import JOINTS, RoverConfig
+from rover_env.logs import DriveLog
 
 Array = NDArray[np.float64]
 
@@ -49,6 +51,13 @@ def _mad_noise(x: Array, order: int) -> Array:
     return np.asarray(1.4826 * np.median(np.abs(d - med), axis=0) / norm, dtype=np.float64)
 
 
+def resolutions(logs: list[PreparedLog]) -> tuple[float, float]:
+    """(wheel, joint) angle resolution found in the data (0 if not quantised)."""
+    phi = np.concatenate([p.log.phi for p in logs])
+    theta = np.concatenate([p.log.theta for p in logs])
+    return _resolution(phi), _resolution(theta)
+
+
 def noise_floor(logs: list[PreparedLog]) -> dict[str, float]:
     """Standard deviation of each residual signal expected from sensor noise alone."""
     phi = np.concatenate([p.log.phi for p in logs])
@@ -70,6 +79,55 @@ def noise_floor(logs: list[PreparedLog]) -> dict[str, float]:
     for i, name in enumerate(SIGNALS[11:]):
         out[name] = float(max(s_p[i] * np.sqrt(2), 1e-4)) if np.isfinite(s_p[i]) else 1e-2
     return out
+
+
+def twin_log(
+    p: PreparedLog,
+    cfg: RoverConfig,
+    noise: dict[str, float],
+    res: tuple[float, float],
+    rng: np.random.Generator,
+) -> DriveLog:
+    """The drive as the model itself would have logged it through the same sensors.
+
+    The model is driven from rest by the logged commands; its angles are read through the
+    resolution and noise found in the real logs, its pose through the estimated pose noise
+    at the times the real log has pose. Replaying this twin gives the residual a perfect
+    model would leave (the "replay floor": sensor noise seen through the window
+    initialisation), against which the real residual is tested.
+    """
+    from rover_env.estimation.sensors import quantize
+    from rover_env.sim.recorder import relative_pose
+    from rover_env.sim.simulator import RoverSim
+
+    log = p.log
+    sim = RoverSim(cfg, "flat", backend="auto")
+    sim.reset()
+    step_of = np.round(log.t / sim.dt).astype(np.int64)
+    phi, theta, pos, quat = [], [], [], []
+    for k in range(len(log)):
+        s = sim.sensors()
+        seg = sim.segment_truth()
+        phi.append(s.phi)
+        theta.append(s.theta)
+        pos.append(seg.pos[2])
+        quat.append(seg.quat[2])
+        if k + 1 < len(log):
+            sim.set_speed_targets(log.cmd[k])
+            sim.step(int(step_of[k + 1] - step_of[k]))
+    ph = np.array(phi)
+    ph = quantize(ph - ph[0], res[0]) if res[0] > 0 else ph - ph[0]
+    th = np.array(theta)
+    j_noise = np.array([noise[j] for j in JOINTS])
+    th = th + rng.normal(0.0, 1.0, th.shape) * np.sqrt(np.maximum(j_noise**2 - res[1] ** 2 / 12, 0))
+    th = quantize(th, res[1]) if res[1] > 0 else th
+    pose = relative_pose(np.array(pos), np.array(quat))
+    have = np.isfinite(log.pose[:, 0])
+    ps = np.array([noise[s] for s in ("pose_x", "pose_y", "pose_yaw")]) / np.sqrt(2)
+    pose = pose + rng.normal(0.0, 1.0, pose.shape) * ps
+    pose[~have] = np.nan
+    pose[0] = np.where(have[0], 0.0, np.nan)
+    return DriveLog(log.t, log.cmd, ph, th, pose, log.meta)
 
 
 @dataclass

@@ -1,0 +1,265 @@
+"""Markdown report and PNG figures of a diagnosis."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
+from rover_env.calibration.residuals import REGIMES, Cell
+from rover_env.config import RoverConfig
+
+if TYPE_CHECKING:  # pragma: no cover
+    from rover_env.calibration.diagnose import Options, Scored
+
+
+def _f(x: float, d: int = 3) -> str:
+    if x is None or not np.isfinite(x):
+        return "–"
+    return f"{x:.{d}g}"
+
+
+def _p(p: float) -> str:
+    if not np.isfinite(p):
+        return "–"
+    return "<1e-6" if p < 1e-6 else f"{p:.2g}"
+
+
+def _phys(s: Scored) -> str:
+    out = []
+    for eff, params in s.fit.physical().items():
+        for k, (v, lo, hi) in params.items():
+            if k == "heading_deg":
+                out.append(f"heading {v:.0f}°")
+            elif np.isfinite(lo) and lo != hi:
+                out.append(f"{eff}.{k} = {v:.4g} (95 %: {lo:.3g} … {hi:.3g})")
+            else:
+                out.append(f"{eff}.{k} = {v:.4g}")
+    return "; ".join(out)
+
+
+def _ratio_table(t: dict[str, dict[str, Cell]], signals: tuple[str, ...]) -> list[str]:
+    lines = ["| signal | " + " | ".join(REGIMES) + " |", "|---|" + "---|" * len(REGIMES)]
+    for s in signals:
+        cells = []
+        for r in REGIMES:
+            c = t[s][r]
+            if not np.isfinite(c.ratio):
+                cells.append("–")
+                continue
+            mark = "**" if c.p < 0.001 and c.ratio > 2 else ""
+            cells.append(f"{mark}{c.ratio:.1f}{mark}")
+        lines.append(f"| {s} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _figures(
+    out: Path,
+    ranked: list[Scored],
+    table_before: dict[str, dict[str, Cell]],
+    prepared: list[PreparedLog],
+    base_held: list[WindowResult],
+    final_held: list[WindowResult],
+) -> list[str]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = []
+    # 1. heat map of residual / noise per signal and regime
+    m = np.array([[table_before[s][r].ratio for r in REGIMES] for s in SIGNALS])
+    fig, ax = plt.subplots(figsize=(9, 6))
+    im = ax.imshow(
+        np.log10(np.maximum(np.nan_to_num(m, nan=1.0), 0.1)), cmap="viridis", aspect="auto"
+    )
+    ax.set_xticks(range(len(REGIMES)), REGIMES, rotation=30, ha="right")
+    ax.set_yticks(range(len(SIGNALS)), SIGNALS)
+    for i in range(m.shape[0]):
+        for j in range(m.shape[1]):
+            if np.isfinite(m[i, j]):
+                ax.text(j, i, f"{m[i, j]:.1f}", ha="center", va="center", color="w", fontsize=7)
+    fig.colorbar(im, label="log10(RMS residual / replay floor)")
+    ax.set_title("Where model and log disagree (current model, all windows)")
+    fig.tight_layout()
+    fig.savefig(out / "residual_map.png", dpi=110)
+    plt.close(fig)
+    names.append("residual_map.png")
+    # 2. candidates
+    fig, ax = plt.subplots(figsize=(8, 4))
+    labels = [s.fit.name for s in ranked]
+    gains = [100 * s.gain for s in ranked]
+    colors = ["tab:green" if s.significant else "tab:gray" for s in ranked]
+    ax.barh(labels[::-1], gains[::-1], color=colors[::-1])
+    ax.axvline(0, color="k", lw=0.8)
+    ax.set_xlabel("held-out error reduction (%)  (green: significant)")
+    ax.set_title("Candidate effects, fitted on training drives")
+    fig.tight_layout()
+    fig.savefig(out / "candidates.png", dpi=110)
+    plt.close(fig)
+    names.append("candidates.png")
+    # 3. overlay: held-out windows, the signal with the largest residual
+    if base_held:
+        losses = [float(np.sum(r.resid**2)) for r in base_held]
+        order = np.argsort(losses)[::-1][:3]
+        rms = np.sqrt(np.mean(np.concatenate([r.resid for r in base_held]) ** 2, axis=0))
+        j = int(np.argmax(rms / np.maximum(rms.mean(), 1e-12)))
+        fig, axes = plt.subplots(len(order), 1, figsize=(8, 2.4 * len(order)), squeeze=False)
+        for ax, wi in zip(axes[:, 0], order, strict=False):
+            b, a = base_held[wi], final_held[wi]
+            p = prepared[b.window.log_index]
+            t = p.log.t[b.idx]
+            logv = b.sim[:, j] - b.resid[:, j]
+            ax.plot(t, logv, "k.", ms=3, label="log")
+            ax.plot(t, b.sim[:, j], "tab:red", label="model before")
+            ax.plot(t, a.sim[:, j], "tab:green", label="model after")
+            ax.set_ylabel(SIGNALS[j])
+        axes[0, 0].legend(fontsize=8)
+        axes[-1, 0].set_xlabel("t (s) in the held-out drive")
+        fig.suptitle("Held-out windows with the largest residual (wheel: increment since burn-in)")
+        fig.tight_layout()
+        fig.savefig(out / "overlay.png", dpi=110)
+        plt.close(fig)
+        names.append("overlay.png")
+    return names
+
+
+def write_report(
+    out: Path,
+    *,
+    result: dict[str, Any],
+    ranked: list[Scored],
+    tried: list[Scored],
+    chosen: list[Scored],
+    tie: dict[str, Any] | None,
+    opts: Options,
+    table_before: dict[str, dict[str, Cell]],
+    table_held_before: dict[str, dict[str, Cell]],
+    table_held_after: dict[str, dict[str, Cell]],
+    noise: dict[str, float],
+    sensor_noise: dict[str, float],
+    prepared: list[PreparedLog],
+    base_held: list[WindowResult],
+    final_held: list[WindowResult],
+    base: RoverConfig,
+) -> Path:
+    st = opts.settings
+    figs = _figures(out, ranked, table_before, prepared, base_held, final_held)
+    L: list[str] = ["# Model-discrepancy diagnosis", ""]
+    named = result["named"]
+    if named:
+        L.append(f"**Named:** {' + '.join(named)} — {'; '.join(_phys(s) for s in chosen)}.")
+    else:
+        L.append("**No candidate explains the gap significantly.**")
+    if tie:
+        a, b = tie["effects"]
+        L.append(
+            f"\n**Tie:** {a} and {b} improve the held-out drive alike (held-out reduction "
+            f"{100 * tie['held_gain'][0]:.0f} % vs {100 * tie['held_gain'][1]:.0f} %; one-sided"
+            f" Wilcoxon p that {a} is better: {_p(tie['p_winner_better'])}). The data cannot separate them."
+            f" Separating drive: {tie['why']}. Generate it with\n\n"
+            f"    rover-env make-logs --plan {tie['plan']} --drives 1 --first-index 9 ... --out DIR\n\n"
+            "and diagnose again with that log added."
+        )
+    un = result["unexplained"]
+    if un:
+        L.append(
+            f"\n**A significant gap remains unexplained** in: {', '.join(un)} (held-out residual"
+            " more than 1.5 times the replay floor, p < 0.001 after the named effects)."
+        )
+    else:
+        L.append(
+            "\nAfter the named effects no held-out signal exceeds 1.5 times its replay floor significantly."
+        )
+    L += [
+        "",
+        f"Main residual ({result['main_signal']}, largest held-out ratio to noise): RMS "
+        f"{_f(result['main_rms_before'])} → {_f(result['main_rms_after'])} "
+        f"({100 * result['main_reduction']:.0f} % reduction; {100 * (1 - result['main_reduction']):.0f} % of it remains).",
+        "",
+        f"Updated configuration: `{Path(result['config']).name}` (loads in `RoverSim` and the environments as is).",
+        "",
+        "## Data and method",
+        "",
+        f"- Logs: {', '.join(Path(p).name for p in result['logs'])}; rover `{prepared[0].log.meta.rover}`.",
+        f"- Split: {result['split']}.",
+        f"- Replay: multiple shooting, windows of {st.window:g} s re-initialised from the log (joint"
+        " angles and rates, wheel rates, segment 3's motion from the free wheels, controller"
+        f" setpoints from the logged commands), first {st.burn_in:g} s of each not scored; residuals every"
+        f" {st.stride:g} s: wheel-angle increments, joint angles, and pose increments where the log has pose."
+        " Open-loop replay of a whole drive was rejected: one early heading error dominates everything after it.",
+        "- Fit: bounded least squares (`scipy.optimize.least_squares`, trust-region reflective, finite-difference"
+        " Jacobian with chosen steps, a handful of replays per candidate); residuals scaled per signal by the"
+        " larger of the baseline training RMS and the sensor noise. 95 % intervals: cluster-robust (windows as"
+        " clusters) sandwich covariance, Student t.",
+        f"- Decision: named only if the held-out error falls by ≥ {100 * opts.min_gain:.0f} % with a one-sided"
+        f" Wilcoxon signed-rank test over held-out windows at p < {opts.alpha:g} and the training BIC falls"
+        " (windows as observations). A runner-up not worse than the winner at p < "
+        f"{opts.tie_alpha:g} is reported as a tie. Second effect by forward selection under the same rules.",
+        f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay, {result['seconds']:.0f} s in all.",
+        "",
+        "## Where the disagreement is (current model)",
+        "",
+        "RMS residual / replay floor per signal and regime, all windows (bold: exceeds the floor, p < 0.001,"
+        " conservative chi-square with one degree of freedom per window). The sensor noise is estimated from"
+        " the logs (resolution, robust spread of high-order differences); the replay floor is the residual"
+        " the current model leaves on its own twin of each drive (driven by the logged commands, read"
+        " through that sensor noise, replayed the same way): what a perfect model would leave.",
+        "",
+        "| signal | sensor noise (rad or m) | replay floor |",
+        "|---|---|---|",
+    ]
+    L += [f"| {s} | {_f(sensor_noise[s])} | {_f(noise[s])} |" for s in SIGNALS]
+    L += ["", *_ratio_table(table_before, SIGNALS), ""]
+    L += ["![residual map](residual_map.png)", "", "## Candidates", ""]
+    L += [
+        "| rank | effect | fitted (95 % interval) | training cost | held-out change | p | ΔAIC | ΔBIC | significant |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for i, s in enumerate(ranked, 1):
+        L.append(
+            f"| {i} | {s.fit.name} | {_phys(s)} | {_f(s.fit.cost, 4)} | {-100 * s.gain:+.1f} % | {_p(s.p)} "
+            f"| {s.d_aic:+.1f} | {s.d_bic:+.1f} | {'yes' if s.significant else 'no'} |"
+        )
+    L += ["", "![candidates](candidates.png)", ""]
+    if tried:
+        L += ["## Second effect (forward selection, against the winner alone)", ""]
+        L += [
+            "| effects | fitted | held-out change | p | ΔBIC | significant |",
+            "|---|---|---|---|---|---|",
+        ]
+        for s in tried:
+            L.append(
+                f"| {s.fit.name} | {_phys(s)} | {-100 * s.gain:+.1f} % | {_p(s.p)} | {s.d_bic:+.1f} |"
+                f" {'yes' if s.significant else 'no'} |"
+            )
+        L.append("")
+    if not named:
+        top = sorted(
+            (
+                (table_before[s]["all"].ratio, s)
+                for s in SIGNALS
+                if np.isfinite(table_before[s]["all"].ratio)
+            ),
+            reverse=True,
+        )[:3]
+        L += [
+            "## Residual pattern left unexplained",
+            "",
+            "Largest residuals relative to noise: "
+            + ", ".join(f"{s} ({r:.1f}×)" for r, s in top)
+            + ". See the regime table above for where they concentrate.",
+            "",
+        ]
+    L += ["## Held-out drive before / after (RMS residual / replay floor)", "", "Before:", ""]
+    L += _ratio_table(table_held_before, SIGNALS)
+    L += ["", "After:", ""]
+    L += _ratio_table(table_held_after, SIGNALS)
+    L += [""]
+    L += [f"![{f}]({f})" for f in figs[2:]]
+    L += ["", f"Base rover: `{base.name}`; extensions before: {base.extensions or 'none'}."]
+    path = out / "report.md"
+    path.write_text("\n".join(L) + "\n")
+    return path

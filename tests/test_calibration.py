@@ -1,0 +1,227 @@
+"""Model extensions, hidden-effect logs and the discrepancy diagnosis (issue 8), fast subset."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from rover_env.calibration.diagnose import Options, diagnose
+from rover_env.calibration.make_logs import make_logs, parse_effects
+from rover_env.calibration.replay import ReplaySettings, replay_config
+from rover_env.cli import main
+from rover_env.config import ConfigError, RoverConfig, load_rover, to_dict
+from rover_env.effects import CATALOGUE
+from rover_env.logs import LogError, read_log
+from rover_env.sim.simulator import RoverSim
+
+
+def _drive(ext: dict, cmd: tuple[float, ...], seconds: float, backend: str = "auto") -> RoverSim:
+    sim = RoverSim(RoverConfig(extensions=ext), backend=backend)
+    sim.set_speed_targets(cmd)
+    sim.step(round(seconds / sim.dt))
+    return sim
+
+
+def _speed(sim: RoverSim) -> float:
+    return float(sim.segment_truth().forward_speed[2])
+
+
+STRAIGHT = (2.0, 2.0, 2.0, 2.0)
+TURN = (1.0, 3.0, 1.0, 3.0)
+PIVOT = (-3.0, 3.0, -3.0, 3.0)
+
+
+@pytest.mark.parametrize(
+    ("ext", "cmd", "seconds", "metric", "sign"),
+    [
+        ({"rolling_resistance": {"c_rr": 0.05}}, STRAIGHT, 2.0, "speed", -1),
+        ({"slope": {"deg": 5.0}}, STRAIGHT, 2.0, "speed", -1),  # uphill: the ground rises to +x
+        ({"slope": {"deg": 5.0, "heading_deg": 180.0}}, STRAIGHT, 2.0, "speed", +1),
+        ({"rolling_radius": {"fraction": -0.08}}, STRAIGHT, 2.0, "speed", -1),
+        ({"torque_limit": {"fraction": -0.5}}, (4.0, 4.0, 4.0, 4.0), 0.02, "torque", -1),
+        ({"command_lag": {"tau": 0.3}}, STRAIGHT, 0.5, "wheel", -1),
+        ({"command_delay": {"delay": 0.2}}, STRAIGHT, 0.5, "wheel", -1),
+        ({"friction": {"fraction": -0.3}}, TURN, 2.0, "free_diff", +1),  # skid steer turns easier
+        ({"combined_slip": {"on": 1.0}}, TURN, 1.0, "free_diff", +1),
+        ({"load_dependent_friction": {"fall": 0.3}}, PIVOT, 1.0, "free_diff", 0),
+    ],
+)
+def test_effects_act_in_the_expected_direction(
+    ext: dict, cmd: tuple[float, ...], seconds: float, metric: str, sign: int
+) -> None:
+    def value(sim: RoverSim) -> float:
+        if metric == "speed":
+            return _speed(sim)
+        if metric == "torque":
+            return float(np.abs(sim.motor_torque()).max())
+        s = sim.sensors()
+        if metric == "wheel":
+            return float(s.phi[:4].mean())
+        return float(s.phi[5] - s.phi[4])  # free wheels' difference: how much it turned
+
+    off = value(_drive({}, cmd, seconds))
+    on = value(_drive(ext, cmd, seconds))
+    if sign:  # 0: the direction is not obvious, only that it acts
+        assert np.sign(on - off) == sign, (off, on)
+    assert abs(on - off) > 1e-3 * max(abs(off), 1e-3)
+
+
+def test_off_values_change_nothing() -> None:
+    ext = {name: {} for name in CATALOGUE}  # every effect at its "off" value
+    a = _drive({}, TURN, 0.3, backend="numpy")
+    b = _drive(ext, TURN, 0.3, backend="numpy")
+    assert np.array_equal(a.data.qpos, b.data.qpos)
+
+
+def test_plugin_runs_what_it_can_and_refuses_the_rest() -> None:
+    sim = RoverSim(RoverConfig(extensions={"friction": {"fraction": -0.3}}), backend="plugin")
+    assert sim.backend == "plugin"
+    cfg = RoverConfig(extensions={"combined_slip": {"on": 1.0}})
+    with pytest.raises(NotImplementedError, match="combined_slip"):
+        RoverSim(cfg, backend="plugin")
+    assert RoverSim(cfg, backend="auto").backend == "numpy"
+    # Command effects on the plugin equal the numpy reference (same substep rule).
+    lag = {"command_lag": {"tau": 0.2}}
+    p = _drive(lag, STRAIGHT, 0.4, backend="plugin").sensors().phi
+    n = _drive(lag, STRAIGHT, 0.4, backend="numpy").sensors().phi
+    np.testing.assert_allclose(p, n, atol=1e-9)
+
+
+def test_extensions_config_round_trip(tmp_path: Path) -> None:
+    cfg = RoverConfig(
+        extensions={"slope": {"deg": 3.0, "heading_deg": 45.0}, "command_lag": {"tau": 0.2}}
+    )
+    path = tmp_path / "rover.yaml"
+    path.write_text(yaml.safe_dump(to_dict(cfg)))
+    back = load_rover(path)
+    assert back.extensions == cfg.extensions
+    assert back == cfg
+    for bad, key in [
+        ({"slope": {"deg": 90.0}}, "extensions.slope.deg"),
+        ({"slope": {"tilt": 1.0}}, "extensions.slope"),
+        ({"sand": {"depth": 1.0}}, "sand"),
+        ({"combined_slip": {"on": 0.5}}, "extensions.combined_slip.on"),
+    ]:
+        path.write_text(yaml.safe_dump({"extensions": bad}))
+        with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+            load_rover(path)
+
+
+def test_parse_effects() -> None:
+    assert parse_effects(["rolling_resistance=0.05", "slope.heading_deg=90", "slope=5"]) == {
+        "rolling_resistance": {"c_rr": 0.05},
+        "slope": {"heading_deg": 90.0, "deg": 5.0},
+    }
+    assert parse_effects(["combined_slip=on"]) == {"combined_slip": {"on": 1.0}}
+    with pytest.raises(ConfigError, match="unknown model extension"):
+        parse_effects(["sand=1"])
+
+
+@pytest.fixture(scope="module")
+def rr_case(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+    """A small hidden-effect case diagnosed once: rolling resistance 0.05, 2 drives x 24 s."""
+    root = tmp_path_factory.mktemp("rr")
+    paths = make_logs(
+        root / "logs",
+        {"rolling_resistance": {"c_rr": 0.05}},
+        drives=2,
+        seed=5,
+        duration=24.0,
+        progress=False,
+    )
+    opts = Options(
+        candidates=["rolling_resistance", "torque_limit", "command_lag"],
+        progress=False,
+        max_nfev=3,
+    )
+    result = diagnose([str(p) for p in paths], root / "out", opts)
+    return root, result
+
+
+def test_make_logs_writes_readable_logs_and_hidden_truth(rr_case: tuple[Path, dict]) -> None:
+    root, _ = rr_case
+    truth = yaml.safe_load((root / "logs" / "truth.yaml").read_text())
+    assert truth["effects"] == {"rolling_resistance": {"c_rr": 0.05}}
+    log = read_log(root / "logs" / "drive_00.csv")
+    assert log.meta.rover == "proto_explorer"  # the logs name the nominal rover only
+    have = np.isfinite(log.pose[:, 0])
+    assert 20 <= have.sum() <= 30  # pose at 1 Hz
+    assert np.any(log.cmd < 0) and np.any(log.cmd[:, 0] != log.cmd[:, 1])  # reversals, turns
+
+
+def test_diagnose_names_a_moderate_effect(rr_case: tuple[Path, dict]) -> None:
+    root, result = rr_case
+    assert result["named"] == ["rolling_resistance"]
+    value, lo, hi = result["final"]["rolling_resistance"]["params"]["rolling_resistance"]["c_rr"]
+    assert abs(value - 0.05) < 0.2 * 0.05
+    assert lo < hi
+    assert result["main_reduction"] > 0.7
+    report = (root / "out" / "report.md").read_text()
+    assert "rolling_resistance" in report and "Named" in report
+    for fig in ("residual_map.png", "candidates.png", "overlay.png"):
+        assert (root / "out" / fig).stat().st_size > 1000
+
+
+def test_updated_config_reproduces_the_held_out_replay_exactly(rr_case: tuple[Path, dict]) -> None:
+    root, result = rr_case
+    cfg_path = root / "out" / "rover.yaml"
+    cfg = load_rover(cfg_path)
+    assert cfg.extensions["rolling_resistance"]["c_rr"] > 0
+    RoverSim(cfg_path)  # the simulator loads it as is
+    saved = np.load(root / "out" / "replay_heldout.npz")
+    held = read_log(Path(result["logs"][-1]))
+    again = replay_config(cfg_path, [held], ReplaySettings())
+    for key, arr in again.items():
+        assert np.array_equal(arr, saved[f"after_{key}"]), key
+
+
+def test_bad_logs_fail_naming_file_column_and_row(
+    rr_case: tuple[Path, dict], tmp_path: Path
+) -> None:
+    root, _ = rr_case
+    src = root / "logs" / "drive_00.csv"
+    lines = src.read_text().splitlines()
+    header = lines[0].split(",")
+    col = header.index("theta_3")
+    row = lines[5].split(",")
+    row[col] = "abc"
+    lines[5] = ",".join(row)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(lines) + "\n")
+    (tmp_path / "bad.yaml").write_text((root / "logs" / "drive_00.yaml").read_text())
+    with pytest.raises(LogError) as err:
+        diagnose([str(bad)], tmp_path / "out", Options(progress=False))
+    msg = str(err.value)
+    assert "bad.csv" in msg and "theta_3" in msg and "line 6" in msg
+    # The command line reports it instead of a traceback.
+    assert main(["diagnose", str(bad), "--out", str(tmp_path / "o2"), "--quiet"]) == 2
+
+
+def test_make_logs_cli(tmp_path: Path) -> None:
+    out = tmp_path / "logs"
+    rc = main(
+        [
+            "make-logs",
+            "--effect",
+            "friction=-0.3",
+            "--drives",
+            "1",
+            "--duration",
+            "4",
+            "--pose-end-only",
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
+    assert rc == 0
+    log = read_log(out / "drive_00.csv")
+    assert np.isfinite(log.pose[:, 0]).sum() == 1  # the end only, as in the paper
+    assert yaml.safe_load((out / "truth.yaml").read_text())["effects"] == {
+        "friction": {"fraction": -0.3}
+    }
+    with pytest.raises(SystemExit):
+        main(["make-logs", "--out", str(out), "--pose-rate", "2", "--pose-end-only"])
