@@ -232,3 +232,24 @@ def test_obs_layout() -> None:
     assert info["_command"].all() and info["command"].shape == (2, 2)
     with pytest.raises(RuntimeError, match="reset"):
         ProtoExplorerVectorEnv(1).step(np.zeros((1, 4), dtype=np.float32))
+
+
+def test_training_batch_vec_env(tmp_path: Any) -> None:
+    """``vec_env: batch`` in a PPO config: all rovers in one vector env, episodes monitored."""
+    pytest.importorskip("stable_baselines3")
+    from rover_env.training.config import PPOConfig
+    from rover_env.training.envs import make_vec_env
+
+    cfg = PPOConfig(vec_env="batch", max_episode_steps=3, env_kwargs={"sensor_noise": "none"})
+    venv = make_vec_env(ID, cfg, 2, [[5], [6]], tmp_path, "train")
+    obs = venv.reset()
+    assert obs.shape == (2, len(OBS_NAMES))
+    single = gym.make(ID, backend="plugin", sensor_noise="none", max_episode_steps=3)
+    np.testing.assert_array_equal(obs[1], single.reset(seed=6)[0])
+    episodes = []
+    for _ in range(4):
+        *_, infos = venv.step(np.zeros((2, 4), dtype=np.float32))
+        episodes += [info["episode"] for info in infos if "episode" in info]
+    assert len(episodes) == 2 and all(e["l"] == 3 for e in episodes)
+    venv.close()
+    assert (tmp_path / "train_batch.monitor.csv").is_file()

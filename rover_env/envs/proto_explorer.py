@@ -30,7 +30,6 @@ from rover_env.estimation.estimator import (
     EstimatorConfig,
     SlipEstimate,
     SlipEstimator,
-    _check_sample,
     _kinematic_part,
     _lsq_slope,
     _odometry_increments,
@@ -285,46 +284,50 @@ class BatchSlipEstimator:
         if k == 0:
             return
         t_a = np.array(t, dtype=np.float64).reshape(k)
-        phi_a = np.array(phi, dtype=np.float64).reshape(k, -1)
-        theta_a = np.array(theta, dtype=np.float64).reshape(k, -1)
-        _check_sample(phi_a, theta_a)
-        if not np.isfinite(t_a).all():
-            raise ValueError(f"time must be finite, got {t_a!r}")
+        y = np.empty((k, 11))
+        y[:, :6] = np.reshape(phi, (k, 6))
+        y[:, 6:] = np.reshape(theta, (k, 5))
+        if not (np.isfinite(y).all() and np.isfinite(t_a).all()):
+            raise ValueError("wheel and joint angles and time must be finite")
+        tb, yb, count = self._t, self._y, self._count
         started = self._started[sel]
-        prev_t = self._t[sel, -1]
+        prev_t = tb[sel, -1]
         back = started & (t_a <= prev_t)
         if back.any():
             i = int(np.flatnonzero(back)[0])
             raise ValueError(f"time must increase: {prev_t[i]!r} then {t_a[i]!r}")
-        if self._count[sel].max() >= self._t.shape[1] - 1:
-            self._grow()
-        tb, yb = self._t, self._y
+        cnt = count[sel] + 1
         cap = tb.shape[1]
+        if cnt.max() >= cap:
+            self._grow()
+            tb, yb, cap = self._t, self._y, 2 * cap
         tb[sel, :-1] = tb[sel, 1:]
         tb[sel, -1] = t_a
         yb[sel, :-1] = yb[sel, 1:]
-        yb[sel, -1, :6] = phi_a
-        yb[sel, -1, 6:] = theta_a
+        yb[sel, -1] = y
         # The streaming window: the newest samples no older than the window (a suffix).
-        cnt = self._count[sel] + 1
         inside = (self._arange[:cap] >= cap - cnt[:, None]) & ~(
             t_a[:, None] - tb[sel] > self._limit
         )
-        self._count[sel] = inside.sum(axis=1)
+        count[sel] = inside.sum(axis=1)
         # Dead reckoning from the free wheels' angle increments, as SlipEstimator.update.
-        if not started.all():
-            first = np.arange(self.n)[sel][~started]
-            self._t0[first] = t_a[~started]
-        cont = np.flatnonzero(started)
-        if cont.size:
-            rows = np.arange(self.n)[sel][cont]
-            ds, dpsi = _odometry_increments(phi_a[cont, 4:6] - yb[rows, -2, 4:6], self.chain)
+        if started.all():
+            rows: Any = sel
+            ds, dpsi = _odometry_increments(y[:, 4:6] - yb[sel, -2, 4:6], self.chain)
+        else:
+            idx = np.arange(self.n)[sel]
+            self._t0[idx[~started]] = t_a[~started]
+            rows = idx[started]
+            ds, dpsi = _odometry_increments(y[started, 4:6] - yb[rows, -2, 4:6], self.chain)
+        if ds.size:
             pose = self._pose[rows]
             heading = pose[:, 2] + dpsi / 2.0
-            cos = np.array([math.cos(h) for h in heading.tolist()])
-            sin = np.array([math.sin(h) for h in heading.tolist()])
-            self._pose[rows] = pose + np.stack([ds * cos, ds * sin, dpsi], axis=1)
-        self._last_theta[sel] = theta_a
+            step = np.empty_like(pose)
+            step[:, 0] = ds * np.array([math.cos(h) for h in heading.tolist()])
+            step[:, 1] = ds * np.array([math.sin(h) for h in heading.tolist()])
+            step[:, 2] = dpsi
+            self._pose[rows] = pose + step
+        self._last_theta[sel] = y[:, 6:]
         self._started[sel] = True
 
     def estimate(self, ids: ArrayLike | None = None) -> list[SlipEstimate]:
