@@ -45,6 +45,7 @@ from rover_env.calibration.candidates import (
 from rover_env.calibration.fit import Evaluator, Fit, fit, information_criteria
 from rover_env.calibration.replay import (
     SIGNALS,
+    PreparedLog,
     Replayer,
     ReplaySettings,
     Window,
@@ -65,11 +66,11 @@ class Options:
     min_gain: float = 0.10
     """Smallest relative held-out improvement that can name an effect."""
     tie_alpha: float = 0.05
-    numpy_every: int = 3
+    numpy_every: int = 4
     """Numpy-only candidates are fitted on every n-th training window (they are ~20x slower)."""
     max_nfev: int = 4
-    second: int = 3
-    """Partners tried in forward selection."""
+    second: int = 2
+    """Partners tried in forward selection (among candidates that improved held-out alone)."""
     candidates: list[str] | None = None
     progress: bool = True
 
@@ -149,19 +150,7 @@ def diagnose(
     # 2. baseline replay, noise, localisation
     sensor_noise = rs.noise_floor(prepared)
     # Replay floor: what a perfect model leaves, from the model's own twin of each drive.
-    rng = np.random.default_rng(0)
-    res = rs.resolutions(prepared)
-    twins = [
-        prepare(rs.twin_log(p, base, sensor_noise, res, rng), base, p.name + " twin", st)
-        for p in prepared
-    ]
-    tw = rs.stack(Replayer(base, st).run(twins, all_w), twins)
-    noise = {}
-    for j, sname in enumerate(SIGNALS):
-        col = tw.resid[:, j]
-        col = col[np.isfinite(col)]
-        floor = float(np.sqrt(np.mean(col**2))) if col.size else 0.0
-        noise[sname] = max(floor, sensor_noise[sname])
+    noise = replay_floor(base, prepared, all_w, sensor_noise, st)
     say(
         "replay floor from the model's twin drives: "
         + ", ".join(f"{k} {v:.3g}" for k, v in noise.items())
@@ -197,7 +186,7 @@ def diagnose(
 
     for c in cands:
         which = "train" if plugin_capable(c) else "train_sub"
-        f = fit(ev, [c], which, max_nfev=opts.max_nfev)
+        f = fit(ev, [c], which, max_nfev=opts.max_nfev if c.plugin_ok else opts.max_nfev - 1)
         s = score(f, held0, cost0[which])
         s.significant = s.gain >= opts.min_gain and s.p < opts.alpha and s.d_bic < 0
         scored.append(s)
@@ -231,11 +220,15 @@ def diagnose(
     second: Scored | None = None
     chosen: list[Scored] = [winner] if winner is not None else []
     tried: list[Scored] = []
-    left = (
-        _unexplained(rs.table(rs.stack(ev.run(winner.fit.ext, "held"), prepared), noise), noise)
-        if winner is not None
-        else []
-    )
+    left: list[str] = []
+    if winner is not None:
+        # Against the floor of the winner's own model (a tilted or slower model replays
+        # its own twin less exactly than the nominal one).
+        w_floor = replay_floor(ev.config(winner.fit.ext), prepared, held_w, sensor_noise, st)
+        w_floor = {k: max(v, noise[k]) for k, v in w_floor.items()}
+        left = _unexplained(
+            rs.table(rs.stack(ev.run(winner.fit.ext, "held"), prepared), w_floor), w_floor
+        )
     if winner is not None and not left:
         say("after the winner no held-out signal exceeds noise: no second effect sought")
     if winner is not None and left:
@@ -244,7 +237,9 @@ def diagnose(
         others = [
             s
             for s in ranked
-            if s is not winner and (tie is None or s.fit.name not in tie["effects"])
+            if s is not winner
+            and s.gain > 0.02
+            and (tie is None or s.fit.name not in tie["effects"])
         ]
         for s in others[: opts.second]:
             both = [*w_cands, *s.fit.candidates]
@@ -335,6 +330,36 @@ def diagnose(
         f"{rb:.4g} -> {ra:.4g}; wrote {out}/report.md, rover.yaml ({elapsed:.0f}s)"
     )
     return result
+
+
+def replay_floor(
+    cfg: RoverConfig,
+    prepared: list[PreparedLog],
+    windows: list[Window],
+    sensor_noise: dict[str, float],
+    st: ReplaySettings,
+) -> dict[str, float]:
+    """Per-signal RMS residual a perfect model leaves: the model replays its own twins.
+
+    Twins are made only for the logs ``windows`` use (the others keep their place).
+    """
+    rng = np.random.default_rng(0)
+    res = rs.resolutions(prepared)
+    used = {w.log_index for w in windows}
+    twins = [
+        prepare(rs.twin_log(p, cfg, sensor_noise, res, rng), cfg, p.name + " twin", st)
+        if i in used
+        else p
+        for i, p in enumerate(prepared)
+    ]
+    tw = rs.stack(Replayer(cfg, st).run(twins, windows), twins)
+    out = {}
+    for j, sname in enumerate(SIGNALS):
+        col = tw.resid[:, j]
+        col = col[np.isfinite(col)]
+        floor = float(np.sqrt(np.mean(col**2))) if col.size else 0.0
+        out[sname] = max(floor, sensor_noise[sname])
+    return out
 
 
 def _unexplained(table: dict[str, dict[str, rs.Cell]], noise: dict[str, float]) -> list[str]:
