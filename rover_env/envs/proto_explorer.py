@@ -730,6 +730,13 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
     two agree to ~1e-16 m over a drive, see ``rover_env.sim.fast``),
     ``render_mode`` (None | "rgb_array" | "human"), ``width``, ``height``.
 
+    ## Vector environment
+    ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")`` (both ids) gives
+    :class:`rover_env.envs.vector.ProtoExplorerVectorEnv`: N rovers stepped together on
+    ``mujoco.batch`` with the compiled tire plugin, equal rover for rover to N of these envs
+    with ``backend="plugin"`` (next-step autoreset, time limit included). For
+    stable-baselines3: ``rover_env.training.vec_adapter.GymnasiumVecEnv``.
+
     ## Version history
     * v0: initial release.
     """
