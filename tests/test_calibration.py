@@ -225,3 +225,22 @@ def test_make_logs_cli(tmp_path: Path) -> None:
     }
     with pytest.raises(SystemExit):
         main(["make-logs", "--out", str(out), "--pose-rate", "2", "--pose-end-only"])
+
+
+def test_environment_runs_with_extensions() -> None:
+    import gymnasium as gym
+
+    import rover_env
+
+    gym.register_envs(rover_env)
+    for ext, backend in [
+        ({"slope": {"deg": 3.0}}, "plugin"),
+        ({"combined_slip": {"on": 1.0}}, "numpy"),
+    ]:
+        env = gym.make("rover_env/ProtoExplorer-v0", rover=RoverConfig(extensions=ext))
+        obs, _ = env.reset(seed=0)
+        for _ in range(3):
+            obs, *_ = env.step(env.action_space.sample())
+        assert env.unwrapped.sim.backend == backend  # type: ignore[attr-defined]
+        assert np.all(np.isfinite(obs))
+        env.close()

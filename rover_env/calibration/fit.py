@@ -87,6 +87,8 @@ class Fit:
     ext: Extensions
     seconds: float
     which: str
+    bias: Array | None = None
+    """Replay bias removed from x (diagnose's bias correction), if estimated."""
 
     @property
     def name(self) -> str:

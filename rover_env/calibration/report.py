@@ -194,8 +194,10 @@ def write_report(
         " Jacobian with chosen steps, a handful of replays per candidate); residuals scaled per signal by the"
         " larger of the baseline training RMS and the sensor noise. 95 % intervals: cluster-robust (windows as"
         " clusters) sandwich covariance, Student t.",
-        f"- Decision: named only if the held-out error falls by ≥ {100 * opts.min_gain:.0f} % with a one-sided"
-        f" Wilcoxon signed-rank test over held-out windows at p < {opts.alpha:g} and the training BIC falls"
+        f"- Decision: named only if the held-out error falls by ≥ {100 * opts.min_gain:.0f} % (geometric mean over"
+        " held-out windows of the per-window ratio, so that a few very sensitive windows do not decide alone)"
+        f" with a one-sided Wilcoxon signed-rank test of the per-window log ratios at p < {opts.alpha:g} and the"
+        " training BIC falls"
         " (windows as observations). A runner-up not worse than the winner at p < "
         f"{opts.tie_alpha:g} is reported as a tie. Second effect by forward selection under the same rules.",
         f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay, {result['seconds']:.0f} s in all.",
