@@ -387,10 +387,10 @@ class RoverSim:
 
     def _check(self) -> None:
         d = self.data
-        warned = [
-            mujoco.mjtWarning(i).name for i in range(len(d.warning)) if d.warning[i].number > 0
-        ]
-        if warned:
+        if d.warning.number.any():  # one vectorised read; names only when something is wrong
+            warned = [
+                mujoco.mjtWarning(i).name for i in range(len(d.warning)) if d.warning[i].number > 0
+            ]
             raise SimulationError(f"MuJoCo warning(s) at t={d.time:.3f}s: {', '.join(warned)}")
         if not np.all(np.isfinite(d.qpos)) or not np.all(np.isfinite(d.qvel)):
             raise SimulationError(f"non-finite state at t={d.time:.3f}s")

@@ -17,7 +17,7 @@ import yaml
 from rover_env.config import ConfigError, configs_dir
 
 ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu", "gelu", "silu")
-VEC_ENVS = ("subproc", "dummy")
+VEC_ENVS = ("subproc", "dummy", "batch")
 POLICIES = ("MlpPolicy",)
 
 
