@@ -215,17 +215,46 @@ def main() -> int:
     ap.add_argument("--work", default="out/bench_diagnose")
     ap.add_argument("--out", default="docs/calibration")
     ap.add_argument("--only", default=None, help="run cases whose tag contains this text")
+    ap.add_argument("--resume", action="store_true", help="keep the cases in OUT/matrix.json")
     args = ap.parse_args()
     root = Path(args.work)
     rows: list[dict[str, Any]] = []
-    t0 = time.perf_counter()
+    if args.resume and (Path(args.out) / "matrix.json").is_file():
+        rows = json.loads((Path(args.out) / "matrix.json").read_text())
+    t_prev = sum(r["make_logs_s"] + r["diagnose_s"] + r["followup_s"] for r in rows)
+    t0 = time.perf_counter() - t_prev
     todo = cases(args.quick)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     for i, c in enumerate(todo, 1):
         if args.only and args.only not in json.dumps(c):
             continue
-        row = run_case(c, root)
+        if any(
+            r["seed"] == c["seed"] and r["truth"] == (c["effects"] or c.get("truth", "none"))
+            for r in rows
+        ):
+            continue  # --resume: done already
+        try:
+            row = run_case(c, root)
+        except Exception as exc:  # record and go on: one broken case must not stop the matrix
+            row = {
+                "case": "+".join(c["effects"]) or c.get("truth", "none"),
+                "kind": c["kind"],
+                "seed": c["seed"],
+                "truth": c["effects"] or c.get("truth", "none"),
+                "named": [],
+                "tie": None,
+                "followup_plan": None,
+                "first_named": [],
+                "main_signal": "error",
+                "main_reduction": 0.0,
+                "unexplained": [],
+                "make_logs_s": 0.0,
+                "diagnose_s": 0.0,
+                "followup_s": 0.0,
+                "fits": {},
+                "error": f"{type(exc).__name__}: {exc}",
+            }
         rows.append(row)
         print(
             f"[{i}/{len(todo)} {time.perf_counter() - t0:6.0f}s] {row['case']} seed {row['seed']}:"

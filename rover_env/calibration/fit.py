@@ -37,6 +37,8 @@ from rover_env.calibration.replay import (
 )
 from rover_env.calibration.residuals import residual_vector, window_slices
 from rover_env.config import RoverConfig
+from rover_env.effects import EffectError
+from rover_env.sim.simulator import SimulationError
 
 Array = NDArray[np.float64]
 
@@ -167,11 +169,19 @@ def fit(
     hi = np.concatenate([c.hi for c in free])
     x0 = np.concatenate([c.off for c in free]) if x_start is None else np.array(x_start)
     nfev = 0
+    size = 0
 
     def fun(x: Array) -> Array:
-        nonlocal nfev
+        nonlocal nfev, size
         nfev += 1
-        return ev.vector(merge(fixed, _to_ext(free, x)), which)
+        try:
+            r = ev.vector(merge(fixed, _to_ext(free, x)), which)
+        except (EffectError, SimulationError) as exc:
+            # A value the model cannot take (or that makes it unstable): a wall, not a crash.
+            ev.log(f"  {_to_ext(free, x)}: {exc}; treated as a very poor fit")
+            return np.full(size or ev.vector(fixed, which).size, 1e3)
+        size = r.size
+        return r
 
     if probe and x_start is None and len(free) == 1 and free[0].probe:
         # Effects with no gradient at "off" (a torque limit never reached) or a strongly

@@ -251,7 +251,7 @@ class RollingRadius(Effect):
 
     name = "rolling_radius"
     params = (
-        Param("fraction", "-", -0.25, 0.1, 0.0, "change of r_e at static load", moderate=-0.08),
+        Param("fraction", "-", -0.2, 0.1, 0.0, "change of r_e at static load", moderate=-0.08),
     )
 
     def apply_config(self, cfg: RoverConfig) -> RoverConfig:
