@@ -83,6 +83,18 @@ def cases(quick: bool) -> list[dict[str, Any]]:
     return out
 
 
+def planned(quick: bool) -> list[dict[str, Any]]:
+    """The cases to run: the quick subset first, then (full matrix) the rest by priority."""
+    first = cases(True)
+    if quick:
+        return first
+    key = {json.dumps(c, sort_keys=True) for c in first}
+    rest = [c for c in cases(False) if json.dumps(c, sort_keys=True) not in key]
+    order = {"clean": 0, "moderate": 1, "pair": 2, "outside": 3, "weak": 4}
+    rest.sort(key=lambda c: (order[c["kind"]], c["seed"]))
+    return first + rest
+
+
 def _truth_value(effects: dict[str, dict[str, float]], name: str) -> tuple[str, float]:
     param = LEVELS[name][0]
     return param, effects[name][param]
@@ -133,6 +145,7 @@ def run_case(case: dict[str, Any], root: Path) -> dict[str, Any]:
         "first_named": res["named"],
         "main_signal": final["main_signal"],
         "main_reduction": final["main_reduction"],
+        "main_reduction_median": final.get("main_reduction_median_window", float("nan")),
         "unexplained": final["unexplained"],
         "make_logs_s": t1 - t0,
         "diagnose_s": t2 - t1,
@@ -149,7 +162,7 @@ def run_case(case: dict[str, Any], root: Path) -> dict[str, Any]:
     return row
 
 
-def summarise(rows: list[dict[str, Any]], total_s: float, quick: bool) -> str:
+def summarise(rows: list[dict[str, Any]], total_s: float, quick: bool, planned_n: int) -> str:
     def share(xs: list[bool]) -> str:
         return f"{sum(xs)}/{len(xs)}" if xs else "–"
 
@@ -164,6 +177,7 @@ def summarise(rows: list[dict[str, Any]], total_s: float, quick: bool) -> str:
             if f["lo"] == f["lo"] and f["lo"] != f["hi"]:
                 covered.append(f["lo"] <= f["truth"] <= f["hi"])
     red = [r["main_reduction"] >= 0.7 for r in mod]
+    red_med = [r.get("main_reduction_median", 0.0) >= 0.7 for r in mod]
     clean = [not r["named"] for r in rows if r["kind"] == "clean"]
     pairs = [all(e in r["named"] for e in r["truth"]) for r in rows if r["kind"] == "pair"]
     outside = [bool(r["unexplained"]) for r in rows if r["kind"] == "outside"]
@@ -173,14 +187,18 @@ def summarise(rows: list[dict[str, Any]], total_s: float, quick: bool) -> str:
         "",
         f"Run by `benchmarks/bench_diagnose.py{' --quick' if quick else ''}`: each case 3 drives of 50 s"
         " (2 training, 1 held out) from `make-logs` with hidden effects; `diagnose` sees only the logs."
-        f" Total time {total_s / 60:.1f} min on 2 shared cores ({len(rows)} cases).",
+        f" Total time {total_s / 60:.1f} min on 2 shared cores (one case at a time, CPU shared with a"
+        f" training run); {len(rows)} of the {planned_n} planned cases run"
+        f" (the full matrix of the issue has {len(cases(False))}).",
         "",
         "## Acceptance figures",
         "",
         f"- Moderate: right effect named (or a tie including it resolved by the proposed drive): {share(named_ok)}",
         f"- Moderate: fitted value within 20 % of truth: {share(within)}",
         f"- Moderate: 95 % intervals covering the truth: {share(covered)}",
-        f"- Moderate: held-out RMS of the main residual reduced ≥ 70 %: {share(red)}",
+        f"- Moderate: held-out RMS of the main residual reduced ≥ 70 %: {share(red)} pooled over the"
+        f" held-out drive; {share(red_med)} for the median window (a few pivot-turn windows replay"
+        " chaotically and can hold most of the pooled error)",
         f"- Weak: named {share(weak)}",
         f"- Clean: nothing named: {share(clean)}",
         f"- Pairs: both named: {share(pairs)}",
@@ -203,7 +221,8 @@ def summarise(rows: list[dict[str, Any]], total_s: float, quick: bool) -> str:
         )
         L.append(
             f"| {r['case']} | {r['seed']} | {', '.join(r['named']) or '—'} | {tie} | {fits} |"
-            f" {r['main_signal']} {100 * r['main_reduction']:.0f} % | {', '.join(r['unexplained']) or '—'} |"
+            f" {r['main_signal']} {100 * r['main_reduction']:.0f} % (median window"
+            f" {100 * r.get('main_reduction_median', float('nan')):.0f} %) | {', '.join(r['unexplained']) or '—'} |"
             f" {r['diagnose_s'] + r['followup_s']:.0f} |"
         )
     return "\n".join(L) + "\n"
@@ -223,7 +242,7 @@ def main() -> int:
         rows = json.loads((Path(args.out) / "matrix.json").read_text())
     t_prev = sum(r["make_logs_s"] + r["diagnose_s"] + r["followup_s"] for r in rows)
     t0 = time.perf_counter() - t_prev
-    todo = cases(args.quick)
+    todo = planned(args.quick)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     for i, c in enumerate(todo, 1):
@@ -263,7 +282,7 @@ def main() -> int:
         )
         total = time.perf_counter() - t0
         (out / "matrix.json").write_text(json.dumps(rows, indent=1, default=float))
-        (out / "matrix.md").write_text(summarise(rows, total, args.quick))
+        (out / "matrix.md").write_text(summarise(rows, total, args.quick, len(todo)))
     return 0
 
 

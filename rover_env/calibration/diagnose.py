@@ -49,6 +49,7 @@ from rover_env.calibration.replay import (
     Replayer,
     ReplaySettings,
     Window,
+    WindowResult,
     make_windows,
     prepare,
     replay_config,
@@ -312,6 +313,9 @@ def diagnose(
     table_held_after = rs.table(rs.stack(held_final, prepared), final_floor)
     main_sig = max(SIGNALS, key=lambda s: np.nan_to_num(table_held_before[s]["all"].ratio))
     rb, ra = table_held_before[main_sig]["all"].rms, table_held_after[main_sig]["all"].rms
+    jm = SIGNALS.index(main_sig)
+    mb = _median_window_rms(base_held, jm)
+    ma = _median_window_rms(held_final, jm)
     elapsed = time.perf_counter() - t_start
     named = [n for s in chosen for n in (c.name for c in s.fit.candidates)]
     result: dict[str, Any] = {
@@ -326,6 +330,9 @@ def diagnose(
         "main_rms_before": rb,
         "main_rms_after": ra,
         "main_reduction": 1.0 - ra / rb if rb > 0 else 0.0,
+        "main_median_window_rms_before": mb,
+        "main_median_window_rms_after": ma,
+        "main_reduction_median_window": 1.0 - ma / mb if mb > 0 else 0.0,
         "noise": noise,
         "sensor_noise": sensor_noise,
         "seconds": elapsed,
@@ -408,6 +415,16 @@ def bias_correct(
     f.bias = bias
     f.x, f.se, f.ci_lo, f.ci_hi = x, se, x - half, x + half
     f.ext = merge(fixed, *parts)
+
+
+def _median_window_rms(results: list[WindowResult], j: int) -> float:
+    """Median over windows of one signal's RMS residual (robust to a few chaotic windows)."""
+    vals = []
+    for r in results:
+        col = r.resid[:, j] if j < 11 else r.pose_resid[:, j - 11]
+        if col.size:
+            vals.append(float(np.sqrt(np.mean(col**2))))
+    return float(np.median(vals)) if vals else float("nan")
 
 
 def replay_floor(

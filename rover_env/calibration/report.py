@@ -177,7 +177,9 @@ def write_report(
         "",
         f"Main residual ({result['main_signal']}, largest held-out ratio to noise): RMS "
         f"{_f(result['main_rms_before'])} → {_f(result['main_rms_after'])} "
-        f"({100 * result['main_reduction']:.0f} % reduction; {100 * (1 - result['main_reduction']):.0f} % of it remains).",
+        f"({100 * result['main_reduction']:.0f} % reduction; {100 * (1 - result['main_reduction']):.0f} % of it remains);"
+        f" median over held-out windows {_f(result['main_median_window_rms_before'])} →"
+        f" {_f(result['main_median_window_rms_after'])} ({100 * result['main_reduction_median_window']:.0f} % reduction).",
         "",
         f"Updated configuration: `{Path(result['config']).name}` (loads in `RoverSim` and the environments as is).",
         "",
