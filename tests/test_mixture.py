@@ -96,3 +96,22 @@ def test_zero_residual_on_slip_pi_drives_exactly_like_slip_pi() -> None:
     assert np.ptp(actions[0]) > 0.01  # the PI acted (the wheel meets the box)
     with pytest.raises(ValueError, match="classical controller"):
         Residual("ppo:x", 0.5)
+
+
+def test_shipped_agent_loads_and_drives() -> None:
+    """The agent in agents/scenario-mix: a residual on the slip PI, read from its config."""
+    pytest.importorskip("stable_baselines3")
+    from pathlib import Path
+
+    from rover_env.benchmark.run import Job, run_jobs
+
+    agent = Path(__file__).resolve().parent.parent / "agents" / "scenario-mix"
+    if not agent.is_dir():
+        pytest.skip("no shipped agent in this checkout")
+    from rover_env.benchmark.policy import PPOController
+
+    ctrl = PPOController(agent)
+    assert ctrl.residual is not None and ctrl.residual.scale == 0.5
+    assert ctrl.normalizer is not None
+    (row,) = run_jobs([Job(f"ppo:{agent}", "split-mu", SPLITS["test"].start, duration=2.0)])
+    assert np.isfinite(row["mean_abs_slip"]) and row["distance_made_good"] > 0.1
