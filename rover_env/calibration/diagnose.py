@@ -38,6 +38,7 @@ from scipy import stats
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import (
     Candidate,
+    Extensions,
     catalogue,
     merge,
     separating_plan,
@@ -67,7 +68,7 @@ class Options:
     min_gain: float = 0.10
     """Smallest relative held-out improvement that can name an effect."""
     tie_alpha: float = 0.05
-    numpy_every: int = 4
+    numpy_every: int = 2
     """Numpy-only candidates are fitted on every n-th training window (they are ~20x slower)."""
     max_nfev: int = 4
     second: int = 2
@@ -189,22 +190,29 @@ def diagnose(
     # 3. fit candidates
     cands = [c for c in catalogue(opts.candidates) if c.name not in base.extensions]
     held0 = rs.window_losses(base_held, noise)  # held-out: in units of the replay floor
-    cost0 = {
-        k: float(np.sum(rs.window_losses(ev.run({}, k), scale))) for k in ("train", "train_sub")
-    }
     scored: list[Scored] = []
 
-    def score(f: Fit, ref_held: Array, ref_cost: float, k: int | None = None) -> Scored:
+    def score(f: Fit, ref_held: Array, ref_ext: Extensions, k: int | None = None) -> Scored:
         hl = rs.window_losses(ev.run(f.ext, "held"), noise)
         gain = _gain(ref_held, hl)
         n = len(sets[f.which])
-        d_aic, d_bic = information_criteria(f.cost, ref_cost, n, f.k if k is None else k)
+        # Training information criteria with windows as observations, each with its own
+        # error scale (so a few chaotic windows do not decide): sum of per-window log ratios.
+        tl = rs.window_losses(ev.run(f.ext, f.which), scale)
+        t0 = rs.window_losses(ev.run(ref_ext, f.which), scale)
+        d_aic, d_bic = information_criteria(
+            float(np.sum(_log_ratios(t0, tl))), n, f.k if k is None else k
+        )
         return Scored(f, float(hl.sum()), hl, gain, _p_improved(ref_held, hl), d_aic, d_bic, n)
 
     for c in cands:
-        which = "train" if plugin_capable(c) else "train_sub"
-        f = fit(ev, [c], which, max_nfev=opts.max_nfev if c.plugin_ok else opts.max_nfev - 1)
-        s = score(f, held0, cost0[which])
+        # Numpy-only effects cost ~20x a plugin replay: a continuous one is fitted on a
+        # subset of the training windows; a switch needs one replay, on all of them.
+        which = "train" if plugin_capable(c) or c.discrete else "train_sub"
+        f = fit(
+            ev, [c], which, max_nfev=opts.max_nfev if c.plugin_ok else max(2, opts.max_nfev - 2)
+        )
+        s = score(f, held0, {})
         s.significant = s.gain >= opts.min_gain and s.p < opts.alpha and s.d_bic < 0
         scored.append(s)
         say(
@@ -238,6 +246,7 @@ def diagnose(
     chosen: list[Scored] = [winner] if winner is not None else []
     tried: list[Scored] = []
     left: list[str] = []
+    w_floor = noise
     if winner is not None:
         # Bias of the fitted values through the replay (parametric bootstrap on twins).
         bias_correct(ev, winner, sensor_noise, st)
@@ -266,12 +275,8 @@ def diagnose(
             which = "train" if all(plugin_capable(c) for c in both) else "train_sub"
             xs = np.concatenate([winner.fit.x, s.fit.x])
             x0 = xs if xs.size else None
-            if which == winner.fit.which:
-                ref_cost = winner.fit.cost
-            else:
-                ref_cost = float(np.sum(rs.window_losses(ev.run(winner.fit.ext, which), scale)))
             f2 = fit(ev, both, which, x_start=x0, max_nfev=max(3, opts.max_nfev - 2), probe=False)
-            s2 = score(f2, winner.held_losses, ref_cost, k=s.fit.k)
+            s2 = score(f2, winner.held_losses, winner.fit.ext, k=s.fit.k)
             s2.significant = s2.gain >= opts.min_gain and s2.p < opts.alpha and s2.d_bic < 0
             tried.append(s2)
             say(
@@ -305,7 +310,9 @@ def diagnose(
     table_held_before = rs.table(rs.stack(base_held, prepared), noise)
     # The updated model's own floor (an effect can make the replay itself less exact).
     final_floor = noise
-    if chosen:
+    if chosen == [winner] and winner is not None:
+        final_floor = w_floor
+    elif chosen:
         ff = replay_floor(
             ev.config(merge(*(s.fit.ext for s in chosen))), prepared, held_w, sensor_noise, st
         )

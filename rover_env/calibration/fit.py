@@ -245,7 +245,10 @@ def fit(
     )
 
 
-def information_criteria(cost: float, cost0: float, n: int, k: int) -> tuple[float, float]:
-    """(delta AIC, delta BIC) against the baseline, with windows as the n observations."""
-    ratio = math.log(max(cost, 1e-300) / max(cost0, 1e-300))
-    return n * ratio + 2 * k, n * ratio + k * math.log(max(n, 2))
+def information_criteria(sum_log_ratio: float, n: int, k: int) -> tuple[float, float]:
+    """(delta AIC, delta BIC) against the reference model, windows as the n observations.
+
+    ``sum_log_ratio`` is the sum over windows of log(loss / reference loss): the change of
+    -2 log likelihood when each window has its own Gaussian error scale (profiled out).
+    """
+    return sum_log_ratio + 2 * k, sum_log_ratio + k * math.log(max(n, 2))

@@ -199,7 +199,7 @@ def write_report(
         f"- Decision: named only if the held-out error falls by ≥ {100 * opts.min_gain:.0f} % (geometric mean over"
         " held-out windows of the per-window ratio, so that a few very sensitive windows do not decide alone)"
         f" with a one-sided Wilcoxon signed-rank test of the per-window log ratios at p < {opts.alpha:g} and the"
-        " training BIC falls"
+        " training BIC falls (windows as observations, each with its own error scale: ΔBIC = Σ log(loss ratio) + k ln n)"
         " (windows as observations). A runner-up not worse than the winner at p < "
         f"{opts.tie_alpha:g} is reported as a tie. Second effect by forward selection under the same rules.",
         f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay, {result['seconds']:.0f} s in all.",
