@@ -235,17 +235,37 @@ def main() -> int:
     ap.add_argument("--out", default="docs/calibration")
     ap.add_argument("--only", default=None, help="run cases whose tag contains this text")
     ap.add_argument("--resume", action="store_true", help="keep the cases in OUT/matrix.json")
+    ap.add_argument(
+        "--shard",
+        default=None,
+        help="K/N: run every N-th planned case starting at K (one process per core), rows to"
+        " OUT/matrix_shard_K.json; --merge then writes matrix.md from all shards",
+    )
+    ap.add_argument("--merge", action="store_true", help="combine OUT/matrix_shard_*.json")
     args = ap.parse_args()
+    if args.merge:
+        return merge(Path(args.out), args.quick)
+    shard_k, shard_n = 0, 1
+    if args.shard:
+        try:
+            shard_k, shard_n = (int(x) for x in args.shard.split("/"))
+        except ValueError:
+            ap.error(f"--shard {args.shard!r}: expected K/N with integers, e.g. 0/2")
+        if not 0 <= shard_k < shard_n:
+            ap.error(f"--shard {args.shard!r}: need 0 <= K < N")
+    json_name = f"matrix_shard_{shard_k}.json" if args.shard else "matrix.json"
     root = Path(args.work)
     rows: list[dict[str, Any]] = []
-    if args.resume and (Path(args.out) / "matrix.json").is_file():
-        rows = json.loads((Path(args.out) / "matrix.json").read_text())
+    if args.resume and (Path(args.out) / json_name).is_file():
+        rows = json.loads((Path(args.out) / json_name).read_text())
     t_prev = sum(r["make_logs_s"] + r["diagnose_s"] + r["followup_s"] for r in rows)
     t0 = time.perf_counter() - t_prev
     todo = planned(args.quick)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     for i, c in enumerate(todo, 1):
+        if (i - 1) % shard_n != shard_k:
+            continue
         if args.only and args.only not in json.dumps(c):
             continue
         if any(
@@ -281,8 +301,33 @@ def main() -> int:
             flush=True,
         )
         total = time.perf_counter() - t0
-        (out / "matrix.json").write_text(json.dumps(rows, indent=1, default=float))
-        (out / "matrix.md").write_text(summarise(rows, total, args.quick, len(todo)))
+        (out / json_name).write_text(json.dumps(rows, indent=1, default=float))
+        if not args.shard:
+            (out / "matrix.md").write_text(summarise(rows, total, args.quick, len(todo)))
+    return 0
+
+
+def merge(out: Path, quick: bool) -> int:
+    """matrix.json and matrix.md from the shards' rows, in the planned order."""
+    rows: list[dict[str, Any]] = []
+    for f in sorted(out.glob("matrix_shard_*.json")):
+        rows.extend(json.loads(f.read_text()))
+    if not rows:
+        raise SystemExit(f"--merge: no matrix_shard_*.json in {out}")
+    todo = planned(quick)
+
+    def rank(r: dict[str, Any]) -> int:
+        for i, c in enumerate(todo):
+            if r["seed"] == c["seed"] and r["truth"] == (c["effects"] or c.get("truth", "none")):
+                return i
+        return len(todo)
+
+    rows.sort(key=rank)
+    # Shards ran side by side: wall time is the slowest shard's, CPU time the sum.
+    total = sum(r["make_logs_s"] + r["diagnose_s"] + r["followup_s"] for r in rows)
+    (out / "matrix.json").write_text(json.dumps(rows, indent=1, default=float))
+    (out / "matrix.md").write_text(summarise(rows, total, quick, len(todo)))
+    print(f"merged {len(rows)} cases into {out / 'matrix.md'}")
     return 0
 
 

@@ -13,7 +13,7 @@ from gymnasium.utils.env_checker import check_env
 
 import rover_env
 from rover_env.config import FrictionPatch, TerrainConfig
-from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
+from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv, RewardWeights
 
 gym.register_envs(rover_env)
 ID = "rover_env/ProtoExplorer-v0"
@@ -112,6 +112,22 @@ def test_slip_term_rises_on_a_low_friction_patch() -> None:
         assert (info["wheel_mu"][0, 0] == 0.05) == bool(patches)  # 1L is on the ice
         slip.append(np.mean(terms))
     assert slip[1] < slip[0] - 0.02, slip
+
+
+def test_log_slip_penalty_is_linear_below_its_scale_and_logarithmic_above() -> None:
+    w = RewardWeights(slip=2.0, slip_scale=0.01)
+    assert w.slip_penalty(1e-5) == pytest.approx(1e-5, rel=1e-3)
+    assert w.slip_penalty(1.0) == pytest.approx(0.01 * np.log(101.0))
+    assert RewardWeights().slip_penalty(0.7) == 0.7  # default: linear
+    with pytest.raises(ValueError, match="slip_scale"):
+        RewardWeights(slip_scale=-1.0)
+    env = ProtoExplorerEnv(reward_weights={"slip": 2.0, "slip_scale": 0.01}, sensor_noise="none")
+    env.reset(seed=0)
+    for _ in range(5):
+        _, _, _, _, info = env.step(np.array([1.0, -1.0, 1.0, -1.0], dtype=np.float32))
+    m = info["slip_true_mean_abs"]
+    assert m > 0.01  # a spin on the spot: beyond the scale, where the two forms differ
+    assert info["reward_slip"] == pytest.approx(-2.0 * 0.01 * np.log1p(m / 0.01))
 
 
 def test_info_has_every_reward_term_and_privileged_truth_only_there() -> None:

@@ -59,13 +59,25 @@ OBS_NAMES: tuple[str, ...] = (
 @dataclasses.dataclass(frozen=True)
 class RewardWeights:
     """reward = tracking * (exp(-(e_v/sigma_v)^2) + exp(-(e_w/sigma_w)^2)) / 2
-    - slip * mean |S| - energy * electrical power [W]."""
+    - slip * g(mean |S|) - energy * electrical power [W], with g(m) = m, or
+    g(m) = slip_scale * ln(1 + m / slip_scale) when ``slip_scale`` > 0."""
 
     tracking: float = 1.0
     slip: float = 1.0
     energy: float = 0.02
     sigma_speed: float = 0.05
     sigma_yaw_rate: float = 0.1
+    slip_scale: float = 0.0
+    """0: the slip penalty is linear in mean |S|. > 0: linear below this slip, logarithmic
+    above, so that a wheel spinning at S = -1 (a stuck rover) does not outweigh by a factor of
+    hundreds the few 1e-3 of slip that separate controllers on ordinary ground; training
+    signals from both then have comparable size."""
+
+    def slip_penalty(self, mean_abs_slip: float) -> float:
+        """g(mean |S|) (see the class docstring), before the weight."""
+        if self.slip_scale > 0:
+            return self.slip_scale * math.log1p(mean_abs_slip / self.slip_scale)
+        return mean_abs_slip
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -577,7 +589,7 @@ class RoverEpisode:
             * 0.5
             * (math.exp(-((e_v / w.sigma_speed) ** 2)) + math.exp(-((e_w / w.sigma_yaw_rate) ** 2)))
         )
-        r_slip = -w.slip * mean_abs_slip
+        r_slip = -w.slip * w.slip_penalty(mean_abs_slip)
         energy = float(sums.energy[row])
         r_energy = -w.energy * energy / self.control_dt
         reward = r_track + r_slip + r_energy
@@ -695,10 +707,12 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
     Each step: ``reward = reward_tracking + reward_slip + reward_energy`` with
     ``reward_tracking = w_track * (exp(-(e_v/0.05)^2) + exp(-(e_w/0.1)^2)) / 2``,
     ``reward_slip = -w_slip * mean |S|`` over the driven wheels (the simulator's true slip,
-    or the estimate with ``slip_source="estimate"``) and ``reward_energy = -w_energy * P``
+    or the estimate with ``slip_source="estimate"``; with ``slip_scale`` s > 0 the penalty is
+    ``-w_slip * s * ln(1 + mean |S| / s)``, linear below s and logarithmic above) and
+    ``reward_energy = -w_energy * P``
     with P the motors' electrical power (W). e_v, e_w: RMS over the step of commanded minus
     actual forward speed (m/s) and yaw rate (rad/s) of the middle segment. Weights:
-    ``reward_weights`` (``RewardWeights``, default 1, 1, 0.02).
+    ``reward_weights`` (``RewardWeights``, default 1, 1, 0.02; slip_scale 0: linear).
 
     ## Starting state
     At rest at the arena centre, heading uniform in [-pi, pi), joints straight, after 0.5 s
