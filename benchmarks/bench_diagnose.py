@@ -187,8 +187,9 @@ def summarise(rows: list[dict[str, Any]], total_s: float, quick: bool, planned_n
         "",
         f"Run by `benchmarks/bench_diagnose.py{' --quick' if quick else ''}`: each case 3 drives of 50 s"
         " (2 training, 1 held out) from `make-logs` with hidden effects; `diagnose` sees only the logs."
-        f" Total time {total_s / 60:.1f} min on 2 shared cores (one case at a time, CPU shared with a"
-        f" training run); {len(rows)} of the {planned_n} planned cases run"
+        f" Total time {total_s / 60:.1f} min summed over cases (wall time per case, one thread each;"
+        " with `--shard` two cases ran side by side on the 2 cores, often beside other work);"
+        f" {len(rows)} of the {planned_n} planned cases run"
         f" (the full matrix of the issue has {len(cases(False))}).",
         "",
         "## Acceptance figures",
