@@ -241,3 +241,29 @@ def test_env_controller_input_matches_observation() -> None:
     assert ci.imu_gyro is not None and ci.imu_gyro.shape == (3, 3)
     assert env.controller_input().imu_gyro is None
     env.close()
+
+
+def test_speed_hold_gives_back_lost_speed_bounded_held_in_turns_cleared_when_stuck() -> None:
+    cfg = dataclasses.replace(PLAIN, speed_hold_gain=1.0, speed_hold_limit=0.05)
+    pi = SlipPI(ROVER, cfg, dt=0.1)
+
+    def at(t: float, v_hat: float, w: float = W, flags: int = 0) -> ControllerInput:
+        est = dataclasses.replace(estimate([0.0] * 4, flags, t), seg_velocity=np.zeros((3, 3)))
+        est.seg_velocity[1, 0] = v_hat
+        return ControllerInput(
+            t=t, estimate=est, theta=np.zeros(5), speed_command=V, yaw_rate_command=w
+        )
+
+    pi.act(at(0.0, 0.98 * V))  # the first call integrates over the nominal dt = 0.1 s
+    out = pi.act(at(0.1, 0.98 * V))  # 2 % slow for 2 x 0.1 s at gain 1/s: +0.4 % everywhere
+    np.testing.assert_allclose(out, ff() * (1 + 0.004), rtol=1e-9)
+    for k in range(2, 40):
+        out = pi.act(at(0.1 * k, 0.5 * V))
+    np.testing.assert_allclose(out, ff() * 1.05, rtol=1e-9)  # bounded by speed_hold_limit
+    pi.act(at(4.0, 0.5 * V, w=0.2))  # a turn: held, not integrated
+    assert pi.speed_hold == pytest.approx(0.05)
+    pi.act(at(4.1, 1.2 * V))
+    assert pi.speed_hold == pytest.approx(0.05 - 0.2 * 0.1)  # too fast: wound back
+    for k in range(42, 70):  # standing still while driven: stuck after stuck_time
+        pi.act(at(0.1 * k, 0.0, flags=FLAG_STANDSTILL))
+    assert pi.last_stuck.any() and pi.speed_hold == 0.0

@@ -58,6 +58,14 @@ Why each piece is there:
   contradicting the chain, standstill, slow wheel) the integrator holds its value and the
   proportional term is off; so does it while the wheel's feed-forward is zero (nothing to
   correct, and a stop must not wind anything up).
+* Speed hold (``speed_hold_gain`` > 0): trimming a wheel's slip also trims the thrust that
+  slip carried, so with the feed-forward alone a PI-corrected rover runs a fraction of a per
+  cent slower than the open loop. A slow integrator on the relative error of the estimated
+  forward speed of the middle segment adds one correction to every wheel (bounded by
+  ``speed_hold_limit``), so the loop gives that speed back. It only integrates in straight
+  driving with a reliable estimate and no stuck wheel (a turn's estimate carries the chain's
+  side-slip, a stuck rover must not be pushed), holds its value otherwise, and is cleared
+  when a wheel is stuck. Relative wheel corrections are unchanged by it.
 * Stuck detector, the one exception: when the rover has stood still (FLAG_STANDSTILL, no
   warm-up or free-wheel flag) for ``stuck_time`` seconds while a wheel is driven, that wheel
   makes no progress whatever its speed, so its slip is taken as -1 (eq. 10 divides by the
@@ -129,6 +137,11 @@ class SlipPIConfig:
     """Seconds of standstill while driven before a wheel counts as stuck (0: never)."""
     common_mode_leak_time: float = 2.0
     """Time constant (s) of the common-mode leak (module docstring; 0: no leak)."""
+    speed_hold_gain: float = 0.0
+    """Integral gain (1/s) of the speed hold: common correction per unit relative error of
+    the estimated forward speed per second (module docstring; 0: off)."""
+    speed_hold_limit: float = 0.05
+    """Largest |common correction| the speed hold may add to every wheel (1)."""
 
     def __post_init__(self) -> None:
         for name in (
@@ -141,6 +154,8 @@ class SlipPIConfig:
             "retry_interval",
             "stuck_time",
             "common_mode_leak_time",
+            "speed_hold_gain",
+            "speed_hold_limit",
         ):
             v = getattr(self, name)
             if isinstance(v, bool) or not (math.isfinite(v) and v >= 0):
@@ -231,6 +246,8 @@ class SlipPI(Controller):
         self.last_active = np.zeros(4, dtype=bool)
         self.last_stuck = np.zeros(4, dtype=bool)
         self.last_correction = np.zeros(4)
+        self.speed_hold = 0.0
+        """Common relative correction of all wheels from the speed hold."""
 
     # ------------------------------------------------------------------ pieces
     def measured_slip(self, obs: ControllerInput) -> Array:
@@ -299,7 +316,8 @@ class SlipPI(Controller):
             common = float(np.median(self.integral[driven]))
             leak = min(1.0, dt / c.common_mode_leak_time) * common
             self.integral = np.where(driven, np.clip(self.integral - leak, lo, hi), self.integral)
-        u = np.clip(c.kp * e + self.integral, lo, hi)
+        self._hold_speed(obs, calm and driven.any() and bool(ok.any()), stuck.any(), dt)
+        u = np.clip(c.kp * e + self.integral + self.speed_hold, lo, hi)
         if c.retry_interval > 0:
             held = (u <= lo) & (stuck | ~ok) & driven
             self._held = np.where(held, self._held + dt, 0.0)
@@ -313,6 +331,21 @@ class SlipPI(Controller):
         return np.asarray(
             np.clip(targets, -self.max_wheel_speed, self.max_wheel_speed), dtype=np.float64
         )
+
+    def _hold_speed(self, obs: ControllerInput, active: bool, stuck: bool, dt: float) -> None:
+        """Integrate the relative error of the estimated forward speed of the middle segment
+        into one correction shared by all wheels (module docstring)."""
+        c = self.cfg
+        if c.speed_hold_gain <= 0 or stuck:
+            self.speed_hold = 0.0
+            return
+        v_cmd = obs.speed_command
+        if not active or abs(v_cmd) < c.speed_floor or obs.yaw_rate_command != 0.0:
+            return  # hold: nothing trustworthy to compare with
+        v_hat = float(np.asarray(obs.estimate.seg_velocity)[1, 0])
+        err = (v_cmd - v_hat) / v_cmd  # > 0: too slow, in either direction of travel
+        lim = c.speed_hold_limit
+        self.speed_hold = float(np.clip(self.speed_hold + c.speed_hold_gain * err * dt, -lim, lim))
 
 
 def replace(cfg: SlipPIConfig, **changes: float | str | bool) -> SlipPIConfig:
