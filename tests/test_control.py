@@ -257,13 +257,16 @@ def test_speed_hold_gives_back_lost_speed_bounded_held_in_turns_cleared_when_stu
     pi.act(at(0.0, 0.98 * V))  # the first call integrates over the nominal dt = 0.1 s
     out = pi.act(at(0.1, 0.98 * V))  # 2 % slow for 2 x 0.1 s at gain 1/s: +0.4 % everywhere
     np.testing.assert_allclose(out, ff() * (1 + 0.004), rtol=1e-9)
-    for k in range(2, 40):
+    for k in range(2, 10):  # 50 % slow: outside speed_hold_window (an obstacle), held
         out = pi.act(at(0.1 * k, 0.5 * V))
+    assert pi.speed_hold == pytest.approx(0.004)
+    for k in range(10, 40):
+        out = pi.act(at(0.1 * k, 0.85 * V))
     np.testing.assert_allclose(out, ff() * 1.05, rtol=1e-9)  # bounded by speed_hold_limit
-    pi.act(at(4.0, 0.5 * V, w=0.2))  # a turn: held, not integrated
+    pi.act(at(4.0, 0.85 * V, w=0.2))  # a turn: held, not integrated
     assert pi.speed_hold == pytest.approx(0.05)
-    pi.act(at(4.1, 1.2 * V))
-    assert pi.speed_hold == pytest.approx(0.05 - 0.2 * 0.1)  # too fast: wound back
+    pi.act(at(4.1, 1.15 * V))
+    assert pi.speed_hold == pytest.approx(0.05 - 0.15 * 0.1)  # too fast: wound back
     for k in range(42, 70):  # standing still while driven: stuck after stuck_time
         pi.act(at(0.1 * k, 0.0, flags=FLAG_STANDSTILL))
     assert pi.last_stuck.any() and pi.speed_hold == 0.0

@@ -64,8 +64,9 @@ Why each piece is there:
   forward speed of the middle segment adds one correction to every wheel (bounded by
   ``speed_hold_limit``), so the loop gives that speed back. It only integrates in straight
   driving with a reliable estimate and no stuck wheel (a turn's estimate carries the chain's
-  side-slip, a stuck rover must not be pushed), holds its value otherwise, and is cleared
-  when a wheel is stuck. Relative wheel corrections are unchanged by it.
+  side-slip, a stuck rover must not be pushed) and a relative error inside
+  ``speed_hold_window`` (a start from rest or a wheel against an obstacle is not a steady
+  deficit), holds its value otherwise, and is cleared when a wheel is stuck. Relative wheel corrections are unchanged by it.
 * Stuck detector, the one exception: when the rover has stood still (FLAG_STANDSTILL, no
   warm-up or free-wheel flag) for ``stuck_time`` seconds while a wheel is driven, that wheel
   makes no progress whatever its speed, so its slip is taken as -1 (eq. 10 divides by the
@@ -142,6 +143,9 @@ class SlipPIConfig:
     the estimated forward speed per second (module docstring; 0: off)."""
     speed_hold_limit: float = 0.05
     """Largest |common correction| the speed hold may add to every wheel (1)."""
+    speed_hold_window: float = 0.2
+    """The speed hold integrates only while |relative speed error| is below this: larger
+    errors are a start from rest, an obstacle or a stuck wheel, not a steady deficit."""
 
     def __post_init__(self) -> None:
         for name in (
@@ -156,6 +160,7 @@ class SlipPIConfig:
             "common_mode_leak_time",
             "speed_hold_gain",
             "speed_hold_limit",
+            "speed_hold_window",
         ):
             v = getattr(self, name)
             if isinstance(v, bool) or not (math.isfinite(v) and v >= 0):
@@ -344,6 +349,8 @@ class SlipPI(Controller):
             return  # hold: nothing trustworthy to compare with
         v_hat = float(np.asarray(obs.estimate.seg_velocity)[1, 0])
         err = (v_cmd - v_hat) / v_cmd  # > 0: too slow, in either direction of travel
+        if abs(err) > c.speed_hold_window:
+            return
         lim = c.speed_hold_limit
         self.speed_hold = float(np.clip(self.speed_hold + c.speed_hold_gain * err * dt, -lim, lim))
 
