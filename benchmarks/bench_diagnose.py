@@ -100,6 +100,23 @@ def _truth_value(effects: dict[str, dict[str, float]], name: str) -> tuple[str, 
     return param, effects[name][param]
 
 
+NOTES_MARK = "\n---\n\n## Notes (by hand"
+
+
+def write_report(path: Path, text: str) -> None:
+    """Write the generated matrix.md, keeping a hand-written notes section already at its end."""
+    old = path.read_text() if path.is_file() else ""
+    i = old.find(NOTES_MARK)
+    path.write_text(text + (old[i:] if i >= 0 else ""))
+
+
+def _same_case(row: dict[str, Any], case: dict[str, Any]) -> bool:
+    """Whether a result row is the planned ``case`` (for --resume and --merge)."""
+    return row["seed"] == case["seed"] and row["truth"] == (
+        case["effects"] or case.get("truth", "none")
+    )
+
+
 def run_case(case: dict[str, Any], root: Path) -> dict[str, Any]:
     eff = case["effects"]
     tag = case["kind"] + "_" + ("+".join(eff) or case.get("truth", "none").replace(" ", ""))
@@ -269,10 +286,7 @@ def main() -> int:
             continue
         if args.only and args.only not in json.dumps(c):
             continue
-        if any(
-            r["seed"] == c["seed"] and r["truth"] == (c["effects"] or c.get("truth", "none"))
-            for r in rows
-        ):
+        if any(_same_case(r, c) for r in rows):
             continue  # --resume: done already
         try:
             row = run_case(c, root)
@@ -304,7 +318,7 @@ def main() -> int:
         total = time.perf_counter() - t0
         (out / json_name).write_text(json.dumps(rows, indent=1, default=float))
         if not args.shard:
-            (out / "matrix.md").write_text(summarise(rows, total, args.quick, len(todo)))
+            write_report(out / "matrix.md", summarise(rows, total, args.quick, len(todo)))
     return 0
 
 
@@ -318,16 +332,13 @@ def merge(out: Path, quick: bool) -> int:
     todo = planned(quick)
 
     def rank(r: dict[str, Any]) -> int:
-        for i, c in enumerate(todo):
-            if r["seed"] == c["seed"] and r["truth"] == (c["effects"] or c.get("truth", "none")):
-                return i
-        return len(todo)
+        return next((i for i, c in enumerate(todo) if _same_case(r, c)), len(todo))
 
     rows.sort(key=rank)
-    # Shards ran side by side: wall time is the slowest shard's, CPU time the sum.
+    # Shards ran side by side, so this sum is CPU time, not the matrix's wall time.
     total = sum(r["make_logs_s"] + r["diagnose_s"] + r["followup_s"] for r in rows)
     (out / "matrix.json").write_text(json.dumps(rows, indent=1, default=float))
-    (out / "matrix.md").write_text(summarise(rows, total, quick, len(todo)))
+    write_report(out / "matrix.md", summarise(rows, total, quick, len(todo)))
     print(f"merged {len(rows)} cases into {out / 'matrix.md'}")
     return 0
 

@@ -64,9 +64,10 @@ Why each piece is there:
   forward speed of the middle segment adds one correction to every wheel (bounded by
   ``speed_hold_limit``), so the loop gives that speed back. It only integrates in straight
   driving with a reliable estimate and no stuck wheel (a turn's estimate carries the chain's
-  side-slip, a stuck rover must not be pushed) and a relative error inside
-  ``speed_hold_window`` (a start from rest or a wheel against an obstacle is not a steady
-  deficit), holds its value otherwise, and is cleared when a wheel is stuck. Relative wheel corrections are unchanged by it.
+  side-slip, a stuck rover must not be pushed), above ``speed_floor`` and with a relative
+  error inside ``speed_hold_window`` (a start from rest or a wheel against an obstacle is not
+  a steady deficit); it holds its value otherwise and is cleared when a wheel is stuck. The
+  wheels' corrections relative to each other are unchanged by it.
 * Stuck detector, the one exception: when the rover has stood still (FLAG_STANDSTILL, no
   warm-up or free-wheel flag) for ``stuck_time`` seconds while a wheel is driven, that wheel
   makes no progress whatever its speed, so its slip is taken as -1 (eq. 10 divides by the
