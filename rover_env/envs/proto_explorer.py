@@ -24,6 +24,7 @@ from rover_env.config import (
     load_rover,
     load_terrain,
 )
+from rover_env.envs.fast_step import FastSampleLoop
 from rover_env.estimation.estimator import (
     _WINDOW_SLACK,
     FLAG_WARMUP,
@@ -34,6 +35,7 @@ from rover_env.estimation.estimator import (
     _lsq_slope,
     _odometry_increments,
 )
+from rover_env.estimation.fast import FastSlipEstimator
 from rover_env.estimation.sensors import SensorConfig, SensorModel
 from rover_env.sim.batch import RoverIndex
 from rover_env.sim.simulator import RoverSim
@@ -383,6 +385,14 @@ class StepSums:
         self.energy = np.zeros(n)
         self.slip = np.zeros((n, 4))
 
+    @classmethod
+    def of(cls, row: Array) -> StepSums:
+        """One rover's sums viewing ``row`` = (err_v2, err_w2, energy, slip x 4)."""
+        out = cls.__new__(cls)
+        out.err_v2, out.err_w2, out.energy = row[0:1], row[1:2], row[2:3]
+        out.slip = row[3:7].reshape(1, 4)
+        return out
+
     def add(
         self,
         command: Array,
@@ -499,7 +509,11 @@ class RoverEpisode:
 
     # --- reading one simulator (the single env always, the vector env on reset)
     def _push_sample_from(
-        self, sim: RoverSim, index: RoverIndex, est: BatchSlipEstimator, ids: ArrayLike | None
+        self,
+        sim: RoverSim,
+        index: RoverIndex,
+        est: BatchSlipEstimator | FastSlipEstimator,
+        ids: ArrayLike | None,
     ) -> None:
         d = sim.data
         phi, theta = self._read_sensors(*index.phi_theta(d.sensordata))
@@ -522,7 +536,7 @@ class RoverEpisode:
         self,
         sim: RoverSim,
         index: RoverIndex,
-        est: BatchSlipEstimator,
+        est: BatchSlipEstimator | FastSlipEstimator,
         ids: ArrayLike | None,
         rng: np.random.Generator,
         options: dict[str, Any] | None,
@@ -662,6 +676,11 @@ def segment_velocity(sim: RoverSim, index: RoverIndex, vel: Array) -> tuple[Any,
 
 def wheel_friction(terrain: Terrain, contact_point: Array) -> Array:
     """Ground friction (mu_x, mu_y) under each wheel's contact point, (..., 2)."""
+    if terrain.n_patches == 0:  # the default ground everywhere (what friction() returns)
+        out = np.empty((*contact_point.shape[:-1], 2))
+        out[..., 0] = terrain.mu_x_default
+        out[..., 1] = terrain.mu_y_default
+        return out
     mu_x, mu_y, _ = terrain.friction(contact_point[..., 0], contact_point[..., 1])
     return np.stack([mu_x, mu_y], axis=-1)
 
@@ -799,9 +818,24 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
         self.sim = RoverSim(settings.rover_cfg, settings.first_terrain(), backend=backend)
         self._configure(settings, self.sim.dt, self.sim.terrain_cfg.size)
         self.metadata = {**self.metadata, "render_fps": round(1.0 / self.control_dt)}
-        self.estimator = BatchSlipEstimator(self.rover_cfg, 1, EstimatorConfig())
         self.sensor_model = SensorModel(self.sensor_cfg, np.random.default_rng(0))
         self._index = RoverIndex(self.sim)
+        self.estimator: BatchSlipEstimator | FastSlipEstimator
+        self._fast: FastSampleLoop | None = None
+        if self.sim.backend == "plugin":
+            # The compiled fast path: estimator and sample loop in C (rover_env.envs.fast_step).
+            self.estimator = FastSlipEstimator(self.rover_cfg, 1, EstimatorConfig())
+            self._fast = FastSampleLoop(
+                self.sim,
+                self._index,
+                self.sensor_cfg,
+                self.substeps_per_sample,
+                self.samples_per_step,
+                self._copper,
+                self.sample_dt,
+            )
+        else:
+            self.estimator = BatchSlipEstimator(self.rover_cfg, 1, EstimatorConfig())
         self._vel = np.zeros(6)  # scratch of mj_objectVelocity
         self.action_space = spaces.Box(-1.0, 1.0, (settings.n_act,), dtype=np.float32)
         self.observation_space = spaces.Box(-np.inf, np.inf, (len(OBS_NAMES),), dtype=np.float32)
@@ -845,6 +879,8 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
     ) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
         a4 = self._targets(action)
         sim, index, est, vel = self.sim, self._index, self.estimator, self._vel
+        if self._fast is not None and not sim._cmd_effects:
+            return self._step_fast(a4)
         d = sim.data
         sim.set_speed_targets(a4 * self.max_wheel_speed)
         seg2 = index.seg_body[1]
@@ -884,6 +920,44 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
             yaw_rate,
             wt.F_z.copy(),
             wheel_friction(sim.terrain, wt.contact_point),
+        )
+        if self.render_mode == "human":
+            self.render()
+        return self._obs(), reward, terminated, False, info
+
+    def _step_fast(
+        self, a4: Array
+    ) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
+        """``step`` after the action, with the sample loop in C (same numbers, see fast_step)."""
+        sim, index, fast = self.sim, self._index, self._fast
+        assert fast is not None and isinstance(self.estimator, FastSlipEstimator)
+        d = sim.data
+        # set_speed_targets without its checks: a4 is finite and in [-1, 1] (_targets).
+        sim.speed_targets[:] = a4 * self.max_wheel_speed
+        pos0 = d.xpos[index.seg_body[1]].copy()
+        phi0 = self.sensor_model.counter_zero
+        if phi0 is None:
+            raise RuntimeError("step() before reset()")
+        fast.draw_noise(self.sensor_model)
+        fast.run(sim, self.estimator, sim.speed_targets, phi0, self._command)
+        self._theta_meas = fast.theta.copy()
+        s = fast.sums
+        self._est = self.estimator.estimate_one(0)
+        f_z, contact = index.wheel_load(d.plugin_state)
+        reward, terminated, info = self._finish_step(
+            a4,
+            StepSums.of(s[:7]),
+            0,
+            s[9:13].copy(),
+            pos0,
+            d.xpos[index.seg_body[1]].copy(),
+            bool((d.xmat[index.seg_body, 8] < index.max_tilt_cos).any()),
+            sim.time,
+            self.np_random,
+            s[7],
+            s[8],
+            f_z,
+            wheel_friction(sim.terrain, contact),
         )
         if self.render_mode == "human":
             self.render()

@@ -20,8 +20,9 @@ How:
   (``mujoco.batch.Batch.set_models``).
 * What costs per sample is done for all rovers at once on the batch's bound arrays:
   sensors, segment velocity (``mj_objectVelocity``'s arithmetic), true slip, motor power,
-  and the slip estimator (``BatchSlipEstimator``, the estimator's own functions with a
-  leading rover axis). Only noise draws and scalar bookkeeping loop over rovers.
+  and the slip estimator (``FastSlipEstimator``, the compiled estimator the single env
+  also runs, so both give the same bits). Only noise draws and scalar bookkeeping loop
+  over rovers.
 """
 
 from __future__ import annotations
@@ -41,7 +42,6 @@ from numpy.typing import NDArray
 from rover_env.config import RoverConfig, TerrainConfig
 from rover_env.envs.proto_explorer import (
     OBS_NAMES,
-    BatchSlipEstimator,
     EnvSettings,
     RewardWeights,
     RoverEpisode,
@@ -49,6 +49,7 @@ from rover_env.envs.proto_explorer import (
     wheel_friction,
 )
 from rover_env.estimation.estimator import EstimatorConfig
+from rover_env.estimation.fast import FastSlipEstimator
 from rover_env.estimation.sensors import SensorConfig, SensorModel
 from rover_env.sim.batch import BatchRoverSim, RoverIndex
 from rover_env.sim.simulator import RoverSim, resolve_auto_backend
@@ -171,7 +172,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         self.sim = RoverSim(settings.rover_cfg, settings.first_terrain(), backend="plugin")
         self.batch = BatchRoverSim(n, template=self.sim, nthread=nthread, derived=_DERIVED)
         self.index = RoverIndex(self.sim)
-        self.estimator = BatchSlipEstimator(settings.rover_cfg, n, EstimatorConfig())
+        self.estimator = FastSlipEstimator(settings.rover_cfg, n, EstimatorConfig())
         arena = self.sim.terrain_cfg.size
         self.episodes = [_Episode(settings, self.sim.dt, arena) for _ in range(n)]
         self.terrains: list[Terrain] = [self.sim.terrain] * n

@@ -89,6 +89,11 @@ class SensorModel:
     def reset(self) -> None:
         self._phi0 = None
 
+    @property
+    def counter_zero(self) -> Array | None:
+        """The wheel readings the counters count from (set by the first :meth:`read`)."""
+        return self._phi0
+
     def read(self, phi: npt.ArrayLike, theta: npt.ArrayLike) -> tuple[Array, Array]:
         """(phi (6,), theta (5,)) as the rover's electronics would report them."""
         c = self.cfg

@@ -10,6 +10,7 @@ so they never see a half-written library and need no lock.
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import os
 import shutil
@@ -26,7 +27,9 @@ __all__ = [
     "PLUGIN_NAME",
     "FastBackendError",
     "cache_dir",
+    "compile_core",
     "compile_plugin",
+    "load_core",
     "load_plugin",
 ]
 
@@ -35,11 +38,13 @@ MUJOCO_VERSION = "4.0.0"
 
 PLUGIN_NAME = "rover_env.tire"
 SOURCE = "tire_plugin.c"
+CORE_SOURCE = "env_core.c"
 # -ffp-contract=off: a fused multiply-add would round differently from numpy's reference.
 CFLAGS = ("-O2", "-std=c11", "-fPIC", "-shared", "-ffp-contract=off", "-fno-math-errno")
 
 _lock = threading.Lock()
 _loaded: Path | None = None
+_core: ctypes.CDLL | None = None
 
 
 class FastBackendError(RuntimeError):
@@ -87,13 +92,22 @@ def _compiler() -> str:
 
 def compile_plugin() -> Path:
     """Path of the compiled plugin library, building it into the cache if needed."""
+    return _compile(SOURCE, "rover_env_tire")
+
+
+def compile_core() -> Path:
+    """Path of the compiled env core (sensor model, slip estimator, sample loop)."""
+    return _compile(CORE_SOURCE, "rover_env_core")
+
+
+def _compile(source_name: str, stem: str) -> Path:
     include, lib = _mujoco_paths()
-    source = resources.files("rover_env.sim.fast").joinpath(SOURCE).read_bytes()
+    source = resources.files("rover_env.sim.fast").joinpath(source_name).read_bytes()
     key = hashlib.sha256(
         b"\0".join([source, MUJOCO_VERSION.encode(), " ".join(CFLAGS).encode()])
     ).hexdigest()[:16]
     out_dir = cache_dir()
-    target = out_dir / f"rover_env_tire-mujoco{MUJOCO_VERSION}-{key}.so"
+    target = out_dir / f"{stem}-mujoco{MUJOCO_VERSION}-{key}.so"
     if target.is_file():
         return target
     cc = _compiler()
@@ -104,7 +118,7 @@ def compile_plugin() -> Path:
             f"cannot create the plugin cache {out_dir} ({e}); set ROVER_ENV_CACHE"
         ) from e
     with tempfile.TemporaryDirectory(dir=out_dir, prefix=".build-") as tmp:
-        src = Path(tmp) / SOURCE
+        src = Path(tmp) / source_name
         src.write_bytes(source)
         obj = Path(tmp) / target.name
         cmd = [
@@ -122,7 +136,7 @@ def compile_plugin() -> Path:
         proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
         if proc.returncode != 0:
             raise FastBackendError(
-                f"compiling the tire plugin failed:\n$ {' '.join(cmd)}\n{proc.stderr.strip()}"
+                f"compiling {source_name} failed:\n$ {' '.join(cmd)}\n{proc.stderr.strip()}"
             )
         # Atomic publish: a concurrent process either sees no file or a complete one.
         os.replace(obj, target)
@@ -138,3 +152,12 @@ def load_plugin() -> Path:
             mujoco.mj_loadPluginLibrary(str(path))
             _loaded = path
         return _loaded
+
+
+def load_core() -> ctypes.CDLL:
+    """Build (if needed) and open the env core library (``env_core.c``); cached per process."""
+    global _core
+    with _lock:
+        if _core is None:
+            _core = ctypes.CDLL(str(compile_core()))
+        return _core
