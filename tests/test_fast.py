@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 import os
 import shutil
 
@@ -224,3 +225,34 @@ def test_plugin_backend_refuses_model_extensions() -> None:
 def test_unknown_backend_is_refused() -> None:
     with pytest.raises(ValueError, match="backend"):
         RoverSim(backend="cuda")
+
+
+@pytest.mark.parametrize(
+    "ext",
+    [
+        {"combined_slip": {"on": 1.0}},
+        {"load_dependent_friction": {"fall": 0.5}},
+        {"combined_slip": {"on": 1.0}, "load_dependent_friction": {"fall": 0.3}},
+    ],
+    ids=["combined-slip", "load-dependent-friction", "both"],
+)
+def test_tire_effects_run_on_the_plugin(ext: dict[str, dict[str, float]]) -> None:
+    """The tire-layer extensions: plugin = numpy reference, and the effect does change the drive."""
+    cfg = dataclasses.replace(RoverConfig(), extensions=ext)
+    ref, fast, plain = (
+        RoverSim(cfg, backend="numpy"),
+        RoverSim(cfg, backend="plugin"),
+        RoverSim(backend="plugin"),
+    )
+    assert RoverSim(cfg, backend="auto").backend == "plugin"  # no fallback to numpy
+    rng = np.random.default_rng(5)
+    for _ in range(4):  # 4 s of hard driving: large slip, where both effects act
+        targets = rng.uniform(-4.0, 4.0, 4)
+        for s in (ref, fast, plain):
+            s.set_speed_targets(targets)
+            s.step(1000)
+    np.testing.assert_allclose(fast.data.qpos, ref.data.qpos, rtol=0, atol=1e-9)
+    a, b = ref.wheel_truth(), fast.wheel_truth()
+    np.testing.assert_allclose(b.F_x, a.F_x, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(b.F_y, a.F_y, rtol=0, atol=1e-9)
+    assert np.max(np.abs(plain.data.qpos[:3] - fast.data.qpos[:3])) > 1e-4, "effect had no effect"

@@ -9,9 +9,11 @@ RoverSim` builds them with :func:`build_effects` and applies them:
   radius factor) and the compiled model (``apply_model``: gravity direction, wheel-hinge
   friction), which both tire backends honour unchanged;
 * through the speed targets (``CommandEffect``: lag, delay), applied per physics substep;
-* inside the numpy tire layer (``TireEffect``: friction ellipse, load-dependent friction):
-  the compiled plugin does not implement these, so ``RoverSim(backend="plugin")`` refuses
-  them with a message naming them (``backend="auto"`` falls back to numpy).
+* inside the tire layer (``TireEffect``: friction ellipse, load-dependent friction): the
+  numpy layer calls their hooks; the compiled plugin repeats them from numbers in its
+  configuration (:meth:`TireEffect.plugin_values`). An effect the plugin cannot run sets
+  ``plugin_ok = False``, and ``RoverSim(backend="plugin")`` refuses it with a message
+  naming it (``backend="auto"`` falls back to numpy).
 
 Adding an effect: subclass :class:`Effect`, declare ``name``, ``params`` (tuple of
 :class:`Param`), ``plugin_ok``, implement the hook(s), decorate with :func:`register`.
@@ -146,9 +148,14 @@ class CommandEffect(Effect):
 
 
 class TireEffect(Effect):
-    """Hooks inside the numpy tire layer (not implemented by the compiled plugin)."""
+    """Hooks inside the tire layer: the numpy layer calls them; the compiled plugin runs the
+    same arithmetic from :meth:`plugin_values` (a new tire effect needs C there too)."""
 
     plugin_ok: ClassVar[bool] = False
+
+    def plugin_values(self, cfg: RoverConfig) -> dict[str, float]:
+        """The plugin's ``effects`` numbers this effect sets (``rover_env.sim.fast``)."""
+        raise NotImplementedError(f"{self.name}: no compiled implementation")
 
     def friction(self, mu_x: Array, mu_y: Array, F_z: Array) -> tuple[Array, Array]:
         """Friction coefficients for this substep (default: unchanged)."""
@@ -386,6 +393,10 @@ class CombinedSlip(TireEffect):
     params = (
         Param("on", "-", 0.0, 1.0, 0.0, "friction ellipse switch", discrete=True, moderate=1),
     )
+    plugin_ok = True
+
+    def plugin_values(self, cfg: RoverConfig) -> dict[str, float]:
+        return {"combined_on": self["on"]}
 
     def forces(
         self, F_x: Array, F_y: Array, F_z: Array, mu_x: Array, mu_y: Array
@@ -410,6 +421,10 @@ class LoadDependentFriction(TireEffect):
     params = (
         Param("fall", "-", 0.0, 0.8, 0.0, "relative fall of mu across the range", moderate=0.3),
     )
+    plugin_ok = True
+
+    def plugin_values(self, cfg: RoverConfig) -> dict[str, float]:
+        return {"load_fall": self["fall"], "load_fz0": _static_wheel_load(cfg)}
 
     def __init__(self, values: Mapping[str, float] | None = None) -> None:
         super().__init__(values)

@@ -160,7 +160,11 @@ class RoverSim:
         self.terrain = Terrain(self.terrain_cfg, self.phys_cfg.tire)
         xml = scene_xml(self.phys_cfg, self.terrain_cfg)
         if backend == "plugin":
-            xml = inject_plugin(xml, self.phys_cfg, self.terrain)
+            slots: dict[str, float] = {}
+            for e in self.effects:
+                if isinstance(e, TireEffect):
+                    slots.update(e.plugin_values(self.phys_cfg))
+            xml = inject_plugin(xml, self.phys_cfg, self.terrain, slots)
         self.model = mujoco.MjModel.from_xml_string(xml)
         for e in self.effects:
             e.apply_model(self.model, self.phys_cfg)

@@ -86,11 +86,24 @@ def terrain_block(terrain: Terrain, wave_capacity: int, patch_capacity: int) -> 
     return out
 
 
-def inject_plugin(xml: str, cfg: RoverConfig, terrain: Terrain) -> str:
+EFFECT_SLOTS = ("combined_on", "load_fall", "load_fz0")
+"""The plugin's ``effects`` numbers, in order (tire_plugin.c), and their off values below."""
+_EFFECT_OFF = {"combined_on": 0.0, "load_fall": 0.0, "load_fz0": 1.0}
+
+
+def inject_plugin(
+    xml: str, cfg: RoverConfig, terrain: Terrain, effects: dict[str, float] | None = None
+) -> str:
     """Scene XML from ``scene_xml`` with the tire plugin declared and configured.
 
-    Loads (building it first if needed) the plugin library, so the result compiles.
+    ``effects``: values of :data:`EFFECT_SLOTS` set by the tire-layer model extensions
+    (``rover_env.effects.TireEffect.plugin_values``); missing slots are off. Loads
+    (building it first if needed) the plugin library, so the result compiles.
     """
+    eff = {**_EFFECT_OFF, **(effects or {})}
+    unknown = set(eff) - set(EFFECT_SLOTS)
+    if unknown:
+        raise ValueError(f"inject_plugin: unknown effect slot(s) {sorted(unknown)}")
     load_plugin()
     tire = cfg.tire
     block = terrain_block(
@@ -104,6 +117,7 @@ def inject_plugin(xml: str, cfg: RoverConfig, terrain: Terrain) -> str:
         "tire": " ".join(_num(getattr(tire, f.name)) for f in fields(TireParams)),
         "max_angle_error": _num(cfg.motor.max_angle_error),
         "terrain": TERRAIN_NUMERIC,
+        "effects": " ".join(_num(eff[k]) for k in EFFECT_SLOTS),
     }
     lines = [
         "  <extension>",

@@ -39,6 +39,9 @@
 //   radius           nominal wheel radius (m)
 //   tire             11 numbers in TireParams field order
 //   max_angle_error  anti-windup bound of the setpoint around the wheel angle (rad)
+//   effects          optional, 3 numbers (default "0 0 1"): the tire-layer model extensions of
+//                    rover_env.effects: combined_slip's switch (friction ellipse on the
+//                    forces), load_dependent_friction's fall and its static wheel load F_z0 (N)
 //   terrain          name of the <numeric> element holding the ground (read at every
 //                    compute, so it may change at run time and per simulation):
 //     [0] layout version (1)  [1] flat (0/1)  [2] contact iterations
@@ -73,7 +76,7 @@ enum { T_VX = 0, T_VY = 1, T_VW = 2, T_FX = 3, T_FY = 4, T_FZ = 5, T_DELTA = 6,
        T_POINT = 7, T_NORMAL = 10, T_PATCH = 13 };
 
 static const char* kAttributes[] = {
-  "wheels", "joints", "motors", "radius", "tire", "max_angle_error", "terrain"
+  "wheels", "joints", "motors", "radius", "tire", "max_angle_error", "terrain", "effects"
 };
 
 typedef struct {
@@ -82,6 +85,7 @@ typedef struct {
   int *ctrl_pos, *ctrl_vel, *driven_qpos;
   double radius, max_err;
   double tire[NTIRE];
+  double combined_on, load_fall, load_fz0;  // model extensions (config 'effects')
   // per-model constants of the hot path, each computed exactly as the numpy code does per call
   double three_over_cs, three_over_calpha, three_sy_over_calpha;
   int terrain;  // numeric id
@@ -460,6 +464,14 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
   if (!parse_numbers(config(m, instance, "tire"), c->tire, NTIRE)) {
     return fail(c, "config 'tire' must hold the 11 TireParams numbers", NULL);
   }
+  const char* eff = config(m, instance, "effects");
+  double ev[3] = {0.0, 0.0, 1.0};
+  if (eff[0] && (!parse_numbers(eff, ev, 3) || ev[2] <= 0)) {
+    return fail(c, "config 'effects' must hold 3 numbers: combined_on, fall, F_z0 > 0", NULL);
+  }
+  c->combined_on = ev[0];
+  c->load_fall = ev[1];
+  c->load_fz0 = ev[2];
   const char* tname = config(m, instance, "terrain");
   c->terrain = mj_name2id(m, mjOBJ_NUMERIC, tname);
   TerrainView tv;
@@ -598,6 +610,12 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
     double mu_x, mu_y;
     int patch;
     friction(&tv, point[0], point[1], &mu_x, &mu_y, &patch);
+    if (c->load_fall != 0.0) {  // effects.LoadDependentFriction.friction
+      double r = np_min(np_max((F_z - c->load_fz0)/c->load_fz0, -0.5), 0.5);
+      double k = 1.0 - c->load_fall*r;
+      mu_x = mu_x*k;
+      mu_y = mu_y*k;
+    }
 
     // tire.transient_step
     double ux = st[L.ux + i], uy = st[L.uy + i];
@@ -624,6 +642,13 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
     double f_y = -np_sign(uy_new)*mag_y - tp[D_Y]*uy_dot;
     double F_x = np_min(np_max(f_x, -bound_x), bound_x);
     double F_y = np_min(np_max(f_y, -bound_y), bound_y);
+    if (c->combined_on != 0.0) {  // effects.CombinedSlip.forces: the friction ellipse
+      double fzc = np_max(F_z, 1e-12);
+      double n = hypot(F_x/(mu_x*fzc), F_y/(mu_y*fzc));
+      double sc = 1.0/np_max(n, 1.0);
+      F_x = F_x*sc;
+      F_y = F_y*sc;
+    }
 
     double force[3];
     for (int k = 0; k < 3; k++) force[k] = (F_x*xc[k] + F_y*yc[k]) + F_z*nrm[k];
