@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +14,7 @@ from rover_env.calibration.make_logs import make_logs, parse_effects
 from rover_env.calibration.replay import ReplaySettings, replay_config
 from rover_env.cli import main
 from rover_env.config import ConfigError, RoverConfig, load_rover, to_dict
-from rover_env.effects import CATALOGUE
+from rover_env.effects import CATALOGUE, CombinedSlip
 from rover_env.logs import LogError, read_log
 from rover_env.sim.simulator import RoverSim
 
@@ -76,10 +77,15 @@ def test_off_values_change_nothing() -> None:
     assert np.array_equal(a.data.qpos, b.data.qpos)
 
 
-def test_plugin_runs_what_it_can_and_refuses_the_rest() -> None:
+def test_plugin_runs_every_catalogue_effect_and_refuses_what_it_cannot(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     sim = RoverSim(RoverConfig(extensions={"friction": {"fraction": -0.3}}), backend="plugin")
     assert sim.backend == "plugin"
     cfg = RoverConfig(extensions={"combined_slip": {"on": 1.0}})
+    assert RoverSim(cfg, backend="auto").backend == "plugin"
+    # A tire effect without a compiled twin (plugin_ok False) is refused by name.
+    monkeypatch.setattr(CombinedSlip, "plugin_ok", False)
     with pytest.raises(NotImplementedError, match="combined_slip"):
         RoverSim(cfg, backend="plugin")
     assert RoverSim(cfg, backend="auto").backend == "numpy"
@@ -139,6 +145,24 @@ def rr_case(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     )
     result = diagnose([str(p) for p in paths], root / "out", opts)
     return root, result
+
+
+def test_parallel_candidate_fits_give_the_same_diagnosis(rr_case: tuple[Path, dict]) -> None:
+    root, result = rr_case
+    paths = sorted((root / "logs").glob("drive_*.csv"))
+    opts = Options(
+        candidates=["rolling_resistance", "torque_limit", "command_lag"],
+        progress=False,
+        max_nfev=3,
+        workers=2,
+    )
+    again = diagnose([str(p) for p in paths], root / "out_parallel", opts)
+    assert again["named"] == result["named"]
+    for key in ("fits", "final"):
+        assert json.dumps(
+            {k: v["params"] for k, v in again[key].items()}, sort_keys=True
+        ) == json.dumps({k: v["params"] for k, v in result[key].items()}, sort_keys=True)
+    assert again["main_reduction"] == result["main_reduction"]
 
 
 def test_make_logs_writes_readable_logs_and_hidden_truth(rr_case: tuple[Path, dict]) -> None:
@@ -235,7 +259,8 @@ def test_environment_runs_with_extensions() -> None:
     gym.register_envs(rover_env)
     for ext, backend in [
         ({"slope": {"deg": 3.0}}, "plugin"),
-        ({"combined_slip": {"on": 1.0}}, "numpy"),
+        ({"combined_slip": {"on": 1.0}, "load_dependent_friction": {"fall": 0.3}}, "plugin"),
+        ({"command_lag": {"tau": 0.2}}, "plugin"),  # per-substep targets: the numpy sample loop
     ]:
         env = gym.make("rover_env/ProtoExplorer-v0", rover=RoverConfig(extensions=ext))
         obs, _ = env.reset(seed=0)

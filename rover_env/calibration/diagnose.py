@@ -25,7 +25,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing as mp
+import os
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -75,6 +78,8 @@ class Options:
     """Partners tried in forward selection (among candidates that improved held-out alone)."""
     candidates: list[str] | None = None
     progress: bool = True
+    workers: int = 1
+    """Processes fitting candidates side by side (forked; 1: in this process)."""
 
 
 @dataclass
@@ -190,7 +195,6 @@ def diagnose(
     # 3. fit candidates
     cands = [c for c in catalogue(opts.candidates) if c.name not in base.extensions]
     held0 = rs.window_losses(base_held, noise)  # held-out: in units of the replay floor
-    scored: list[Scored] = []
 
     def score(f: Fit, ref_held: Array, ref_ext: Extensions, k: int | None = None) -> Scored:
         hl = rs.window_losses(ev.run(f.ext, "held"), noise)
@@ -205,7 +209,7 @@ def diagnose(
         )
         return Scored(f, float(hl.sum()), hl, gain, _p_improved(ref_held, hl), d_aic, d_bic, n)
 
-    for c in cands:
+    def fit_one(c: Candidate) -> Scored:
         # Numpy-only effects cost ~20x a plugin replay: a continuous one is fitted on a
         # subset of the training windows; a switch needs one replay, on all of them.
         which = "train" if plugin_capable(c) or c.discrete else "train_sub"
@@ -214,11 +218,16 @@ def diagnose(
         )
         s = score(f, held0, {})
         s.significant = s.gain >= opts.min_gain and s.p < opts.alpha and s.d_bic < 0
-        scored.append(s)
+        return s
+
+    def report(s: Scored) -> None:
+        f = s.fit
         say(
-            f"{c.name:24s} {_fmt_phys(f)}  held-out {-100 * s.gain:+6.1f}%  p={s.p:.2g}"
+            f"{f.name:24s} {_fmt_phys(f)}  held-out {-100 * s.gain:+6.1f}%  p={s.p:.2g}"
             f"  dBIC={s.d_bic:+.1f}  ({f.nfev} fits, {f.seconds:.1f}s)"
         )
+
+    scored = _map_candidates(fit_one, report, cands, ev, opts.workers)
     ranked = sorted(scored, key=lambda s: -s.gain)
 
     # 4. decision
@@ -474,6 +483,54 @@ def _unexplained(table: dict[str, dict[str, rs.Cell]], noise: dict[str, float]) 
     return out
 
 
+_POOL: dict[str, Any] = {}
+"""What forked candidate workers inherit (functions holding closures do not pickle)."""
+
+
+def _pool_task(i: int) -> tuple[Scored, int, float, dict[tuple[str, str], list[WindowResult]]]:
+    ev: Evaluator = _POOL["ev"]
+    n0, s0, keys0 = ev.replays, ev.seconds, set(ev.cache)
+    s = _POOL["fit_one"](_POOL["cands"][i])
+    new = {k: v for k, v in ev.cache.items() if k not in keys0}
+    keep = {k: v for k, v in new.items() if k[0] == json.dumps(s.fit.ext, sort_keys=True)}
+    s.fit.candidates = []  # Candidate.to_ext is a closure; the parent puts them back
+    return s, ev.replays - n0, ev.seconds - s0, keep
+
+
+def _map_candidates(
+    fit_one: Any, report: Any, cands: list[Candidate], ev: Evaluator, workers: int
+) -> list[Scored]:
+    """``fit_one`` on every candidate, in ``workers`` forked processes; catalogue order.
+
+    The fits are independent and deterministic, so the result does not depend on
+    ``workers``; the children's replays of each fitted model come back into ``ev.cache``.
+    """
+    n = min(max(1, int(workers)), len(cands))
+    if n <= 1 or "fork" not in mp.get_all_start_methods():
+        out = []
+        for c in cands:
+            out.append(fit_one(c))
+            report(out[-1])
+        return out
+    _POOL.update(ev=ev, fit_one=fit_one, cands=cands)
+    results: dict[int, Scored] = {}
+    try:
+        with ProcessPoolExecutor(n, mp_context=mp.get_context("fork")) as pool:
+            futures = {pool.submit(_pool_task, i): i for i in range(len(cands))}
+            for fut in as_completed(futures):
+                i = futures[fut]
+                s, replays, seconds, cache = fut.result()
+                s.fit.candidates = [cands[i]]
+                ev.replays += replays
+                ev.seconds += seconds
+                ev.cache.update(cache)
+                results[i] = s
+                report(s)
+    finally:
+        _POOL.clear()
+    return [results[i] for i in range(len(cands))]
+
+
 def plugin_capable(c: Candidate) -> bool:
     return c.plugin_ok
 
@@ -519,6 +576,7 @@ def _cli(args: argparse.Namespace) -> int:
         settings=st,
         candidates=args.candidates.split(",") if args.candidates else None,
         progress=not args.quiet,
+        workers=args.workers,
     )
     try:
         diagnose(args.logs, args.out, opts)
@@ -539,4 +597,10 @@ def add_cli(sub: Any) -> None:
     p.add_argument("--burn-in", type=float, default=0.4, help="unscored start of each window (s)")
     p.add_argument("--candidates", default=None, help="comma-separated subset of the catalogue")
     p.add_argument("--quiet", action="store_true")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="processes fitting candidates side by side (default: one per CPU)",
+    )
     p.set_defaults(func=_cli)
