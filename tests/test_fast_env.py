@@ -9,6 +9,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
+from _compare import same
 
 import rover_env
 from rover_env.config import FrictionPatch, TerrainConfig, load_rover
@@ -105,21 +106,6 @@ def _rollout(fast: bool, kwargs: dict[str, Any], steps: int) -> list[Any]:
     return out
 
 
-def _same(a: Any, b: Any, where: str = "") -> None:
-    if isinstance(a, tuple | list):
-        assert len(a) == len(b), where
-        for k, (x, y) in enumerate(zip(a, b, strict=True)):
-            _same(x, y, f"{where}[{k}]")
-    elif isinstance(a, dict):
-        assert list(a) == list(b), where
-        for k in a:
-            _same(a[k], b[k], f"{where}/{k}")
-    else:
-        x, y = np.asarray(a), np.asarray(b)
-        assert (x.dtype, x.shape) == (y.dtype, y.shape), where
-        np.testing.assert_array_equal(x, y, err_msg=where)
-
-
 PATCHY = TerrainConfig(
     patches=(FrictionPatch(name="sand", center=(0.3, 0.0), size=(2.0, 2.0), mu_x=0.3, mu_y=0.25),)
 )
@@ -137,4 +123,4 @@ PATCHY = TerrainConfig(
 )
 def test_c_sample_loop_equals_numpy_loop(kwargs: dict[str, Any]) -> None:
     """Observations, rewards, flags and infos bit for bit, noise draws included."""
-    _same(_rollout(True, kwargs, 30), _rollout(False, kwargs, 30))
+    same(_rollout(True, kwargs, 30), _rollout(False, kwargs, 30))

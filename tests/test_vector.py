@@ -11,6 +11,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 import pytest
+from _compare import same
 
 import rover_env
 from rover_env.config import TerrainConfig, load_rover, load_terrain
@@ -30,26 +31,6 @@ ID, ROUGH = "rover_env/ProtoExplorer-v0", "rover_env/ProtoExplorerRough-v0"
 TINY = TerrainConfig(size=(1.6, 1.6))  # the rover leaves this arena within a few steps
 # The rough variant's randomiser on a smaller, coarser arena: the same code, cheaper resets.
 SMALL_ROUGH = dataclasses.replace(load_terrain("rough"), size=(8.0, 8.0), resolution=0.1)
-
-
-def _same(a: Any, b: Any, where: str = "") -> None:
-    """Equal structure, dtypes and bits."""
-    if isinstance(a, tuple | list):
-        assert len(a) == len(b), where
-        for k, (x, y) in enumerate(zip(a, b, strict=True)):
-            _same(x, y, f"{where}[{k}]")
-    elif isinstance(a, dict):
-        assert list(a) == list(b), (where, list(a), list(b))
-        for k in a:
-            _same(a[k], b[k], f"{where}/{k}")
-    else:
-        x, y = np.asarray(a), np.asarray(b)
-        assert (x.dtype, x.shape) == (y.dtype, y.shape), (where, x.dtype, y.dtype, x.shape, y.shape)
-        if x.dtype == object:
-            for u, v in zip(x, y, strict=True):
-                _same(u, v, where)
-        else:
-            np.testing.assert_array_equal(x, y, err_msg=where)
 
 
 def _pair(env_id: str, n: int, **kwargs: Any) -> tuple[gym.vector.VectorEnv, gym.vector.VectorEnv]:
@@ -73,13 +54,13 @@ def test_vector_env_equals_single_envs(env_id: str, n: int, steps: int, kwargs: 
     assert batched.metadata["autoreset_mode"] == gym.vector.AutoresetMode.NEXT_STEP
     assert batched.observation_space == sync.observation_space
     assert batched.action_space == sync.action_space
-    _same(batched.reset(seed=7), sync.reset(seed=7), "reset")
+    same(batched.reset(seed=7), sync.reset(seed=7), "reset")
     rng = np.random.default_rng(0)
     ends = 0
     for k in range(steps):
         a = rng.uniform(-1, 1, batched.action_space.shape).astype(np.float32)
         out = batched.step(a)
-        _same(out, sync.step(a), f"step {k}")
+        same(out, sync.step(a), f"step {k}")
         ends += int(np.sum(out[2] | out[3]))
     assert ends >= n, "no episode ended: autoreset untested"
     # Partial resets, with a seed for one rover and options for all of them.
@@ -87,9 +68,9 @@ def test_vector_env_equals_single_envs(env_id: str, n: int, steps: int, kwargs: 
     mask[0] = True
     seeds = [11] + [None] * (n - 1)
     opts = {"reset_mask": mask, "yaw": 0.3}
-    _same(batched.reset(seed=seeds, options=dict(opts)), sync.reset(seed=seeds, options=dict(opts)))
+    same(batched.reset(seed=seeds, options=dict(opts)), sync.reset(seed=seeds, options=dict(opts)))
     a = rng.uniform(-1, 1, batched.action_space.shape).astype(np.float32)
-    _same(batched.step(a), sync.step(a), "after partial reset")
+    same(batched.step(a), sync.step(a), "after partial reset")
     batched.close()
     sync.close()
 
@@ -151,7 +132,7 @@ def test_batch_estimator_equals_streaming_estimator() -> None:
         want = [singles[i].update(t[i], angles[i, :6], angles[i, 6:]) for i in ids]
         if ids and k % 3 == 0:
             for a, b in zip(batch.estimate(ids), want, strict=True):
-                _same(vars(a), vars(b), f"sample {k}")
+                same(vars(a), vars(b), f"sample {k}")
 
 
 # --------------------------------------------------------------------------- SB3 adapter
@@ -197,7 +178,7 @@ def test_sb3_adapter_resets_in_the_same_step_like_dummy_vec_env() -> None:
             assert set(infos[i]) == set(infos_r[i]) - {"episode"}
             for key, value in infos_r[i].items():
                 if key != "episode":
-                    _same(np.asarray(infos[i][key]), np.asarray(value), key)
+                    same(np.asarray(infos[i][key]), np.asarray(value), key)
             if done[i]:
                 # The step that ends an episode returns the next one's first observation ...
                 np.testing.assert_array_equal(infos[i]["terminal_observation"], o)
