@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from rover_env.estimation.fast import FastSlipEstimator
 from rover_env.estimation.sensors import SensorConfig
-from rover_env.sim.batch import RoverIndex
+from rover_env.sim.batch import BatchRoverSim, RoverIndex
 from rover_env.sim.fast.build import load_core
 from rover_env.sim.simulator import RoverSim, SimulationError
 
@@ -28,6 +28,17 @@ if TYPE_CHECKING:
 Array = NDArray[np.float64]
 _P = ctypes.c_void_p
 _I = ctypes.c_int
+_BATCH_FIELDS = (
+    "sensordata",
+    "plugin_state",
+    "cvel",
+    "xipos",
+    "ximat",
+    "subtree_com",
+    "force",
+    "qvel",
+    "time",
+)
 
 
 class StepSpec(ctypes.Structure):
@@ -53,6 +64,58 @@ class StepSpec(ctypes.Structure):
     ]
 
 
+class BatchView(ctypes.Structure):
+    """Mirror of ``BatchView`` in env_core.c: row-strided views of mujoco.batch's arrays."""
+
+    _fields_ = [
+        *((name, _P) for name in _BATCH_FIELDS),
+        *((f"s_{name}", ctypes.c_longlong) for name in _BATCH_FIELDS),
+        ("seg2_root", _I),
+    ]
+
+
+def _spec(
+    index: RoverIndex,
+    sensors: SensorConfig,
+    substeps: int,
+    samples: int,
+    copper: float,
+    sample_dt: float,
+    ctrl_vel: NDArray[np.intp] | None,
+) -> StepSpec:
+    pv = index.plugin
+    if pv is None:
+        raise ValueError("the C sample loop needs the plugin backend")
+    truth = pv.slice.start + pv.layout.truth
+    s = StepSpec()
+    s.substeps, s.samples = int(substeps), int(samples)
+    s.phi_adr[:] = [int(i) for i in index.phi]
+    s.theta_adr[:] = [int(i) for i in index.theta]
+    if ctrl_vel is not None:
+        s.ctrl_vel[:] = [int(i) for i in ctrl_vel]
+    s.driven_dof[:] = [int(i) for i in index.driven_dof]
+    s.seg2_body = int(index.seg_body[1])
+    s.truth_vx, s.truth_vw = truth, truth + 2 * pv.layout.nw
+    s.wheel_noisy, s.joint_noisy = int(sensors.wheel_noise > 0), int(sensors.joint_noise > 0)
+    s.wheel_res, s.joint_res = sensors.wheel_resolution, sensors.joint_resolution
+    s.copper, s.sample_dt, s.v_eps = float(copper), float(sample_dt), float(index.v_eps)
+    return s
+
+
+def draw_sensor_noise(c: SensorConfig, rng: np.random.Generator, out: Array) -> None:
+    """Noise of ``out.shape[0]`` samples into ``out`` (samples, 11), in ``SensorModel.read``'s
+    order (per sample: wheels, then joints), so the numbers equal its own draws."""
+    k = out.shape[0]
+    if c.wheel_noise > 0 and c.joint_noise > 0:
+        z = rng.standard_normal((k, 11))
+        out[:, :6] = 0.0 + c.wheel_noise * z[:, :6]
+        out[:, 6:] = 0.0 + c.joint_noise * z[:, 6:]
+    elif c.wheel_noise > 0:
+        out[:, :6] = rng.normal(0.0, c.wheel_noise, (k, 6))
+    elif c.joint_noise > 0:
+        out[:, 6:] = rng.normal(0.0, c.joint_noise, (k, 5))
+
+
 class FastSampleLoop:
     """``env_step_samples`` bound to one simulator, its index and sensor configuration."""
 
@@ -66,27 +129,12 @@ class FastSampleLoop:
         copper: float,
         sample_dt: float,
     ) -> None:
-        pv = index.plugin
-        if pv is None:
-            raise ValueError("the C sample loop needs the plugin backend")
         lib = load_core()
         fn = lib.env_step_samples
         fn.restype = _I
         fn.argtypes = [_P] * 11
         self._fn = fn
-        nw = pv.layout.nw
-        truth = pv.slice.start + pv.layout.truth
-        s = self.spec = StepSpec()
-        s.substeps, s.samples = int(substeps), int(samples)
-        s.phi_adr[:] = [int(i) for i in index.phi]
-        s.theta_adr[:] = [int(i) for i in index.theta]
-        s.ctrl_vel[:] = [int(i) for i in sim._ctrl_vel]
-        s.driven_dof[:] = [int(i) for i in index.driven_dof]
-        s.seg2_body = int(index.seg_body[1])
-        s.truth_vx, s.truth_vw = truth, truth + 2 * nw
-        s.wheel_noisy, s.joint_noisy = int(sensors.wheel_noise > 0), int(sensors.joint_noise > 0)
-        s.wheel_res, s.joint_res = sensors.wheel_resolution, sensors.joint_resolution
-        s.copper, s.sample_dt, s.v_eps = float(copper), float(sample_dt), float(index.v_eps)
+        s = self.spec = _spec(index, sensors, substeps, samples, copper, sample_dt, sim._ctrl_vel)
         self._spec_ptr = ctypes.addressof(s)
         self.sensors = sensors
         self.samples = int(samples)
@@ -98,16 +146,7 @@ class FastSampleLoop:
 
     def draw_noise(self, model: SensorModel) -> None:
         """This step's sensor noise, in ``SensorModel.read``'s order (wheels, joints per sample)."""
-        c, rng = self.sensors, model.rng
-        k = self.samples
-        if c.wheel_noise > 0 and c.joint_noise > 0:
-            z = rng.standard_normal((k, 11))
-            self.noise[:, :6] = 0.0 + c.wheel_noise * z[:, :6]
-            self.noise[:, 6:] = 0.0 + c.joint_noise * z[:, 6:]
-        elif c.wheel_noise > 0:
-            self.noise[:, :6] = rng.normal(0.0, c.wheel_noise, (k, 6))
-        elif c.joint_noise > 0:
-            self.noise[:, 6:] = rng.normal(0.0, c.joint_noise, (k, 5))
+        draw_sensor_noise(self.sensors, model.rng, self.noise)
 
     def run(
         self,
@@ -137,3 +176,101 @@ class FastSampleLoop:
             sim._check()  # raises with the warning's name
             raise SimulationError(f"non-finite state at t={sim.data.time:.3f}s")
         raise ValueError(f"slip estimator refused a sample at t={sim.data.time!r} (code {err})")
+
+
+class FastBatchSampler:
+    """``vec_sample`` for the vector env: one 50 Hz sample of the listed batch rows in C."""
+
+    def __init__(
+        self,
+        batch: BatchRoverSim,
+        index: RoverIndex,
+        sensors: SensorConfig,
+        substeps: int,
+        samples: int,
+        copper: float,
+        sample_dt: float,
+    ) -> None:
+        lib = load_core()
+        fn = lib.vec_sample
+        fn.restype = _I
+        fn.argtypes = [_P, _P, _P, _I, _P, _I, _P, _P, _P, _P, _P]
+        self._fn = fn
+        self.spec = _spec(index, sensors, substeps, samples, copper, sample_dt, None)
+        self._spec_ptr = ctypes.addressof(self.spec)
+        self.batch = batch
+        self.sensors = sensors
+        self.samples = int(samples)
+        self._seg2_root = int(index.seg_root[1])
+
+    def _view(self) -> BatchView:
+        b = self.batch
+        arrays = {
+            "sensordata": b.sensordata,
+            "plugin_state": b.plugin_state,
+            "cvel": b.field("cvel"),
+            "xipos": b.field("xipos"),
+            "ximat": b.field("ximat"),
+            "subtree_com": b.field("subtree_com"),
+            "force": b.field("actuator_force"),
+            "qvel": b.qvel,
+            "time": b._time,
+        }
+        v = BatchView()
+        for name, a in arrays.items():
+            inner = a.strides[1:]
+            want = tuple(8 * int(np.prod(a.shape[i + 1 :])) for i in range(1, a.ndim))
+            if a.dtype != np.float64 or a.strides[0] % 8 or tuple(inner) != want:
+                raise ValueError(f"batch field {name}: rows must hold contiguous float64")
+            setattr(v, name, a.ctypes.data)
+            setattr(v, f"s_{name}", a.strides[0] // 8)
+        v.seg2_root = self._seg2_root
+        return v
+
+    def begin(
+        self, rows: NDArray[np.intp], models: list[SensorModel], command: Array
+    ) -> tuple[BatchView, NDArray[np.int32], Array, Array, Array, Array, Array]:
+        """Buffers of one control step of rovers ``rows`` (their sensor models, commands)."""
+        k = rows.size
+        noise = np.zeros((k, self.samples, 11))
+        phi0 = np.empty((k, 6))
+        for j, m in enumerate(models):
+            draw_sensor_noise(self.sensors, m.rng, noise[j])
+            z = m.counter_zero
+            if z is None:
+                raise RuntimeError("step() before the rover's first reading")
+            phi0[j] = z
+        cmd = np.ascontiguousarray(command, dtype=np.float64)
+        return (
+            self._view(),
+            np.ascontiguousarray(rows, dtype=np.int32),
+            noise,
+            phi0,
+            cmd,
+            np.zeros((k, 5)),
+            np.zeros((k, 13)),
+        )
+
+    def sample(
+        self,
+        smp: int,
+        est: FastSlipEstimator,
+        bufs: tuple[BatchView, NDArray[np.int32], Array, Array, Array, Array, Array],
+    ) -> None:
+        """Sample ``smp`` of the step whose buffers are ``bufs`` (after the batch stepped)."""
+        view, rows, noise, phi0, cmd, theta, sums = bufs
+        err = self._fn(
+            self._spec_ptr,
+            ctypes.addressof(view),
+            est.handle,
+            rows.size,
+            rows.ctypes.data,
+            smp,
+            noise.ctypes.data,
+            phi0.ctypes.data,
+            cmd.ctypes.data,
+            theta.ctypes.data,
+            sums.ctypes.data,
+        )
+        if err:
+            raise ValueError(f"slip estimator refused a sample (code {err})")

@@ -386,6 +386,14 @@ class StepSums:
         self.slip = np.zeros((n, 4))
 
     @classmethod
+    def of_rows(cls, rows: Array) -> StepSums:
+        """Sums viewing ``rows`` (n, 7+) = (err_v2, err_w2, energy, slip x 4, ...) per rover."""
+        out = cls.__new__(cls)
+        out.err_v2, out.err_w2, out.energy = rows[:, 0], rows[:, 1], rows[:, 2]
+        out.slip = rows[:, 3:7]
+        return out
+
+    @classmethod
     def of(cls, row: Array) -> StepSums:
         """One rover's sums viewing ``row`` = (err_v2, err_w2, energy, slip x 4)."""
         out = cls.__new__(cls)

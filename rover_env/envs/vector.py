@@ -40,6 +40,7 @@ from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
 from rover_env.config import RoverConfig, TerrainConfig
+from rover_env.envs.fast_step import FastBatchSampler
 from rover_env.envs.proto_explorer import (
     OBS_NAMES,
     EnvSettings,
@@ -175,6 +176,17 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         self.estimator = FastSlipEstimator(settings.rover_cfg, n, EstimatorConfig())
         arena = self.sim.terrain_cfg.size
         self.episodes = [_Episode(settings, self.sim.dt, arena) for _ in range(n)]
+        e0 = self.episodes[0]
+        self._sampler: FastBatchSampler | None = FastBatchSampler(
+            self.batch,
+            self.index,
+            settings.sensor_cfg,
+            e0.substeps_per_sample,
+            e0.samples_per_step,
+            e0._copper,
+            e0.sample_dt,
+        )
+        """The 50 Hz sample loop in C; None runs the numpy loop (the reference, same bits)."""
         self.terrains: list[Terrain] = [self.sim.terrain] * n
         self._models: list[mujoco.MjModel] | None = None
         if settings.randomize_terrain:
@@ -313,8 +325,65 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         b.speed_targets[active] = np.clip(a4 * eps[0].max_wheel_speed, -lim, lim)
         pos0 = self._pos[active]
         command = np.stack([ep._command for ep in eps])
-        sums = StepSums(k)
         ep0 = eps[0]
+        sums: StepSums
+        if self._sampler is not None:
+            bufs = self._sampler.begin(active, [ep.sensor_model for ep in eps], command)
+            for smp in range(ep0.samples_per_step):
+                b.step(ep0.substeps_per_sample, ids=rows)
+                self._sampler.sample(smp, est, bufs)
+            theta_meas, s = bufs[5], bufs[6]
+            for j, ep in enumerate(eps):
+                ep._theta_meas = theta_meas[j].copy()
+            sums = StepSums.of_rows(s)
+            speed, yaw_rate, slip = s[:, 7], s[:, 8], s[:, 9:13]
+        else:
+            sums, speed, yaw_rate, slip = self._numpy_samples(active, rows, eps, command)
+        estimates = est.estimate(active)
+        xpos, xmat = b.field("xpos")[active], b.field("xmat")[active]
+        pos = xpos[:, ix.seg_body[1]]
+        flipped = ix.flipped(xmat)
+        f_z, contact = ix.wheel_load(b.plugin_state[active])
+        gravity = ix.gravity(xmat)
+        gyro = ix.gyro_rates(b.sensordata[active])
+        t = b._time[active]
+        infos: dict[int, dict[str, Any]] = {}
+        for j, (i, ep) in enumerate(zip(active.tolist(), eps, strict=True)):
+            ep._est = estimates[j]
+            reward, terminated, info = ep._finish_step(
+                a4[j],
+                sums,
+                j,
+                slip[j].copy(),
+                pos0[j],
+                pos[j],
+                bool(flipped[j]),
+                float(t[j]),
+                ep.np_random,
+                speed[j],
+                yaw_rate[j],
+                f_z[j],
+                wheel_friction(self.terrains[i], contact[j]),
+            )
+            rewards[i] = reward
+            terminations[i] = terminated
+            self._observations[i] = ep._observation(gravity[j], gyro[j])
+            infos[i] = info
+        self._pos[active] = pos
+        return infos
+
+    def _numpy_samples(
+        self,
+        active: NDArray[np.intp],
+        rows: NDArray[np.intp] | None,
+        eps: list[_Episode],
+        command: NDArray[np.float64],
+    ) -> tuple[StepSums, Any, Any, Any]:
+        """The sample loop in numpy: the reference of the C sampler (same bits)."""
+        b, ix, est = self.batch, self.index, self.estimator
+        ep0 = eps[0]
+        k = active.size
+        sums = StepSums(k)
         sensordata, time, qvel, plugin_state = b.sensordata, b._time, b.qvel, b.plugin_state
         cvel, xipos, ximat = b.field("cvel"), b.field("xipos"), b.field("ximat")
         subtree_com, force = b.field("subtree_com"), b.field("actuator_force")
@@ -341,38 +410,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
                 ep0._copper,
                 ep0.sample_dt,
             )
-        estimates = est.estimate(active)
-        xpos, xmat = b.field("xpos")[active], b.field("xmat")[active]
-        pos = xpos[:, ix.seg_body[1]]
-        flipped = ix.flipped(xmat)
-        f_z, contact = ix.wheel_load(plugin_state[active])
-        gravity = ix.gravity(xmat)
-        gyro = ix.gyro_rates(sensordata[active])
-        t = time[active]
-        infos: dict[int, dict[str, Any]] = {}
-        for j, (i, ep) in enumerate(zip(active.tolist(), eps, strict=True)):
-            ep._est = estimates[j]
-            reward, terminated, info = ep._finish_step(
-                a4[j],
-                sums,
-                j,
-                slip[j].copy(),
-                pos0[j],
-                pos[j],
-                bool(flipped[j]),
-                float(t[j]),
-                ep.np_random,
-                speed[j],
-                yaw_rate[j],
-                f_z[j],
-                wheel_friction(self.terrains[i], contact[j]),
-            )
-            rewards[i] = reward
-            terminations[i] = terminated
-            self._observations[i] = ep._observation(gravity[j], gyro[j])
-            infos[i] = info
-        self._pos[active] = pos
-        return infos
+        return sums, speed, yaw_rate, slip
 
     # ------------------------------------------------------------------ infos
     def _merge_infos(self, ids: list[int], infos: list[dict[str, Any]]) -> dict[str, Any]:

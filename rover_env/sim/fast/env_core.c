@@ -435,3 +435,76 @@ int env_step_samples(const mjModel* m, mjData* d, const StepSpec* sp, Estimator*
   }
   return 0;
 }
+
+// ------------------------------------------------------------------- batch sample (vector env)
+
+// Row-strided views (strides in doubles) of mujoco.batch's bound arrays.
+typedef struct {
+  const double *sensordata, *plugin_state, *cvel, *xipos, *ximat, *subtree_com, *force, *qvel,
+      *time;
+  long long s_sensordata, s_plugin_state, s_cvel, s_xipos, s_ximat, s_subtree_com, s_force,
+      s_qvel, s_time;
+  int seg2_root;
+} BatchView;
+
+// One 50 Hz sample of rovers rows[0..k) after mujoco.batch stepped them: the sample loop of
+// ProtoExplorerVectorEnv.step, as env_step_samples does for one MjData, with the middle
+// segment's velocity by rover_env.sim.batch.RoverIndex.segment_velocity's arithmetic (equal
+// to mj_objectVelocity's). noise (k * samples * 11), phi0 (k * 6), command (k * 2),
+// theta_meas (k * 5), sums (k * 13; zeroed by the caller before the first sample).
+int vec_sample(const StepSpec* sp, const BatchView* bv, Estimator* e, int k, const int* rows,
+               int smp, const double* noise, const double* phi0, const double* command,
+               double* theta_meas, double* sums) {
+  for (int j = 0; j < k; j++) {
+    int r = rows[j];
+    const double* sd = bv->sensordata + r * bv->s_sensordata;
+    const double* nz = noise + ((size_t)j * sp->samples + smp) * 11;
+    double y[NY];
+    for (int q = 0; q < 6; q++)
+      y[q] = quantize((sp->wheel_noisy ? sd[sp->phi_adr[q]] + nz[q] : sd[sp->phi_adr[q]]) -
+                          phi0[6 * j + q],
+                      sp->wheel_res);
+    for (int q = 0; q < 5; q++)
+      y[6 + q] = quantize(sp->joint_noisy ? sd[sp->theta_adr[q]] + nz[6 + q] : sd[sp->theta_adr[q]],
+                          sp->joint_res);
+    memcpy(theta_meas + 5 * j, y + 6, 5 * sizeof(double));
+    int err = est_push(e, r, bv->time[r * bv->s_time], y);
+    if (err) return err;
+    // RoverIndex.segment_velocity: mju_transformSpatial, then into the body's axes
+    int b = sp->seg2_body;
+    const double* cv = bv->cvel + r * bv->s_cvel + 6 * b;
+    const double* com = bv->subtree_com + r * bv->s_subtree_com + 3 * bv->seg2_root;
+    const double* p = bv->xipos + r * bv->s_xipos + 3 * b;
+    const double* rm = bv->ximat + r * bv->s_ximat + 9 * b;
+    double w0 = cv[0], w1 = cv[1], w2 = cv[2];
+    double d0 = p[0] - com[0], d1 = p[1] - com[1], d2 = p[2] - com[2];
+    double t0 = cv[3] - (d1 * w2 - d2 * w1);
+    double t1 = cv[4] - (d2 * w0 - d0 * w2);
+    double t2 = cv[5] - (d0 * w1 - d1 * w0);
+    double speed = rm[0] * t0 + rm[3] * t1 + rm[6] * t2;
+    double yaw_rate = rm[2] * w0 + rm[5] * w1 + rm[8] * w2;
+    const double* ps = bv->plugin_state + r * bv->s_plugin_state;
+    double slip[4];
+    for (int q = 0; q < 4; q++)
+      slip[q] = slip_of(ps[sp->truth_vx + q], ps[sp->truth_vw + q], sp->v_eps);
+    double* s = sums + 13 * j;
+    double dv = command[2 * j] - speed, dw = command[2 * j + 1] - yaw_rate;
+    s[0] += pow(dv, TWO);
+    s[1] += pow(dw, TWO);
+    double power = 0.0;
+    const double* f = bv->force + r * bv->s_force;
+    const double* qv = bv->qvel + r * bv->s_qvel;
+    for (int q = 0; q < 4; q++) {
+      double tau = f[q], omega = qv[sp->driven_dof[q]];
+      double pw = tau * omega + sp->copper * (tau * tau);
+      pw = (pw >= 0.0 || isnan(pw)) ? pw : 0.0;
+      power = q == 0 ? pw : power + pw;
+    }
+    s[2] += power * sp->sample_dt;
+    for (int q = 0; q < 4; q++) s[3 + q] += fabs(slip[q]);
+    s[7] = speed;
+    s[8] = yaw_rate;
+    for (int q = 0; q < 4; q++) s[9 + q] = slip[q];
+  }
+  return 0;
+}
