@@ -107,6 +107,10 @@ class FastSlipEstimator:
         self._started = np.zeros(self.n, dtype=bool)
         self._last_t = np.zeros(self.n)
 
+    def __reduce__(self) -> tuple[object, ...]:
+        # The C state is not copied: a copy sharing the handle would free it twice.
+        raise TypeError("FastSlipEstimator holds C memory: it cannot be pickled or copied")
+
     def __del__(self) -> None:
         lib, h = getattr(self, "_lib", None), getattr(self, "handle", None)
         if lib is not None and h:
