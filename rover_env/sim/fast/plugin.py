@@ -86,9 +86,9 @@ def terrain_block(terrain: Terrain, wave_capacity: int, patch_capacity: int) -> 
     return out
 
 
-EFFECT_SLOTS = ("combined_on", "load_fall", "load_fz0")
+EFFECT_SLOTS = ("combined_on", "load_fall", "load_fz0", "load_span")
 """The plugin's ``effects`` numbers, in order (tire_plugin.c), and their off values below."""
-_EFFECT_OFF = {"combined_on": 0.0, "load_fall": 0.0, "load_fz0": 1.0}
+_EFFECT_OFF = {"combined_on": 0.0, "load_fall": 0.0, "load_fz0": 1.0, "load_span": 1.0}
 
 
 def inject_plugin(

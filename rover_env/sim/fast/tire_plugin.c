@@ -39,9 +39,10 @@
 //   radius           nominal wheel radius (m)
 //   tire             11 numbers in TireParams field order
 //   max_angle_error  anti-windup bound of the setpoint around the wheel angle (rad)
-//   effects          optional, 3 numbers (default "0 0 1"): the tire-layer model extensions of
-//                    rover_env.effects: combined_slip's switch (friction ellipse on the
-//                    forces), load_dependent_friction's fall and its static wheel load F_z0 (N)
+//   effects          optional, 4 numbers (default "0 0 1 1"): the tire-layer model extensions
+//                    of rover_env.effects: combined_slip's switch (friction ellipse on the
+//                    forces), load_dependent_friction's fall, its static wheel load F_z0 (N)
+//                    and the width of its load range 2 range F_z0 (N)
 //   terrain          name of the <numeric> element holding the ground (read at every
 //                    compute, so it may change at run time and per simulation):
 //     [0] layout version (1)  [1] flat (0/1)  [2] contact iterations
@@ -85,7 +86,7 @@ typedef struct {
   int *ctrl_pos, *ctrl_vel, *driven_qpos;
   double radius, max_err;
   double tire[NTIRE];
-  double combined_on, load_fall, load_fz0;  // model extensions (config 'effects')
+  double combined_on, load_fall, load_fz0, load_span;  // model extensions (config 'effects')
   // per-model constants of the hot path, each computed exactly as the numpy code does per call
   double three_over_cs, three_over_calpha, three_sy_over_calpha;
   int terrain;  // numeric id
@@ -465,13 +466,15 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
     return fail(c, "config 'tire' must hold the 11 TireParams numbers", NULL);
   }
   const char* eff = config(m, instance, "effects");
-  double ev[3] = {0.0, 0.0, 1.0};
-  if (eff[0] && (!parse_numbers(eff, ev, 3) || ev[2] <= 0)) {
-    return fail(c, "config 'effects' must hold 3 numbers: combined_on, fall, F_z0 > 0", NULL);
+  double ev[4] = {0.0, 0.0, 1.0, 1.0};
+  if (eff[0] && (!parse_numbers(eff, ev, 4) || ev[2] <= 0 || ev[3] <= 0)) {
+    return fail(c, "config 'effects' must hold 4 numbers: combined_on, fall, F_z0 > 0, span > 0",
+                NULL);
   }
   c->combined_on = ev[0];
   c->load_fall = ev[1];
   c->load_fz0 = ev[2];
+  c->load_span = ev[3];
   const char* tname = config(m, instance, "terrain");
   c->terrain = mj_name2id(m, mjOBJ_NUMERIC, tname);
   TerrainView tv;
@@ -611,7 +614,7 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
     int patch;
     friction(&tv, point[0], point[1], &mu_x, &mu_y, &patch);
     if (c->load_fall != 0.0) {  // effects.LoadDependentFriction.friction
-      double r = np_min(np_max((F_z - c->load_fz0)/c->load_fz0, -0.5), 0.5);
+      double r = np_min(np_max((F_z - c->load_fz0)/c->load_span, -0.5), 0.5);
       double k = 1.0 - c->load_fall*r;
       mu_x = mu_x*k;
       mu_y = mu_y*k;
