@@ -67,11 +67,14 @@ def test_shipped_config_has_both_env_ids() -> None:
     assert load_config("ppo", ENV) == load_config(REPO / "configs" / "ppo.yaml", ENV)
 
 
-def test_resolved_config_round_trips(tmp_path: Path) -> None:
-    cfg = load_config(REPO / "configs" / "ppo.yaml", ENV)
+@pytest.mark.parametrize("name", ["ppo.yaml", "ppo_gsde.yaml"])
+def test_resolved_config_round_trips(tmp_path: Path, name: str) -> None:
+    env = ENV if name == "ppo.yaml" else "rover_env/ProtoExplorerScenarioMix-v0"
+    cfg = load_config(REPO / "configs" / name, env)
     path = tmp_path / "resolved.yaml"
-    path.write_text(yaml.safe_dump({ENV: cfg.to_dict()}))
-    assert load_config(path, ENV) == cfg
+    path.write_text(yaml.safe_dump({env: cfg.to_dict()}))
+    assert load_config(path, env) == cfg
+    assert cfg.use_sde == (name == "ppo_gsde.yaml")
 
 
 @pytest.mark.parametrize(
@@ -85,6 +88,8 @@ def test_resolved_config_round_trips(tmp_path: Path) -> None:
         ({"gamma": 1.5}, r"gamma: must be in \(0, 1\]"),
         ({"batch_size": 128}, r"batch_size: 128 exceeds n_steps \* n_envs = 64"),
         ({"policy_kwargs": {"activation": "sigmoid"}}, r"activation: expected one of"),
+        ({"use_sde": "yes"}, r"use_sde: expected true or false"),
+        ({"sde_sample_freq": -2}, r"sde_sample_freq: must be >= -1"),
     ],
 )
 def test_config_errors_name_key_and_file(tmp_path: Path, over: dict[str, Any], match: str) -> None:

@@ -68,6 +68,10 @@ class PPOConfig:
     vf_coef: float = 0.5
     max_grad_norm: float = 0.5
     target_kl: float | None = None
+    use_sde: bool = False
+    """Generalized state-dependent exploration (SB3's gSDE): smooth noise, a function of the
+    state, redrawn every ``sde_sample_freq`` steps (-1: once per rollout)."""
+    sde_sample_freq: int = -1
     policy_kwargs: PolicyKwargs = PolicyKwargs()
     normalize: NormalizeConfig = NormalizeConfig()
     env_kwargs: dict[str, Any] = dataclasses.field(default_factory=dict)
@@ -260,6 +264,8 @@ _CHECKS: dict[str, Any] = {
     "vf_coef": _nonneg,
     "max_grad_norm": _positive,
     "target_kl": lambda v, w: None if v is None else _positive(v, w),
+    "use_sde": lambda v, w: _bool(v, w),
+    "sde_sample_freq": lambda v, w: _int(v, w, -1),
     "policy_kwargs": _policy_kwargs,
     "normalize": _normalize,
     "env_kwargs": lambda v, w: dict(_mapping(v, w, set(map(str, v or {})))),

@@ -250,6 +250,8 @@ def train(
                 vf_coef=cfg.vf_coef,
                 max_grad_norm=cfg.max_grad_norm,
                 target_kl=cfg.target_kl,
+                use_sde=cfg.use_sde,
+                sde_sample_freq=cfg.sde_sample_freq,
                 policy_kwargs=_policy_kwargs(cfg),
                 device="cpu",
                 seed=None,
