@@ -372,6 +372,27 @@ typedef struct {
   double wheel_res, joint_res, copper, sample_dt, v_eps;
 } StepSpec;
 
+// StepSums.add for one rover and one sample, in the numpy loop's order of operations.
+static void add_sample(double* sums, const double* command, double speed, double yaw_rate,
+                       const double* force, const double* qvel, const StepSpec* sp,
+                       const double* slip) {
+  double dv = command[0] - speed, dw = command[1] - yaw_rate;
+  sums[0] += pow(dv, TWO);  // libm pow, as numpy's scalar ** 2 (not always dv * dv)
+  sums[1] += pow(dw, TWO);
+  double power = 0.0;
+  for (int k = 0; k < 4; k++) {
+    double tau = force[k], omega = qvel[sp->driven_dof[k]];
+    double p = tau * omega + sp->copper * (tau * tau);
+    p = (p >= 0.0 || isnan(p)) ? p : 0.0;  // np.maximum(p, 0.0)
+    power = k == 0 ? p : power + p;
+  }
+  sums[2] += power * sp->sample_dt;
+  for (int k = 0; k < 4; k++) sums[3 + k] += fabs(slip[k]);
+  sums[7] = speed;
+  sums[8] = yaw_rate;
+  for (int k = 0; k < 4; k++) sums[9 + k] = slip[k];
+}
+
 // ProtoExplorerEnv.step's sample loop for one rover with the plugin backend. targets (4):
 // ctrl[vel]; noise (samples * 11, already scaled, 0 where a sensor has none); phi0 (6): the
 // wheel counters' zero, set on the first reading; command (2). Outputs: theta_meas (5),
@@ -416,22 +437,7 @@ int env_step_samples(const mjModel* m, mjData* d, const StepSpec* sp, Estimator*
     for (int k = 0; k < 4; k++)
       slip[k] = slip_of(d->plugin_state[sp->truth_vx + k], d->plugin_state[sp->truth_vw + k],
                         sp->v_eps);
-    // StepSums.add
-    double dv = command[0] - speed, dw = command[1] - yaw_rate;
-    sums[0] += pow(dv, TWO);  // libm pow, as numpy's scalar ** 2 (not always dv * dv)
-    sums[1] += pow(dw, TWO);
-    double power = 0.0;
-    for (int k = 0; k < 4; k++) {
-      double tau = d->actuator_force[k], omega = d->qvel[sp->driven_dof[k]];
-      double p = tau * omega + sp->copper * (tau * tau);
-      p = (p >= 0.0 || isnan(p)) ? p : 0.0;  // np.maximum(p, 0.0)
-      power = k == 0 ? p : power + p;
-    }
-    sums[2] += power * sp->sample_dt;
-    for (int k = 0; k < 4; k++) sums[3 + k] += fabs(slip[k]);
-    sums[7] = speed;
-    sums[8] = yaw_rate;
-    for (int k = 0; k < 4; k++) sums[9 + k] = slip[k];
+    add_sample(sums, command, speed, yaw_rate, d->actuator_force, d->qvel, sp, slip);
   }
   return 0;
 }
@@ -487,24 +493,8 @@ int vec_sample(const StepSpec* sp, const BatchView* bv, Estimator* e, int k, con
     double slip[4];
     for (int q = 0; q < 4; q++)
       slip[q] = slip_of(ps[sp->truth_vx + q], ps[sp->truth_vw + q], sp->v_eps);
-    double* s = sums + 13 * j;
-    double dv = command[2 * j] - speed, dw = command[2 * j + 1] - yaw_rate;
-    s[0] += pow(dv, TWO);
-    s[1] += pow(dw, TWO);
-    double power = 0.0;
-    const double* f = bv->force + r * bv->s_force;
-    const double* qv = bv->qvel + r * bv->s_qvel;
-    for (int q = 0; q < 4; q++) {
-      double tau = f[q], omega = qv[sp->driven_dof[q]];
-      double pw = tau * omega + sp->copper * (tau * tau);
-      pw = (pw >= 0.0 || isnan(pw)) ? pw : 0.0;
-      power = q == 0 ? pw : power + pw;
-    }
-    s[2] += power * sp->sample_dt;
-    for (int q = 0; q < 4; q++) s[3 + q] += fabs(slip[q]);
-    s[7] = speed;
-    s[8] = yaw_rate;
-    for (int q = 0; q < 4; q++) s[9 + q] = slip[q];
+    add_sample(sums + 13 * j, command + 2 * j, speed, yaw_rate, bv->force + r * bv->s_force,
+               bv->qvel + r * bv->s_qvel, sp, slip);
   }
   return 0;
 }
