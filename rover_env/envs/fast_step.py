@@ -11,6 +11,7 @@ sensor noise is drawn in numpy from the episode's generator in the same order as
 from __future__ import annotations
 
 import ctypes
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -81,7 +82,7 @@ def _spec(
     samples: int,
     copper: float,
     sample_dt: float,
-    ctrl_vel: NDArray[np.intp] | None,
+    ctrl_vel: NDArray[np.intp] | None = None,
 ) -> StepSpec:
     pv = index.plugin
     if pv is None:
@@ -116,7 +117,30 @@ def draw_sensor_noise(c: SensorConfig, rng: np.random.Generator, out: Array) -> 
         out[:, 6:] = rng.normal(0.0, c.joint_noise, (k, 5))
 
 
-class FastSampleLoop:
+class _CoreCall:
+    """One function of the env core with the rover's ``StepSpec`` it is called with."""
+
+    def __init__(
+        self,
+        fn_name: str,
+        argtypes: Sequence[type],
+        index: RoverIndex,
+        sensors: SensorConfig,
+        timing: tuple[int, int, float, float],
+        ctrl_vel: NDArray[np.intp] | None = None,
+    ) -> None:
+        """``timing``: substeps per sample, samples per step, copper loss R/K^2, sample dt."""
+        fn = getattr(load_core(), fn_name)
+        fn.restype = _I
+        fn.argtypes = list(argtypes)
+        self._fn = fn
+        self.spec = _spec(index, sensors, *timing, ctrl_vel)
+        self._spec_ptr = ctypes.addressof(self.spec)
+        self.sensors = sensors
+        self.samples = int(timing[1])
+
+
+class FastSampleLoop(_CoreCall):
     """``env_step_samples`` bound to one simulator, its index and sensor configuration."""
 
     def __init__(
@@ -124,20 +148,9 @@ class FastSampleLoop:
         sim: RoverSim,
         index: RoverIndex,
         sensors: SensorConfig,
-        substeps: int,
-        samples: int,
-        copper: float,
-        sample_dt: float,
+        timing: tuple[int, int, float, float],
     ) -> None:
-        lib = load_core()
-        fn = lib.env_step_samples
-        fn.restype = _I
-        fn.argtypes = [_P] * 11
-        self._fn = fn
-        s = self.spec = _spec(index, sensors, substeps, samples, copper, sample_dt, sim._ctrl_vel)
-        self._spec_ptr = ctypes.addressof(s)
-        self.sensors = sensors
-        self.samples = int(samples)
+        super().__init__("env_step_samples", [_P] * 11, index, sensors, timing, sim._ctrl_vel)
         self.noise = np.zeros((self.samples, 11))
         self.theta = np.zeros(5)
         self.sums = np.zeros(13)
@@ -178,7 +191,7 @@ class FastSampleLoop:
         raise ValueError(f"slip estimator refused a sample at t={sim.data.time!r} (code {err})")
 
 
-class FastBatchSampler:
+class FastBatchSampler(_CoreCall):
     """``vec_sample`` for the vector env: one 50 Hz sample of the listed batch rows in C."""
 
     def __init__(
@@ -186,21 +199,11 @@ class FastBatchSampler:
         batch: BatchRoverSim,
         index: RoverIndex,
         sensors: SensorConfig,
-        substeps: int,
-        samples: int,
-        copper: float,
-        sample_dt: float,
+        timing: tuple[int, int, float, float],
     ) -> None:
-        lib = load_core()
-        fn = lib.vec_sample
-        fn.restype = _I
-        fn.argtypes = [_P, _P, _P, _I, _P, _I, _P, _P, _P, _P, _P]
-        self._fn = fn
-        self.spec = _spec(index, sensors, substeps, samples, copper, sample_dt, None)
-        self._spec_ptr = ctypes.addressof(self.spec)
+        argtypes = [_P, _P, _P, _I, _P, _I, _P, _P, _P, _P, _P]
+        super().__init__("vec_sample", argtypes, index, sensors, timing)
         self.batch = batch
-        self.sensors = sensors
-        self.samples = int(samples)
         self._seg2_root = int(index.seg_root[1])
 
     def _view(self) -> BatchView:

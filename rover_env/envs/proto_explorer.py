@@ -476,6 +476,11 @@ class RoverEpisode:
         self._theta_meas = np.zeros(5)
         self._imu_rng = np.random.default_rng(0)
 
+    def _timing(self) -> tuple[int, int, float, float]:
+        """What the compiled sample loops need: substeps per sample, samples per step, the
+        motors' copper-loss factor R/K^2 and the time a sample stands for."""
+        return self.substeps_per_sample, self.samples_per_step, self._copper, self.sample_dt
+
     # --- episode start
     def _start_pose(self, rng: np.random.Generator, options: dict[str, Any] | None) -> tuple:
         opts = options or {}
@@ -834,15 +839,7 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
         if self.sim.backend == "plugin":
             # The compiled fast path: estimator and sample loop in C (rover_env.envs.fast_step).
             self.estimator = FastSlipEstimator(self.rover_cfg, 1, EstimatorConfig())
-            self._fast = FastSampleLoop(
-                self.sim,
-                self._index,
-                self.sensor_cfg,
-                self.substeps_per_sample,
-                self.samples_per_step,
-                self._copper,
-                self.sample_dt,
-            )
+            self._fast = FastSampleLoop(self.sim, self._index, self.sensor_cfg, self._timing())
         else:
             self.estimator = BatchSlipEstimator(self.rover_cfg, 1, EstimatorConfig())
         self._vel = np.zeros(6)  # scratch of mj_objectVelocity

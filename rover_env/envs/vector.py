@@ -178,13 +178,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         self.episodes = [_Episode(settings, self.sim.dt, arena) for _ in range(n)]
         e0 = self.episodes[0]
         self._sampler: FastBatchSampler | None = FastBatchSampler(
-            self.batch,
-            self.index,
-            settings.sensor_cfg,
-            e0.substeps_per_sample,
-            e0.samples_per_step,
-            e0._copper,
-            e0.sample_dt,
+            self.batch, self.index, settings.sensor_cfg, e0._timing()
         )
         """The 50 Hz sample loop in C; None runs the numpy loop (the reference, same bits)."""
         self.terrains: list[Terrain] = [self.sim.terrain] * n
