@@ -21,6 +21,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from _report import write_report
+
 from rover_env.calibration.diagnose import Options, diagnose
 from rover_env.calibration.make_logs import make_logs
 from rover_env.config import JointSpec, RoverConfig
@@ -98,16 +100,6 @@ def planned(quick: bool) -> list[dict[str, Any]]:
 def _truth_value(effects: dict[str, dict[str, float]], name: str) -> tuple[str, float]:
     param = LEVELS[name][0]
     return param, effects[name][param]
-
-
-NOTES_MARK = "\n---\n\n## Notes (by hand"
-
-
-def write_report(path: Path, text: str) -> None:
-    """Write the generated matrix.md, keeping a hand-written notes section already at its end."""
-    old = path.read_text() if path.is_file() else ""
-    i = old.find(NOTES_MARK)
-    path.write_text(text + (old[i:] if i >= 0 else ""))
 
 
 def _same_case(row: dict[str, Any], case: dict[str, Any]) -> bool:

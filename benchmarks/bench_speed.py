@@ -31,6 +31,7 @@ from pathlib import Path
 import gymnasium as gym
 import mujoco
 import numpy as np
+from _report import write_report
 
 import rover_env
 from rover_env.sim.batch import BatchRoverSim
@@ -40,8 +41,6 @@ gym.register_envs(rover_env)
 ID = "rover_env/ProtoExplorer-v0"
 TARGETS = [2.0, 3.0, 2.0, 3.0]
 
-
-NOTES_MARK = "\n---\n\n## Notes"
 
 CPU_RATES: dict[str, float] = {}
 """Units per CPU second (all threads of this process) of each measurement, by label."""
@@ -370,11 +369,7 @@ def main() -> None:
         f"({os.cpu_count()} CPUs)."
     )
     if args.out:
-        # Keep a hand-written notes section at the end of an existing report.
-        path = Path(args.out)
-        old = path.read_text() if path.is_file() else ""
-        i = old.find(NOTES_MARK)
-        path.write_text("\n".join(out.lines) + "\n" + (old[i:] if i >= 0 else ""))
+        write_report(Path(args.out), "\n".join(out.lines) + "\n")
 
 
 if __name__ == "__main__":

@@ -101,11 +101,6 @@ class Terrain:
     def height(self, x: Array, y: Array) -> Array:
         return self.height_and_gradient(x, y)[0]
 
-    @property
-    def n_patches(self) -> int:
-        """Number of friction patches (0: the default ground everywhere)."""
-        return int(self._patch_mu.shape[0])
-
     def friction(self, x: Array, y: Array) -> tuple[Array, Array, NDArray[np.int64]]:
         """mu_x, mu_y and patch index (0 = default ground, i = patches[i-1]); last patch wins."""
         x = np.asarray(x, dtype=float)

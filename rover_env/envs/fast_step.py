@@ -150,12 +150,10 @@ class FastSampleLoop(_CoreCall):
         sensors: SensorConfig,
         timing: tuple[int, int, float, float],
     ) -> None:
-        super().__init__("env_step_samples", [_P] * 11, index, sensors, timing, sim._ctrl_vel)
+        super().__init__("env_step_samples", [_P] * 10, index, sensors, timing, sim._ctrl_vel)
         self.noise = np.zeros((self.samples, 11))
         self.theta = np.zeros(5)
         self.sums = np.zeros(13)
-        self._flag = ctypes.c_int(1)
-        self._flag_ptr = ctypes.addressof(self._flag)
 
     def draw_noise(self, model: SensorModel) -> None:
         """This step's sensor noise, in ``SensorModel.read``'s order (wheels, joints per sample)."""
@@ -178,7 +176,6 @@ class FastSampleLoop(_CoreCall):
             targets.ctypes.data,
             self.noise.ctypes.data,
             phi0.ctypes.data,
-            self._flag_ptr,
             command.ctypes.data,
             self.theta.ctypes.data,
             self.sums.ctypes.data,

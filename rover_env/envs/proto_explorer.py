@@ -393,14 +393,6 @@ class StepSums:
         out.slip = rows[:, 3:7]
         return out
 
-    @classmethod
-    def of(cls, row: Array) -> StepSums:
-        """One rover's sums viewing ``row`` = (err_v2, err_w2, energy, slip x 4)."""
-        out = cls.__new__(cls)
-        out.err_v2, out.err_w2, out.energy = row[0:1], row[1:2], row[2:3]
-        out.slip = row[3:7].reshape(1, 4)
-        return out
-
     def add(
         self,
         command: Array,
@@ -690,13 +682,9 @@ def segment_velocity(sim: RoverSim, index: RoverIndex, vel: Array) -> tuple[Any,
 
 def wheel_friction(terrain: Terrain, contact_point: Array) -> Array:
     """Ground friction (mu_x, mu_y) under each wheel's contact point, (..., 2)."""
-    if terrain.n_patches == 0:  # the default ground everywhere (what friction() returns)
-        out = np.empty((*contact_point.shape[:-1], 2))
-        out[..., 0] = terrain.mu_x_default
-        out[..., 1] = terrain.mu_y_default
-        return out
-    mu_x, mu_y, _ = terrain.friction(contact_point[..., 0], contact_point[..., 1])
-    return np.stack([mu_x, mu_y], axis=-1)
+    out = np.empty((*contact_point.shape[:-1], 2))
+    out[..., 0], out[..., 1], _ = terrain.friction(contact_point[..., 0], contact_point[..., 1])
+    return out
 
 
 class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.float32]]):
@@ -884,9 +872,9 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
         self, action: NDArray[Any]
     ) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
         a4 = self._targets(action)
-        sim, index, est, vel = self.sim, self._index, self.estimator, self._vel
-        if self._fast is not None and not sim._cmd_effects:
+        if self._fast is not None and not self.sim._cmd_effects:
             return self._step_fast(a4)
+        sim, index, est, vel = self.sim, self._index, self.estimator, self._vel
         d = sim.data
         sim.set_speed_targets(a4 * self.max_wheel_speed)
         seg2 = index.seg_body[1]
@@ -952,7 +940,7 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
         f_z, contact = index.wheel_load(d.plugin_state)
         reward, terminated, info = self._finish_step(
             a4,
-            StepSums.of(s[:7]),
+            StepSums.of_rows(s[None]),
             0,
             s[9:13].copy(),
             pos0,

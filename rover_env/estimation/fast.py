@@ -104,8 +104,8 @@ class FastSlipEstimator:
         self.handle: int = handle
         self._y = np.empty(11)
         self._y_ptr = self._y.ctypes.data
-        self._started = np.zeros(self.n, dtype=bool)
         self._last_t = np.zeros(self.n)
+        """Each rover's newest sample time (for the error message of a sample out of order)."""
 
     def __reduce__(self) -> tuple[object, ...]:
         # The C state is not copied: a copy sharing the handle would free it twice.
@@ -126,7 +126,6 @@ class FastSlipEstimator:
         """Forget rovers ``ids`` (default all): their next sample starts a new drive."""
         for i in self._ids(ids):
             self._lib.est_reset(self.handle, i)
-            self._started[i] = False
 
     def push(
         self, ids: npt.ArrayLike | None, t: npt.ArrayLike, phi: npt.ArrayLike, theta: npt.ArrayLike
@@ -149,7 +148,6 @@ class FastSlipEstimator:
     def _check(self, err: int, i: int, t: float) -> None:
         if err == 0:
             self._last_t[i] = t
-            self._started[i] = True
         elif err == -1:
             raise ValueError(f"time must increase: {float(self._last_t[i])!r} then {t!r}")
         elif err == -2:
@@ -159,16 +157,10 @@ class FastSlipEstimator:
 
     def estimate(self, ids: npt.ArrayLike | None = None) -> list[SlipEstimate]:
         """The estimate at each listed rover's newest sample (as ``SlipEstimator.update``)."""
-        rows = self._ids(ids)
-        out = np.empty((len(rows), NOUT))
-        base, step = out.ctypes.data, NOUT * 8
-        for j, i in enumerate(rows):
-            if self._lib.est_estimate(self.handle, i, base + j * step):
-                raise RuntimeError("estimate() needs at least one sample since reset")
-        return [estimate_from_row(out[j]) for j in range(len(rows))]
+        return [self.estimate_one(i) for i in self._ids(ids)]
 
     def estimate_one(self, i: int) -> SlipEstimate:
-        """``estimate([i])[0]``, for the single env's every step."""
+        """The estimate at rover ``i``'s newest sample."""
         row = np.empty(NOUT)
         if self._lib.est_estimate(self.handle, i, row.ctypes.data):
             raise RuntimeError("estimate() needs at least one sample since reset")

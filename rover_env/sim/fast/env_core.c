@@ -14,14 +14,12 @@
 // physics it samples (docs/speed.md).
 
 #include <math.h>
-#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include <mujoco/mujoco.h>
 
 #define NY 11  // wheel angles 1L..3R, then joint angles theta_1..theta_5
-#define NOUT 56
 
 enum { FLAG_WARMUP = 1, FLAG_STANDSTILL = 2, FLAG_FREE_WHEELS = 4, FLAG_SLOW_WHEEL = 8 };
 
@@ -320,7 +318,7 @@ static void kinematic_part(const Estimator* e, const double* rates, const double
   for (int s = 0; s < 3; s++) out[45 + s] = w_own[s][2];
 }
 
-// The estimate at rover i's newest sample into out (NOUT numbers). Returns 0, or -1 if the
+// The estimate at rover i's newest sample into out (56 numbers, layout in fast.py). Returns 0, or -1 if the
 // rover has no sample since its reset.
 int est_estimate(const Estimator* e, int i, double* out) {
   int cnt = e->count[i];
@@ -372,6 +370,24 @@ typedef struct {
   double wheel_res, joint_res, copper, sample_dt, v_eps;
 } StepSpec;
 
+// SensorModel.read of one sample: wheel counters from their zero phi0, potentiometers;
+// nz the sample's noise (11, used only where the sensor is noisy). y (11) out.
+static void read_sensors(const double* sd, const double* nz, const double* phi0,
+                         const StepSpec* sp, double* y) {
+  for (int k = 0; k < 6; k++)
+    y[k] = quantize((sp->wheel_noisy ? sd[sp->phi_adr[k]] + nz[k] : sd[sp->phi_adr[k]]) - phi0[k],
+                    sp->wheel_res);
+  for (int k = 0; k < 5; k++)
+    y[6 + k] = quantize(sp->joint_noisy ? sd[sp->theta_adr[k]] + nz[6 + k] : sd[sp->theta_adr[k]],
+                        sp->joint_res);
+}
+
+// True slip ratio of the driven wheels from the plugin's committed truth block.
+static void driven_slip(const double* plugin_state, const StepSpec* sp, double* slip) {
+  for (int k = 0; k < 4; k++)
+    slip[k] = slip_of(plugin_state[sp->truth_vx + k], plugin_state[sp->truth_vw + k], sp->v_eps);
+}
+
 // StepSums.add for one rover and one sample, in the numpy loop's order of operations.
 static void add_sample(double* sums, const double* command, double speed, double yaw_rate,
                        const double* force, const double* qvel, const StepSpec* sp,
@@ -394,13 +410,12 @@ static void add_sample(double* sums, const double* command, double speed, double
 }
 
 // ProtoExplorerEnv.step's sample loop for one rover with the plugin backend. targets (4):
-// ctrl[vel]; noise (samples * 11, already scaled, 0 where a sensor has none); phi0 (6): the
-// wheel counters' zero, set on the first reading; command (2). Outputs: theta_meas (5),
-// sums (err_v2, err_w2, energy, slip[4], then the last sample's speed, yaw rate, slip[4]).
-// Returns 0, 1 on a MuJoCo warning, 2 on a non-finite state (the caller raises), or the
-// negative est_push error.
+// ctrl[vel]; noise (samples * 11, already scaled); phi0 (6): the wheel counters' zero;
+// command (2). Outputs: theta_meas (5), sums (err_v2, err_w2, energy, slip[4], then the last
+// sample's speed, yaw rate, slip[4]). Returns 0, 1 on a MuJoCo warning, 2 on a non-finite
+// state (the caller raises), or the negative est_push error.
 int env_step_samples(const mjModel* m, mjData* d, const StepSpec* sp, Estimator* e,
-                     const double* targets, const double* noise, double* phi0, int* phi0_set,
+                     const double* targets, const double* noise, const double* phi0,
                      const double* command, double* theta_meas, double* sums) {
   double vel[6];
   for (int k = 0; k < 4; k++) d->ctrl[sp->ctrl_vel[k]] = targets[k];
@@ -413,31 +428,16 @@ int env_step_samples(const mjModel* m, mjData* d, const StepSpec* sp, Estimator*
       if (!isfinite(d->qpos[k])) return 2;
     for (int k = 0; k < m->nv; k++)
       if (!isfinite(d->qvel[k])) return 2;
-    // SensorModel.read
-    const double* nz = noise + 11 * smp;
     double y[NY];
-    for (int k = 0; k < 6; k++)
-      y[k] = sp->wheel_noisy ? d->sensordata[sp->phi_adr[k]] + nz[k] : d->sensordata[sp->phi_adr[k]];
-    if (!*phi0_set) {
-      memcpy(phi0, y, 6 * sizeof(double));
-      *phi0_set = 1;
-    }
-    for (int k = 0; k < 6; k++) y[k] = quantize(y[k] - phi0[k], sp->wheel_res);
-    for (int k = 0; k < 5; k++)
-      y[6 + k] = quantize(sp->joint_noisy ? d->sensordata[sp->theta_adr[k]] + nz[6 + k]
-                                          : d->sensordata[sp->theta_adr[k]],
-                          sp->joint_res);
+    read_sensors(d->sensordata, noise + 11 * smp, phi0, sp, y);
     memcpy(theta_meas, y + 6, 5 * sizeof(double));
     int err = est_push(e, 0, d->time, y);
     if (err) return err;
     // the middle segment's forward speed and yaw rate; the driven wheels' true slip
     mj_objectVelocity(m, d, mjOBJ_BODY, sp->seg2_body, vel, 1);
-    double speed = vel[3], yaw_rate = vel[2];
     double slip[4];
-    for (int k = 0; k < 4; k++)
-      slip[k] = slip_of(d->plugin_state[sp->truth_vx + k], d->plugin_state[sp->truth_vw + k],
-                        sp->v_eps);
-    add_sample(sums, command, speed, yaw_rate, d->actuator_force, d->qvel, sp, slip);
+    driven_slip(d->plugin_state, sp, slip);
+    add_sample(sums, command, vel[3], vel[2], d->actuator_force, d->qvel, sp, slip);
   }
   return 0;
 }
@@ -463,16 +463,9 @@ int vec_sample(const StepSpec* sp, const BatchView* bv, Estimator* e, int k, con
                double* theta_meas, double* sums) {
   for (int j = 0; j < k; j++) {
     int r = rows[j];
-    const double* sd = bv->sensordata + r * bv->s_sensordata;
-    const double* nz = noise + ((size_t)j * sp->samples + smp) * 11;
     double y[NY];
-    for (int q = 0; q < 6; q++)
-      y[q] = quantize((sp->wheel_noisy ? sd[sp->phi_adr[q]] + nz[q] : sd[sp->phi_adr[q]]) -
-                          phi0[6 * j + q],
-                      sp->wheel_res);
-    for (int q = 0; q < 5; q++)
-      y[6 + q] = quantize(sp->joint_noisy ? sd[sp->theta_adr[q]] + nz[6 + q] : sd[sp->theta_adr[q]],
-                          sp->joint_res);
+    read_sensors(bv->sensordata + r * bv->s_sensordata,
+                 noise + ((size_t)j * sp->samples + smp) * 11, phi0 + 6 * j, sp, y);
     memcpy(theta_meas + 5 * j, y + 6, 5 * sizeof(double));
     int err = est_push(e, r, bv->time[r * bv->s_time], y);
     if (err) return err;
@@ -489,10 +482,8 @@ int vec_sample(const StepSpec* sp, const BatchView* bv, Estimator* e, int k, con
     double t2 = cv[5] - (d0 * w1 - d1 * w0);
     double speed = rm[0] * t0 + rm[3] * t1 + rm[6] * t2;
     double yaw_rate = rm[2] * w0 + rm[5] * w1 + rm[8] * w2;
-    const double* ps = bv->plugin_state + r * bv->s_plugin_state;
     double slip[4];
-    for (int q = 0; q < 4; q++)
-      slip[q] = slip_of(ps[sp->truth_vx + q], ps[sp->truth_vw + q], sp->v_eps);
+    driven_slip(bv->plugin_state + r * bv->s_plugin_state, sp, slip);
     add_sample(sums + 13 * j, command + 2 * j, speed, yaw_rate, bv->force + r * bv->s_force,
                bv->qvel + r * bv->s_qvel, sp, slip);
   }
