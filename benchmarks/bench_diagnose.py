@@ -155,6 +155,7 @@ def run_case(case: dict[str, Any], root: Path) -> dict[str, Any]:
         "main_signal": final["main_signal"],
         "main_reduction": final["main_reduction"],
         "main_reduction_median": final.get("main_reduction_median_window", float("nan")),
+        "main_gap_reduction": final.get("main_gap_reduction", float("nan")),
         "unexplained": final["unexplained"],
         "make_logs_s": t1 - t0,
         "diagnose_s": t2 - t1,
@@ -187,6 +188,7 @@ def summarise(rows: list[dict[str, Any]], total_s: float, quick: bool, planned_n
                 covered.append(f["lo"] <= f["truth"] <= f["hi"])
     red = [r["main_reduction"] >= 0.7 for r in mod]
     red_med = [r.get("main_reduction_median", 0.0) >= 0.7 for r in mod]
+    red_gap = [r.get("main_gap_reduction", 0.0) >= 0.7 for r in mod if "main_gap_reduction" in r]
     clean = [not r["named"] for r in rows if r["kind"] == "clean"]
     pairs = [all(e in r["named"] for e in r["truth"]) for r in rows if r["kind"] == "pair"]
     outside = [bool(r["unexplained"]) for r in rows if r["kind"] == "outside"]
@@ -208,7 +210,8 @@ def summarise(rows: list[dict[str, Any]], total_s: float, quick: bool, planned_n
         f"- Moderate: 95 % intervals covering the truth: {share(covered)}",
         f"- Moderate: held-out RMS of the main residual reduced ≥ 70 %: {share(red)} pooled over the"
         f" held-out drive; {share(red_med)} for the median window (a few pivot-turn windows replay"
-        " chaotically and can hold most of the pooled error)",
+        " chaotically and can hold most of the pooled error); the gap above the replay floor"
+        f" (RMS² − floor², each model against its own floor) closed ≥ 70 %: {share(red_gap)}",
         f"- Weak: named {share(weak)}",
         f"- Clean: nothing named: {share(clean)}",
         f"- Pairs: both named: {share(pairs)}",
@@ -232,7 +235,8 @@ def summarise(rows: list[dict[str, Any]], total_s: float, quick: bool, planned_n
         L.append(
             f"| {r['case']} | {r['seed']} | {', '.join(r['named']) or '—'} | {tie} | {fits} |"
             f" {r['main_signal']} {100 * r['main_reduction']:.0f} % (median window"
-            f" {100 * r.get('main_reduction_median', float('nan')):.0f} %) | {', '.join(r['unexplained']) or '—'} |"
+            f" {100 * r.get('main_reduction_median', float('nan')):.0f} %, gap"
+            f" {100 * r.get('main_gap_reduction', float('nan')):.0f} %) | {', '.join(r['unexplained']) or '—'} |"
             f" {r['diagnose_s'] + r['followup_s']:.0f} |"
         )
     return "\n".join(L) + "\n"

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from rover_env.calibration.diagnose import Options, diagnose
+from rover_env.calibration.diagnose import Options, _noise_test, diagnose
 from rover_env.calibration.make_logs import make_logs, parse_effects
 from rover_env.calibration.replay import ReplaySettings, replay_config
 from rover_env.cli import main
@@ -200,6 +200,15 @@ def test_updated_config_reproduces_the_held_out_replay_exactly(rr_case: tuple[Pa
     again = replay_config(cfg_path, [held], ReplaySettings())
     for key, arr in again.items():
         assert np.array_equal(arr, saved[f"after_{key}"]), key
+
+
+def test_noise_floor_test_needs_a_cleared_signal_and_no_new_one() -> None:
+    above = ["wheel_1L", "wheel_2R"]
+    assert _noise_test(above, ["wheel_2R"]) == ["wheel_1L"]
+    assert _noise_test(above, []) == above
+    assert _noise_test(above, above) == []  # nothing cleared
+    assert _noise_test(above, ["theta_2"]) == []  # clears both but breaks another signal
+    assert _noise_test([], []) == []  # a clean reference leaves nothing to clear
 
 
 def test_bad_logs_fail_naming_file_column_and_row(
