@@ -98,6 +98,53 @@ def test_zero_residual_on_slip_pi_drives_exactly_like_slip_pi() -> None:
         Residual("ppo:x", 0.5)
 
 
+def test_zero_schedule_is_slip_pi_and_the_schedule_changes_its_gains() -> None:
+    from rover_env.benchmark.controllers import make_controller
+    from rover_env.benchmark.mixture import Schedule
+    from rover_env.benchmark.run import ScenarioWrapper
+    from rover_env.benchmark.scenarios import load_scenario
+    from rover_env.envs.proto_explorer import ProtoExplorerEnv
+
+    episode = load_scenario("ice-patch").episode(SPLITS["tuning"].start, duration=3.0)
+    runs = []
+    for ctrl, act in (
+        (make_controller("slip-pi"), None),
+        (Schedule("slip-pi", [2.0, 0.5]), np.zeros(2)),
+        (Schedule("slip-pi", [2.0, 0.5]), np.array([-1.0, 1.0])),
+    ):
+        w = ScenarioWrapper(ProtoExplorerEnv(terrain=episode.terrain))
+        w.set_episode(episode)
+        obs, _ = w.reset()
+        ctrl.reset(w.base)
+        acts = []
+        for _ in range(30):
+            a = ctrl(act, w.base, obs) if isinstance(ctrl, Schedule) else ctrl.action(w.base, obs)
+            acts.append(a)
+            obs, *_ = w.step(a)
+        runs.append(np.array(acts))
+        if isinstance(ctrl, Schedule) and act is not None and act[0] < 0:
+            pi = ctrl._pi
+            assert pi is not None and ctrl._cfg0 is not None
+            assert pi.cfg.deadband == ctrl._cfg0.deadband / 4  # two octaves down
+            assert pi.cfg.ki == ctrl._cfg0.ki * 2**0.5
+            ctrl.reset(w.base)
+            assert pi.cfg is ctrl._cfg0  # a reset restores the configured PI
+    np.testing.assert_array_equal(runs[1], runs[0])
+    assert np.abs(runs[2] - runs[0]).max() > 1e-4  # a scheduled PI acts differently
+    with pytest.raises(ValueError, match="slip-pi base"):
+        Schedule("open-loop", [1.0, 1.0])
+    with pytest.raises(ValueError, match="deadband_octaves"):
+        Schedule("slip-pi", [1.0])
+    env = ScenarioMixEnv(
+        scenarios=["ice-patch"], action_schedule=[2.0, 0.5], residual_base="slip-pi"
+    )
+    assert env.action_space.shape == (2,)
+    env.reset(seed=0)
+    _, r, *_ = env.step(np.zeros(2, dtype=np.float32))
+    assert np.isfinite(r)
+    env.close()
+
+
 def test_shipped_agent_loads_and_drives() -> None:
     """The agent in agents/scenario-mix: a residual on the slip PI, read from its config."""
     pytest.importorskip("stable_baselines3")

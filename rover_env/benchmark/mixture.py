@@ -15,10 +15,19 @@ base with a benchmark controller spec: ``"open-loop"`` (the skid-steer feed-forw
 kinematics only, :func:`residual_action`) or ``"slip-pi"`` (the tuned slip PI, whose
 integrators then also remove any steady bias the policy adds). The ``ppo:`` benchmark
 controller applies the same mapping, read from the run's config.
+
+``action_schedule`` (``[deadband_octaves, gain_octaves]``) instead makes the action a *gain
+schedule* of the slip PI (:class:`Schedule`): two numbers per step that scale the PI's
+deadband by ``2 ** (deadband_octaves * a0)`` and its Kp and Ki by ``2 ** (gain_octaves * a1)``.
+The wheels are always driven by the PI, so exploration noise perturbs how hard the PI
+corrects slip, not the wheel speeds themselves: with a residual on the wheel targets every
+exploratory action is itself slip, ten times the PI's own on ice
+(``docs/benchmark-ppo/attempts.md``). A zero action is the PI as configured.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from collections.abc import Sequence
 from typing import Any
@@ -36,7 +45,7 @@ from rover_env.control.open_loop import skid_steer_targets
 from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
 from rover_env.estimation.estimator import static_rolling_radius
 
-__all__ = ["DEFAULT_MIX", "Residual", "ScenarioMixEnv", "residual_action"]
+__all__ = ["DEFAULT_MIX", "Residual", "ScenarioMixEnv", "Schedule", "residual_action"]
 
 Obs = npt.NDArray[np.float32]
 
@@ -95,6 +104,54 @@ class Residual:
         return np.clip(base + self.scale * np.clip(a, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
 
 
+class Schedule:
+    """Env action = the slip PI's, its deadband and gains scaled each step by the action."""
+
+    def __init__(self, base: str, octaves: Sequence[float]) -> None:
+        from rover_env.benchmark.controllers import make_controller
+        from rover_env.control.slip_pi import SlipPI
+
+        if not base.startswith("slip-pi"):
+            raise ValueError(f"action_schedule needs a slip-pi base controller, got {base!r}")
+        oc = [float(x) for x in octaves]
+        if len(oc) != 2 or not all(np.isfinite(oc)) or not all(0 <= x <= 3 for x in oc):
+            raise ValueError(
+                f"action_schedule must be [deadband_octaves, gain_octaves] in [0, 3], got {octaves!r}"
+            )
+        self.base = make_controller(base)
+        self.octaves = (oc[0], oc[1])
+        self._pi: SlipPI | None = None
+        self._cfg0: Any = None
+
+    def reset(self, env: ProtoExplorerEnv) -> None:
+        from rover_env.control.slip_pi import SlipPI
+
+        self.base.reset(env)
+        pi = getattr(self.base, "_ctrl", None)
+        assert isinstance(pi, SlipPI)
+        if pi is not self._pi:
+            self._pi, self._cfg0 = pi, pi.cfg
+        pi.cfg = self._cfg0
+
+    def __call__(self, action: npt.ArrayLike, env: ProtoExplorerEnv, obs: Obs) -> Obs:
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if a.shape != (2,) or not np.all(np.isfinite(a)):
+            raise ValueError(f"schedule action must be 2 finite entries, got {a}")
+        assert self._pi is not None, "reset() first"
+        a = np.clip(a, -1.0, 1.0)
+        c0 = self._cfg0
+        db = 2.0 ** (self.octaves[0] * a[0])
+        g = 2.0 ** (self.octaves[1] * a[1])
+        # Direct field writes on a copy: the ranges keep every value valid, and this runs
+        # every step (dataclasses.replace would re-validate each time).
+        cfg = copy.copy(c0)
+        object.__setattr__(cfg, "deadband", min(c0.deadband * db, c0.max_deadband))
+        object.__setattr__(cfg, "kp", c0.kp * g)
+        object.__setattr__(cfg, "ki", c0.ki * g)
+        self._pi.cfg = cfg
+        return self.base.action(env, obs)
+
+
 def _scaled(schedule: CommandSchedule, speed: float, yaw: float) -> CommandSchedule:
     return CommandSchedule(
         schedule.times,
@@ -112,6 +169,8 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         action_residual: None for absolute targets (the plain env's action), or the scale of
             a residual on the base controller (fraction of the maximum wheel speed).
         residual_base: the base controller's spec, "open-loop" or "slip-pi" (module docstring).
+        action_schedule: None, or ``[deadband_octaves, gain_octaves]``: the action is then a
+            gain schedule of the ``residual_base`` slip PI (:class:`Schedule`), 2 values.
         speed_scale: range of the factor on every commanded speed of an episode.
         yaw_scale: range of the factor on every commanded yaw rate (its sign is drawn too).
         **env_kwargs: passed to every scenario's ``ProtoExplorerEnv`` (e.g. reward_weights);
@@ -125,6 +184,7 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         scenarios: dict[str, float] | Sequence[str] | None = None,
         action_residual: float | None = None,
         residual_base: str = "open-loop",
+        action_schedule: Sequence[float] | None = None,
         speed_scale: tuple[float, float] = (0.6, 1.3),
         yaw_scale: tuple[float, float] = (0.5, 1.5),
         **env_kwargs: Any,
@@ -136,11 +196,15 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
             raise ValueError(f"scenarios need positive weights, got {mix}")
         if "terrain" in env_kwargs:
             raise ValueError("ScenarioMixEnv: the terrain comes from each scenario, not env_kwargs")
-        self.residual = (
-            None if action_residual is None else Residual(residual_base, action_residual)
-        )
-        if action_residual is not None and env_kwargs.get("action_layout", "wheels") != "wheels":
-            raise ValueError("action_residual needs action_layout='wheels'")
+        if action_residual is not None and action_schedule is not None:
+            raise ValueError("give action_residual or action_schedule, not both")
+        self.residual: Residual | Schedule | None = None
+        if action_residual is not None:
+            self.residual = Residual(residual_base, action_residual)
+        elif action_schedule is not None:
+            self.residual = Schedule(residual_base, action_schedule)
+        if self.residual is not None and env_kwargs.get("action_layout", "wheels") != "wheels":
+            raise ValueError("action_residual and action_schedule need action_layout='wheels'")
         self.names = list(mix)
         self.cfgs = [load_scenario(n) for n in self.names]
         p = np.array([mix[n] for n in self.names], dtype=np.float64)
@@ -153,6 +217,8 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         self.rover_cfg = first.base.rover_cfg
         self.observation_space = first.observation_space
         self.action_space = first.action_space
+        if isinstance(self.residual, Schedule):
+            self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         self._active: ScenarioWrapper = first
         self._obs: Obs = np.zeros(len(OBS_NAMES), dtype=np.float32)
 

@@ -10,7 +10,9 @@ The policy must have been trained on the plain ``ProtoExplorerEnv`` observation 
 ``OBS_NAMES``); its action space decides the env's action layout (4 values: "wheels",
 2: "sides"). Actions are the deterministic (mean) ones. If the run's ``config.yaml`` beside
 the model sets ``env_kwargs.action_residual`` (``ScenarioMixEnv``), the policy's action is a
-residual on a base controller (``env_kwargs.residual_base``) and is mapped the same way here.
+residual on a base controller (``env_kwargs.residual_base``) and is mapped the same way here;
+``env_kwargs.action_schedule`` likewise makes it a gain schedule of the slip PI
+(:class:`rover_env.benchmark.mixture.Schedule`).
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from rover_env.benchmark.mixture import Residual
+from rover_env.benchmark.mixture import Residual, Schedule
 from rover_env.envs.proto_explorer import ProtoExplorerEnv
 
 __all__ = ["PPOController", "resolve_model_path"]
@@ -71,7 +73,7 @@ class PPOController:
             with self.stats_path.open("rb") as fh:
                 self.normalizer = pickle.load(fh)  # a VecNormalize without its venv
             self.normalizer.training = False
-        self.residual: Residual | None = None
+        self.residual: Residual | Schedule | None = None
         cfg_file = self.model_path.parent / "config.yaml"
         if cfg_file.is_file():
             data = yaml.safe_load(cfg_file.read_text()) or {}
@@ -80,10 +82,15 @@ class PPOController:
             if kw.get("action_residual") is not None:
                 base = str(kw.get("residual_base", "open-loop"))
                 self.residual = Residual(base, float(kw["action_residual"]))
+            elif kw.get("action_schedule") is not None:
+                base = str(kw.get("residual_base", "slip-pi"))
+                self.residual = Schedule(base, kw["action_schedule"])
         shape = tuple(self.model.action_space.shape or ())
         if shape not in ((4,), (2,)):
             raise ValueError(f"{self.model_path}: action space {shape}, expected (4,) or (2,)")
         self.action_layout = "wheels" if shape == (4,) else "sides"
+        if isinstance(self.residual, Schedule):
+            self.action_layout = "wheels"  # the PI drives the wheels; the policy sets its gains
         obs_shape = tuple(self.model.observation_space.shape or ())
         if obs_shape != (46,):
             raise ValueError(

@@ -30,6 +30,7 @@ _REWARD_ONLY = {
     "yaw_scale",
     "action_residual",
     "residual_base",
+    "action_schedule",
 }
 
 
