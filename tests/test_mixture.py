@@ -162,3 +162,22 @@ def test_shipped_agent_loads_and_drives() -> None:
     assert ctrl.normalizer is not None
     (row,) = run_jobs([Job(f"ppo:{agent}", "split-mu", SPLITS["test"].start, duration=2.0)])
     assert np.isfinite(row["mean_abs_slip"]) and row["distance_made_good"] > 0.1
+
+
+def test_shipped_schedule_agent_loads_and_drives() -> None:
+    """The agent in agents/slip-schedule: a gain schedule of the slip PI, read from its config."""
+    pytest.importorskip("stable_baselines3")
+    from pathlib import Path
+
+    from rover_env.benchmark.mixture import Schedule
+    from rover_env.benchmark.policy import PPOController
+    from rover_env.benchmark.run import Job, run_jobs
+
+    agent = Path(__file__).resolve().parent.parent / "agents" / "slip-schedule"
+    if not agent.is_dir():
+        pytest.skip("no shipped agent in this checkout")
+    ctrl = PPOController(agent)
+    assert isinstance(ctrl.residual, Schedule) and ctrl.residual.octaves == (2.0, 0.5)
+    assert ctrl.action_layout == "wheels" and ctrl.normalizer is not None
+    (row,) = run_jobs([Job(f"ppo:{agent}", "ice-patch", SPLITS["test"].start, duration=2.0)])
+    assert np.isfinite(row["mean_abs_slip"]) and row["distance_made_good"] > 0.1
