@@ -279,3 +279,20 @@ def test_cli_train_kill_resume_evaluate(tmp_path: Path) -> None:
     assert ev.returncode == 0, ev.stderr
     assert f"ppo:{run / 'model.zip'}" in ev.stdout and "flat-turns" in ev.stdout
     assert (tmp_path / "ev" / "benchmark.md").is_file()
+
+
+def test_best_model_is_paired_with_the_statistics_it_was_selected_with(tmp_path: Path) -> None:
+    from rover_env.benchmark.policy import resolve_model_path
+
+    for name in ("best_model.zip", "model.zip", "vecnormalize.pkl", "best_vecnormalize.pkl"):
+        (tmp_path / name).write_bytes(b"")
+    assert resolve_model_path(tmp_path) == (
+        tmp_path / "best_model.zip",
+        tmp_path / "best_vecnormalize.pkl",
+    )
+    assert resolve_model_path(tmp_path / "model.zip") == (
+        tmp_path / "model.zip",
+        tmp_path / "vecnormalize.pkl",
+    )
+    (tmp_path / "best_vecnormalize.pkl").unlink()
+    assert resolve_model_path(tmp_path)[1] == tmp_path / "vecnormalize.pkl"

@@ -4,7 +4,8 @@ Imported only when a ``ppo:`` controller is asked for (``make_controller``), so 
 benchmark never loads torch. PATH is a ``.zip`` saved by ``PPO.save`` or a run folder holding
 one (``best_model.zip`` preferred, then ``final_model.zip``, ``model.zip``, or the only
 ``.zip``). VecNormalize statistics saved beside it (``vecnormalize.pkl`` or
-``vec_normalize.pkl``) normalise the observation as in training, frozen (no updates).
+``vec_normalize.pkl``; for ``best_model.zip``, ``best_vecnormalize.pkl``, the statistics it was
+selected with, when present) normalise the observation as in training, frozen (no updates).
 
 The policy must have been trained on the plain ``ProtoExplorerEnv`` observation (46 values,
 ``OBS_NAMES``); its action space decides the env's action layout (4 values: "wheels",
@@ -54,6 +55,9 @@ def resolve_model_path(path: str | Path) -> tuple[Path, Path | None]:
     else:
         raise FileNotFoundError(f"PPO model not found: {p}")
     stats = next((model.parent / n for n in _STATS_NAMES if (model.parent / n).is_file()), None)
+    best_stats = model.parent / "best_vecnormalize.pkl"
+    if model.name == "best_model.zip" and best_stats.is_file():
+        stats = best_stats  # the statistics the best model was selected with
     return model, stats
 
 
