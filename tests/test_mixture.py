@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -68,32 +70,34 @@ def test_mix_draws_training_seeds_reproducibly() -> None:
         ScenarioMixEnv(terrain="flat")
 
 
-def test_zero_residual_on_slip_pi_drives_exactly_like_slip_pi() -> None:
-    from rover_env.benchmark.controllers import make_controller
-    from rover_env.benchmark.mixture import Residual
+def _drive(ctrl: Any, step: Any, scenario: str, steps: int = 30) -> tuple[np.ndarray, Any]:
+    """(env actions, env) of ``step(env, obs)`` over a 3 s tuning episode, ``ctrl`` reset first."""
     from rover_env.benchmark.run import ScenarioWrapper
     from rover_env.benchmark.scenarios import load_scenario
     from rover_env.envs.proto_explorer import ProtoExplorerEnv
 
-    episode = load_scenario("stuck-wheel").episode(SPLITS["tuning"].start, duration=3.0)
-    actions = []
-    for ctrl in (make_controller("slip-pi"), Residual("slip-pi", 0.5)):
-        w = ScenarioWrapper(ProtoExplorerEnv(terrain=episode.terrain))
-        w.set_episode(episode)
-        obs, _ = w.reset()
-        ctrl.reset(w.base)
-        acts = []
-        for _ in range(30):
-            a = (
-                ctrl(np.zeros(4), w.base, obs)
-                if isinstance(ctrl, Residual)
-                else ctrl.action(w.base, obs)
-            )
-            acts.append(a)
-            obs, *_ = w.step(a)
-        actions.append(np.array(acts))
-    np.testing.assert_allclose(actions[1], actions[0], atol=1e-7)
-    assert np.ptp(actions[0]) > 0.01  # the PI acted (the wheel meets the box)
+    episode = load_scenario(scenario).episode(SPLITS["tuning"].start, duration=3.0)
+    w = ScenarioWrapper(ProtoExplorerEnv(terrain=episode.terrain))
+    w.set_episode(episode)
+    obs, _ = w.reset()
+    ctrl.reset(w.base)
+    acts = []
+    for _ in range(steps):
+        a = step(w.base, obs)
+        acts.append(a)
+        obs, *_ = w.step(a)
+    return np.array(acts), w.base
+
+
+def test_zero_residual_on_slip_pi_drives_exactly_like_slip_pi() -> None:
+    from rover_env.benchmark.controllers import make_controller
+    from rover_env.benchmark.mixture import Residual
+
+    pi, res = make_controller("slip-pi"), Residual("slip-pi", 0.5)
+    plain, _ = _drive(pi, pi.action, "stuck-wheel")
+    zero, _ = _drive(res, lambda env, obs: res(np.zeros(4), env, obs), "stuck-wheel")
+    np.testing.assert_allclose(zero, plain, atol=1e-7)
+    assert np.ptp(plain) > 0.01  # the PI acted (the wheel meets the box)
     with pytest.raises(ValueError, match="classical controller"):
         Residual("ppo:x", 0.5)
 
@@ -101,36 +105,21 @@ def test_zero_residual_on_slip_pi_drives_exactly_like_slip_pi() -> None:
 def test_zero_schedule_is_slip_pi_and_the_schedule_changes_its_gains() -> None:
     from rover_env.benchmark.controllers import make_controller
     from rover_env.benchmark.mixture import Schedule
-    from rover_env.benchmark.run import ScenarioWrapper
-    from rover_env.benchmark.scenarios import load_scenario
-    from rover_env.envs.proto_explorer import ProtoExplorerEnv
 
-    episode = load_scenario("ice-patch").episode(SPLITS["tuning"].start, duration=3.0)
-    runs = []
-    for ctrl, act in (
-        (make_controller("slip-pi"), None),
-        (Schedule("slip-pi", [2.0, 0.5]), np.zeros(2)),
-        (Schedule("slip-pi", [2.0, 0.5]), np.array([-1.0, 1.0])),
-    ):
-        w = ScenarioWrapper(ProtoExplorerEnv(terrain=episode.terrain))
-        w.set_episode(episode)
-        obs, _ = w.reset()
-        ctrl.reset(w.base)
-        acts = []
-        for _ in range(30):
-            a = ctrl(act, w.base, obs) if isinstance(ctrl, Schedule) else ctrl.action(w.base, obs)
-            acts.append(a)
-            obs, *_ = w.step(a)
-        runs.append(np.array(acts))
-        if isinstance(ctrl, Schedule) and act is not None and act[0] < 0:
-            pi = ctrl._pi
-            assert pi is not None and ctrl._cfg0 is not None
-            assert pi.cfg.deadband == ctrl._cfg0.deadband / 4  # two octaves down
-            assert pi.cfg.ki == ctrl._cfg0.ki * 2**0.5
-            ctrl.reset(w.base)
-            assert pi.cfg is ctrl._cfg0  # a reset restores the configured PI
-    np.testing.assert_array_equal(runs[1], runs[0])
-    assert np.abs(runs[2] - runs[0]).max() > 1e-4  # a scheduled PI acts differently
+    pi = make_controller("slip-pi")
+    plain, _ = _drive(pi, pi.action, "ice-patch")
+    zero_s, low_s = Schedule("slip-pi", [2.0, 0.5]), Schedule("slip-pi", [2.0, 0.5])
+    zero, _ = _drive(zero_s, lambda env, obs: zero_s(np.zeros(2), env, obs), "ice-patch")
+    low_db = np.array([-1.0, 1.0])
+    low, env_low = _drive(low_s, lambda env, obs: low_s(low_db, env, obs), "ice-patch")
+    pi_low, cfg0 = low_s._pi, low_s._cfg0
+    assert pi_low is not None and cfg0 is not None
+    assert pi_low.cfg.deadband == cfg0.deadband / 4  # two octaves down
+    assert pi_low.cfg.ki == cfg0.ki * 2**0.5
+    low_s.reset(env_low)
+    assert pi_low.cfg is cfg0  # a reset restores the configured PI
+    np.testing.assert_array_equal(zero, plain)
+    assert np.abs(low - plain).max() > 1e-4  # a scheduled PI acts differently
     with pytest.raises(ValueError, match="slip-pi base"):
         Schedule("open-loop", [1.0, 1.0])
     with pytest.raises(ValueError, match="deadband_octaves"):
@@ -145,39 +134,38 @@ def test_zero_schedule_is_slip_pi_and_the_schedule_changes_its_gains() -> None:
     env.close()
 
 
-def test_shipped_agent_loads_and_drives() -> None:
-    """The agent in agents/scenario-mix: a residual on the slip PI, read from its config."""
-    pytest.importorskip("stable_baselines3")
-    from pathlib import Path
+def _is_residual(ctrl: Any) -> bool:
+    from rover_env.benchmark.mixture import Residual
 
-    from rover_env.benchmark.run import Job, run_jobs
-
-    agent = Path(__file__).resolve().parent.parent / "agents" / "scenario-mix"
-    if not agent.is_dir():
-        pytest.skip("no shipped agent in this checkout")
-    from rover_env.benchmark.policy import PPOController
-
-    ctrl = PPOController(agent)
-    assert ctrl.residual is not None and ctrl.residual.scale == 0.5
-    assert ctrl.normalizer is not None
-    (row,) = run_jobs([Job(f"ppo:{agent}", "split-mu", SPLITS["test"].start, duration=2.0)])
-    assert np.isfinite(row["mean_abs_slip"]) and row["distance_made_good"] > 0.1
+    return isinstance(ctrl.residual, Residual) and ctrl.residual.scale == 0.5
 
 
-def test_shipped_schedule_agent_loads_and_drives() -> None:
-    """The agent in agents/slip-schedule: a gain schedule of the slip PI, read from its config."""
-    pytest.importorskip("stable_baselines3")
-    from pathlib import Path
-
+def _is_schedule(ctrl: Any) -> bool:
     from rover_env.benchmark.mixture import Schedule
+
+    return isinstance(ctrl.residual, Schedule) and ctrl.residual.octaves == (2.0, 0.5)
+
+
+@pytest.mark.parametrize(
+    ("name", "scenario", "mapping"),
+    [
+        ("scenario-mix", "split-mu", _is_residual),  # a residual on the slip PI
+        ("slip-schedule", "ice-patch", _is_schedule),  # a gain schedule of the slip PI
+    ],
+)
+def test_shipped_agent_loads_and_drives(name: str, scenario: str, mapping: Any) -> None:
+    """A shipped agent, its action mapping read from its config, drives a short episode."""
+    pytest.importorskip("stable_baselines3")
+    from pathlib import Path
+
     from rover_env.benchmark.policy import PPOController
     from rover_env.benchmark.run import Job, run_jobs
 
-    agent = Path(__file__).resolve().parent.parent / "agents" / "slip-schedule"
+    agent = Path(__file__).resolve().parent.parent / "agents" / name
     if not agent.is_dir():
         pytest.skip("no shipped agent in this checkout")
     ctrl = PPOController(agent)
-    assert isinstance(ctrl.residual, Schedule) and ctrl.residual.octaves == (2.0, 0.5)
+    assert mapping(ctrl)
     assert ctrl.action_layout == "wheels" and ctrl.normalizer is not None
-    (row,) = run_jobs([Job(f"ppo:{agent}", "ice-patch", SPLITS["test"].start, duration=2.0)])
+    (row,) = run_jobs([Job(f"ppo:{agent}", scenario, SPLITS["test"].start, duration=2.0)])
     assert np.isfinite(row["mean_abs_slip"]) and row["distance_made_good"] > 0.1

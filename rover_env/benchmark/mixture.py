@@ -27,7 +27,6 @@ exploratory action is itself slip, ten times the PI's own on ice
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 from collections.abc import Sequence
 from typing import Any
@@ -42,6 +41,8 @@ from rover_env.benchmark.seeds import SPLITS
 from rover_env.config import RoverConfig
 from rover_env.control.base import CommandSchedule
 from rover_env.control.open_loop import skid_steer_targets
+from rover_env.control.slip_pi import SlipPI, SlipPIConfig
+from rover_env.control.slip_pi import replace as replace_gains
 from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
 from rover_env.estimation.estimator import static_rolling_radius
 
@@ -109,7 +110,6 @@ class Schedule:
 
     def __init__(self, base: str, octaves: Sequence[float]) -> None:
         from rover_env.benchmark.controllers import make_controller
-        from rover_env.control.slip_pi import SlipPI
 
         if not base.startswith("slip-pi"):
             raise ValueError(f"action_schedule needs a slip-pi base controller, got {base!r}")
@@ -121,15 +121,13 @@ class Schedule:
         self.base = make_controller(base)
         self.octaves = (oc[0], oc[1])
         self._pi: SlipPI | None = None
-        self._cfg0: Any = None
+        self._cfg0: SlipPIConfig | None = None
 
     def reset(self, env: ProtoExplorerEnv) -> None:
-        from rover_env.control.slip_pi import SlipPI
-
         self.base.reset(env)
         pi = getattr(self.base, "_ctrl", None)
         assert isinstance(pi, SlipPI)
-        if pi is not self._pi:
+        if pi is not self._pi or self._cfg0 is None:
             self._pi, self._cfg0 = pi, pi.cfg
         pi.cfg = self._cfg0
 
@@ -137,18 +135,14 @@ class Schedule:
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         if a.shape != (2,) or not np.all(np.isfinite(a)):
             raise ValueError(f"schedule action must be 2 finite entries, got {a}")
-        assert self._pi is not None, "reset() first"
+        assert self._pi is not None and self._cfg0 is not None, "reset() first"
         a = np.clip(a, -1.0, 1.0)
         c0 = self._cfg0
         db = 2.0 ** (self.octaves[0] * a[0])
         g = 2.0 ** (self.octaves[1] * a[1])
-        # Direct field writes on a copy: the ranges keep every value valid, and this runs
-        # every step (dataclasses.replace would re-validate each time).
-        cfg = copy.copy(c0)
-        object.__setattr__(cfg, "deadband", min(c0.deadband * db, c0.max_deadband))
-        object.__setattr__(cfg, "kp", c0.kp * g)
-        object.__setattr__(cfg, "ki", c0.ki * g)
-        self._pi.cfg = cfg
+        self._pi.cfg = replace_gains(
+            c0, deadband=min(c0.deadband * db, c0.max_deadband), kp=c0.kp * g, ki=c0.ki * g
+        )
         return self.base.action(env, obs)
 
 
