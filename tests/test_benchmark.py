@@ -159,3 +159,36 @@ def test_ppo_controller_runs_through_the_env(tmp_path: Path) -> None:
     assert set(METRICS) <= set(row) and all(math.isfinite(row[m]) for m in METRICS)
     with pytest.raises(ValueError, match="unknown controller"):
         make_controller("pid")
+
+
+def test_axle_fight_deadband_removes_the_axle_fight_on_ice() -> None:
+    """On the ice patch the slip the PI leaves inside its deadband is mostly the axle fight
+    (front axle spinning, middle dragged); its own narrower deadband removes most of it."""
+    import dataclasses
+
+    from rover_env.benchmark.controllers import ClassicalController
+    from rover_env.benchmark.run import ScenarioWrapper
+    from rover_env.control.slip_pi import SlipPI, load_slip_pi_config
+    from rover_env.envs.proto_explorer import ProtoExplorerEnv
+
+    ep = load_scenario("ice-patch").episode(seed_plan.SPLITS["validation"].start, duration=10.0)
+    w = ScenarioWrapper(ProtoExplorerEnv(terrain=ep.terrain))
+    fight = np.array([1.0, 1.0, -1.0, -1.0]) / 4
+    rms = {}
+    for scale in (1.0, 0.25):
+        gains = dataclasses.replace(load_slip_pi_config(), axle_fight_scale=scale)
+        ctrl = ClassicalController("pi", lambda cfg, dt, g=gains: SlipPI(cfg, g, dt=dt))
+        w.set_episode(ep)
+        obs, _ = w.reset()
+        ctrl.reset(w.base)
+        late = []
+        done = False
+        while not done:
+            obs, _, term, trunc, info = w.step(ctrl.action(w.base, obs))
+            done = term or trunc
+            if w.base.sim.time > 4.0:  # past the start and the patch's edge
+                late.append(info["slip_true"] @ fight)
+        rms[scale] = float(np.sqrt(np.mean(np.square(late))))
+    assert rms[1.0] > 1e-3  # the fight is there, inside the 0.01 deadband
+    assert rms[0.25] < 0.5 * rms[1.0]
+    w.close()

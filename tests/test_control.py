@@ -173,6 +173,30 @@ def test_pi_turn_schedule_widens_the_deadband() -> None:
     np.testing.assert_allclose(pi.act(turn), ff(0.15, 0.2))
 
 
+def test_pi_axle_fight_mode_has_its_own_deadband() -> None:
+    """Only the front-against-middle mode is measured against the narrower deadband."""
+    cfg = dataclasses.replace(PLAIN, deadband=0.01, axle_fight_scale=0.25)
+    pi, plain = SlipPI(ROVER, cfg), SlipPI(ROVER, dataclasses.replace(cfg, axle_fight_scale=1.0))
+    o, ok = obs([0.0] * 4, 0.0), np.ones(4, dtype=bool)
+    fight = np.array([-0.005, -0.005, 0.005, 0.005])  # front spins, middle dragged
+    np.testing.assert_allclose(pi.slip_error(fight, o, ok, True), [-0.0025] * 2 + [0.0025] * 2)
+    for steer in ([0.005, -0.005, 0.005, -0.005], [0.005, -0.005, -0.005, 0.005]):
+        # Left-right and diagonal modes keep the wide deadband: nothing to correct.
+        np.testing.assert_array_equal(pi.slip_error(np.array(steer), o, ok, True), 0.0)
+    x = np.array([0.03, -0.004, 0.012, -0.02])
+    np.testing.assert_array_equal(pi.slip_error(x, o, ok, False), plain.slip_error(x, o, ok, True))
+    e = pi.slip_error(x, o, ok, True) - plain.slip_error(x, o, ok, True)
+    np.testing.assert_allclose(e, e[0] * np.array([1, 1, -1, -1]), atol=1e-15)
+    # Through the loop: the plain PI leaves the fight alone, the axle-fight PI slows the
+    # spinning front axle and speeds up the dragged middle one.
+    out_plain = plain.act(obs(fight.tolist(), 0.0))
+    out = pi.act(obs(fight.tolist(), 0.0))
+    np.testing.assert_allclose(out_plain, ff())
+    assert np.all(out[:2] < ff()[:2]) and np.all(out[2:] > ff()[2:])
+    with pytest.raises(ConfigError, match="axle_fight_scale"):
+        SlipPIConfig(axle_fight_scale=-0.5)
+
+
 def test_slip_pi_config_validation_and_shipped_file(tmp_path: Path) -> None:
     cfg = load_slip_pi_config()
     assert cfg.kp >= 0 and cfg.ki >= 0

@@ -134,6 +134,37 @@ def test_zero_schedule_is_slip_pi_and_the_schedule_changes_its_gains() -> None:
     env.close()
 
 
+def test_schedule_knobs_map_each_action_to_its_setting() -> None:
+    from rover_env.benchmark.mixture import Schedule, schedule_knobs
+
+    assert schedule_knobs([2.0, 0.5]) == {"deadband": 2.0, "gain": 0.5}  # the first agents' form
+    s = Schedule("slip-pi", {"axle_fight": 2.0, "retry_interval": 1.0})
+    env = ScenarioMixEnv(scenarios=["stuck-wheel"])
+    s.reset(env._active.base)
+    c0 = s._cfg0
+    assert c0 is not None and s.n_actions == 2
+    assert s.gains([0.0, 0.0]) == c0  # a zero action is the configured PI
+    c = s.gains([-1.0, 0.5])
+    assert c.axle_fight_scale == c0.axle_fight_scale / 4
+    assert c.retry_interval == pytest.approx(c0.retry_interval * 2**0.5)
+    assert (c.deadband, c.kp, c.ki) == (c0.deadband, c0.kp, c0.ki)  # the other settings stay
+    assert s.gains([-5.0, 9.0]) == s.gains([-1.0, 1.0])  # actions are clipped to [-1, 1]
+    with pytest.raises(ValueError, match=r"2 finite entries \(axle_fight, retry_interval\)"):
+        s.gains([0.0])
+    with pytest.raises(ValueError, match="knobs \\['speed'\\] unknown"):
+        schedule_knobs({"speed": 1.0})
+    with pytest.raises(ValueError, match=r"action_schedule\.gain must be octaves"):
+        schedule_knobs({"gain": 4.0})
+    mix = ScenarioMixEnv(
+        scenarios=["ice-patch"],
+        action_schedule={"axle_fight": 2.0, "retry_interval": 1.0, "gain": 0.5},
+        residual_base="slip-pi",
+    )
+    assert mix.action_space.shape == (3,)
+    env.close()
+    mix.close()
+
+
 def _is_residual(ctrl: Any) -> bool:
     from rover_env.benchmark.mixture import Residual
 
@@ -143,7 +174,19 @@ def _is_residual(ctrl: Any) -> bool:
 def _is_schedule(ctrl: Any) -> bool:
     from rover_env.benchmark.mixture import Schedule
 
-    return isinstance(ctrl.residual, Schedule) and ctrl.residual.octaves == (2.0, 0.5)
+    return isinstance(ctrl.residual, Schedule) and ctrl.residual.knobs == {
+        "deadband": 2.0,
+        "gain": 0.5,
+    }
+
+
+def _is_axle_schedule(ctrl: Any) -> bool:
+    from rover_env.benchmark.mixture import Schedule
+
+    return isinstance(ctrl.residual, Schedule) and ctrl.residual.knobs == {
+        "axle_fight": 2.0,
+        "retry_interval": 1.0,
+    }
 
 
 @pytest.mark.parametrize(
@@ -151,6 +194,7 @@ def _is_schedule(ctrl: Any) -> bool:
     [
         ("scenario-mix", "split-mu", _is_residual),  # a residual on the slip PI
         ("slip-schedule", "ice-patch", _is_schedule),  # a gain schedule of the slip PI
+        ("axle-schedule", "stuck-wheel", _is_axle_schedule),  # its axle fight and retries
     ],
 )
 def test_shipped_agent_loads_and_drives(name: str, scenario: str, mapping: Any) -> None:

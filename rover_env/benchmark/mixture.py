@@ -16,19 +16,20 @@ kinematics only, :func:`residual_action`) or ``"slip-pi"`` (the tuned slip PI, w
 integrators then also remove any steady bias the policy adds). The ``ppo:`` benchmark
 controller applies the same mapping, read from the run's config.
 
-``action_schedule`` (``[deadband_octaves, gain_octaves]``) instead makes the action a *gain
-schedule* of the slip PI (:class:`Schedule`): two numbers per step that scale the PI's
-deadband by ``2 ** (deadband_octaves * a0)`` and its Kp and Ki by ``2 ** (gain_octaves * a1)``.
-The wheels are always driven by the PI, so exploration noise perturbs how hard the PI
-corrects slip, not the wheel speeds themselves: with a residual on the wheel targets every
-exploratory action is itself slip, ten times the PI's own on ice
-(``docs/benchmark-ppo/attempts.md``). A zero action is the PI as configured.
+``action_schedule`` instead makes the action a *gain schedule* of the slip PI
+(:class:`Schedule`): one number per knob of :data:`SCHEDULE_KNOBS`, given as ``{knob:
+octaves}``, each scaling one of the PI's settings by ``2 ** (octaves * a)`` every step (the
+list ``[deadband_octaves, gain_octaves]`` is the first schedule agents' form). The wheels are
+always driven by the PI, so exploration noise perturbs how the PI corrects slip, not the
+wheel speeds themselves: with a residual on the wheel targets every exploratory action is
+itself slip, ten times the PI's own on ice (``docs/benchmark-ppo/attempts.md``). A zero
+action is the PI as configured.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -46,7 +47,15 @@ from rover_env.control.slip_pi import replace as replace_gains
 from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
 from rover_env.estimation.estimator import static_rolling_radius
 
-__all__ = ["DEFAULT_MIX", "Residual", "ScenarioMixEnv", "Schedule", "residual_action"]
+__all__ = [
+    "DEFAULT_MIX",
+    "SCHEDULE_KNOBS",
+    "Residual",
+    "ScenarioMixEnv",
+    "Schedule",
+    "residual_action",
+    "schedule_knobs",
+]
 
 Obs = npt.NDArray[np.float32]
 
@@ -105,23 +114,57 @@ class Residual:
         return np.clip(base + self.scale * np.clip(a, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
 
 
-class Schedule:
-    """Env action = the slip PI's, its deadband and gains scaled each step by the action."""
+SCHEDULE_KNOBS: dict[str, str] = {
+    "deadband": "deadband x 2^(o a)",
+    "gain": "Kp and Ki x 2^(o a)",
+    "axle_fight": "axle_fight_scale x 2^(o a): the axle-fight mode's deadband alone",
+    "retry_interval": "retry_interval x 2^(o a): how long a stopped stuck wheel waits",
+}
+"""What each action of a :class:`Schedule` may scale (``o``: the knob's octaves)."""
 
-    def __init__(self, base: str, octaves: Sequence[float]) -> None:
+
+def schedule_knobs(spec: Sequence[float] | Mapping[str, float]) -> dict[str, float]:
+    """``{knob: octaves}`` from an ``action_schedule``: a mapping over :data:`SCHEDULE_KNOBS`,
+    or the list ``[deadband_octaves, gain_octaves]`` (the first schedule agents' form)."""
+    if isinstance(spec, Mapping):
+        knobs = {str(k): v for k, v in spec.items()}
+    else:
+        seq = list(spec)
+        if len(seq) != 2:
+            raise ValueError(
+                f"action_schedule as a list must be [deadband_octaves, gain_octaves], got {spec!r}"
+            )
+        knobs = {"deadband": seq[0], "gain": seq[1]}
+    unknown = sorted(set(knobs) - set(SCHEDULE_KNOBS))
+    if unknown or not knobs:
+        raise ValueError(
+            f"action_schedule knobs {unknown or '(none)'} unknown; use {', '.join(SCHEDULE_KNOBS)}"
+        )
+    out: dict[str, float] = {}
+    for k, v in knobs.items():
+        if isinstance(v, bool) or not isinstance(v, int | float) or not 0 <= v <= 3:
+            raise ValueError(f"action_schedule.{k} must be octaves in [0, 3], got {v!r}")
+        out[k] = float(v)
+    return out
+
+
+class Schedule:
+    """Env action = the slip PI's, some of its settings scaled each step by the action (one
+    action per knob of :data:`SCHEDULE_KNOBS`, in the order given)."""
+
+    def __init__(self, base: str, spec: Sequence[float] | Mapping[str, float]) -> None:
         from rover_env.benchmark.controllers import make_controller
 
         if not base.startswith("slip-pi"):
             raise ValueError(f"action_schedule needs a slip-pi base controller, got {base!r}")
-        oc = [float(x) for x in octaves]
-        if len(oc) != 2 or not all(np.isfinite(oc)) or not all(0 <= x <= 3 for x in oc):
-            raise ValueError(
-                f"action_schedule must be [deadband_octaves, gain_octaves] in [0, 3], got {octaves!r}"
-            )
+        self.knobs = schedule_knobs(spec)
         self.base = make_controller(base)
-        self.octaves = (oc[0], oc[1])
         self._pi: SlipPI | None = None
         self._cfg0: SlipPIConfig | None = None
+
+    @property
+    def n_actions(self) -> int:
+        return len(self.knobs)
 
     def reset(self, env: ProtoExplorerEnv) -> None:
         self.base.reset(env)
@@ -131,18 +174,31 @@ class Schedule:
             self._pi, self._cfg0 = pi, pi.cfg
         pi.cfg = self._cfg0
 
-    def __call__(self, action: npt.ArrayLike, env: ProtoExplorerEnv, obs: Obs) -> Obs:
+    def gains(self, action: npt.ArrayLike) -> SlipPIConfig:
+        """The PI's settings for one action (validated: a bad action raises ValueError)."""
         a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.shape != (2,) or not np.all(np.isfinite(a)):
-            raise ValueError(f"schedule action must be 2 finite entries, got {a}")
-        assert self._pi is not None and self._cfg0 is not None, "reset() first"
-        a = np.clip(a, -1.0, 1.0)
+        if a.shape != (self.n_actions,) or not np.all(np.isfinite(a)):
+            raise ValueError(
+                f"schedule action must be {self.n_actions} finite entries "
+                f"({', '.join(self.knobs)}), got {a}"
+            )
+        assert self._cfg0 is not None, "reset() first"
         c0 = self._cfg0
-        db = 2.0 ** (self.octaves[0] * a[0])
-        g = 2.0 ** (self.octaves[1] * a[1])
-        self._pi.cfg = replace_gains(
-            c0, deadband=min(c0.deadband * db, c0.max_deadband), kp=c0.kp * g, ki=c0.ki * g
-        )
+        changes: dict[str, float] = {}
+        for (knob, octaves), x in zip(self.knobs.items(), np.clip(a, -1.0, 1.0), strict=True):
+            f = 2.0 ** (octaves * x)
+            if knob == "deadband":
+                changes["deadband"] = min(c0.deadband * f, c0.max_deadband)
+            elif knob == "gain":
+                changes.update(kp=c0.kp * f, ki=c0.ki * f)
+            else:  # axle_fight_scale, retry_interval
+                name = "axle_fight_scale" if knob == "axle_fight" else knob
+                changes[name] = getattr(c0, name) * f
+        return replace_gains(c0, **changes)
+
+    def __call__(self, action: npt.ArrayLike, env: ProtoExplorerEnv, obs: Obs) -> Obs:
+        assert self._pi is not None, "reset() first"
+        self._pi.cfg = self.gains(action)
         return self.base.action(env, obs)
 
 
@@ -163,8 +219,9 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         action_residual: None for absolute targets (the plain env's action), or the scale of
             a residual on the base controller (fraction of the maximum wheel speed).
         residual_base: the base controller's spec, "open-loop" or "slip-pi" (module docstring).
-        action_schedule: None, or ``[deadband_octaves, gain_octaves]``: the action is then a
-            gain schedule of the ``residual_base`` slip PI (:class:`Schedule`), 2 values.
+        action_schedule: None, or ``{knob: octaves}`` over :data:`SCHEDULE_KNOBS` (or
+            ``[deadband_octaves, gain_octaves]``): the action is then a gain schedule of the
+            ``residual_base`` slip PI (:class:`Schedule`), one value per knob.
         speed_scale: range of the factor on every commanded speed of an episode.
         yaw_scale: range of the factor on every commanded yaw rate (its sign is drawn too).
         **env_kwargs: passed to every scenario's ``ProtoExplorerEnv`` (e.g. reward_weights);
@@ -178,7 +235,7 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         scenarios: dict[str, float] | Sequence[str] | None = None,
         action_residual: float | None = None,
         residual_base: str = "open-loop",
-        action_schedule: Sequence[float] | None = None,
+        action_schedule: Sequence[float] | Mapping[str, float] | None = None,
         speed_scale: tuple[float, float] = (0.6, 1.3),
         yaw_scale: tuple[float, float] = (0.5, 1.5),
         **env_kwargs: Any,
@@ -212,7 +269,9 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         self.observation_space = first.observation_space
         self.action_space = first.action_space
         if isinstance(self.residual, Schedule):
-            self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+            self.action_space = gym.spaces.Box(
+                -1.0, 1.0, (self.residual.n_actions,), dtype=np.float32
+            )
         self._active: ScenarioWrapper = first
         self._obs: Obs = np.zeros(len(OBS_NAMES), dtype=np.float32)
 

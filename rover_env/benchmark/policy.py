@@ -90,11 +90,17 @@ class PPOController:
                 base = str(kw.get("residual_base", "slip-pi"))
                 self.residual = Schedule(base, kw["action_schedule"])
         shape = tuple(self.model.action_space.shape or ())
-        if shape not in ((4,), (2,)):
-            raise ValueError(f"{self.model_path}: action space {shape}, expected (4,) or (2,)")
-        self.action_layout = "wheels" if shape == (4,) else "sides"
         if isinstance(self.residual, Schedule):
+            if shape != (self.residual.n_actions,):
+                raise ValueError(
+                    f"{self.model_path}: action space {shape}, but its action_schedule has "
+                    f"{self.residual.n_actions} knob(s) ({', '.join(self.residual.knobs)})"
+                )
             self.action_layout = "wheels"  # the PI drives the wheels; the policy sets its gains
+        elif shape in ((4,), (2,)):
+            self.action_layout = "wheels" if shape == (4,) else "sides"
+        else:
+            raise ValueError(f"{self.model_path}: action space {shape}, expected (4,) or (2,)")
         obs_shape = tuple(self.model.observation_space.shape or ())
         if obs_shape != (46,):
             raise ValueError(

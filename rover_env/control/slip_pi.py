@@ -42,6 +42,17 @@ Why each piece is there:
   zero with time constant ``common_mode_leak_time``: the feed-forward sets the speed, the
   loop only moves wheels relative to each other. The median, so that one wheel held at a
   limit is not "leaked" into speeding up the others.
+* Axle-fight mode (``axle_fight_scale``): the four wheels' slip errors split into modes.
+  The common mode sets the rover's speed and the left-right mode its yaw rate. The
+  "axle fight", the front axle spinning while the middle one is dragged on both sides
+  alike (mode ``[1, 1, -1, -1]`` over 1L 1R 2L 2R), changes neither to first order: it only
+  wastes energy in slip. It is what is left within the deadband on an even surface. With
+  ``axle_fight_scale`` < 1 that mode alone is measured against a narrower deadband
+  (``deadband`` times the scale), so the fight is corrected without moving the modes that
+  steer: the diagonal mode, which also leaves speed and yaw alone to first order, measurably
+  yaws the rover on ice when tightened (``agents/axle-schedule/README.md``), so it keeps
+  ``deadband``. Applied only while all four wheels are usable and none is stuck. 1 (the
+  default) is the plain per-wheel deadband.
 * Turn schedule: a skid-steer turn *needs* slip (outer wheels spin, inner ones skid) and a
   PI that removes it removes the turn. The deadband widens with the commanded turn
   ``half_track |w| / max(|v|, speed_floor)`` times ``turn_deadband_gain``.
@@ -104,6 +115,8 @@ __all__ = ["SlipPI", "SlipPIConfig", "load_slip_pi_config"]
 Array = npt.NDArray[np.float64]
 
 _SLIP_RADII = ("estimator", "axle_load")
+_AXLE_FIGHT = np.array([1.0, 1.0, -1.0, -1.0])
+"""The axle-fight mode over 1L 1R 2L 2R: front axle against middle axle, both sides alike."""
 
 
 @dataclass(frozen=True)
@@ -119,6 +132,9 @@ class SlipPIConfig:
     turn_deadband_gain: float = 0.5
     """Extra deadband per unit of commanded turn ratio half_track |w| / |v|."""
     max_deadband: float = 0.5
+    axle_fight_scale: float = 1.0
+    """Deadband of the axle-fight mode as a multiple of ``deadband`` (module docstring; 1:
+    the same deadband as every other mode)."""
     speed_floor: float = 0.05
     """Floor (m/s) of |v| in the turn ratio, so a turn on the spot does not divide by 0."""
     min_correction: float = -1.0
@@ -155,6 +171,7 @@ class SlipPIConfig:
             "deadband",
             "turn_deadband_gain",
             "max_deadband",
+            "axle_fight_scale",
             "traction_allowance",
             "retry_interval",
             "stuck_time",
@@ -266,15 +283,17 @@ class SlipPI(Controller):
         nominal = kin.nominal_wheel_rates(motion, self._chain)
         return kin.slip_ratio(np.asarray(est.phi_rate)[:4], nominal, self._radii[:4], self.v_eps)
 
-    def deadband(self, obs: ControllerInput) -> float:
-        """Deadband for this command: wider in turns, which need slip."""
+    def deadband(self, obs: ControllerInput, base: float | None = None) -> float:
+        """Deadband for this command: wider in turns, which need slip. ``base`` replaces
+        ``deadband`` as the straight-line width (the axle-fight mode's)."""
         c = self.cfg
         ratio = (
             self.rover_cfg.geometry.half_track
             * abs(obs.yaw_rate_command)
             / max(abs(obs.speed_command), c.speed_floor)
         )
-        return min(c.deadband + c.turn_deadband_gain * ratio, c.max_deadband)
+        width = c.deadband if base is None else base
+        return min(width + c.turn_deadband_gain * ratio, c.max_deadband)
 
     def shared_slip(self, slip: Array, ok: npt.NDArray[np.bool_]) -> float:
         """Median slip of the usable wheels (0 when none is usable)."""
@@ -284,6 +303,19 @@ class SlipPI(Controller):
         """Slip shared by the usable wheels, up to the traction allowance."""
         a = self.cfg.traction_allowance
         return float(np.clip(self.shared_slip(slip, ok), -a, a))
+
+    def slip_error(
+        self, x: Array, obs: ControllerInput, ok: npt.NDArray[np.bool_], all_moving: bool
+    ) -> Array:
+        """Each wheel's slip beyond the deadband (``x``: slip less the reference); with
+        ``axle_fight_scale`` != 1 and all four wheels rolling and usable, the axle-fight mode
+        is measured against its own deadband (module docstring)."""
+        c = self.cfg
+        e = np.where(ok, _deadzone(x, np.asarray(self.deadband(obs))), 0.0)
+        if c.axle_fight_scale != 1.0 and all_moving:
+            narrow = _deadzone(x, np.asarray(self.deadband(obs, c.deadband * c.axle_fight_scale)))
+            e = e + _AXLE_FIGHT * (float(_AXLE_FIGHT @ (narrow - e)) / 4.0)
+        return e
 
     # ------------------------------------------------------------------ step
     def act(self, obs: ControllerInput) -> Array:
@@ -305,7 +337,7 @@ class SlipPI(Controller):
         ok |= stuck
         # Stuck wheels are measured against zero slip, rolling ones against their shared slip.
         ref = self.reference(slip, moving)
-        e = np.where(ok, _deadzone(slip - ref, np.asarray(self.deadband(obs))), 0.0)
+        e = self.slip_error(slip - ref, obs, ok, moving.all())
 
         # Highest u the motor allows for each wheel, never below the lower limit.
         with np.errstate(divide="ignore"):
