@@ -139,18 +139,27 @@ def test_pi_unreliable_estimate_freezes_integrator() -> None:
     np.testing.assert_allclose(out, ff() * (1 + frozen))  # no proportional action either
 
 
+def _stuck_drive(cfg: SlipPIConfig) -> tuple[np.ndarray, float]:
+    """Outputs over 10 s of a rover standing while driven, and how long its wheels stayed
+    stopped before the first retry."""
+    pi = SlipPI(ROVER, cfg)
+    # The rover stands (segment 3 still) while the wheels are driven.
+    outs = np.array([pi.act(obs([0.0] * 4, 0.1 * k, flags=FLAG_STANDSTILL)) for k in range(100)])
+    stopped = np.flatnonzero(np.all(outs == 0.0, axis=1))
+    assert stopped.size > 0, "a stuck rover's wheels are stopped"
+    moving_again = np.flatnonzero(np.all(outs[stopped[0] :] > 0, axis=1))
+    assert moving_again.size > 0, "and retried after the retry interval"
+    return outs, 0.1 * moving_again[0]
+
+
 def test_pi_stuck_detector_and_retry() -> None:
     cfg = dataclasses.replace(PLAIN, stuck_time=1.0, retry_interval=3.0)
-    pi = SlipPI(ROVER, cfg)
-    outs = []
-    for k in range(100):
-        # The rover stands (segment 3 still) while the wheels are driven.
-        outs.append(pi.act(obs([0.0, 0.0, 0.0, 0.0], 0.1 * k, flags=FLAG_STANDSTILL)))
-    outs_a = np.array(outs)
-    np.testing.assert_allclose(outs_a[5], ff())  # not stuck yet: frozen, feed-forward only
-    stopped = np.flatnonzero(np.all(outs_a == 0.0, axis=1))
-    assert stopped.size > 0, "a stuck rover's wheels are stopped"
-    assert np.any(np.all(outs_a[stopped[0] :] > 0, axis=1)), "and retried after retry_interval"
+    outs, held = _stuck_drive(cfg)
+    np.testing.assert_allclose(outs[5], ff())  # not stuck yet: frozen, feed-forward only
+    assert held == pytest.approx(3.0, abs=0.11)
+    # A stuck wheel's own interval: twice as long.
+    _, held2 = _stuck_drive(dataclasses.replace(cfg, stuck_retry_scale=2.0))
+    assert held2 == pytest.approx(6.0, abs=0.11)
 
 
 def test_pi_traction_allowance_leaves_shared_slip_alone() -> None:

@@ -138,18 +138,19 @@ def test_schedule_knobs_map_each_action_to_its_setting() -> None:
     from rover_env.benchmark.mixture import Schedule, schedule_knobs
 
     assert schedule_knobs([2.0, 0.5]) == {"deadband": 2.0, "gain": 0.5}  # the first agents' form
-    s = Schedule("slip-pi", {"axle_fight": 2.0, "retry_interval": 1.0})
+    s = Schedule("slip-pi", {"axle_fight": 2.0, "retry_interval": 1.0, "stuck_retry": 1.0})
     env = ScenarioMixEnv(scenarios=["stuck-wheel"])
     s.reset(env._active.base)
     c0 = s._cfg0
-    assert c0 is not None and s.n_actions == 2
-    assert s.gains([0.0, 0.0]) == c0  # a zero action is the configured PI
-    c = s.gains([-1.0, 0.5])
+    assert c0 is not None and s.n_actions == 3
+    assert s.gains([0.0, 0.0, 0.0]) == c0  # a zero action is the configured PI
+    c = s.gains([-1.0, 0.5, 1.0])
     assert c.axle_fight_scale == c0.axle_fight_scale / 4
     assert c.retry_interval == pytest.approx(c0.retry_interval * 2**0.5)
+    assert c.stuck_retry_scale == c0.stuck_retry_scale * 2
     assert (c.deadband, c.kp, c.ki) == (c0.deadband, c0.kp, c0.ki)  # the other settings stay
-    assert s.gains([-5.0, 9.0]) == s.gains([-1.0, 1.0])  # actions are clipped to [-1, 1]
-    with pytest.raises(ValueError, match=r"2 finite entries \(axle_fight, retry_interval\)"):
+    assert s.gains([-5.0, 9.0, 0.0]) == s.gains([-1.0, 1.0, 0.0])  # clipped to [-1, 1]
+    with pytest.raises(ValueError, match=r"3 finite entries \(axle_fight, retry_interval, stuck"):
         s.gains([0.0])
     with pytest.raises(ValueError, match="knobs \\['speed'\\] unknown"):
         schedule_knobs({"speed": 1.0})
@@ -184,8 +185,8 @@ def _is_axle_schedule(ctrl: Any) -> bool:
     from rover_env.benchmark.mixture import Schedule
 
     return isinstance(ctrl.residual, Schedule) and ctrl.residual.knobs == {
-        "axle_fight": 2.0,
-        "retry_interval": 1.0,
+        "axle_fight": 0.5,
+        "stuck_retry": 1.0,
     }
 
 

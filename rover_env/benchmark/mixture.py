@@ -118,7 +118,8 @@ SCHEDULE_KNOBS: dict[str, str] = {
     "deadband": "deadband x 2^(o a)",
     "gain": "Kp and Ki x 2^(o a)",
     "axle_fight": "axle_fight_scale x 2^(o a): the axle-fight mode's deadband alone",
-    "retry_interval": "retry_interval x 2^(o a): how long a stopped stuck wheel waits",
+    "retry_interval": "retry_interval x 2^(o a): how long a wheel held stopped waits",
+    "stuck_retry": "stuck_retry_scale x 2^(o a): how long a stopped stuck wheel waits",
 }
 """What each action of a :class:`Schedule` may scale (``o``: the knob's octaves)."""
 
@@ -191,8 +192,10 @@ class Schedule:
                 changes["deadband"] = min(c0.deadband * f, c0.max_deadband)
             elif knob == "gain":
                 changes.update(kp=c0.kp * f, ki=c0.ki * f)
-            else:  # axle_fight_scale, retry_interval
-                name = "axle_fight_scale" if knob == "axle_fight" else knob
+            else:  # axle_fight_scale, retry_interval, stuck_retry_scale
+                name = {"axle_fight": "axle_fight_scale", "stuck_retry": "stuck_retry_scale"}.get(
+                    knob, knob
+                )
                 changes[name] = getattr(c0, name) * f
         return replace_gains(c0, **changes)
 

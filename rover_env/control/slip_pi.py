@@ -50,7 +50,7 @@ Why each piece is there:
   ``axle_fight_scale`` < 1 that mode alone is measured against a narrower deadband
   (``deadband`` times the scale), so the fight is corrected without moving the modes that
   steer: the diagonal mode, which also leaves speed and yaw alone to first order, measurably
-  yaws the rover on ice when tightened (``agents/axle-schedule/README.md``), so it keeps
+  yaws the rover on ice when tightened (``docs/benchmark-ppo/attempts.md``), so it keeps
   ``deadband``. Applied only while all four wheels are usable and none is stuck. 1 (the
   default) is the plain per-wheel deadband.
 * Turn schedule: a skid-steer turn *needs* slip (outer wheels spin, inner ones skid) and a
@@ -61,7 +61,8 @@ Why each piece is there:
   -1 stops a wheel entirely: a wheel that makes no progress has S = -1 at any speed above
   zero, so only stopping it removes its slip. ``retry_interval`` then releases the
   integrator of a wheel held at that limit (its estimate frozen, as a stopped wheel's is)
-  so it tries again instead of giving up for good.
+  so it tries again instead of giving up for good; ``stuck_retry_scale`` sets a stuck
+  wheel's interval apart from that of a wheel merely frozen while the rover moves.
 * Anti-windup: the integrator is clamped to the output limits and stops integrating in the
   direction of a saturated output (conditional integration), so it leaves a limit on the
   first sample the error changes sign.
@@ -146,6 +147,9 @@ class SlipPIConfig:
     retry_interval: float = 5.0
     """Seconds a wheel may sit frozen at ``min_correction`` before its integrator is released
     (0: never)."""
+    stuck_retry_scale: float = 1.0
+    """Retry interval of a wheel held because the rover is stuck, as a multiple of
+    ``retry_interval`` (a frozen wheel of a moving rover keeps ``retry_interval``)."""
     slip_radius: str = "axle_load"
     """Rolling radii the slip is measured with: "estimator" uses the estimate as given;
     "axle_load" recomputes it from the same filtered rates with per-axle loaded radii
@@ -174,6 +178,7 @@ class SlipPIConfig:
             "axle_fight_scale",
             "traction_allowance",
             "retry_interval",
+            "stuck_retry_scale",
             "stuck_time",
             "common_mode_leak_time",
             "speed_hold_gain",
@@ -359,7 +364,8 @@ class SlipPI(Controller):
         if c.retry_interval > 0:
             held = (u <= lo) & (stuck | ~ok) & driven
             self._held = np.where(held, self._held + dt, 0.0)
-            retry = self._held >= c.retry_interval
+            interval = np.where(stuck, c.retry_interval * c.stuck_retry_scale, c.retry_interval)
+            retry = self._held >= interval
             self.integral[retry] = 0.0
             self._held[retry] = 0.0
             self._standing[retry] = 0.0
