@@ -114,14 +114,15 @@ class Residual:
         return np.clip(base + self.scale * np.clip(a, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
 
 
-SCHEDULE_KNOBS: dict[str, str] = {
-    "deadband": "deadband x 2^(o a)",
-    "gain": "Kp and Ki x 2^(o a)",
-    "axle_fight": "axle_fight_scale x 2^(o a): the axle-fight mode's deadband alone",
-    "retry_interval": "retry_interval x 2^(o a): how long a wheel held stopped waits",
-    "stuck_retry": "stuck_retry_scale x 2^(o a): how long a stopped stuck wheel waits",
+SCHEDULE_KNOBS: dict[str, tuple[str, ...]] = {
+    "deadband": ("deadband",),  # capped at max_deadband
+    "gain": ("kp", "ki"),
+    "axle_fight": ("axle_fight_scale",),  # the axle-fight mode's deadband alone
+    "retry_interval": ("retry_interval",),  # how long a wheel held stopped waits
+    "stuck_retry": ("stuck_retry_scale",),  # how long a stopped stuck wheel waits
 }
-"""What each action of a :class:`Schedule` may scale (``o``: the knob's octaves)."""
+"""Each knob of a :class:`Schedule`: the slip PI settings its action scales by ``2^(o a)``
+(``o``: the knob's octaves)."""
 
 
 def schedule_knobs(spec: Sequence[float] | Mapping[str, float]) -> dict[str, float]:
@@ -188,15 +189,10 @@ class Schedule:
         changes: dict[str, float] = {}
         for (knob, octaves), x in zip(self.knobs.items(), np.clip(a, -1.0, 1.0), strict=True):
             f = 2.0 ** (octaves * x)
-            if knob == "deadband":
-                changes["deadband"] = min(c0.deadband * f, c0.max_deadband)
-            elif knob == "gain":
-                changes.update(kp=c0.kp * f, ki=c0.ki * f)
-            else:  # axle_fight_scale, retry_interval, stuck_retry_scale
-                name = {"axle_fight": "axle_fight_scale", "stuck_retry": "stuck_retry_scale"}.get(
-                    knob, knob
-                )
+            for name in SCHEDULE_KNOBS[knob]:
                 changes[name] = getattr(c0, name) * f
+        if "deadband" in changes:
+            changes["deadband"] = min(changes["deadband"], c0.max_deadband)
         return replace_gains(c0, **changes)
 
     def __call__(self, action: npt.ArrayLike, env: ProtoExplorerEnv, obs: Obs) -> Obs:
