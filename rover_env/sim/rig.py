@@ -80,4 +80,75 @@ def measure_fx(
             acc["delta"] += float(s.delta[0])
             acc["v_x"] += float(s.v_x[0])
             acc["v_w"] += float(s.v_w[0])
-    return {k: v / n_avg for k, v in acc.items()}
+            acc["depth"] += float(s.delta[0])
+    out = {k: v / n_avg for k, v in acc.items()}
+    out["final_depth"] = float(layer.last.delta[0]) if layer.last is not None else 0.0
+    return out
+
+
+def measure_soil(
+    soil: str,
+    slip: float,
+    load: float = 27.0,
+    v_x: float = 0.1,
+    radius: float = 0.085,
+    width: float = 0.05,
+    duration: float = 4.0,
+    dt: float = 0.001,
+) -> dict[str, float]:
+    """The rig on loose soil held at Wong's slip ``slip``; averages over the last third.
+
+    ``load`` (N) is the wheel's vertical load (carrier plus wheel weight). Returns the
+    drawbar pull from the carrier's servo and from the layer, F_z, the resistive torque
+    from the spin servo and from the layer, the sinkage, the speeds, and the depth of the
+    wheel's lowest point below the terrain (``depth``; ``final_depth`` at the end). Slip 1
+    holds the carrier still and spins the wheel (a wheel digging itself in).
+    """
+    params = TireParams()
+    wheel_mass = 0.35
+    load_mass = load / 9.81 - wheel_mass
+    xml = RIG_XML.format(dt=dt, z0=radius, load_mass=load_mass, kv_x=2e4, kv_spin=50.0)
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    terrain = Terrain(TerrainConfig(name="rig", size=(40.0, 4.0), soil=soil), params)
+    layer = TireLayer(
+        model,
+        np.array([model.body("wheel").id]),
+        np.array([model.joint("spin").id]),
+        radius,
+        terrain,
+        params,
+        width=width,
+    )
+    if slip >= 1.0:  # spinning in place: the carrier held, the wheel at v_w = 0.25 m/s
+        v_x, v_w = 0.0, 0.25
+    else:
+        v_w = v_x / (1.0 - slip) if slip >= 0 else v_x * (1.0 + slip)
+    omega = v_w / radius
+    data.qpos[model.joint("x").qposadr[0]] = -15.0
+    data.qvel[model.joint("x").dofadr[0]] = v_x
+    data.qvel[model.joint("spin").dofadr[0]] = omega
+    data.ctrl[:] = [v_x, omega]
+    n = round(duration / dt)
+    keys = ("F_servo", "F_x", "F_z", "T_servo", "T", "sinkage", "v_x", "v_w", "depth")
+    acc = dict.fromkeys(keys, 0.0)
+    n_avg = n // 3
+    for k in range(n):
+        mujoco.mj_step1(model, data)
+        layer.apply(data)
+        mujoco.mj_step2(model, data)
+        if k >= n - n_avg:
+            s = layer.last
+            assert s is not None
+            acc["F_servo"] += -float(data.actuator_force[0])
+            acc["F_x"] += float(s.F_x[0])
+            acc["F_z"] += float(s.F_z[0])
+            acc["T_servo"] += float(data.actuator_force[1])
+            acc["T"] += float(s.torque[0])
+            acc["sinkage"] += float(s.sinkage[0])
+            acc["v_x"] += float(s.v_x[0])
+            acc["v_w"] += float(s.v_w[0])
+            acc["depth"] += float(s.delta[0])
+    out = {k: v / n_avg for k, v in acc.items()}
+    out["final_depth"] = float(layer.last.delta[0]) if layer.last is not None else 0.0
+    return out

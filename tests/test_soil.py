@@ -1,0 +1,135 @@
+"""Loose soil (issue 15): the steady-state model, its use in the simulator, both backends."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from rover_env.config import ConfigError, FrictionPatch, TerrainConfig, from_dict
+from rover_env.sim.rig import measure_soil
+from rover_env.sim.simulator import RoverSim
+from rover_env.soil import SoilParams, load_soil, slip_and_direction, soil_forces, static_sinkage
+
+R, B, LOAD = 0.085, 0.05, 27.0
+
+
+def test_check_values_of_notes() -> None:
+    """shared/NOTES.md (adaptive quadrature of SOIL.md, regolith, rover wheel, 27 N)."""
+    p = load_soil("regolith")
+    assert static_sinkage(LOAD, R, B, p) == pytest.approx(0.0143, abs=5e-5)
+    for s, ratio in ((0.0, -0.016), (0.2, 0.146), (0.5, 0.316), (0.9, 0.449)):
+        h = static_sinkage(LOAD, R, B, p, slip=s)
+        f = soil_forces(0.1, 0.0, 0.1 / (1 - s), h, R, B, p)
+        assert float(f.F_z) == pytest.approx(LOAD, rel=1e-8)
+        assert float(f.F_x / f.F_z) == pytest.approx(ratio, abs=5e-4), s
+    q = dataclasses.replace(p, n1=0.5)
+    for s, h in ((0.2, 0.020), (0.5, 0.031), (0.9, 0.051)):
+        assert static_sinkage(LOAD, R, B, q, slip=s) == pytest.approx(h, abs=5e-4), s
+
+
+def test_signs_and_symmetry() -> None:
+    p = load_soil("regolith")
+    h = 0.015
+    drive = soil_forces(0.1, 0.0, 0.15, h, R, B, p)
+    back = soil_forces(-0.1, 0.0, -0.15, h, R, B, p)
+    assert float(drive.s) == pytest.approx(1 / 3) and float(back.s) == pytest.approx(1 / 3)
+    assert drive.F_x > 0 and drive.T > 0  # pull forward, the motor works against T
+    np.testing.assert_allclose([back.F_x, back.T], [-drive.F_x, -drive.T], rtol=1e-12)
+    np.testing.assert_allclose(back.F_z, drive.F_z, rtol=1e-12)
+    side = soil_forces(0.1, 0.02, 0.1, h, R, B, p)
+    assert side.F_y < 0  # opposes lateral sliding
+    skid = soil_forces(0.1, 0.0, 0.0, h, R, B, p)
+    assert float(skid.s) == -1.0 and skid.F_x < 0  # a locked wheel brakes
+    none = soil_forces(0.1, 0.0, 0.1, -0.001, R, B, p)
+    assert none.F_x == 0 and none.F_z == 0 and none.T == 0
+    s, d = slip_and_direction(0.0, 0.0)
+    assert float(s) == 0.0 and float(d) == 1.0  # +1 at rest
+
+
+def test_soil_config_errors(tmp_path) -> None:
+    with pytest.raises(ConfigError, match="give mu_x and mu_y, or soil"):
+        FrictionPatch(name="p", center=(0, 0), size=(1, 1))
+    with pytest.raises(ConfigError, match="takes no mu_x"):
+        FrictionPatch(name="p", center=(0, 0), size=(1, 1), mu_x=0.3, mu_y=0.3, soil="regolith")
+    with pytest.raises(ConfigError, match="no shipped soil configuration named 'nope'"):
+        load_soil("nope")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: bad\nk_x: -1\n")
+    with pytest.raises(ConfigError, match=r"bad.yaml.*k_x must be > 0"):
+        load_soil(bad)
+    with pytest.raises(ConfigError, match="lam must be in"):
+        SoilParams(lam=1.5)
+
+
+@pytest.mark.parametrize("slip", [0.3, -0.2])
+def test_rig_settles_to_soil_forces(slip: float) -> None:
+    """The single-wheel rig at constant slip settles to soil_forces at its static sinkage."""
+    p = load_soil("regolith")
+    m = measure_soil("regolith", slip, load=LOAD, duration=2.5)
+    s = float(slip_and_direction(m["v_x"], m["v_w"])[0])  # the slip the servos achieved
+    assert abs(s - slip) < 0.02
+    h = static_sinkage(LOAD, R, B, p, slip=s)
+    ref = soil_forces(m["v_x"], 0.0, m["v_w"], h, R, B, p)
+    assert m["F_z"] == pytest.approx(LOAD, rel=2e-3)
+    assert m["sinkage"] == pytest.approx(h, rel=0.02)
+    assert m["F_servo"] == pytest.approx(float(ref.F_x), rel=0.02)  # drawbar pull
+    assert m["T_servo"] == pytest.approx(float(ref.T), rel=0.02)  # the motor's torque
+
+
+def test_spinning_wheel_digs_itself_in() -> None:
+    """Sustained slip buries a wheel: held still and spun, it sinks past half its radius."""
+    m = measure_soil("regolith", 1.0, load=LOAD, duration=8.0)
+    assert m["final_depth"] > 0.5 * R
+    settled = measure_soil("regolith", 0.3, load=LOAD, duration=2.5)
+    assert settled["final_depth"] < 0.3 * R  # travelling, it leaves its hole behind
+
+
+SOIL_TERRAIN = {
+    "name": "soil-mix",
+    "size": [12.0, 6.0],
+    "slope_deg": [5.0, 2.0],
+    "roughness": {"rms": 0.01, "correlation_length": 0.4, "modes": 8, "seed": 3},
+    "soil": "regolith",
+    "patches": [
+        {"name": "ice", "center": [1.0, 0.0], "size": [0.6, 3.0], "mu_x": 0.1, "mu_y": 0.1},
+    ],
+}
+
+
+def test_backends_agree_on_soil() -> None:
+    """numpy reference and compiled plugin: the same rover on soil, ruts and all."""
+    t = from_dict(TerrainConfig, SOIL_TERRAIN)
+    a = RoverSim(terrain=t, backend="numpy")
+    b = RoverSim(terrain=t, backend="plugin")
+    for k in range(3):
+        for sim in (a, b):
+            sim.set_speed_targets([3.0, 1.5, 3.0, 1.5] if k % 2 else [2.5, 2.5, 2.5, 2.5])
+            sim.step(400)
+    np.testing.assert_allclose(a.data.qpos, b.data.qpos, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a.data.qvel, b.data.qvel, rtol=0, atol=1e-10)
+    wa, wb = a.wheel_truth(), b.wheel_truth()
+    np.testing.assert_allclose(wa.sinkage, wb.sinkage, atol=1e-12)
+    assert (wa.soil == wb.soil).all() and wa.soil.max() == 1
+    assert wa.sinkage.min() > 0.005  # every wheel stands in the soil
+    pv = b._plugin
+    assert pv is not None
+    rut_b = pv.state(b.data.plugin_state)[pv.layout.rut]
+    assert rut_b.max() > 0.005  # the wheels left ruts
+    np.testing.assert_allclose(a.tires.rut, rut_b, atol=1e-12)
+
+
+def test_middle_wheels_run_in_the_front_ruts() -> None:
+    """Straight on flat soil: the middle and rear wheels meet the front wheels' rut."""
+    t = from_dict(TerrainConfig, {"name": "sand", "size": [12.0, 6.0], "soil": "regolith"})
+    sim = RoverSim(terrain=t, backend="plugin")
+    sim.set_speed_targets([2.0] * 4)
+    sim.step(3000)
+    pv = sim._plugin
+    assert pv is not None
+    g = sim.terrain.rut_grid
+    w = sim.wheel_truth()
+    rut_here = g.lookup(pv.state(sim.data.plugin_state)[pv.layout.rut], *w.contact_point[:, :2].T)
+    assert np.all(rut_here[:2] == 0.0)  # nothing ahead of the front wheels
+    assert np.all(rut_here[2:] > 0.5 * w.sinkage[0])  # followers stand in the front ruts
