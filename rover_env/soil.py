@@ -182,9 +182,9 @@ def stress_integrals(
     th_front = (0.5 * (th_c + th_m))[..., None] + half_f[..., None] * _GL_X
     # θ_eq maps the rear arc onto [θ_m, θ_f]; a degenerate arc (θ_m = θ_r) has zero weight.
     span = np.where(th_m > th_r, th_m - th_r, 1.0)
-    th_eq = th_f[..., None] - (th_rear - th_r[..., None]) / span[..., None] * (th_f - th_m)[
-        ..., None
-    ]
+    th_eq = (
+        th_f[..., None] - (th_rear - th_r[..., None]) / span[..., None] * (th_f - th_m)[..., None]
+    )
     out = []
     # Rear arc: the normal stress at θ_eq; front arc: at θ itself.
     for th, base_th, half in ((th_rear, th_eq, half_r), (th_front, th_front, half_f)):
@@ -245,9 +245,7 @@ def soil_forces(
     v_y = np.asarray(v_y, dtype=np.float64)
     denom = np.maximum(np.abs(np.asarray(v_x, dtype=np.float64)), v_eps)
     beta = np.arctan2(v_y, denom)
-    F_x, F_y, F_z, T = stress_integrals(
-        s, np.tan(beta), d, sinkage, sinkage, radius, width, params
-    )
+    F_x, F_y, F_z, T = stress_integrals(s, np.tan(beta), d, sinkage, sinkage, radius, width, params)
     return SoilForces(F_x, F_y, F_z, T, s, beta)
 
 

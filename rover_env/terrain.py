@@ -80,10 +80,7 @@ class Terrain:
         ).reshape(-1, 2)
         # Soil patches keep the ground's friction in the table: the soil model ignores it.
         self._patch_mu = np.array(
-            [
-                [self.mu_x_default, self.mu_y_default] if q.soil else [q.mu_x, q.mu_y]
-                for q in p
-            ]
+            [[self.mu_x_default, self.mu_y_default] if q.soil else [q.mu_x, q.mu_y] for q in p]
         ).reshape(-1, 2)
         self.patch_names: tuple[str, ...] = ("ground", *(q.name for q in p))
         # Loose soil: distinct presets numbered from 1 (0 = hard ground, the Gim layer).
@@ -250,8 +247,12 @@ class RutGrid(NamedTuple):
         fx = gx - ix
         fy = gy - iy
         g = grid.reshape(self.ny, self.nx)
-        for dx, dy, wgt in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)),
-                            (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
+        for dx, dy, wgt in (
+            (0, 0, (1 - fx) * (1 - fy)),
+            (1, 0, fx * (1 - fy)),
+            (0, 1, (1 - fx) * fy),
+            (1, 1, fx * fy),
+        ):
             cx = (ix + dx).astype(np.int64)
             cy = (iy + dy).astype(np.int64)
             ok = (cx >= 0) & (cx < self.nx) & (cy >= 0) & (cy < self.ny)

@@ -12,6 +12,7 @@ PKG = Path(rover_env.__file__).parent
 # Rank of each part of the package; a module may import rover_env modules of equal or lower rank.
 RANKS = {
     "rover_env.tire": 0,
+    "rover_env.soil": 0,
     "rover_env.terrain": 0,
     "rover_env.kinematics": 0,
     "rover_env.config": 0,

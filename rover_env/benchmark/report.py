@@ -29,6 +29,9 @@ UNITS: dict[str, str] = {
     "distance_made_good": "m",
     "success": "share",
     "flipped": "share",
+    "mean_sinkage": "m",
+    "max_sinkage": "m",
+    "time_stuck": "s",
 }
 LOWER_IS_BETTER = {m: m not in ("distance_made_good", "success") for m in METRICS}
 
@@ -216,10 +219,10 @@ def _plots(
     files = []
     ctrls = _unique(r["controller"] for r in summary)
     scens = _unique(r["scenario"] for r in summary)
-    fig, axes = plt.subplots(2, 4, figsize=(18, 8))
+    fig, axes = plt.subplots(3, 4, figsize=(18, 12))
     width = 0.8 / max(len(ctrls), 1)
     x = np.arange(len(scens))
-    for ax, m in zip(axes.ravel(), METRICS, strict=True):
+    for ax, m in zip(axes.ravel(), METRICS, strict=False):
         for i, c in enumerate(ctrls):
             sel = {r["scenario"]: r for r in summary if r["controller"] == c and r["metric"] == m}
             means = np.array([sel[s]["mean"] if s in sel else np.nan for s in scens])
@@ -239,6 +242,8 @@ def _plots(
             ax.set_yscale("log")
     axes[0, 0].legend(fontsize=8)
     fig.suptitle("Benchmark: mean and 95 % CI per scenario")
+    for ax in axes.ravel()[len(METRICS) :]:
+        ax.axis("off")
     fig.tight_layout()
     files.append(out / "metrics.png")
     fig.savefig(files[-1], dpi=110)
@@ -247,8 +252,8 @@ def _plots(
     for other in _unique(r["controller"] for r in pairs):
         mine = [r for r in pairs if r["controller"] == other]
         base = mine[0]["baseline"]
-        fig, axes = plt.subplots(2, 4, figsize=(18, 8))
-        for ax, m in zip(axes.ravel(), METRICS, strict=True):
+        fig, axes = plt.subplots(3, 4, figsize=(18, 12))
+        for ax, m in zip(axes.ravel(), METRICS, strict=False):
             by = {r["scenario"]: r for r in mine if r["metric"] == m}
             d = np.array([by[s]["diff_mean"] if s in by else np.nan for s in scens])
             lo = np.array([by[s]["ci_low"] if s in by else np.nan for s in scens])

@@ -101,6 +101,8 @@ def run_episode(
         "tracking_error_yaw_rate",
         "energy",
         "distance",
+        "wheel_sinkage",
+        "command",
     )
     acc: dict[str, list[Any]] = {k: [] for k in keys}
     last = info
@@ -124,6 +126,9 @@ def run_episode(
         out_of_arena=bool(last.get("out_of_arena", False)),
         commanded_path=episode.schedule.path_length(episode.duration),
         goal_fraction=episode.goal_fraction,
+        sinkage=np.asarray(acc["wheel_sinkage"]),
+        speed_command=np.asarray(acc["command"])[:, 0],
+        step_dt=wrapper.base.control_dt,
     )
 
 

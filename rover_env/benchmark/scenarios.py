@@ -139,7 +139,10 @@ class ScenarioConfig:
         if j.mu_scale > 0 and terrain.patches:
             k = 1.0 + j.mu_scale * float(dmu)
             patches = tuple(
-                dataclasses.replace(p, mu_x=p.mu_x * k, mu_y=p.mu_y * k) for p in terrain.patches
+                p
+                if p.mu_x is None or p.mu_y is None  # a soil patch: no friction to scale
+                else dataclasses.replace(p, mu_x=p.mu_x * k, mu_y=p.mu_y * k)
+                for p in terrain.patches
             )
             terrain = dataclasses.replace(terrain, patches=patches)
         return Episode(

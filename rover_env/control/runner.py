@@ -42,9 +42,14 @@ METRICS: tuple[str, ...] = (
     "distance_made_good",
     "success",
     "flipped",
+    "mean_sinkage",
+    "max_sinkage",
+    "time_stuck",
 )
 """Per-episode metrics, in table order (see :func:`episode_metrics`)."""
 
+STUCK_PROGRESS = 0.2
+"""A control step is stuck when the rover makes less than this share of the commanded progress."""
 MIN_PATH = 0.01
 """Path length (m) below which energy per metre is taken over this floor (no division by 0)."""
 
@@ -79,7 +84,9 @@ class DriveTrace:
     energy: list[float] = field(default_factory=list)
     distance: list[float] = field(default_factory=list)
     position: list[Array] = field(default_factory=list)
+    sinkage: list[Array] = field(default_factory=list)
     flipped: bool = False
+    step_dt: float = 0.1
 
     def metrics(self, commanded_path: float, goal_fraction: float = 0.5) -> dict[str, float]:
         return episode_metrics(
@@ -94,6 +101,9 @@ class DriveTrace:
             flipped=self.flipped,
             commanded_path=commanded_path,
             goal_fraction=goal_fraction,
+            sinkage=np.array(self.sinkage),
+            speed_command=np.array([c[0] for c in self.command]),
+            step_dt=self.step_dt,
         )
 
 
@@ -111,6 +121,9 @@ def episode_metrics(
     commanded_path: float,
     goal_fraction: float = 0.5,
     out_of_arena: bool = False,
+    sinkage: Array | None = None,
+    speed_command: Array | None = None,
+    step_dt: float = 0.1,
 ) -> dict[str, float]:
     """The benchmark's metrics of one episode from per-step arrays (truth, as in ``info``).
 
@@ -124,7 +137,12 @@ def episode_metrics(
     * ``distance_made_good``: straight-line displacement of the middle segment (m);
     * ``success``: 1 if no flip, still in the arena, and the path length reached
       ``goal_fraction`` of the commanded one (the rover was not stuck), else 0;
-    * ``flipped``: 1 if a segment tipped beyond 75 deg.
+    * ``flipped``: 1 if a segment tipped beyond 75 deg;
+    * ``mean_sinkage``, ``max_sinkage``: sinkage into loose soil (m) of the six wheels at
+      the step ends (``sinkage``, steps x 6), mean over steps and wheels and the largest;
+      0 on hard ground;
+    * ``time_stuck``: seconds of control steps (``step_dt``) whose path length was below
+      :data:`STUCK_PROGRESS` of the commanded |speed| x step_dt (``speed_command``).
     """
     path = float(np.sum(distance))
     made_good = float(np.linalg.norm(np.asarray(end)[:2] - np.asarray(start)[:2]))
@@ -138,7 +156,19 @@ def episode_metrics(
         "distance_made_good": made_good,
         "success": float(ok),
         "flipped": float(flipped),
+        "mean_sinkage": float(np.mean(sinkage)) if sinkage is not None else 0.0,
+        "max_sinkage": float(np.max(sinkage)) if sinkage is not None else 0.0,
+        "time_stuck": time_stuck(distance, speed_command, step_dt),
     }
+
+
+def time_stuck(distance: Array, speed_command: Array | None, step_dt: float) -> float:
+    """Seconds of steps that made less than STUCK_PROGRESS of the commanded progress."""
+    if speed_command is None:
+        return 0.0
+    want = np.abs(np.asarray(speed_command, dtype=float)) * step_dt
+    stuck = (want > 1e-3) & (np.asarray(distance) < STUCK_PROGRESS * want)
+    return float(np.count_nonzero(stuck)) * step_dt
 
 
 def motor_power(sim: RoverSim) -> float:
@@ -186,7 +216,7 @@ def run_on_sim(
 
     controller.reset()
     estimate, theta = sample()
-    trace = DriveTrace()
+    trace = DriveTrace(step_dt=samples * h)
     for _ in range(n_steps):
         v_cmd, w_cmd = case.schedule.at(sim.time)
         obs = ControllerInput(
@@ -224,6 +254,7 @@ def run_on_sim(
         trace.energy.append(energy)
         trace.distance.append(float(np.linalg.norm(pos[:2] - pos0[:2])))
         trace.position.append(pos)
+        trace.sinkage.append(sim.wheel_truth().sinkage.copy())
         if sim.flipped():
             trace.flipped = True
             break

@@ -530,7 +530,7 @@ class RoverEpisode:
         wt = sim.wheel_truth()
         mu = wheel_friction(sim.terrain, wt.contact_point)
         return self._static_info(
-            speed, yaw_rate, sim.data.xpos[index.seg_body[1]], wt.F_z.copy(), mu
+            speed, yaw_rate, sim.data.xpos[index.seg_body[1]], wt.F_z.copy(), mu, wt.sinkage.copy()
         )
 
     def _obs_from(self, sim: RoverSim, index: RoverIndex) -> NDArray[np.float32]:
@@ -591,6 +591,7 @@ class RoverEpisode:
         yaw_rate: float,
         wheel_F_z: Array,
         wheel_mu: Array,
+        wheel_sinkage: Array,
     ) -> tuple[float, bool, dict[str, Any]]:
         """Reward, termination and info of a step whose sums are ``sums[row]``; draws the next
         command from ``rng`` when due. ``self._est`` must hold the step's last estimate."""
@@ -617,7 +618,7 @@ class RoverEpisode:
         out = bool(abs(pos[0]) > self._arena_half[0] or abs(pos[1]) > self._arena_half[1])
         if t >= self._next_command_t:
             self._new_command(rng, t)
-        info = self._static_info(speed, yaw_rate, pos, wheel_F_z, wheel_mu)
+        info = self._static_info(speed, yaw_rate, pos, wheel_F_z, wheel_mu, wheel_sinkage)
         info.update(
             reward_tracking=r_track,
             reward_slip=r_slip,
@@ -634,7 +635,13 @@ class RoverEpisode:
         return float(reward), bool(flipped or out), info
 
     def _static_info(
-        self, speed: float, yaw_rate: float, position: Array, wheel_F_z: Array, wheel_mu: Array
+        self,
+        speed: float,
+        yaw_rate: float,
+        position: Array,
+        wheel_F_z: Array,
+        wheel_mu: Array,
+        wheel_sinkage: Array,
     ) -> dict[str, Any]:
         est = self._est
         assert est is not None
@@ -647,6 +654,7 @@ class RoverEpisode:
             "position": position.copy(),
             "wheel_F_z": wheel_F_z,
             "wheel_mu": wheel_mu,
+            "wheel_sinkage": wheel_sinkage,
         }
 
     def _observation(self, gravity: Array, gyro: Array) -> NDArray[np.float32]:
@@ -749,7 +757,8 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
     ``slip_estimate`` (4,); ``slip_estimate_reliable`` (4,); ``tracking_error_speed`` and
     ``tracking_error_yaw_rate`` (RMS over the step); ``command`` (2,); ``speed``,
     ``yaw_rate`` (true, middle segment); ``energy`` (J this step); ``distance`` (m this step);
-    ``position`` (middle segment, world); ``wheel_F_z`` (6,), ``wheel_mu`` (6, 2) friction
+    ``position`` (middle segment, world); ``wheel_F_z`` (6,), ``wheel_sinkage`` (6,) sinkage into loose soil (m, 0 on hard
+    ground), ``wheel_mu`` (6, 2) friction
     under each wheel; ``flipped``, ``out_of_arena``.
 
     ## Arguments
@@ -914,6 +923,7 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
             yaw_rate,
             wt.F_z.copy(),
             wheel_friction(sim.terrain, wt.contact_point),
+            wt.sinkage.copy(),
         )
         if self.render_mode == "human":
             self.render()
@@ -952,6 +962,7 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
             s[8],
             f_z,
             wheel_friction(sim.terrain, contact),
+            index.wheel_sinkage(d.plugin_state),
         )
         if self.render_mode == "human":
             self.render()

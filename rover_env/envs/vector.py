@@ -338,6 +338,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         pos = xpos[:, ix.seg_body[1]]
         flipped = ix.flipped(xmat)
         f_z, contact = ix.wheel_load(b.plugin_state[active])
+        sinkage = ix.wheel_sinkage(b.plugin_state[active])
         gravity = ix.gravity(xmat)
         gyro = ix.gyro_rates(b.sensordata[active])
         t = b._time[active]
@@ -358,6 +359,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
                 yaw_rate[j],
                 f_z[j],
                 wheel_friction(self.terrains[i], contact[j]),
+                sinkage[j],
             )
             rewards[i] = reward
             terminations[i] = terminated

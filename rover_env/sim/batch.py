@@ -113,6 +113,10 @@ class RoverIndex:
         v_w = self._truth_part(plugin_state, 2)[..., :nd]
         return tire.slip_ratio(v_x, v_w, self.v_eps)
 
+    def wheel_sinkage(self, plugin_state: Array) -> Array:
+        """Sinkage into loose soil (..., 6) of every wheel, 0 on hard ground (a copy)."""
+        return self._truth_part(plugin_state, 14).copy()
+
     def wheel_load(self, plugin_state: Array) -> tuple[Array, Array]:
         """Normal force (..., 6) and contact point (..., 6, 3) of every wheel (copies)."""
         f_z = self._truth_part(plugin_state, 5).copy()
