@@ -16,13 +16,15 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
+import yaml
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
 V_EPS = 1e-3  # m/s; SOIL.md leaves v_eps open; 1e-3 matches rover_env.tire's default
-QUAD_OPTS: dict[str, Any] = {"epsabs": 1e-13, "epsrel": 1e-11, "limit": 400}
+QUAD_OPTS: dict[str, Any] = {"epsabs": 1e-13, "epsrel": 1e-10, "limit": 400}
 REQUIRED = ("c", "phi_deg", "k_c", "k_phi", "n0", "n1", "k_x", "k_y", "a0", "a1", "lam")
 
 
@@ -207,3 +209,58 @@ def reference_operating_point(
     out["h"] = h
     out["DP/W"] = out["F_x"] / out["F_z"]
     return out
+
+
+PRESET_KEYS = {"name", "description", "source", *REQUIRED}
+ROVER_WHEEL = {"radius": 0.085, "width": 0.05, "load": 27.0}  # SPEC: r, b, N per wheel at rest
+TABLE_SLIPS = (0.0, 0.2, 0.5, 0.9)
+
+
+def load_preset(path: str | Path) -> dict[str, Any]:
+    """A configs/soil/*.yaml preset as a plain dict, checked for exactly SOIL.md's keys."""
+    path = Path(path)
+    data = yaml.safe_load(path.read_text())
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a mapping of soil parameters")
+    missing, extra = PRESET_KEYS - data.keys(), data.keys() - PRESET_KEYS
+    if missing or extra:
+        raise KeyError(f"{path}: missing keys {sorted(missing)}, unknown keys {sorted(extra)}")
+    for key in REQUIRED:
+        if not isinstance(data[key], int | float) or isinstance(data[key], bool):
+            raise ValueError(f"{path}: key {key!r} = {data[key]!r} is not a number")
+    return data
+
+
+def preset_rows(
+    paths: list[Path], load: float = ROVER_WHEEL["load"]
+) -> list[tuple[str, float, list[tuple[float, float]]]]:
+    """(name, static sinkage [m], [(sinkage [m], DP/W) at each TABLE_SLIPS]) per preset."""
+    r, b = ROVER_WHEEL["radius"], ROVER_WHEEL["width"]
+    rows = []
+    for path in paths:
+        p = load_preset(path)
+        ops = [reference_operating_point(load, r, b, p, s) for s in TABLE_SLIPS]
+        rows.append((p["name"], ops[0]["h"], [(op["h"], op["DP/W"]) for op in ops]))
+    return rows
+
+
+def markdown_table(paths: list[Path], load: float = ROVER_WHEEL["load"]) -> str:
+    """The README table: static sinkage and sinkage / DP/W at each slip, from this reference."""
+    head = "| preset | static sinkage (mm) | " + " | ".join(
+        f"s = {s:g}: h (mm), DP/W" for s in TABLE_SLIPS
+    )
+    lines = [head + " |", "|" + "---|" * (2 + len(TABLE_SLIPS))]
+    for name, h0, cells in preset_rows(paths, load):
+        body = " | ".join(f"{h * 1e3:.1f}, {dpw:+.3f}" for h, dpw in cells)
+        lines.append(f"| {name} | {h0 * 1e3:.1f} | {body} |")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":  # python tests/soil_reference.py configs/soil [load_N ...]
+    import sys
+
+    folder = Path(sys.argv[1] if len(sys.argv) > 1 else "configs/soil")
+    files = sorted(folder.glob("*.yaml"))
+    for w in [float(a) for a in sys.argv[2:]] or [ROVER_WHEEL["load"]]:
+        print(f"\nload {w:g} N, r {ROVER_WHEEL['radius']} m, b {ROVER_WHEEL['width']} m\n")
+        print(markdown_table(files, w))
