@@ -207,18 +207,29 @@ class RoverConfig:
 
 @dataclass(frozen=True)
 class FrictionPatch:
-    """A region of ground with its own friction (e.g. sand, snow, rock)."""
+    """A region of ground with its own friction (e.g. snow, rock) or loose soil.
+
+    Either ``mu_x`` and ``mu_y`` (hard ground: the Gim tire layer with these friction
+    coefficients) or ``soil`` (a soil preset name or YAML path, ``configs/soil/``: the
+    terramechanics contact of :mod:`rover_env.soil`).
+    """
 
     name: str
     center: tuple[float, float]
     size: tuple[float, float]
     """Full extent in x and y (m) of an axis-aligned rectangle."""
-    mu_x: float
-    mu_y: float
+    mu_x: float | None = None
+    mu_y: float | None = None
+    soil: str | None = None
 
     def __post_init__(self) -> None:
-        _positive(f"friction patch {self.name}: mu_x", self.mu_x)
-        _positive(f"friction patch {self.name}: mu_y", self.mu_y)
+        if self.soil is None:
+            if self.mu_x is None or self.mu_y is None:
+                raise ConfigError(f"patch {self.name}: give mu_x and mu_y, or soil")
+            _positive(f"friction patch {self.name}: mu_x", self.mu_x)
+            _positive(f"friction patch {self.name}: mu_y", self.mu_y)
+        elif self.mu_x is not None or self.mu_y is not None:
+            raise ConfigError(f"patch {self.name}: a soil patch takes no mu_x/mu_y")
         for v in self.size:
             _positive(f"friction patch {self.name}: size", v)
 
@@ -286,6 +297,8 @@ class TerrainConfig:
     mu_y: float | None = None
     patches: tuple[FrictionPatch, ...] = ()
     obstacles: tuple[Obstacle, ...] = ()
+    soil: str | None = None
+    """Loose soil over the whole ground (a preset name or YAML path); None: hard ground."""
 
     def __post_init__(self) -> None:
         for v in self.size:

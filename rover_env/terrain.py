@@ -13,7 +13,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from rover_env.config import TerrainConfig
+from rover_env.config import ConfigError, TerrainConfig
+from rover_env.soil import SoilParams, load_soil
 from rover_env.tire import TireParams
 
 Array = NDArray[np.float64]
@@ -77,8 +78,27 @@ class Terrain:
         self._patch_hi = np.array(
             [[c[0] + s[0] / 2, c[1] + s[1] / 2] for c, s in ((q.center, q.size) for q in p)]
         ).reshape(-1, 2)
-        self._patch_mu = np.array([[q.mu_x, q.mu_y] for q in p]).reshape(-1, 2)
+        # Soil patches keep the ground's friction in the table: the soil model ignores it.
+        self._patch_mu = np.array(
+            [
+                [self.mu_x_default, self.mu_y_default] if q.soil else [q.mu_x, q.mu_y]
+                for q in p
+            ]
+        ).reshape(-1, 2)
         self.patch_names: tuple[str, ...] = ("ground", *(q.name for q in p))
+        # Loose soil: distinct presets numbered from 1 (0 = hard ground, the Gim layer).
+        names = [n for n in (cfg.soil, *(q.soil for q in p)) if n]
+        unique = list(dict.fromkeys(names))
+        self.soils: tuple[SoilParams, ...] = tuple(load_soil(n) for n in unique)
+        self.ground_soil = unique.index(cfg.soil) + 1 if cfg.soil else 0
+        self._patch_soil = np.array(
+            [unique.index(q.soil) + 1 if q.soil else 0 for q in p], dtype=np.int64
+        )
+        self.rut_grid = RutGrid.covering(cfg.size, self.soils)
+
+    @property
+    def has_soil(self) -> bool:
+        return bool(self.soils)
 
     # ------------------------------------------------------------------ surface
     def height_and_gradient(self, x: Array, y: Array) -> tuple[Array, Array, Array]:
@@ -119,6 +139,23 @@ class Terrain:
             muy = np.where(inside, self._patch_mu[i, 1], muy)
             idx = np.where(inside, i + 1, idx)
         return mux, muy, idx
+
+    def soil_index(self, x: Array, y: Array) -> NDArray[np.int64]:
+        """Soil at points: 0 = hard ground (Gim layer), k = ``soils[k-1]``; last patch wins."""
+        x = np.asarray(x, dtype=float)
+        idx = np.full(x.shape, self.ground_soil, dtype=np.int64)
+        if not self.soils:
+            return idx
+        y = np.asarray(y, dtype=float)
+        for i in range(self._patch_mu.shape[0]):
+            inside = (
+                (x >= self._patch_lo[i, 0])
+                & (x <= self._patch_hi[i, 0])
+                & (y >= self._patch_lo[i, 1])
+                & (y <= self._patch_hi[i, 1])
+            )
+            idx = np.where(inside, self._patch_soil[i], idx)
+        return idx
 
     # ------------------------------------------------------------------ wheel contact
     def wheel_contact(
@@ -164,3 +201,68 @@ class Terrain:
 def _normal(hx: Array, hy: Array) -> Array:
     n = np.stack([-hx, -hy, np.ones_like(hx)], axis=-1)
     return n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+
+MAX_RUT_CELLS = 4_000_000
+"""Largest rut map (cells) a terrain may ask for: 32 MB of state per simulation."""
+
+
+class RutGrid(NamedTuple):
+    """Geometry of the rut map over the arena: cell (ix, iy) covers x0 + ix*cell, y0 + iy*cell.
+
+    The map itself (depth below the terrain surface that wheels have compacted, m) is
+    simulation state, held by the soil contact (numpy layer or compiled plugin).
+    """
+
+    x0: float
+    y0: float
+    cell: float
+    nx: int
+    ny: int
+
+    @classmethod
+    def covering(cls, size: tuple[float, float], soils: tuple[SoilParams, ...]) -> RutGrid:
+        if not soils:
+            return cls(0.0, 0.0, 1.0, 0, 0)
+        cell = min(sp.rut_cell for sp in soils)
+        nx = int(np.ceil(size[0] / cell))
+        ny = int(np.ceil(size[1] / cell))
+        if nx * ny > MAX_RUT_CELLS:
+            raise ConfigError(
+                f"terrain size {size} with rut_cell {cell} m needs {nx * ny} rut cells, more than"
+                f" {MAX_RUT_CELLS}; use a smaller arena or a coarser rut_cell"
+            )
+        return cls(-size[0] / 2, -size[1] / 2, cell, nx, ny)
+
+    @property
+    def ncell(self) -> int:
+        return self.nx * self.ny
+
+    def lookup(self, grid: Array, x: Array, y: Array) -> Array:
+        """Bilinear rut depth at points (0 outside the map): smooth as a wheel crosses cells."""
+        out = np.zeros(np.shape(x))
+        if self.ncell == 0:
+            return out
+        gx = (np.asarray(x) - self.x0) / self.cell - 0.5
+        gy = (np.asarray(y) - self.y0) / self.cell - 0.5
+        ix = np.floor(gx)
+        iy = np.floor(gy)
+        fx = gx - ix
+        fy = gy - iy
+        g = grid.reshape(self.ny, self.nx)
+        for dx, dy, wgt in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)),
+                            (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
+            cx = (ix + dx).astype(np.int64)
+            cy = (iy + dy).astype(np.int64)
+            ok = (cx >= 0) & (cx < self.nx) & (cy >= 0) & (cy < self.ny)
+            val = np.where(ok, g[np.clip(cy, 0, self.ny - 1), np.clip(cx, 0, self.nx - 1)], 0.0)
+            out = out + wgt * val
+        return out
+
+    def cell_of(self, x: float, y: float) -> int:
+        """Flat index of the cell holding (x, y), or -1 outside the map."""
+        ix = int(np.floor((x - self.x0) / self.cell))
+        iy = int(np.floor((y - self.y0) / self.cell))
+        if 0 <= ix < self.nx and 0 <= iy < self.ny:
+            return iy * self.nx + ix
+        return -1

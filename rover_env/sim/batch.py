@@ -287,6 +287,8 @@ class BatchRoverSim:
             v_w=ts.v_w,
             contact_point=ts.point,
             patch=ts.patch,
+            sinkage=ts.sinkage,
+            soil=ts.soil,
         )
 
     def sensor(self, name: str) -> Array:

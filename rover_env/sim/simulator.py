@@ -59,6 +59,10 @@ class WheelTruth:
     contact_point: Array
     patch: NDArray[np.int64]
     """Friction patch index: 0 default ground, i the terrain's i-th patch."""
+    sinkage: Array
+    """Sinkage below the loose-soil surface (m); 0 on hard ground."""
+    soil: NDArray[np.int64]
+    """0 on hard ground, k on the terrain's soil ``soils[k-1]`` (rover_env.soil)."""
 
 
 @dataclass(frozen=True)
@@ -202,6 +206,7 @@ class RoverSim:
             self.terrain,
             self.phys_cfg.tire,
             effects=[e for e in self.effects if isinstance(e, TireEffect)],
+            width=self.cfg.geometry.wheel_width,
         )
         self.speed_targets = np.zeros(4)
         self.reset()
@@ -423,6 +428,8 @@ class RoverSim:
             v_w=ts.v_w,
             contact_point=ts.point.copy(),
             patch=ts.patch,
+            sinkage=ts.sinkage,
+            soil=ts.soil,
         )
 
     def segment_truth(self) -> SegmentTruth:

@@ -1,6 +1,8 @@
 """The per-substep tire layer: contact geometry, slip kinematics and force application.
 
-It is written against MuJoCo ids rather than the rover, so the single-wheel test rig and the
+On hard ground a wheel gets the Gim–Nikravesh tire forces at its contact point; on loose
+soil (:mod:`rover_env.soil`) the terramechanics stresses' resultant at its hub plus the
+soil's resistive torque, with the rut map and per-wheel dug depth as state. It is written against MuJoCo ids rather than the rover, so the single-wheel test rig and the
 rover share one implementation. Forces go into ``qfrc_applied`` at the contact point, between
 ``mj_step1`` and ``mj_step2``; the layer owns ``qfrc_applied`` and overwrites it each substep.
 """
@@ -14,7 +16,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from rover_env import tire
+from rover_env import soil, tire
 from rover_env.effects import TireEffect
 from rover_env.terrain import Terrain
 from rover_env.tire import TireParams
@@ -35,6 +37,45 @@ class TireState(NamedTuple):
     point: Array
     normal: Array
     patch: NDArray[np.int64]
+    sinkage: Array
+    """Sinkage below the soil surface the wheel stands on (m; 0 on hard ground)."""
+    torque: Array
+    """The soil's resistive torque T about the axle (N m; 0 on hard ground)."""
+    soil: NDArray[np.int64]
+    """0 on hard ground, k on the terrain's soil ``soils[k-1]``."""
+
+
+def rut_writes(
+    terrain: Terrain,
+    point: Array,
+    xc: Array,
+    axis: Array,
+    v_x: Array,
+    delta: Array,
+    sinkage: Array,
+    on_soil: NDArray[np.bool_],
+    radius: float,
+    width: float,
+) -> list[tuple[int, float]]:
+    """Rut cells a substep compacts, as (cell, depth): behind each moving wheel on soil.
+
+    The depth is that of the wheel's lowest point below the terrain surface, written across
+    the wheel's width a little behind its contact patch (where it has left the soil), so a
+    wheel never reads its own rut under it but the wheels behind it run in it.
+    """
+    g = terrain.rut_grid
+    out: list[tuple[int, float]] = []
+    half = 0.5 * (width - g.cell)
+    for i in np.flatnonzero(on_soil & (np.abs(v_x) > soil.V_EPS) & (delta > 0.0)):
+        h = min(float(sinkage[i]), radius)
+        back = radius * np.sqrt(max(0.0, 1.0 - (1.0 - h / radius) ** 2)) + 1.5 * g.cell
+        sgn = 1.0 if v_x[i] > 0 else -1.0
+        for k in (-1.0, 0.0, 1.0):
+            q = point[i] - sgn * back * xc[i] + k * half * axis[i]
+            cell = g.cell_of(float(q[0]), float(q[1]))
+            if cell >= 0:
+                out.append((cell, float(delta[i])))
+    return out
 
 
 class TireLayer:
@@ -49,6 +90,7 @@ class TireLayer:
         params: tire parameters (Table 3 and the transient-form constants).
         effects: model extensions acting inside the layer (friction hooks, force
             post-processing; :class:`rover_env.effects.TireEffect`). None: the reference layer.
+        width: wheel width b (m), for the soil stresses and the rut width.
     """
 
     def __init__(
@@ -60,6 +102,7 @@ class TireLayer:
         terrain: Terrain,
         params: TireParams,
         effects: Sequence[TireEffect] = (),
+        width: float = 0.05,
     ) -> None:
         self.model = model
         self.bodies = np.asarray(wheel_bodies)
@@ -75,11 +118,18 @@ class TireLayer:
         n = len(self.bodies)
         self.u_x = np.zeros(n)
         self.u_y = np.zeros(n)
+        self.width = width
+        self.dig = np.zeros(n)
+        self.rut = np.zeros(terrain.rut_grid.ncell)
         self.last: TireState | None = None
 
     def reset(self) -> None:
         self.u_x[:] = 0.0
         self.u_y[:] = 0.0
+        self.dig[:] = 0.0
+        if self.rut.size != self.terrain.rut_grid.ncell:
+            self.rut = np.zeros(self.terrain.rut_grid.ncell)
+        self.rut[:] = 0.0
         self.last = None
 
     def apply(self, data: mujoco.MjData) -> None:
@@ -109,23 +159,55 @@ class TireLayer:
         mu_x, mu_y, patch = self.terrain.friction(c.point[:, 0], c.point[:, 1])
         for e in self.effects:  # model extensions (none in the reference layer)
             mu_x, mu_y = e.friction(mu_x, mu_y, F_z)
+        ux0, uy0 = self.u_x, self.u_y  # the soil branch starts from these
         self.u_x, self.u_y, ux_dot, uy_dot = tire.transient_step(
             self.u_x, self.u_y, v_x, v_y, v_w, F_z, self.dt, tp, mu_x, mu_y
         )
         F_x, F_y = tire.transient_forces(self.u_x, self.u_y, ux_dot, uy_dot, F_z, tp, mu_x, mu_y)
         for e in self.effects:
             F_x, F_y = e.forces(F_x, F_y, F_z, mu_x, mu_y)
+        n = len(self.bodies)
+        sink = np.zeros(n)
+        torque = np.zeros(n)
+        where = np.zeros(n, dtype=np.int64)
+        at = c.point
+        if self.terrain.has_soil:
+            where = self.terrain.soil_index(c.point[:, 0], c.point[:, 1])
+            on = where > 0
+            if on.any():
+                at = np.where(on[:, None], centre, c.point)
+                v_w = np.where(on, self.radius * data.qvel[self.dofs], v_w)
+                rut = self.terrain.rut_grid.lookup(self.rut, c.point[:, 0], c.point[:, 1])
+                for k in np.unique(where[on]):
+                    m = where == k
+                    st = soil.soil_step(
+                        ux0[m], uy0[m], self.dig[m], v_x[m], v_y[m], v_w[m],
+                        c.delta[m], delta_dot[m], rut[m], self.dt, tp.sigma_x, tp.sigma_y,
+                        self.radius, self.width, self.terrain.soils[k - 1],
+                    )  # fmt: skip
+                    self.u_x[m], self.u_y[m], self.dig[m] = st.u_x, st.u_y, st.dig
+                    F_x[m], F_y[m], F_z[m] = st.F_x, st.F_y, st.F_z
+                    sink[m], torque[m] = st.sinkage, st.T
+                writes = rut_writes(
+                    self.terrain, c.point, xc, axis, v_x, c.delta, sink, on,
+                    self.radius, self.width,
+                )  # fmt: skip
+                for cell, depth in writes:
+                    self.rut[cell] = max(self.rut[cell], depth)
+            self.dig[~on] = 0.0
         force = F_x[:, None] * xc + F_y[:, None] * yc + F_z[:, None] * nrm
         data.qfrc_applied[:] = 0.0
         zero = np.zeros(3)
-        for i in range(len(self.bodies)):
+        for i in range(n):
             mujoco.mj_applyFT(
                 self.model,
                 data,
                 force[i],
-                zero,
-                c.point[i],
+                zero if where[i] == 0 else -torque[i] * axis[i],
+                at[i],
                 int(self.bodies[i]),
                 data.qfrc_applied,
             )
-        self.last = TireState(v_x, v_y, v_w, F_x, F_y, F_z, c.delta, c.point, nrm, patch)
+        self.last = TireState(
+            v_x, v_y, v_w, F_x, F_y, F_z, c.delta, c.point, nrm, patch, sink, torque, where
+        )

@@ -41,10 +41,15 @@ CONTACT_ITERATIONS = 3
 MIN_PATCH_CAPACITY = 16
 """Friction patches a compiled model can take later (set_terrain), at the least."""
 
-_TERRAIN_VERSION = 1
-_HEADER = 11
+MIN_SOIL_CAPACITY = 4
+"""Soil presets a compiled model can take later (set_terrain), at the least."""
+
+_TERRAIN_VERSION = 2
+_HEADER = 19
 _WAVE = 5
-_PATCH = 6
+_PATCH = 7
+_SOIL = 14
+_TRUTH = 17
 
 Array = NDArray[np.float64]
 
@@ -53,19 +58,24 @@ def _num(x: float) -> str:
     return repr(float(x))
 
 
-def terrain_block(terrain: Terrain, wave_capacity: int, patch_capacity: int) -> Array:
+def terrain_block(
+    terrain: Terrain, wave_capacity: int, patch_capacity: int, soil_capacity: int
+) -> Array:
     """The plugin's ground description (layout documented in tire_plugin.c)."""
     t = terrain
     amp, k, phase, start = t._amp, t._k, t._phase, t._start
     lo, hi, mu = t._patch_lo, t._patch_hi, t._patch_mu
-    nwave, npatch = len(amp), len(mu)
-    if nwave > wave_capacity or npatch > patch_capacity:
+    nwave, npatch, nsoil = len(amp), len(mu), len(t.soils)
+    if nwave > wave_capacity or npatch > patch_capacity or nsoil > soil_capacity:
         raise ValueError(
-            f"terrain has {nwave} wave components and {npatch} friction patches, more than the"
-            f" compiled plugin's capacity ({wave_capacity}, {patch_capacity}); build the"
-            " simulator with the largest terrain first"
+            f"terrain has {nwave} wave components, {npatch} patches and {nsoil} soils, more than"
+            f" the compiled plugin's capacity ({wave_capacity}, {patch_capacity},"
+            f" {soil_capacity}); build the simulator with the largest terrain first"
         )
-    out = np.zeros(_HEADER + _WAVE * wave_capacity + _PATCH * patch_capacity)
+    g = t.rut_grid
+    out = np.zeros(
+        _HEADER + _WAVE * wave_capacity + _PATCH * patch_capacity + _SOIL * soil_capacity
+    )
     out[:_HEADER] = [
         _TERRAIN_VERSION,
         1.0 if t.flat else 0.0,
@@ -78,11 +88,23 @@ def terrain_block(terrain: Terrain, wave_capacity: int, patch_capacity: int) -> 
         npatch,
         wave_capacity,
         patch_capacity,
+        t.ground_soil,
+        nsoil,
+        soil_capacity,
+        g.x0,
+        g.y0,
+        g.cell,
+        g.nx,
+        g.ny,
     ]
     waves = out[_HEADER : _HEADER + _WAVE * wave_capacity].reshape(wave_capacity, _WAVE)
     waves[:nwave] = np.column_stack([amp, k[:, 0], k[:, 1], phase, start])
-    patches = out[_HEADER + _WAVE * wave_capacity :].reshape(patch_capacity, _PATCH)
-    patches[:npatch] = np.column_stack([lo, hi, mu])
+    p0 = _HEADER + _WAVE * wave_capacity
+    patches = out[p0 : p0 + _PATCH * patch_capacity].reshape(patch_capacity, _PATCH)
+    patches[:npatch] = np.column_stack([lo, hi, mu, t._patch_soil])
+    soils = out[p0 + _PATCH * patch_capacity :].reshape(soil_capacity, _SOIL)
+    for i, sp in enumerate(t.soils):
+        soils[i] = sp.numbers()
     return out
 
 
@@ -107,7 +129,10 @@ def inject_plugin(
     load_plugin()
     tire = cfg.tire
     block = terrain_block(
-        terrain, len(terrain._amp), max(MIN_PATCH_CAPACITY, len(terrain._patch_mu))
+        terrain,
+        len(terrain._amp),
+        max(MIN_PATCH_CAPACITY, len(terrain._patch_mu)),
+        max(MIN_SOIL_CAPACITY, len(terrain.soils)),
     )
     config = {
         "wheels": " ".join(f"wheel_{w}" for w in WHEELS),
@@ -118,6 +143,8 @@ def inject_plugin(
         "max_angle_error": _num(cfg.motor.max_angle_error),
         "terrain": TERRAIN_NUMERIC,
         "effects": " ".join(_num(eff[k]) for k in EFFECT_SLOTS),
+        "rut_cells": str(terrain.rut_grid.ncell),
+        "width": _num(cfg.geometry.wheel_width),
     }
     lines = [
         "  <extension>",
@@ -143,6 +170,7 @@ class StateLayout:
 
     nw: int
     nd: int
+    rut_cells: int = 0
 
     @property
     def u_x(self) -> slice:
@@ -167,15 +195,25 @@ class StateLayout:
     @property
     def pending(self) -> int:
         """Start of the pending block (u_x, u_y, setpoints, then a truth block)."""
-        return self.truth + 14 * self.nw
+        return self.truth + _TRUTH * self.nw
 
     @property
     def pending_truth(self) -> int:
         return self.pending + 2 * self.nw + self.nd
 
     @property
+    def dig(self) -> slice:
+        start = self.pending_truth + _TRUTH * self.nw
+        return slice(start, start + self.nw)
+
+    @property
+    def rut(self) -> slice:
+        start = self.dig.stop + 5 * self.nw  # after pending dig and the pending rut writes
+        return slice(start, start + self.rut_cells)
+
+    @property
     def size(self) -> int:
-        return self.pending_truth + 14 * self.nw
+        return self.rut.stop
 
 
 class TruthArrays(NamedTuple):
@@ -191,6 +229,9 @@ class TruthArrays(NamedTuple):
     point: Array
     normal: Array
     patch: NDArray[np.int64]
+    sinkage: Array
+    torque: Array
+    soil: NDArray[np.int64]
 
 
 class PluginView:
@@ -200,9 +241,10 @@ class PluginView:
         inst = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_PLUGIN, INSTANCE)
         if inst < 0:
             raise ValueError(f"model has no {PLUGIN_NAME} plugin instance named {INSTANCE!r}")
-        self.layout = StateLayout(len(WHEELS), len(DRIVEN_WHEELS))
         adr = int(model.plugin_stateadr[inst])
         num = int(model.plugin_statenum[inst])
+        bare = StateLayout(len(WHEELS), len(DRIVEN_WHEELS))
+        self.layout = StateLayout(bare.nw, bare.nd, max(num - bare.size, 0))
         if num != self.layout.size:
             raise ValueError(f"plugin state has {num} numbers, layout expects {self.layout.size}")
         self.slice = slice(adr, adr + num)
@@ -223,6 +265,8 @@ class PluginView:
         st = self.state(plugin_state)
         st[..., self.layout.u_x] = 0.0
         st[..., self.layout.u_y] = 0.0
+        st[..., self.layout.dig] = 0.0
+        st[..., self.layout.rut] = 0.0
 
     def nstep(self, plugin_state: Array) -> Array:
         return self.state(plugin_state)[..., self.layout.nstep]
@@ -232,7 +276,7 @@ class PluginView:
         st = self.state(plugin_state)
         nw = self.layout.nw
         start = self.layout.pending_truth if pending else self.layout.truth
-        b = st[..., start : start + 14 * nw]
+        b = st[..., start : start + _TRUTH * nw]
         lead = b.shape[:-1]
 
         def part(i: int, width: int = 1) -> Array:
@@ -250,6 +294,9 @@ class PluginView:
             point=part(7, 3),
             normal=part(10, 3),
             patch=part(13).astype(np.int64),
+            sinkage=part(14),
+            torque=part(15),
+            soil=part(16).astype(np.int64),
         )
 
     def pending_u(self, plugin_state: Array) -> tuple[Array, Array]:
@@ -262,7 +309,12 @@ class PluginView:
         cur = model.numeric_data[self.terrain_slice]
         if bool(cur[1]) != terrain.flat:
             raise ValueError("tire plugin: the terrain's flatness must not change")
-        return terrain_block(terrain, int(cur[9]), int(cur[10]))
+        if terrain.rut_grid.ncell > self.layout.rut_cells:
+            raise ValueError(
+                f"tire plugin: the terrain's rut map needs {terrain.rut_grid.ncell} cells, the"
+                f" compiled model holds {self.layout.rut_cells}; build it with that terrain"
+            )
+        return terrain_block(terrain, int(cur[9]), int(cur[10]), int(cur[13]))
 
     def write_terrain(self, model: mujoco.MjModel, terrain: Terrain) -> None:
         """Replace the plugin's ground (same flatness; within the compiled capacities)."""

@@ -24,11 +24,17 @@
 //   [nw, 2nw)          u_y
 //   [2nw, 2nw+nd)      sp        committed position setpoints of the driven wheels (rad)
 //   [2nw+nd]           nstep     number of committed substeps (0: no truth yet)
-//   next 14 nw         truth     committed outputs of the last substep:
+//   next 17 nw         truth     committed outputs of the last substep:
 //                                v_x, v_y, v_w, F_x, F_y, F_z, delta (nw each),
-//                                point (nw x 3), normal (nw x 3), patch (nw)
+//                                point (nw x 3), normal (nw x 3), patch (nw),
+//                                sinkage, torque, soil (nw each)
 //   next 2 nw + nd     pending   u_x, u_y, sp computed by the last compute()
-//   next 14 nw         pending truth, same layout as truth
+//   next 17 nw         pending truth, same layout as truth
+//   next nw            dig       committed depth each wheel has dug into the soil (m)
+//   next nw            pending dig
+//   next 4 nw          pending rut writes: 3 cells (-1: none) and the depth, per wheel
+//   next rut_cells     rut       the rut map: compacted depth below the terrain surface (m),
+//                                written by advance() from the pending writes
 // rover_env.sim.fast.layout() mirrors this.
 //
 // Configuration (MJCF <config key=... value=...>, all strings):
@@ -39,16 +45,23 @@
 //   radius           nominal wheel radius (m)
 //   tire             11 numbers in TireParams field order
 //   max_angle_error  anti-windup bound of the setpoint around the wheel angle (rad)
+//   rut_cells        size of the rut map in plugin_state (cells; 0 without soil); the
+//                    terrain's grid (nx ny) must fit in it
+//   width            wheel width b (m), for the soil stresses and the rut width
 //   effects          optional, 4 numbers (default "0 0 1 1"): the tire-layer model extensions
 //                    of rover_env.effects: combined_slip's switch (friction ellipse on the
 //                    forces), load_dependent_friction's fall, its static wheel load F_z0 (N)
 //                    and the width of its load range 2 range F_z0 (N)
 //   terrain          name of the <numeric> element holding the ground (read at every
 //                    compute, so it may change at run time and per simulation):
-//     [0] layout version (1)  [1] flat (0/1)  [2] contact iterations
+//     [0] layout version (2)  [1] flat (0/1)  [2] contact iterations
 //     [3] dh/dx slope  [4] dh/dy slope  [5] default mu_x  [6] default mu_y
 //     [7] nwave  [8] npatch  [9] wave capacity W  [10] patch capacity P
-//     then W x (amplitude, k_x, k_y, phase, start), then P x (lo_x, lo_y, hi_x, hi_y, mu_x, mu_y)
+//     [11] ground soil (0: hard ground)  [12] nsoil  [13] soil capacity S
+//     [14] rut x0  [15] rut y0  [16] rut cell  [17] rut nx  [18] rut ny
+//     then W x (amplitude, k_x, k_y, phase, start),
+//     then P x (lo_x, lo_y, hi_x, hi_y, mu_x, mu_y, soil),
+//     then S x the 14 numbers of rover_env.soil.SoilParams.numbers()
 
 #include <math.h>
 #include <stdint.h>
@@ -60,11 +73,16 @@
 
 #define PLUGIN_NAME "rover_env.tire"
 #define NTIRE 12
-#define TERRAIN_VERSION 1
-#define TERRAIN_HEADER 11
+#define TERRAIN_VERSION 2
+#define TERRAIN_HEADER 19
 #define WAVE_STRIDE 5
-#define PATCH_STRIDE 6
-#define NTRUTH 14
+#define PATCH_STRIDE 7
+#define SOIL_STRIDE 14
+#define NTRUTH 17
+#define SOIL_NODES 8
+#define DEG_TO_RAD (3.141592653589793 / 180.0)  // math.radians
+#define SOIL_V_EPS 1e-3
+#define SOIL_MAX_TAN_BETA 20.0
 #define X_FLOOR 1e-300
 #define MAX_WAVES 4096
 #define NAME_LEN 256
@@ -74,17 +92,31 @@ enum { MU_X, MU_Y, C_S, C_ALPHA, C_Z, D_Z, V_EPS, SIGMA_X, SIGMA_Y, D_X, D_Y, K_
 
 // truth block field offsets, in units of nw
 enum { T_VX = 0, T_VY = 1, T_VW = 2, T_FX = 3, T_FY = 4, T_FZ = 5, T_DELTA = 6,
-       T_POINT = 7, T_NORMAL = 10, T_PATCH = 13 };
+       T_POINT = 7, T_NORMAL = 10, T_PATCH = 13, T_SINK = 14, T_TORQUE = 15, T_SOIL = 16 };
+
+// soil parameter indices (rover_env.soil.SoilParams.numbers() order)
+enum { S_C, S_PHI, S_KC, S_KPHI, S_N0, S_N1, S_KX, S_KY, S_A0, S_A1, S_LAM, S_DAMP, S_KDIG,
+       S_CELL };
+
+// Gauss-Legendre nodes and weights (numpy.polynomial.legendre.leggauss(8), repr)
+static const double GL_X[SOIL_NODES] = {
+  -0.9602898564975362, -0.7966664774136267, -0.525532409916329, -0.18343464249564978,
+  0.18343464249564978, 0.525532409916329, 0.7966664774136267, 0.9602898564975362};
+static const double GL_W[SOIL_NODES] = {
+  0.10122853629037706, 0.22238103445337443, 0.3137066458778869, 0.36268378337836166,
+  0.36268378337836166, 0.3137066458778869, 0.22238103445337443, 0.10122853629037706};
 
 static const char* kAttributes[] = {
-  "wheels", "joints", "motors", "radius", "tire", "max_angle_error", "terrain", "effects"
+  "wheels", "joints", "motors", "radius", "tire", "max_angle_error", "terrain", "effects",
+  "rut_cells", "width"
 };
 
 typedef struct {
   int nw, nd;
   int *body, *jnt, *dof, *carrier, *root;
   int *ctrl_pos, *ctrl_vel, *driven_qpos;
-  double radius, max_err;
+  double radius, max_err, width;
+  int rut_cells;
   double tire[NTIRE];
   double combined_on, load_fall, load_fz0, load_span;  // model extensions (config 'effects')
   // per-model constants of the hot path, each computed exactly as the numpy code does per call
@@ -97,10 +129,10 @@ typedef struct {
 } Config;
 
 typedef struct {
-  int ux, uy, sp, nstep, truth, pux, puy, psp, ptruth, total;
+  int ux, uy, sp, nstep, truth, pux, puy, psp, ptruth, dig, pdig, pwrite, rut, total;
 } Layout;
 
-static Layout layout_of(int nw, int nd) {
+static Layout layout_of(int nw, int nd, int rut_cells) {
   Layout L;
   L.ux = 0;
   L.uy = nw;
@@ -111,7 +143,11 @@ static Layout layout_of(int nw, int nd) {
   L.puy = L.pux + nw;
   L.psp = L.puy + nw;
   L.ptruth = L.psp + nd;
-  L.total = L.ptruth + NTRUTH*nw;
+  L.dig = L.ptruth + NTRUTH*nw;
+  L.pdig = L.dig + nw;
+  L.pwrite = L.pdig + nw;
+  L.rut = L.pwrite + 4*nw;
+  L.total = L.rut + rut_cells;
   return L;
 }
 
@@ -186,13 +222,41 @@ static void apply_force(const mjModel* m, const mjData* d, const double f[3],
   }
 }
 
+// mj_applyFT(m, d, f, t, point, body, qfrc) the same way: force part, then torque part
+static void apply_ft(const mjModel* m, const mjData* d, const double f[3], const double t[3],
+                     const double point[3], int body, double* qfrc) {
+  const double* com = d->subtree_com + 3*m->body_rootid[body];
+  const double offset[3] = {point[0] - com[0], point[1] - com[1], point[2] - com[2]};
+  while (body && !m->body_dofnum[body]) body = m->body_parentid[body];
+  if (!body) return;
+  int i = m->body_dofadr[body] + m->body_dofnum[body] - 1;
+  while (i >= 0) {
+    const double* cdof = d->cdof + 6*i;
+    double tmp[3];
+    cross3(tmp, cdof, offset);
+    double r = 0.0, q = 0.0;
+    if (f[0]) r += (cdof[3] + tmp[0])*f[0];
+    if (f[1]) r += (cdof[4] + tmp[1])*f[1];
+    if (f[2]) r += (cdof[5] + tmp[2])*f[2];
+    if (t[0]) q += cdof[0]*t[0];
+    if (t[1]) q += cdof[1]*t[1];
+    if (t[2]) q += cdof[2]*t[2];
+    qfrc[i] += r;
+    qfrc[i] += q;
+    i = m->dof_parentid[i];
+  }
+}
+
 //---------------------------------------------------------------- terrain
 
 typedef struct {
   const double* p;   // numeric data
-  int flat, iterations, nwave, npatch, capw, capp;
+  int flat, iterations, nwave, npatch, capw, capp, ground_soil, nsoil, caps;
   const double* wave;
   const double* patch;
+  const double* soil;
+  double rut_x0, rut_y0, rut_cell;
+  int rut_nx, rut_ny;
 } TerrainView;
 
 // read the terrain block; 0 if it is malformed (then the plugin adds no force)
@@ -201,13 +265,25 @@ static int terrain_view(const mjModel* m, int id, TerrainView* t) {
   int size = m->numeric_size[id];
   const double* p = m->numeric_data + m->numeric_adr[id];
   if (size < TERRAIN_HEADER || p[0] != TERRAIN_VERSION) return 0;
-  int capw = (int)p[9], capp = (int)p[10];
-  if (capw < 0 || capp < 0 || capw > MAX_WAVES
-      || size != TERRAIN_HEADER + WAVE_STRIDE*capw + PATCH_STRIDE*capp) {
+  int capw = (int)p[9], capp = (int)p[10], caps = (int)p[13];
+  if (capw < 0 || capp < 0 || caps < 0 || capw > MAX_WAVES
+      || size != TERRAIN_HEADER + WAVE_STRIDE*capw + PATCH_STRIDE*capp + SOIL_STRIDE*caps) {
     return 0;
   }
-  int nwave = (int)p[7], npatch = (int)p[8];
+  int nwave = (int)p[7], npatch = (int)p[8], nsoil = (int)p[12], ground_soil = (int)p[11];
   if (nwave < 0 || nwave > capw || npatch < 0 || npatch > capp) return 0;
+  if (nsoil < 0 || nsoil > caps || ground_soil < 0 || ground_soil > nsoil) return 0;
+  int rut_nx = (int)p[17], rut_ny = (int)p[18];
+  if (rut_nx < 0 || rut_ny < 0 || (nsoil > 0 && !(p[16] > 0.0))) return 0;
+  t->ground_soil = ground_soil;
+  t->nsoil = nsoil;
+  t->caps = caps;
+  t->rut_x0 = p[14];
+  t->rut_y0 = p[15];
+  t->rut_cell = p[16];
+  t->rut_nx = rut_nx;
+  t->rut_ny = rut_ny;
+  t->soil = p + TERRAIN_HEADER + WAVE_STRIDE*capw + PATCH_STRIDE*capp;
   t->p = p;
   t->flat = p[1] != 0.0;
   t->iterations = (int)p[2];
@@ -300,20 +376,116 @@ static void wheel_contact(const TerrainView* t, const double centre[3], const do
   *delta = dl;
 }
 
-// Terrain.friction at one point
+// Terrain.friction and Terrain.soil_index at one point
 static void friction(const TerrainView* t, double x, double y,
-                     double* mux, double* muy, int* patch) {
+                     double* mux, double* muy, int* patch, int* soil) {
   *mux = t->p[5];
   *muy = t->p[6];
   *patch = 0;
+  *soil = t->ground_soil;
   for (int i = 0; i < t->npatch; i++) {
     const double* p = t->patch + PATCH_STRIDE*i;
     if (x >= p[0] && x <= p[2] && y >= p[1] && y <= p[3]) {
       *mux = p[4];
       *muy = p[5];
       *patch = i + 1;
+      *soil = (int)p[6];
     }
   }
+}
+
+// RutGrid.lookup: bilinear rut depth at (x, y), 0 outside the map
+static double rut_lookup(const TerrainView* t, const double* rut, double x, double y) {
+  int nx = t->rut_nx, ny = t->rut_ny;
+  if (nx*ny == 0) return 0.0;
+  double gx = (x - t->rut_x0)/t->rut_cell - 0.5;
+  double gy = (y - t->rut_y0)/t->rut_cell - 0.5;
+  double ix = floor(gx), iy = floor(gy);
+  double fx = gx - ix, fy = gy - iy;
+  const int dx[4] = {0, 1, 0, 1}, dy[4] = {0, 0, 1, 1};
+  const double w[4] = {(1 - fx)*(1 - fy), fx*(1 - fy), (1 - fx)*fy, fx*fy};
+  double out = 0.0;
+  for (int k = 0; k < 4; k++) {
+    long cx = (long)(ix + dx[k]), cy = (long)(iy + dy[k]);
+    double val = (cx >= 0 && cx < nx && cy >= 0 && cy < ny) ? rut[cy*nx + cx] : 0.0;
+    out = out + w[k]*val;
+  }
+  return out;
+}
+
+// RutGrid.cell_of: flat cell index of (x, y), -1 outside
+static int rut_cell_of(const TerrainView* t, double x, double y) {
+  double fx = floor((x - t->rut_x0)/t->rut_cell);
+  double fy = floor((y - t->rut_y0)/t->rut_cell);
+  if (fx >= 0 && fx < t->rut_nx && fy >= 0 && fy < t->rut_ny) {
+    return (int)fy*t->rut_nx + (int)fx;
+  }
+  return -1;
+}
+
+//---------------------------------------------------------------- soil (rover_env.soil)
+
+// soil.stress_integrals for one wheel: out = F_x, F_y, F_z, T
+static void stress_integrals(double s, double tb, double d, double h, double hc, double r,
+                             double b, const double* sp, double out[4]) {
+  double hh = np_min(np_max(h, 0.0), r);
+  hc = np_min(np_max(np_min(hc, hh), 0.0), r);
+  if (!(hc > 0.0)) {
+    out[0] = out[1] = out[2] = out[3] = 0.0;
+    return;
+  }
+  double th_f = acos(1.0 - hh/r);
+  double th_c = acos(1.0 - hc/r);
+  double th_r = -acos(1.0 - sp[S_LAM]*hc/r);
+  double th_m = np_min(np_max((sp[S_A0] + sp[S_A1]*s)*th_f, th_r), th_c);
+  double n = sp[S_N0] + sp[S_N1]*fabs(s);
+  double ks = sp[S_KC]/b + sp[S_KPHI];
+  double cos_f = cos(th_f);
+  double sin_c = sin(th_c);
+  double tan_phi = tan(sp[S_PHI]*DEG_TO_RAD);
+  double half_r = 0.5*(th_m - th_r);
+  double half_f = 0.5*(th_c - th_m);
+  double mid_r = 0.5*(th_m + th_r);
+  double mid_f = 0.5*(th_c + th_m);
+  double span = th_m > th_r ? th_m - th_r : 1.0;
+  double one_s = 1.0 - s;
+  double sums[2][4];
+  for (int arc = 0; arc < 2; arc++) {
+    double ax[SOIL_NODES], ay[SOIL_NODES], az[SOIL_NODES], at[SOIL_NODES];
+    double half = arc == 0 ? half_r : half_f;
+    for (int k = 0; k < SOIL_NODES; k++) {
+      double th, base_th;
+      if (arc == 0) {
+        th = mid_r + half_r*GL_X[k];
+        base_th = th_f - (th - th_r)/span*(th_f - th_m);
+      } else {
+        th = mid_f + half_f*GL_X[k];
+        base_th = th;
+      }
+      double cos_t = cos(th), sin_t = sin(th);
+      double base = np_max(r*(cos(base_th) - cos_f), 0.0);
+      double sigma = ks*pow(base, n);
+      double j_x = r*((th_c - th) - one_s*(sin_c - sin_t));
+      double j_y = r*one_s*(th_c - th)*tb;
+      double tau_max = sp[S_C] + sigma*tan_phi;
+      double tau_x = tau_max*np_sign(j_x)*-expm1(-fabs(j_x)/sp[S_KX]);
+      double tau_y = tau_max*np_sign(j_y)*-expm1(-fabs(j_y)/sp[S_KY]);
+      double w = half*GL_W[k];
+      ax[k] = w*(tau_x*cos_t - sigma*sin_t);
+      ay[k] = w*tau_y;
+      az[k] = w*(tau_x*sin_t + sigma*cos_t);
+      at[k] = w*tau_x;
+    }
+    sums[arc][0] = pairwise_sum(ax, SOIL_NODES);
+    sums[arc][1] = pairwise_sum(ay, SOIL_NODES);
+    sums[arc][2] = pairwise_sum(az, SOIL_NODES);
+    sums[arc][3] = pairwise_sum(at, SOIL_NODES);
+  }
+  double rb = r*b;
+  out[0] = d*rb*(sums[0][0] + sums[1][0]);
+  out[1] = -rb*(sums[0][1] + sums[1][1]);
+  out[2] = rb*(sums[0][2] + sums[1][2]);
+  out[3] = d*r*rb*(sums[0][3] + sums[1][3]);
 }
 
 //---------------------------------------------------------------- tire (rover_env.tire)
@@ -475,6 +647,14 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
   c->load_fall = ev[1];
   c->load_fz0 = ev[2];
   c->load_span = ev[3];
+  double rc;
+  if (!parse_numbers(config(m, instance, "rut_cells"), &rc, 1) || rc < 0 || rc != floor(rc)) {
+    return fail(c, "config 'rut_cells' must be one integer >= 0", NULL);
+  }
+  c->rut_cells = (int)rc;
+  if (!parse_numbers(config(m, instance, "width"), &c->width, 1) || c->width <= 0) {
+    return fail(c, "config 'width' must be one positive number", NULL);
+  }
   const char* tname = config(m, instance, "terrain");
   c->terrain = mj_name2id(m, mjOBJ_NUMERIC, tname);
   TerrainView tv;
@@ -493,7 +673,10 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
     return fail(c, "the RK4 integrator is not supported (it evaluates forces at"
                 " intermediate stages); use Euler, implicit or implicitfast", NULL);
   }
-  Layout L = layout_of(nw, nd);
+  if (tv.rut_nx*tv.rut_ny > c->rut_cells) {
+    return fail(c, "config 'terrain': rut map larger than config 'rut_cells'", NULL);
+  }
+  Layout L = layout_of(nw, nd, c->rut_cells);
   if (m->plugin_statenum[instance] != L.total) {
     return fail(c, "plugin state size does not match the configuration", NULL);
   }
@@ -506,7 +689,9 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
 static int tire_nstate(const mjModel* m, int instance) {
   int nw = count_tokens(config(m, instance, "wheels"));
   int nd = count_tokens(config(m, instance, "motors"));
-  return layout_of(nw, nd).total;
+  double rc = 0.0;
+  if (!parse_numbers(config(m, instance, "rut_cells"), &rc, 1) || rc < 0) rc = 0.0;
+  return layout_of(nw, nd, (int)rc).total;
 }
 
 static int tire_init(const mjModel* m, mjData* d, int instance) {
@@ -540,7 +725,7 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
   const Config* c = (const Config*)d->plugin_data[instance];
   if (!c) return;
   const int nw = c->nw, nd = c->nd, nv = m->nv;
-  const Layout L = layout_of(nw, nd);
+  const Layout L = layout_of(nw, nd, c->rut_cells);
   mjtNum* st = d->plugin_state + m->plugin_stateadr[instance];
   const double dt = m->opt.timestep;
   const double* tp = c->tire;
@@ -561,7 +746,7 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
   }
 
   // the terrain's wave capacity may not exceed the one the scratch was sized for
-  if (tv.capw > c->capw) {
+  if (tv.capw > c->capw || tv.rut_nx*tv.rut_ny > c->rut_cells) {
     mju_warning("%s plugin: terrain numeric resized after compilation; no tire forces",
                 PLUGIN_NAME);
     return;
@@ -611,8 +796,8 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
     double F_z = delta > 0.0 ? fzn : 0.0;
 
     double mu_x, mu_y;
-    int patch;
-    friction(&tv, point[0], point[1], &mu_x, &mu_y, &patch);
+    int patch, soil;
+    friction(&tv, point[0], point[1], &mu_x, &mu_y, &patch, &soil);
     if (c->load_fall != 0.0) {  // effects.LoadDependentFriction.friction
       double r = np_min(np_max((F_z - c->load_fz0)/c->load_span, -0.5), 0.5);
       double k = 1.0 - c->load_fall*r;
@@ -653,9 +838,69 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       F_y = F_y*sc;
     }
 
+    double sink = 0.0, torque = 0.0, dig = 0.0;
+    double* pw = st + L.pwrite + 4*i;
+    pw[0] = pw[1] = pw[2] = -1.0;
+    pw[3] = 0.0;
+    if (soil > 0) {  // loose soil: soil.soil_step and TireLayer's soil branch
+      const double* sp = tv.soil + SOIL_STRIDE*(soil - 1);
+      double r = c->radius;
+      v_w = r*d->qvel[c->dof[i]];
+      double rut = rut_lookup(&tv, st + L.rut, point[0], point[1]);
+      double rho_x = np_max(np_max(fabs(v_x), fabs(v_w)), SOIL_V_EPS)/sx;
+      double rho_y = np_max(fabs(v_x), SOIL_V_EPS)/sy;
+      double ex = exp(-rho_x*dt), ey = exp(-rho_y*dt);
+      ux_new = ux*ex + (v_x - v_w)*(-expm1(-rho_x*dt)/rho_x);
+      uy_new = uy*ey + v_y*(-expm1(-rho_y*dt)/rho_y);
+      ux_new = np_min(np_max(ux_new, -sx), sx);
+      uy_new = np_min(np_max(uy_new, -SOIL_MAX_TAN_BETA*sy), SOIL_MAX_TAN_BETA*sy);
+      double s_fwd = -ux_new/sx;
+      double tan_b = uy_new/sy;
+      dig = st[L.dig + i];
+      int contact_prev = delta - np_max(rut, dig) > 0.0;
+      double rate = contact_prev ? sp[S_KDIG]*np_max(fabs(v_w) - fabs(v_x), 0.0) : 0.0;
+      dig = np_min(dig*exp(-fabs(v_x)*dt/r) + rate*dt, r);
+      double h = delta - dig;
+      double h_c = delta - np_max(rut, dig);
+      double lead = fabs(v_w) >= fabs(v_x) ? v_w : v_x;
+      double w = 0.5*(1.0 + tanh(lead/SOIL_V_EPS));
+      double f[4] = {0, 0, 0, 0}, g[4] = {0, 0, 0, 0};
+      if (w != 0.0) stress_integrals(s_fwd, tan_b, 1.0, h, h_c, r, c->width, sp, f);
+      if (w != 1.0) stress_integrals(-s_fwd, tan_b, -1.0, h, h_c, r, c->width, sp, g);
+      F_x = w*f[0] + (1.0 - w)*g[0];
+      F_y = w*f[1] + (1.0 - w)*g[1];
+      F_z = w*f[2] + (1.0 - w)*g[2];
+      torque = w*f[3] + (1.0 - w)*g[3];
+      int contact = h_c > 0.0;
+      F_z = contact ? np_max(F_z + sp[S_DAMP]*delta_dot, 0.0) : 0.0;
+      sink = np_max(h, 0.0);
+      // rut_writes: behind a moving wheel, across its width
+      if (fabs(v_x) > SOIL_V_EPS && delta > 0.0) {
+        double hw = np_min(sink, r);
+        double e = 1.0 - hw/r;
+        double back = r*sqrt(np_max(0.0, 1.0 - pow(e, 2.0))) + 1.5*tv.rut_cell;
+        double sgn = v_x > 0 ? 1.0 : -1.0;
+        double half = 0.5*(c->width - tv.rut_cell);
+        for (int k = 0; k < 3; k++) {
+          double kk = k - 1.0, q[2];
+          for (int a = 0; a < 2; a++) {
+            q[a] = point[a] - sgn*back*xc[a] + kk*half*axis[a];
+          }
+          pw[k] = rut_cell_of(&tv, q[0], q[1]);
+        }
+        pw[3] = delta;
+      }
+    }
+
     double force[3];
     for (int k = 0; k < 3; k++) force[k] = (F_x*xc[k] + F_y*yc[k]) + F_z*nrm[k];
-    apply_force(m, d, force, point, c->body[i], qfrc);
+    if (soil > 0) {
+      double tq[3] = {-torque*axis[0], -torque*axis[1], -torque*axis[2]};
+      apply_ft(m, d, force, tq, centre, c->body[i], qfrc);
+    } else {
+      apply_force(m, d, force, point, c->body[i], qfrc);
+    }
+    st[L.pdig + i] = dig;
 
     st[L.pux + i] = ux_new;
     st[L.puy + i] = uy_new;
@@ -671,6 +916,9 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       out[T_NORMAL*nw + 3*i + k] = nrm[k];
     }
     out[T_PATCH*nw + i] = patch;
+    out[T_SINK*nw + i] = sink;
+    out[T_TORQUE*nw + i] = torque;
+    out[T_SOIL*nw + i] = soil;
   }
   mju_addTo(d->qfrc_passive, qfrc, nv);
 }
@@ -678,11 +926,20 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
 static void tire_advance(const mjModel* m, mjData* d, int instance) {
   const Config* c = (const Config*)d->plugin_data[instance];
   if (!c) return;
-  const Layout L = layout_of(c->nw, c->nd);
+  const Layout L = layout_of(c->nw, c->nd, c->rut_cells);
   mjtNum* st = d->plugin_state + m->plugin_stateadr[instance];
   // pending u_x, u_y, sp -> committed, pending truth -> truth
   memcpy(st + L.ux, st + L.pux, sizeof(mjtNum) * (2*c->nw + c->nd));
   memcpy(st + L.truth, st + L.ptruth, sizeof(mjtNum) * NTRUTH*c->nw);
+  memcpy(st + L.dig, st + L.pdig, sizeof(mjtNum) * c->nw);
+  // the rut map remembers the deepest pass (TireLayer.apply: max over the writes)
+  for (int i = 0; i < c->nw; i++) {
+    const double* pw = st + L.pwrite + 4*i;
+    for (int k = 0; k < 3; k++) {
+      int cell = (int)pw[k];
+      if (cell >= 0 && cell < c->rut_cells && st[L.rut + cell] < pw[3]) st[L.rut + cell] = pw[3];
+    }
+  }
   st[L.nstep] += 1.0;
 }
 
