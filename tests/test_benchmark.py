@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rover_env.benchmark import seeds as seed_plan
+from rover_env import seeds as seed_plan
 from rover_env.benchmark.report import paired, t_interval
 from rover_env.benchmark.scenarios import load_scenario, scenario_names
 from rover_env.config import ConfigError

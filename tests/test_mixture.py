@@ -10,10 +10,10 @@ import pytest
 
 import rover_env
 from rover_env.benchmark.mixture import ScenarioMixEnv, residual_action
-from rover_env.benchmark.seeds import SPLITS
 from rover_env.config import RoverConfig
 from rover_env.control.open_loop import OpenLoop
 from rover_env.envs.proto_explorer import OBS_NAMES
+from rover_env.seeds import SPLITS
 
 I_CMD = OBS_NAMES.index("command_speed")
 

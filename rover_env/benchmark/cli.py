@@ -50,7 +50,7 @@ def run_benchmark(
 
     from rover_env.benchmark.report import write_report
     from rover_env.benchmark.run import Job, run_jobs
-    from rover_env.benchmark.seeds import seeds as seed_split
+    from rover_env.seeds import seeds as seed_split
 
     seed_list = seed_split(split, episodes)
     # Scenario-major, seed, then controller: paired episodes finish close together.
@@ -94,9 +94,9 @@ def run_tuning(
     import dataclasses
 
     from rover_env.benchmark.scenarios import load_scenario
-    from rover_env.benchmark.seeds import seeds as seed_split
     from rover_env.control.slip_pi import SlipPIConfig, load_slip_pi_config
     from rover_env.control.tuning import tune, write_config
+    from rover_env.seeds import seeds as seed_split
 
     seed_list = seed_split("tuning", seeds_per_scenario)
     cases = [
@@ -183,9 +183,7 @@ def add_cli(subparsers: Any) -> None:
         "--scenarios", default="all", help="comma list of names in configs/scenarios, or all"
     )
     p.add_argument("--episodes", type=int, default=20, help="seeds per scenario (default 20)")
-    p.add_argument(
-        "--split", default="test", help="seed split (rover_env.benchmark.seeds, default test)"
-    )
+    p.add_argument("--split", default="test", help="seed split (rover_env.seeds, default test)")
     p.add_argument("--duration", type=float, default=None, help="episode length override (s)")
     p.add_argument("--workers", type=int, default=workers, help=f"processes (default {workers})")
     p.add_argument("--out", default="out/benchmark", help="output folder")

@@ -1,11 +1,19 @@
 """A training ground made of the benchmark's scenarios, and the residual action of its agents.
 
 ``ScenarioMixEnv`` (registered as ``rover_env/ProtoExplorerScenarioMix-v0``) runs, each
-episode, one scenario of ``configs/scenarios`` drawn by the env's seeded generator, with a
-jitter seed drawn from the seed plan's *training* block (so training never meets a test or
-validation episode) and the commanded speed and yaw rate scaled at random, so a policy
-learns the situations (ice, split friction, a blocked wheel, slopes, bumps, turns) rather
-than one command. The observation and action are ``ProtoExplorerEnv``'s.
+episode, one scenario of ``configs/scenarios`` drawn by the env's seeded generator, with the
+commanded speed and yaw rate scaled at random, so a policy learns the situations (ice, split
+friction, a blocked wheel, slopes, bumps, turns) rather than one command. The observation
+and action are ``ProtoExplorerEnv``'s.
+
+Seeds stay in their split (:mod:`rover_env.seeds`): the scenario's jitter seed of an episode
+is the reset seed itself when that seed is held out (``reset(seed=2000)`` plays the
+validation episode 2000 of the drawn scenario, the one the benchmark plays for seed 2000),
+and otherwise a seed drawn from the split of the last reset seed: the training block after a
+training seed (or none), so training never meets a tuning, validation or test episode, and
+the validation block for unseeded resets after a validation seed. Episodes of training seeds
+are those the shipped agents were trained on, draw for draw. ``info["seed_split"]`` and
+``info["episode_seed"]`` say which episode was played.
 
 ``action_residual`` (fraction of the maximum wheel speed, e.g. 0.5) makes the action a
 correction added to a base controller's targets (:class:`Residual`; residual policy
@@ -38,7 +46,6 @@ import numpy.typing as npt
 
 from rover_env.benchmark.run import ScenarioWrapper
 from rover_env.benchmark.scenarios import Episode, load_scenario
-from rover_env.benchmark.seeds import SPLITS
 from rover_env.config import RoverConfig
 from rover_env.control.base import CommandSchedule
 from rover_env.control.open_loop import skid_steer_targets
@@ -46,6 +53,7 @@ from rover_env.control.slip_pi import SlipPI, SlipPIConfig
 from rover_env.control.slip_pi import replace as replace_gains
 from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
 from rover_env.estimation.estimator import static_rolling_radius
+from rover_env.seeds import SPLITS, draw_seed, split_of
 
 __all__ = [
     "DEFAULT_MIX",
@@ -272,6 +280,7 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
                 -1.0, 1.0, (self.residual.n_actions,), dtype=np.float32
             )
         self._active: ScenarioWrapper = first
+        self._split = "training"
         self._obs: Obs = np.zeros(len(OBS_NAMES), dtype=np.float32)
 
     def _wrapper(self, episode: Episode) -> ScenarioWrapper:
@@ -284,10 +293,14 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[Obs, dict[str, Any]]:
         super().reset(seed=seed)
+        if seed is not None:
+            self._split = split_of(seed)
         rng = self.np_random
         i = int(rng.choice(len(self.cfgs), p=self.p))
-        block = SPLITS["training"]
-        episode = self.cfgs[i].episode(int(rng.integers(block.start, block.stop)))
+        episode_seed = draw_seed(self._split, rng)  # drawn always: the same stream either way
+        if seed is not None and self._split != "training":
+            episode_seed = int(seed)  # a held-out seed plays its own episode
+        episode = self.cfgs[i].episode(episode_seed)
         yaw = float(rng.uniform(*self.yaw_scale)) * (1.0 if rng.random() < 0.5 else -1.0)
         schedule = _scaled(episode.schedule, float(rng.uniform(*self.speed_scale)), yaw)
         episode = dataclasses.replace(episode, schedule=schedule)
@@ -297,6 +310,8 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         if self.residual is not None:
             self.residual.reset(self._active.base)
         info["scenario"] = episode.scenario
+        info["seed_split"] = self._split
+        info["episode_seed"] = episode_seed
         self._obs = obs
         return obs, info
 

@@ -70,6 +70,11 @@ class ScenarioWrapper(gym.Wrapper[Obs, Obs, Obs, Obs]):
         ep = self.episode
         if ep is None:
             raise RuntimeError("set_episode() before reset()")
+        if seed is not None and int(seed) != ep.seed:
+            raise ValueError(
+                f"ScenarioWrapper.reset(seed={seed}): the episode is {ep.scenario} seed "
+                f"{ep.seed}; set_episode() chooses the seed, so it stays in its split"
+            )
         base = self.base
         if base.sim.terrain_cfg != ep.terrain:
             base.sim.set_terrain(ep.terrain)
