@@ -38,20 +38,39 @@ def run_benchmark(
     scenarios: Sequence[str],
     episodes: int,
     out: str | Path,
-    split: str = "test",
+    split: str = "validation",
     duration: float | None = None,
     workers: int = 1,
     progress: bool = True,
     plots: bool = True,
     command: str | None = None,
+    final: bool = False,
+    force: bool = False,
+    ledger: str | Path | None = None,
 ) -> dict[str, Path]:
-    """Every controller on every scenario for the first ``episodes`` seeds of ``split``."""
+    """Every controller on every scenario for the first ``episodes`` seeds of ``split``.
+
+    The test split is touched once per agent (:mod:`rover_env.benchmark.ledger`): it needs
+    ``final=True``, which runs the test seeds, refuses an agent the ledger already holds
+    unless ``force`` and appends the run to ``ledger`` (default
+    ``docs/benchmark/test_ledger.csv``).
+    """
     from tqdm import tqdm
 
+    from rover_env.benchmark import ledger as test_ledger
     from rover_env.benchmark.report import write_report
     from rover_env.benchmark.run import Job, run_jobs
     from rover_env.seeds import seeds as seed_split
 
+    if final:
+        split = "test"
+    elif split == "test":
+        raise ValueError(
+            "the test split is touched once per agent: select and tune on validation, and "
+            "run the test seeds with --final (final=True), which the test ledger records"
+        )
+    ledger_path = Path(ledger) if ledger is not None else test_ledger.default_ledger()
+    checked = test_ledger.check_final(controllers, ledger_path, force) if final else {}
     seed_list = seed_split(split, episodes)
     # Scenario-major, seed, then controller: paired episodes finish close together.
     jobs = [Job(c, s, seed, duration) for s in scenarios for seed in seed_list for c in controllers]
@@ -77,7 +96,24 @@ def run_benchmark(
         "control": "10 Hz through ProtoExplorerEnv (default sensor noise), estimator at 50 Hz",
         "wall time": f"{wall:.0f} s on {workers} worker(s), {len(jobs)} episodes",
     }
-    return write_report(out, rows, meta, plots=plots)
+    if final:
+        repeats = [a for a, (_, rep) in checked.items() if rep]
+        meta["test ledger"] = f"final run recorded in {ledger_path}" + (
+            f"; REPEATED final run (forced) of {', '.join(repeats)}" if repeats else ""
+        )
+    files = write_report(out, rows, meta, plots=plots)
+    if final:
+        config = {
+            "controllers": list(controllers),
+            "scenarios": list(scenarios),
+            "episodes": episodes,
+            "seeds": f"{seed_list[0]}..{seed_list[-1]}",
+            "duration": duration,
+        }
+        test_ledger.record_final(
+            ledger_path, checked, controllers, rows, config, command or "(API call)"
+        )
+    return files
 
 
 def run_tuning(
@@ -94,8 +130,8 @@ def run_tuning(
     import dataclasses
 
     from rover_env.benchmark.scenarios import load_scenario
+    from rover_env.benchmark.tuning import tune, write_config
     from rover_env.control.slip_pi import SlipPIConfig, load_slip_pi_config
-    from rover_env.control.tuning import tune, write_config
     from rover_env.seeds import seeds as seed_split
 
     seed_list = seed_split("tuning", seeds_per_scenario)
@@ -110,7 +146,7 @@ def run_tuning(
     best = dataclasses.replace(base, kp=res.kp, ki=res.ki)
     header = (
         "Slip PI gains (rover_env.control.slip_pi.SlipPIConfig; the module docstring says why\n"
-        "each field is there). Kp and Ki were tuned by rover_env.control.tuning (grid, then\n"
+        "each field is there). Kp and Ki were tuned by rover_env.benchmark.tuning (grid, then\n"
         "Nelder-Mead on the bare simulator); the other fields are design choices kept fixed.\n"
         f"Produced by: {command or '(API call)'}\n"
         f"Scenarios: {', '.join(scenarios)}; tuning seeds {', '.join(map(str, seed_list))};\n"
@@ -134,10 +170,22 @@ def _command_line() -> str:
 
 
 def _bench_cli(args: argparse.Namespace) -> int:
-    from rover_env.benchmark.controllers import parse_specs
+    from rover_env.benchmark.ledger import FinalRunRefused
+    from rover_env.policies.specs import parse_specs
 
+    if args.force and not args.final:
+        print("error: --force only applies to --final", file=sys.stderr)
+        return 2
+    try:
+        return _bench(args, parse_specs(args.controllers))
+    except FinalRunRefused as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 3
+
+
+def _bench(args: argparse.Namespace, specs: list[str]) -> int:
     files = run_benchmark(
-        parse_specs(args.controllers),
+        specs,
         _scenarios(args.scenarios),
         args.episodes,
         args.out,
@@ -147,6 +195,9 @@ def _bench_cli(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         plots=not args.no_plots,
         command=_command_line(),
+        final=args.final,
+        force=args.force,
+        ledger=args.ledger,
     )
     print(files["markdown"].read_text())
     print("wrote " + ", ".join(str(p) for p in files.values()))
@@ -183,7 +234,25 @@ def add_cli(subparsers: Any) -> None:
         "--scenarios", default="all", help="comma list of names in configs/scenarios, or all"
     )
     p.add_argument("--episodes", type=int, default=20, help="seeds per scenario (default 20)")
-    p.add_argument("--split", default="test", help="seed split (rover_env.seeds, default test)")
+    p.add_argument(
+        "--split",
+        default="validation",
+        choices=("tuning", "validation"),
+        help="seed split for selection and tuning (rover_env.seeds, default validation); "
+        "the test split needs --final",
+    )
+    p.add_argument(
+        "--final",
+        action="store_true",
+        help="the one test-split run of an agent (every controller but the first baseline): "
+        "recorded in the test ledger; a second one is refused",
+    )
+    p.add_argument(
+        "--force", action="store_true", help="with --final: run again, the row marked a repeat"
+    )
+    p.add_argument(
+        "--ledger", default=None, help="test ledger CSV (default docs/benchmark/test_ledger.csv)"
+    )
     p.add_argument("--duration", type=float, default=None, help="episode length override (s)")
     p.add_argument("--workers", type=int, default=workers, help=f"processes (default {workers})")
     p.add_argument("--out", default="out/benchmark", help="output folder")

@@ -27,10 +27,11 @@ import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
-from rover_env.benchmark.controllers import EnvController, make_controller
+from rover_env.benchmark.metrics import STEP_KEYS, metrics_of_steps
 from rover_env.benchmark.scenarios import Episode, load_scenario
-from rover_env.control.runner import episode_metrics
 from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
+from rover_env.policies.controllers import EnvController
+from rover_env.policies.specs import make_controller
 
 __all__ = ["Job", "ScenarioWrapper", "run_episode", "run_jobs"]
 
@@ -94,39 +95,24 @@ class ScenarioWrapper(gym.Wrapper[Obs, Obs, Obs, Obs]):
 def run_episode(
     wrapper: ScenarioWrapper, controller: EnvController, episode: Episode
 ) -> dict[str, float]:
-    """One episode; the metrics of ``rover_env.control.runner.episode_metrics``."""
+    """One episode; the metrics of :func:`rover_env.benchmark.metrics.episode_metrics`."""
     wrapper.set_episode(episode)
     obs, info = wrapper.reset()
     controller.reset(wrapper.base)
     start = np.asarray(info["position"]).copy()
-    keys = (
-        "slip_true",
-        "slip_true_mean_abs",
-        "tracking_error_speed",
-        "tracking_error_yaw_rate",
-        "energy",
-        "distance",
-    )
-    acc: dict[str, list[Any]] = {k: [] for k in keys}
+    steps: dict[str, list[Any]] = {k: [] for k in STEP_KEYS}
     last = info
     while True:
         action = controller.action(wrapper.base, obs)
         obs, _, terminated, truncated, last = wrapper.step(action)
-        for k in keys:
-            acc[k].append(last[k])
+        for k in STEP_KEYS:
+            steps[k].append(last[k])
         if terminated or truncated:
             break
-    return episode_metrics(
-        slip_true=np.asarray(acc["slip_true"]),
-        slip_true_mean_abs=np.asarray(acc["slip_true_mean_abs"]),
-        tracking_error_speed=np.asarray(acc["tracking_error_speed"]),
-        tracking_error_yaw_rate=np.asarray(acc["tracking_error_yaw_rate"]),
-        energy=np.asarray(acc["energy"]),
-        distance=np.asarray(acc["distance"]),
+    return metrics_of_steps(
+        steps,
         start=start,
-        end=np.asarray(last["position"]),
-        flipped=bool(last.get("flipped", False)),
-        out_of_arena=bool(last.get("out_of_arena", False)),
+        last_info=last,
         commanded_path=episode.schedule.path_length(episode.duration),
         goal_fraction=episode.goal_fraction,
     )

@@ -598,7 +598,8 @@ class RoverEpisode:
         e_v, e_w = math.sqrt(sums.err_v2[row] / n), math.sqrt(sums.err_w2[row] / n)
         est = self._est
         assert est is not None
-        x = (sums.slip[row] / n).tolist()
+        slip_abs_step = sums.slip[row] / n
+        x = slip_abs_step.tolist()
         slip_mean = (((x[0] + x[1]) + x[2]) + x[3]) / 4  # np.mean's sum and division, cheaper
         mean_abs_slip = (
             slip_mean if self.slip_source == "true" else float(np.mean(np.abs(est.slip_ratio)))
@@ -626,6 +627,7 @@ class RoverEpisode:
             tracking_error_yaw_rate=e_w,
             slip_true=slip_true,
             slip_true_mean_abs=slip_mean,
+            slip_abs_step=slip_abs_step,
             energy=energy,
             distance=float(np.linalg.norm(pos[:2] - pos0[:2])),
             flipped=flipped,
@@ -746,7 +748,9 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
 
     ## Info
     ``reward_tracking``, ``reward_slip``, ``reward_energy``; ``slip_true`` and
-    ``slip_estimate`` (4,); ``slip_estimate_reliable`` (4,); ``tracking_error_speed`` and
+    ``slip_estimate`` (4,); ``slip_estimate_reliable`` (4,); ``slip_abs_step`` (4,): each
+    driven wheel's true |S| averaged over the step's samples (``slip_true_mean_abs`` is their
+    mean); ``tracking_error_speed`` and
     ``tracking_error_yaw_rate`` (RMS over the step); ``command`` (2,); ``speed``,
     ``yaw_rate`` (true, middle segment); ``energy`` (J this step); ``distance`` (m this step);
     ``position`` (middle segment, world); ``wheel_F_z`` (6,), ``wheel_mu`` (6, 2) friction
