@@ -91,3 +91,37 @@ def test_ppo_agent_hash_follows_its_files(tmp_path: Path) -> None:
     h3 = agent_hash(f"ppo:{tmp_path}")
     assert len({h1, h2, h3}) == 3
     assert agent_hash(f"ppo:{tmp_path}") == h3
+
+
+def test_ablation_grid_ranks_fixed_settings_on_validation(tmp_path: Path) -> None:
+    from rover_env.benchmark.ablation import rank, run_ablation
+
+    res = run_ablation(
+        "slip-pi",
+        "stuck_retry_scale",
+        [0.5, 2.0],
+        ["flat-turns"],
+        1,
+        tmp_path,
+        duration=0.3,
+        progress=False,
+    )
+    assert res.specs == ["slip-pi@stuck_retry_scale=0.5", "slip-pi@stuck_retry_scale=2"]
+    assert res.best in res.specs and "validation split" in res.files["markdown"].read_text()
+    assert "Best fixed setting" in res.files["ablation"].read_text()
+    with pytest.raises(ValueError, match="not 'test'"):
+        run_ablation("slip-pi", "kp", [0.1], ["flat-turns"], 1, tmp_path, split="test")
+    with pytest.raises(ValueError, match="not numeric SlipPIConfig fields"):
+        run_ablation("slip-pi", "slip_radius", [1.0], ["flat-turns"], 1, tmp_path)
+    # Ranking is relative per scenario: a scenario with large slip does not dominate.
+    rows = [
+        {"controller": c, "scenario": s, "mean_abs_slip": v}
+        for c, s, v in [
+            ("a", "big", 1.0),
+            ("b", "big", 1.1),
+            ("a", "small", 0.02),
+            ("b", "small", 0.01),
+        ]
+    ]
+    scores = rank(rows, ["a", "b"], "mean_abs_slip")
+    assert scores["b"] < scores["a"]  # -5 % on "big" but -50 % on "small"

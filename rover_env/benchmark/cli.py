@@ -204,6 +204,31 @@ def _bench(args: argparse.Namespace, specs: list[str]) -> int:
     return 0
 
 
+def _ablate_cli(args: argparse.Namespace) -> int:
+    from rover_env.benchmark.ablation import run_ablation
+
+    try:
+        values = [float(v) for v in args.values.split(",") if v.strip()]
+    except ValueError:
+        print(f"error: --values must be numbers, got {args.values!r}", file=sys.stderr)
+        return 2
+    res = run_ablation(
+        args.base,
+        args.knob,
+        values,
+        _scenarios(args.scenarios),
+        args.episodes,
+        args.out,
+        metric=args.metric,
+        duration=args.duration,
+        workers=args.workers,
+        progress=not args.quiet,
+        command=_command_line(),
+    )
+    print(res.files["ablation"].read_text())
+    return 0
+
+
 def _tune_cli(args: argparse.Namespace) -> int:
     run_tuning(
         _scenarios(args.scenarios, default_filter="slip_wasted"),
@@ -219,7 +244,7 @@ def _tune_cli(args: argparse.Namespace) -> int:
 
 
 def add_cli(subparsers: Any) -> None:
-    """Register ``benchmark`` and ``tune-slip-pi``."""
+    """Register ``benchmark``, ``ablate`` and ``tune-slip-pi``."""
     workers = max(1, min(2, os.cpu_count() or 1))
     p = subparsers.add_parser(
         "benchmark", help="compare controllers on named scenarios (tables, paired CIs, plots)"
@@ -259,6 +284,22 @@ def add_cli(subparsers: Any) -> None:
     p.add_argument("--no-plots", action="store_true", help="tables only")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_bench_cli)
+
+    p = subparsers.add_parser(
+        "ablate",
+        help="the no-learning ablation: a grid of one fixed slip-PI setting on validation seeds",
+    )
+    p.add_argument("--base", default="slip-pi", help="slip-pi[:GAINS] controller (default slip-pi)")
+    p.add_argument("--knob", required=True, help="SlipPIConfig field, e.g. stuck_retry_scale")
+    p.add_argument("--values", required=True, help="comma list of values, e.g. 0.5,1,2")
+    p.add_argument("--scenarios", default="all", help="comma list, or all")
+    p.add_argument("--episodes", type=int, default=20, help="validation seeds per scenario (20)")
+    p.add_argument("--metric", default="mean_abs_slip", help="ranking metric (mean_abs_slip)")
+    p.add_argument("--duration", type=float, default=None, help="episode length override (s)")
+    p.add_argument("--workers", type=int, default=workers, help=f"processes (default {workers})")
+    p.add_argument("--out", default="out/ablation", help="output folder")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_ablate_cli)
 
     p = subparsers.add_parser(
         "tune-slip-pi", help="tune the slip PI's (Kp, Ki) on the tuning seeds, write its YAML"
