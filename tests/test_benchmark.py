@@ -17,6 +17,7 @@ from rover_env.benchmark.metrics import METRICS
 from rover_env.benchmark.report import paired, t_interval
 from rover_env.benchmark.scenarios import load_scenario, scenario_names
 from rover_env.config import ConfigError
+from rover_env.tasks.scenario import ScenarioTask
 
 EXPECTED = {"flat-turns", "ice-patch", "split-mu", "slope", "bumps", "stuck-wheel"}
 
@@ -76,9 +77,28 @@ def test_scenario_wrapper_overrides_commands() -> None:
         done = term or trunc
         t = w.base.sim.time
         assert tuple(obs[i : i + 2]) == pytest.approx(ep.schedule.at(t))
-        assert w.base._next_command_t == math.inf
-    assert steps == 45
-    assert tuple(info["command"]) == pytest.approx(ep.schedule.at(4.4))  # (0.15, 0.2) from 4 s
+        assert tuple(info["command"]) == pytest.approx(ep.schedule.at(t))
+    assert steps == 45 and trunc and not term  # the task's length ends the episode
+    assert tuple(info["command"]) == pytest.approx((0.15, 0.2))  # from 4 s
+    assert isinstance(w.base.task, ScenarioTask) and w.base.task.episode is ep
+
+
+def test_scenario_wrapper_writes_no_private_env_state() -> None:
+    """The wrapper hands the env a task; it never assigns to the env's private attributes."""
+    import ast
+    import inspect
+
+    from rover_env.benchmark import run
+
+    tree = ast.parse(inspect.getsource(run.ScenarioWrapper))
+    writes = [
+        ast.unparse(t)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Assign | ast.AugAssign | ast.AnnAssign)
+        for t in (node.targets if isinstance(node, ast.Assign) else [node.target])
+        if isinstance(t, ast.Attribute | ast.Subscript) and "._" in ast.unparse(t)
+    ]
+    assert not writes, writes
 
 
 def test_t_interval_and_paired_differences() -> None:

@@ -85,8 +85,8 @@ def run_ablation(
     command: str | None = None,
 ) -> AblationResult:
     """Run the grid on ``split`` (validation or tuning, never test) and rank it by ``metric``."""
-    from rover_env.benchmark.cli import run_benchmark
     from rover_env.benchmark.metrics import LOWER_IS_BETTER
+    from rover_env.benchmark.suite import run_benchmark
 
     if split not in ("validation", "tuning"):
         raise ValueError(f"an ablation selects a setting: run it on validation, not {split!r}")

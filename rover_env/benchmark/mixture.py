@@ -21,7 +21,6 @@ The action may be a residual or a gain schedule (``action_residual``, ``action_s
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -30,33 +29,15 @@ import numpy as np
 import numpy.typing as npt
 
 from rover_env.benchmark.run import ScenarioWrapper
-from rover_env.benchmark.scenarios import Episode, load_scenario
-from rover_env.control.base import CommandSchedule
 from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
 from rover_env.policies.residual import Residual, Schedule
-from rover_env.seeds import SPLITS, draw_seed, split_of
+from rover_env.seeds import SPLITS
+from rover_env.tasks.mix import DEFAULT_MIX, ScenarioMix
+from rover_env.tasks.scenarios import Episode
 
 __all__ = ["DEFAULT_MIX", "ScenarioMixEnv"]
 
 Obs = npt.NDArray[np.float32]
-
-DEFAULT_MIX: dict[str, float] = {
-    "stuck-wheel": 2.0,
-    "split-mu": 2.0,
-    "ice-patch": 2.0,
-    "flat-turns": 1.0,
-    "slope": 1.0,
-    "bumps": 1.0,
-}
-"""Scenario weights: where slip is wasted counts double."""
-
-
-def _scaled(schedule: CommandSchedule, speed: float, yaw: float) -> CommandSchedule:
-    return CommandSchedule(
-        schedule.times,
-        tuple(v * speed for v in schedule.speeds),
-        tuple(w * yaw for w in schedule.yaw_rates),
-    )
 
 
 class ScenarioMixEnv(gym.Env[Obs, Obs]):
@@ -67,8 +48,9 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
             (equal weights).
         action_residual: None for absolute targets (the plain env's action), or the scale of
             a residual on the base controller (fraction of the maximum wheel speed).
-        residual_base: the base controller's spec, "open-loop" or "slip-pi" (module docstring).
-        action_schedule: None, or ``{knob: octaves}`` over :data:`SCHEDULE_KNOBS` (or
+        residual_base: the base controller's spec, "open-loop" or "slip-pi"
+            (:mod:`rover_env.policies.residual`).
+        action_schedule: None, or ``{knob: octaves}`` over ``SCHEDULE_KNOBS`` (or
             ``[deadband_octaves, gain_octaves]``): the action is then a gain schedule of the
             ``residual_base`` slip PI (:class:`Schedule`), one value per knob.
         speed_scale: range of the factor on every commanded speed of an episode.
@@ -89,15 +71,11 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         yaw_scale: tuple[float, float] = (0.5, 1.5),
         **env_kwargs: Any,
     ) -> None:
-        mix = DEFAULT_MIX if scenarios is None else scenarios
-        if not isinstance(mix, dict):
-            mix = dict.fromkeys(mix, 1.0)
-        if not mix or any(not (w > 0) for w in mix.values()):
-            raise ValueError(f"scenarios need positive weights, got {mix}")
         if "terrain" in env_kwargs:
             raise ValueError("ScenarioMixEnv: the terrain comes from each scenario, not env_kwargs")
         if action_residual is not None and action_schedule is not None:
             raise ValueError("give action_residual or action_schedule, not both")
+        self.mix = ScenarioMix(scenarios, speed_scale, yaw_scale)
         self.residual: Residual | Schedule | None = None
         if action_residual is not None:
             self.residual = Residual(residual_base, action_residual)
@@ -105,15 +83,11 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
             self.residual = Schedule(residual_base, action_schedule)
         if self.residual is not None and env_kwargs.get("action_layout", "wheels") != "wheels":
             raise ValueError("action_residual and action_schedule need action_layout='wheels'")
-        self.names = list(mix)
-        self.cfgs = [load_scenario(n) for n in self.names]
-        p = np.array([mix[n] for n in self.names], dtype=np.float64)
-        self.p = p / p.sum()
-        self.speed_scale = (float(speed_scale[0]), float(speed_scale[1]))
-        self.yaw_scale = (float(yaw_scale[0]), float(yaw_scale[1]))
+        self.names = self.mix.names
+        self.p = self.mix.p
         self.env_kwargs = dict(env_kwargs)
         self._wrappers: dict[str, ScenarioWrapper] = {}
-        first = self._wrapper(self.cfgs[0].episode(SPLITS["training"].start))
+        first = self._wrapper(self.mix.cfgs[0].episode(SPLITS["training"].start))
         self.rover_cfg = first.base.rover_cfg
         self.observation_space = first.observation_space
         self.action_space = first.action_space
@@ -122,7 +96,6 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
                 -1.0, 1.0, (self.residual.n_actions,), dtype=np.float32
             )
         self._active: ScenarioWrapper = first
-        self._split = "training"
         self._obs: Obs = np.zeros(len(OBS_NAMES), dtype=np.float32)
 
     def _wrapper(self, episode: Episode) -> ScenarioWrapper:
@@ -135,25 +108,16 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[Obs, dict[str, Any]]:
         super().reset(seed=seed)
-        if seed is not None:
-            self._split = split_of(seed)
-        rng = self.np_random
-        i = int(rng.choice(len(self.cfgs), p=self.p))
-        episode_seed = draw_seed(self._split, rng)  # drawn always: the same stream either way
-        if seed is not None and self._split != "training":
-            episode_seed = int(seed)  # a held-out seed plays its own episode
-        episode = self.cfgs[i].episode(episode_seed)
-        yaw = float(rng.uniform(*self.yaw_scale)) * (1.0 if rng.random() < 0.5 else -1.0)
-        schedule = _scaled(episode.schedule, float(rng.uniform(*self.speed_scale)), yaw)
-        episode = dataclasses.replace(episode, schedule=schedule)
+        task = self.mix.draw(self.np_random, seed)
+        episode = task.episode
         self._active = self._wrapper(episode)
-        self._active.set_episode(episode)
+        self._active.set_episode(task)
         obs, info = self._active.reset()
         if self.residual is not None:
             self.residual.reset(self._active.base)
         info["scenario"] = episode.scenario
-        info["seed_split"] = self._split
-        info["episode_seed"] = episode_seed
+        info["seed_split"] = self.mix.split
+        info["episode_seed"] = episode.seed
         self._obs = obs
         return obs, info
 
@@ -163,7 +127,7 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
             a = self.residual(action, self._active.base, self._obs)
         obs, reward, terminated, truncated, info = self._active.step(a)
         self._obs = obs
-        return obs, reward, terminated, truncated, info
+        return obs, float(reward), terminated, truncated, info
 
     def close(self) -> None:
         for w in self._wrappers.values():

@@ -17,8 +17,8 @@ from typing import Any
 
 import yaml
 
-from rover_env.benchmark.cli import run_benchmark
 from rover_env.benchmark.scenarios import load_scenario, scenario_names
+from rover_env.benchmark.suite import run_benchmark
 from rover_env.config import ConfigError
 from rover_env.policies.ppo import resolve_model_path
 from rover_env.policies.specs import parse_specs
