@@ -201,7 +201,9 @@ def test_ppo_controller_runs_through_the_env(tmp_path: Path) -> None:
     ctrl = make_controller(f"ppo:{tmp_path}")
     assert ctrl.action_layout == "wheels"
     assert ctrl.normalizer is not None  # type: ignore[attr-defined]
-    (row,) = run_jobs([Job(f"ppo:{tmp_path}", "flat-turns", 3000, 1.0)])
+    (row,) = run_jobs([Job(f"ppo:{tmp_path}", "flat-turns", 2000, 1.0)])
+    with pytest.raises(ValueError, match="played only by a final run"):
+        run_jobs([Job("open-loop", "flat-turns", 3000, 1.0)])
     assert set(METRICS) <= set(row) and all(math.isfinite(row[m]) for m in METRICS)
     with pytest.raises(ValueError, match="unknown controller"):
         make_controller("pid")

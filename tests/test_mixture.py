@@ -210,5 +210,5 @@ def test_shipped_agent_loads_and_drives(name: str, scenario: str, mapping: Any) 
     ctrl = PPOController(agent)
     assert mapping(ctrl)
     assert ctrl.action_layout == "wheels" and ctrl.normalizer is not None
-    (row,) = run_jobs([Job(f"ppo:{agent}", scenario, SPLITS["test"].start, duration=2.0)])
+    (row,) = run_jobs([Job(f"ppo:{agent}", scenario, SPLITS["validation"].start, duration=2.0)])
     assert np.isfinite(row["mean_abs_slip"]) and row["distance_made_good"] > 0.1

@@ -27,6 +27,7 @@ from rover_env.benchmark.metrics import STEP_KEYS, metrics_of_steps
 from rover_env.envs.proto_explorer import ProtoExplorerEnv
 from rover_env.policies.controllers import EnvController
 from rover_env.policies.specs import make_controller
+from rover_env.seeds import split_of
 from rover_env.tasks.scenario import ScenarioTask
 from rover_env.tasks.scenarios import Episode, load_scenario
 
@@ -136,8 +137,19 @@ def run_jobs(
     jobs: Sequence[Job],
     workers: int = 1,
     progress: Callable[[dict[str, Any]], None] | None = None,
+    final: bool = False,
 ) -> list[dict[str, Any]]:
-    """All jobs, in their given order; ``progress`` is called as each one finishes."""
+    """All jobs, in their given order; ``progress`` is called as each one finishes.
+
+    Test seeds need ``final=True``: only a final run (``run_benchmark(final=True)``, which
+    the test ledger records) may play them.
+    """
+    test = [j.seed for j in jobs if split_of(j.seed) == "test"]
+    if test and not final:
+        raise ValueError(
+            f"jobs on test seeds {sorted(set(test))[:5]}: the test split is played only by a "
+            "final run (rover-env benchmark --final), which the test ledger records"
+        )
     if workers <= 1:
         rows = []
         for job in jobs:

@@ -62,7 +62,7 @@ def run_benchmark(
             bar.set_postfix_str(f"{row['controller']} {row['scenario']} {row['seed']}")
             bar.update(1)
 
-        rows = run_jobs(jobs, workers=workers, progress=tick)
+        rows = run_jobs(jobs, workers=workers, progress=tick, final=final)
     wall = time.perf_counter() - t0
     meta = {
         "command": f"`{command}`" if command else "(API call)",
