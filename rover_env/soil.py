@@ -60,6 +60,14 @@ _COS = tuple((-1) ** k / math.factorial(2 * k) for k in range(12))
 _SIN = tuple((-1) ** k / math.factorial(2 * k + 1) for k in range(12))
 V_EPS = 1e-3
 """Speed floor of the slip and slip-angle denominators (m/s), the Gim layer's v_eps."""
+V_BLEND = 0.03
+"""Speed (m/s) over which the forward and backward stress fields are blended at standstill.
+
+The blend makes the zero-slip resistance a damper of slope 1.5 T0 / V_BLEND about rest,
+applied explicitly; a free wheel (inertia I about its axle) stays stable while
+1.5 r T0 dt / (I V_BLEND) < 2. At the rover's wheel (I 1.26e-3 kg m^2, r 0.085 m), dt 1 ms and
+T0 <= 0.17 N m (every preset at 27 N) that needs V_BLEND > 8.6 mm/s: 30 mm/s keeps a margin
+of 3.5 and is still well below driving speeds, where the blend is exactly one-sided."""
 _MAX_TAN_BETA = 20.0
 """Bound of the transient slip angle's tangent (β < 87°): a wheel sliding sideways at
 standstill integrates its lateral displacement; beyond this the shear is saturated anyway."""
@@ -348,8 +356,9 @@ def soil_step(
       accumulated shear displacement (a spring). Likewise tan β = u_y/σ_y with
       ρ_y = max(|v_x|, v_eps)/σ_y. Exponential integration, exact for constant inputs.
     * Direction: the forward (d = +1) and backward (d = −1) stress fields are blended with
-      weight (1 + tanh(v_lead/v_eps))/2, so the compaction resistance vanishes at rest
-      instead of flipping sign; beyond 20 v_eps the weight is exactly 1 or 0.
+      the smoothstep weight w = 1/2 + z (3/4 − z²/4), z = clip(v_lead / V_BLEND, −1, 1), so
+      the compaction resistance vanishes at rest instead of flipping sign, stably (see
+      :data:`V_BLEND`); beyond V_BLEND the weight is exactly 1 or 0.
     * Digging: d(dig)/dt = k_dig max(|v_w| − |v_x|, 0) − (|v_x| / r) dig while in contact:
       a spinning wheel excavates, travel leaves the hole behind (depth k_dig r s/(1−s) in
       steady driving); sinkage counts from the dug surface, so a wheel kept spinning in
@@ -375,7 +384,8 @@ def soil_step(
     h = delta - dig
     h_c = delta - np.maximum(rut, dig)
     lead = np.where(np.abs(v_w) >= np.abs(v_x), v_w, v_x)
-    w = 0.5 * (1.0 + np.tanh(lead / v_eps))
+    z = np.clip(lead / V_BLEND, -1.0, 1.0)
+    w = 0.5 + z * (0.75 - 0.25 * z * z)
     fx_f, fy_f, fz_f, t_f = stress_integrals(s_fwd, tan_b, 1.0, h, h_c, radius, width, p)
     fx_b, fy_b, fz_b, t_b = stress_integrals(-s_fwd, tan_b, -1.0, h, h_c, radius, width, p)
     F_x = w * fx_f + (1.0 - w) * fx_b

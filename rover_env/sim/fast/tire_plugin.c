@@ -83,6 +83,7 @@
 #define SOIL_NODES 8
 #define DEG_TO_RAD (3.141592653589793 / 180.0)  // math.radians
 #define SOIL_V_EPS 1e-3
+#define SOIL_V_BLEND 0.03
 #define SOIL_MAX_TAN_BETA 20.0
 #define X_FLOOR 1e-300
 #define MAX_WAVES 4096
@@ -901,8 +902,8 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       double h = delta - dig;
       double h_c = delta - np_max(rut, dig);
       double lead = fabs(v_w) >= fabs(v_x) ? v_w : v_x;
-      double z = lead/SOIL_V_EPS;  // tanh is exactly +-1 beyond 20 (numpy gets the same)
-      double w = z > 20.0 ? 1.0 : (z < -20.0 ? 0.0 : 0.5*(1.0 + tanh(z)));
+      double z = np_min(np_max(lead/SOIL_V_BLEND, -1.0), 1.0);  // soil.V_BLEND smoothstep
+      double w = 0.5 + z*(0.75 - 0.25*z*z);
       double f[4] = {0, 0, 0, 0}, g[4] = {0, 0, 0, 0};
       if (w != 0.0) stress_integrals(s_fwd, tan_b, 1.0, h, h_c, r, c->width, sp, f);
       if (w != 1.0) stress_integrals(-s_fwd, tan_b, -1.0, h, h_c, r, c->width, sp, g);
