@@ -44,25 +44,38 @@ def run_benchmark(
     progress: bool = True,
     plots: bool = True,
     command: str | None = None,
+    executor: str = "local",
+    ray_address: str | None = None,
+    resume: bool = False,
 ) -> dict[str, Path]:
-    """Every controller on every scenario for the first ``episodes`` seeds of ``split``."""
-    from tqdm import tqdm
+    """Every controller on every scenario for the first ``episodes`` seeds of ``split``.
 
+    Episodes go to ``out/episodes.jsonl`` as they finish; ``resume`` keeps those and runs
+    the rest. ``executor``/``ray_address``: :func:`rover_env.executor.make_executor`.
+    """
     from rover_env.benchmark.report import write_report
-    from rover_env.benchmark.run import Job, run_jobs
+    from rover_env.benchmark.run import Job, _run_job
     from rover_env.benchmark.seeds import seeds as seed_split
+    from rover_env.executor import make_executor, run_study
 
     seed_list = seed_split(split, episodes)
     # Scenario-major, seed, then controller: paired episodes finish close together.
     jobs = [Job(c, s, seed, duration) for s in scenarios for seed in seed_list for c in controllers]
     t0 = time.perf_counter()
-    with tqdm(total=len(jobs), desc="benchmark", unit="ep", disable=not progress) as bar:
-
-        def tick(row: dict[str, Any]) -> None:
-            bar.set_postfix_str(f"{row['controller']} {row['scenario']} {row['seed']}")
-            bar.update(1)
-
-        rows = run_jobs(jobs, workers=workers, progress=tick)
+    with make_executor(executor, workers, ray_address, start_method="spawn") as ex:
+        where = ex.describe()
+        rows = run_study(
+            ex,
+            _run_job,
+            jobs,
+            [job.key for job in jobs],
+            Path(out) / "episodes.jsonl",
+            resume=resume,
+            desc="benchmark",
+            unit="ep",
+            progress=progress,
+            postfix=lambda row: f"{row['controller']} {row['scenario']} {row['seed']}",
+        )
     wall = time.perf_counter() - t0
     meta = {
         "command": f"`{command}`" if command else "(API call)",
@@ -75,7 +88,8 @@ def run_benchmark(
             else "each scenario's own (configs/scenarios)"
         ),
         "control": "10 Hz through ProtoExplorerEnv (default sensor noise), estimator at 50 Hz",
-        "wall time": f"{wall:.0f} s on {workers} worker(s), {len(jobs)} episodes",
+        "wall time": f"{wall:.0f} s on the {where}, {len(jobs)} episodes"
+        + (" (resumed)" if resume else ""),
     }
     return write_report(out, rows, meta, plots=plots)
 
@@ -147,6 +161,9 @@ def _bench_cli(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         plots=not args.no_plots,
         command=_command_line(),
+        executor=args.executor,
+        ray_address=args.ray_address,
+        resume=args.resume,
     )
     print(files["markdown"].read_text())
     print("wrote " + ", ".join(str(p) for p in files.values()))
@@ -169,6 +186,8 @@ def _tune_cli(args: argparse.Namespace) -> int:
 
 def add_cli(subparsers: Any) -> None:
     """Register ``benchmark`` and ``tune-slip-pi``."""
+    from rover_env.executor import add_executor_args
+
     workers = max(1, min(2, os.cpu_count() or 1))
     p = subparsers.add_parser(
         "benchmark", help="compare controllers on named scenarios (tables, paired CIs, plots)"
@@ -188,6 +207,12 @@ def add_cli(subparsers: Any) -> None:
     )
     p.add_argument("--duration", type=float, default=None, help="episode length override (s)")
     p.add_argument("--workers", type=int, default=workers, help=f"processes (default {workers})")
+    add_executor_args(p)
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="keep the episodes in OUT/episodes.jsonl, run the rest",
+    )
     p.add_argument("--out", default="out/benchmark", help="output folder")
     p.add_argument("--no-plots", action="store_true", help="tables only")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -9,17 +9,16 @@ seen by the controller for a step is therefore the one the env scores that step 
 It also places the rover at the episode's start pose (``reset`` options) and puts the
 episode's jittered ground in with ``sim.set_terrain`` before the reset.
 
-Jobs (controller, scenario, seed) are independent; with ``workers > 1`` they run in spawned
-processes, each caching one env per (scenario, action layout) and one instance per controller.
+Jobs (controller, scenario, seed) are independent; they run through an executor
+(:mod:`rover_env.executor`: this process, spawned local processes or Ray workers), each worker
+caching one env per (scenario, action layout) and one instance per controller.
 """
 
 from __future__ import annotations
 
 import math
-import multiprocessing as mp
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from typing import Any
 
@@ -31,6 +30,7 @@ from rover_env.benchmark.controllers import EnvController, make_controller
 from rover_env.benchmark.scenarios import Episode, load_scenario
 from rover_env.control.runner import episode_metrics
 from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
+from rover_env.executor import Executor, make_executor
 
 __all__ = ["Job", "ScenarioWrapper", "run_episode", "run_jobs"]
 
@@ -134,6 +134,11 @@ class Job:
     seed: int
     duration: float | None = None
 
+    @property
+    def key(self) -> str:
+        """Names the episode in a study's results file (``--resume`` matches on it)."""
+        return f"{self.controller}|{self.scenario}|{self.seed}|{self.duration}"
+
 
 # Per-process caches: building an env compiles a MuJoCo model; loading a policy loads torch.
 _ENVS: dict[tuple[str, str], ScenarioWrapper] = {}
@@ -169,21 +174,13 @@ def run_jobs(
     jobs: Sequence[Job],
     workers: int = 1,
     progress: Callable[[dict[str, Any]], None] | None = None,
+    executor: Executor | None = None,
 ) -> list[dict[str, Any]]:
-    """All jobs, in their given order; ``progress`` is called as each one finishes."""
-    if workers <= 1:
-        rows = []
-        for job in jobs:
-            rows.append(_run_job(job))
-            if progress is not None:
-                progress(rows[-1])
-        return rows
-    out: dict[int, dict[str, Any]] = {}
-    ctx = mp.get_context("spawn")  # no MuJoCo or torch state shared through fork
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        futures = {pool.submit(_run_job, job): i for i, job in enumerate(jobs)}
-        for fut in as_completed(futures):
-            out[futures[fut]] = fut.result()
-            if progress is not None:
-                progress(out[futures[fut]])
-    return [out[i] for i in range(len(jobs))]
+    """All jobs, in their given order; ``progress`` is called as each one finishes.
+
+    ``executor`` defaults to ``workers`` spawned local processes (no MuJoCo or torch state
+    shared through fork); ``workers <= 1`` runs them in this process.
+    """
+    ex = executor or make_executor("local", workers, start_method="spawn")
+    tick = None if progress is None else (lambda _i, row: progress(row))
+    return ex.map(_run_job, list(jobs), on_result=tick)
