@@ -327,13 +327,22 @@ def test_local_sweep_resume_trains_nothing_twice(tmp_path: Path) -> None:
     pytest.importorskip("stable_baselines3")
     import yaml
 
+    from rover_env.config import ConfigError
     from rover_env.training.sweep import parse_seeds, sweep
 
     assert parse_seeds("0-2,7") == [0, 1, 2, 7]
+    with pytest.raises(ConfigError, match="'3-1' is not a seed or a range"):
+        parse_seeds("0,3-1")
+    from rover_env.training.cli import sweep_main
+
+    bad = ["--config", "x.yaml", "--seeds", "0", "--algos", "ppo,sac", "--out", str(tmp_path)]
+    assert sweep_main(bad) == 2  # unknown algorithm: one clear error, nothing run
     cfg = tmp_path / "tiny.yaml"
     cfg.write_text(yaml.safe_dump({"rover_env/ProtoExplorer-v0": TINY}))
     out = tmp_path / "sweep"
     sweep(cfg, [0], out, progress=False)
+    with pytest.raises(ConfigError, match=r"ppo_s0 already holds a training run; --resume"):
+        sweep(cfg, [0, 1], out, progress=False)
     first = (out / "ppo_s0" / "model.zip").stat().st_mtime_ns
     rows = sweep(cfg, [0, 1], out, resume=True, progress=False)
     assert [r["seed"] for r in rows] == [0, 1]

@@ -147,6 +147,15 @@ def sweep(
         for a in algos
         for s in seeds
     ]
+    if not resume:
+        from rover_env.training.ppo import RUN_FILES
+
+        for r in runs:
+            if any((Path(r.run_dir) / f).exists() for f in RUN_FILES):
+                raise ConfigError(
+                    f"{r.run_dir} already holds a training run; --resume the sweep or choose"
+                    " another --out"
+                )
     with make_executor(executor, workers, ray_address, start_method="spawn") as ex:
         return run_study(
             ex,
