@@ -168,8 +168,8 @@ class LocalExecutor(Executor):
                     try:
                         res = fut.result()
                     except BrokenProcessPool:
-                        broken = True
-                        break
+                        broken = True  # every unfinished future fails now; keep the finished
+                        continue
                     _drain(started, running)
                     running.discard(i)
                     todo.discard(i)
