@@ -279,10 +279,9 @@ def test_ray_sweep_writes_run_folders_like_train_ppo(ray_instance: Any, tmp_path
 
     cfg = tmp_path / "tiny.yaml"
     cfg.write_text(yaml.safe_dump({"rover_env/ProtoExplorer-v0": TINY}))
-    rows = sweep(cfg, [0, 1], tmp_path / "sweep", executor="ray", progress=False)
-    assert [r["seed"] for r in rows] == [0, 1] and all(r["num_timesteps"] == 64 for r in rows)
-    for seed in (0, 1):
-        _check_run_dir(tmp_path / "sweep" / f"ppo_s{seed}", seed)
+    rows = sweep(cfg, [3], tmp_path / "sweep", executor="ray", progress=False)
+    assert [(r["seed"], r["num_timesteps"]) for r in rows] == [(3, 64)]
+    _check_run_dir(tmp_path / "sweep" / "ppo_s3", 3)
 
 
 TINY: dict[str, Any] = {
