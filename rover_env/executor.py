@@ -296,10 +296,22 @@ def make_executor(
     raise ValueError(f"--executor {kind!r}: expected one of {', '.join(EXECUTORS)}")
 
 
+def _executor_kind(text: str) -> str:
+    """``--executor`` value; ``ray`` without Ray installed is an error at parse time."""
+    import importlib.util
+
+    if text == "ray" and importlib.util.find_spec("ray") is None:
+        raise argparse.ArgumentTypeError(
+            'ray is not installed: pip install -e ".[cluster]" (or: pip install ray)'
+        )
+    return text
+
+
 def add_executor_args(parser: argparse.ArgumentParser) -> None:
     """``--executor`` and ``--ray-address`` (the command keeps its own ``--workers``)."""
     parser.add_argument(
         "--executor",
+        type=_executor_kind,
         choices=EXECUTORS,
         default="local",
         help="where tasks run: local processes (default) or a Ray cluster",

@@ -110,6 +110,12 @@ def test_local_executor_gives_up_on_a_task_that_always_kills_its_worker() -> Non
 def test_unknown_executor_is_one_clear_error() -> None:
     with pytest.raises(ValueError, match="--executor 'dask': expected one of local, ray"):
         make_executor("dask")
+    code = (
+        "import sys; sys.modules['ray'] = None\n"  # as if Ray were not installed
+        "from rover_env.cli import main; main(['benchmark', '--executor', 'ray'])"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
+    assert out.returncode == 2 and "argument --executor: ray is not installed" in out.stderr
 
 
 # --------------------------------------------------------------------------- studies
