@@ -20,6 +20,7 @@ RANKS = {
     "rover_env.logs": 0,
     "rover_env.effects": 0,
     "rover_env.seeds": 0,
+    "rover_env.executor": 0,
     "rover_env.sim": 1,
     "rover_env.estimation": 2,
     "rover_env.control": 2,

@@ -65,6 +65,9 @@ def _bench(args: argparse.Namespace, specs: list[str]) -> int:
         final=args.final,
         force=args.force,
         ledger=args.ledger,
+        executor=args.executor,
+        ray_address=args.ray_address,
+        resume=args.resume,
     )
     print(files["markdown"].read_text())
     print("wrote " + ", ".join(str(p) for p in files.values()))
@@ -112,6 +115,8 @@ def _tune_cli(args: argparse.Namespace) -> int:
 
 def add_cli(subparsers: Any) -> None:
     """Register ``benchmark``, ``ablate`` and ``tune-slip-pi``."""
+    from rover_env.executor import add_executor_args
+
     workers = max(1, min(2, os.cpu_count() or 1))
     p = subparsers.add_parser(
         "benchmark", help="compare controllers on named scenarios (tables, paired CIs, plots)"
@@ -147,6 +152,12 @@ def add_cli(subparsers: Any) -> None:
     )
     p.add_argument("--duration", type=float, default=None, help="episode length override (s)")
     p.add_argument("--workers", type=int, default=workers, help=f"processes (default {workers})")
+    add_executor_args(p)
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="keep the episodes in OUT/episodes.jsonl, run the rest",
+    )
     p.add_argument("--out", default="out/benchmark", help="output folder")
     p.add_argument("--no-plots", action="store_true", help="tables only")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -6,16 +6,15 @@ commands. :class:`ScenarioWrapper` gives the env that task (``env.set_task``) an
 with the episode's seed; the env itself then commands, observes, scores and truncates the
 episode, so the command a controller sees for a step is the one the env scores it against.
 
-Jobs (controller, scenario, seed) are independent; with ``workers > 1`` they run in spawned
-processes, each caching one env per (scenario, action layout) and one instance per controller.
+Jobs (controller, scenario, seed) are independent; they run through an executor
+(:mod:`rover_env.executor`: this process, spawned local processes or Ray workers), each worker
+caching one env per (scenario, action layout) and one instance per controller.
 """
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,6 +24,7 @@ import numpy.typing as npt
 
 from rover_env.benchmark.metrics import STEP_KEYS, metrics_of_steps
 from rover_env.envs.proto_explorer import ProtoExplorerEnv
+from rover_env.executor import Executor, make_executor
 from rover_env.policies.controllers import EnvController
 from rover_env.policies.specs import make_controller
 from rover_env.seeds import split_of
@@ -103,6 +103,11 @@ class Job:
     seed: int
     duration: float | None = None
 
+    @property
+    def key(self) -> str:
+        """Names the episode in a study's results file (``--resume`` matches on it)."""
+        return f"{self.controller}|{self.scenario}|{self.seed}|{self.duration}"
+
 
 # Per-process caches: building an env compiles a MuJoCo model; loading a policy loads torch.
 _ENVS: dict[tuple[str, str], ScenarioWrapper] = {}
@@ -139,11 +144,14 @@ def run_jobs(
     workers: int = 1,
     progress: Callable[[dict[str, Any]], None] | None = None,
     final: bool = False,
+    executor: Executor | None = None,
 ) -> list[dict[str, Any]]:
     """All jobs, in their given order; ``progress`` is called as each one finishes.
 
     Test seeds need ``final=True``: only a final run (``run_benchmark(final=True)``, which
-    the test ledger records) may play them.
+    the test ledger records) may play them. ``executor`` defaults to ``workers`` spawned local
+    processes (no MuJoCo or torch state shared through fork); ``workers <= 1`` runs them in
+    this process.
     """
     test = [j.seed for j in jobs if split_of(j.seed) == "test"]
     if test and not final:
@@ -151,19 +159,6 @@ def run_jobs(
             f"jobs on test seeds {sorted(set(test))[:5]}: the test split is played only by a "
             "final run (rover-env benchmark --final), which the test ledger records"
         )
-    if workers <= 1:
-        rows = []
-        for job in jobs:
-            rows.append(_run_job(job))
-            if progress is not None:
-                progress(rows[-1])
-        return rows
-    out: dict[int, dict[str, Any]] = {}
-    ctx = mp.get_context("spawn")  # no MuJoCo or torch state shared through fork
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        futures = {pool.submit(_run_job, job): i for i, job in enumerate(jobs)}
-        for fut in as_completed(futures):
-            out[futures[fut]] = fut.result()
-            if progress is not None:
-                progress(out[futures[fut]])
-    return [out[i] for i in range(len(jobs))]
+    ex = executor or make_executor("local", workers, start_method="spawn")
+    tick = None if progress is None else (lambda _i, row: progress(row))
+    return ex.map(_run_job, list(jobs), on_result=tick)

@@ -9,7 +9,6 @@ import csv
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 __all__ = ["run_benchmark", "run_tuning"]
 
@@ -28,19 +27,24 @@ def run_benchmark(
     final: bool = False,
     force: bool = False,
     ledger: str | Path | None = None,
+    executor: str = "local",
+    ray_address: str | None = None,
+    resume: bool = False,
 ) -> dict[str, Path]:
     """Every controller on every scenario for the first ``episodes`` seeds of ``split``.
+
+    Episodes go to ``out/episodes.jsonl`` as they finish; ``resume`` keeps those and runs
+    the rest. ``executor``/``ray_address``: :func:`rover_env.executor.make_executor`.
 
     The test split is touched once per agent (:mod:`rover_env.benchmark.ledger`): it needs
     ``final=True``, which runs the test seeds, refuses an agent the ledger already holds
     unless ``force`` and appends the run to ``ledger`` (default
     ``docs/benchmark/test_ledger.csv``).
     """
-    from tqdm import tqdm
-
     from rover_env.benchmark import ledger as test_ledger
     from rover_env.benchmark.report import write_report
-    from rover_env.benchmark.run import Job, run_jobs
+    from rover_env.benchmark.run import Job, _run_job
+    from rover_env.executor import make_executor, run_study
     from rover_env.seeds import seeds as seed_split
 
     if final:
@@ -56,13 +60,20 @@ def run_benchmark(
     # Scenario-major, seed, then controller: paired episodes finish close together.
     jobs = [Job(c, s, seed, duration) for s in scenarios for seed in seed_list for c in controllers]
     t0 = time.perf_counter()
-    with tqdm(total=len(jobs), desc="benchmark", unit="ep", disable=not progress) as bar:
-
-        def tick(row: dict[str, Any]) -> None:
-            bar.set_postfix_str(f"{row['controller']} {row['scenario']} {row['seed']}")
-            bar.update(1)
-
-        rows = run_jobs(jobs, workers=workers, progress=tick, final=final)
+    with make_executor(executor, workers, ray_address, start_method="spawn") as ex:
+        where = ex.describe()
+        rows = run_study(
+            ex,
+            _run_job,
+            jobs,
+            [job.key for job in jobs],
+            Path(out) / "episodes.jsonl",
+            resume=resume,
+            desc="benchmark",
+            unit="ep",
+            progress=progress,
+            postfix=lambda row: f"{row['controller']} {row['scenario']} {row['seed']}",
+        )
     wall = time.perf_counter() - t0
     meta = {
         "command": f"`{command}`" if command else "(API call)",
@@ -75,7 +86,8 @@ def run_benchmark(
             else "each scenario's own (configs/scenarios)"
         ),
         "control": "10 Hz through ProtoExplorerEnv (default sensor noise), estimator at 50 Hz",
-        "wall time": f"{wall:.0f} s on {workers} worker(s), {len(jobs)} episodes",
+        "wall time": f"{wall:.0f} s on the {where}, {len(jobs)} episodes"
+        + (" (resumed)" if resume else ""),
     }
     if final:
         repeats = [a for a, (_, rep) in checked.items() if rep]

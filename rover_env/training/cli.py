@@ -1,4 +1,4 @@
-"""Command lines behind ``train/ppo.py`` and ``train/evaluate.py`` (kept here so they install)."""
+"""Command lines behind ``train/ppo.py``, ``train/sweep.py`` and ``train/evaluate.py`` (kept here so they install)."""
 
 from __future__ import annotations
 
@@ -127,4 +127,53 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(report)
+    return 0
+
+
+def sweep_main(argv: Sequence[str] | None = None) -> int:
+    from rover_env.executor import add_executor_args
+
+    ap = argparse.ArgumentParser(
+        prog="train/sweep.py",
+        description="One train/ppo.py run per (algorithm, seed), on local processes or Ray; "
+        "run folders OUT/{algo}_s{seed}, one line per finished run in OUT/sweep.jsonl.",
+    )
+    ap.add_argument("--config", required=True, help="hyperparameter YAML, or a shipped name")
+    ap.add_argument("--env-id", default=None, help="env id (default: the file's only entry)")
+    ap.add_argument("--seeds", required=True, help="run seeds: 0-9, or 0,3,5-7")
+    ap.add_argument("--algos", default="ppo", help="comma list of algorithms (default ppo)")
+    ap.add_argument("--out", required=True, help="sweep folder (shared by all nodes on a cluster)")
+    ap.add_argument("--total-timesteps", type=int, help="env steps per run (overrides n_timesteps)")
+    ap.add_argument("--workers", type=int, default=1, help="runs side by side (default 1)")
+    add_executor_args(ap)
+    ap.add_argument(
+        "--resume", action="store_true", help="skip finished runs, continue stopped ones"
+    )
+    ap.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = ap.parse_args(argv)
+
+    from rover_env.training.sweep import parse_seeds, sweep
+
+    try:
+        rows = sweep(
+            args.config,
+            parse_seeds(args.seeds),
+            args.out,
+            env_id=args.env_id,
+            algos=[a.strip() for a in args.algos.split(",") if a.strip()],
+            total_timesteps=args.total_timesteps,
+            executor=args.executor,
+            workers=args.workers,
+            ray_address=args.ray_address,
+            resume=args.resume,
+            progress=not args.quiet,
+        )
+    except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    for r in rows:
+        print(
+            f"{r['run_dir']}: {r['num_timesteps']} steps, best validation return "
+            f"{r['best_mean_reward']:.2f}"
+        )
     return 0
