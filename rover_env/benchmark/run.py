@@ -103,6 +103,7 @@ def run_episode(
         "distance",
         "wheel_sinkage",
         "command",
+        "speed",
     )
     acc: dict[str, list[Any]] = {k: [] for k in keys}
     last = info
@@ -129,6 +130,7 @@ def run_episode(
         sinkage=np.asarray(acc["wheel_sinkage"]),
         speed_command=np.asarray(acc["command"])[:, 0],
         step_dt=wrapper.base.control_dt,
+        forward_speed=np.asarray(acc["speed"]),
     )
 
 

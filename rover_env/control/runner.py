@@ -85,6 +85,8 @@ class DriveTrace:
     distance: list[float] = field(default_factory=list)
     position: list[Array] = field(default_factory=list)
     sinkage: list[Array] = field(default_factory=list)
+    forward_speed: list[float] = field(default_factory=list)
+    """True forward speed of the middle segment at the step end (m/s, signed)."""
     flipped: bool = False
     step_dt: float = 0.1
 
@@ -104,6 +106,7 @@ class DriveTrace:
             sinkage=np.array(self.sinkage),
             speed_command=np.array([c[0] for c in self.command]),
             step_dt=self.step_dt,
+            forward_speed=np.array(self.forward_speed) if self.forward_speed else None,
         )
 
 
@@ -124,6 +127,7 @@ def episode_metrics(
     sinkage: Array | None = None,
     speed_command: Array | None = None,
     step_dt: float = 0.1,
+    forward_speed: Array | None = None,
 ) -> dict[str, float]:
     """The benchmark's metrics of one episode from per-step arrays (truth, as in ``info``).
 
@@ -136,17 +140,26 @@ def episode_metrics(
       (J/m), the path floored at :data:`MIN_PATH`;
     * ``distance_made_good``: straight-line displacement of the middle segment (m);
     * ``success``: 1 if no flip, still in the arena, and the path length reached
-      ``goal_fraction`` of the commanded one (the rover was not stuck), else 0;
+      ``goal_fraction`` of the commanded one (the rover was not stuck), else 0; given
+      ``forward_speed`` (the true forward speed at each step end) and ``speed_command``, a
+      step whose forward speed opposes the command counts its path *against* the goal (a
+      rover sliding back down a loose slope while its wheels spin forward is not progressing);
     * ``flipped``: 1 if a segment tipped beyond 75 deg;
     * ``mean_sinkage``, ``max_sinkage``: sinkage into loose soil (m) of the six wheels at
       the step ends (``sinkage``, steps x 6), mean over steps and wheels and the largest;
       0 on hard ground;
     * ``time_stuck``: seconds of control steps (``step_dt``) whose path length was below
-      :data:`STUCK_PROGRESS` of the commanded |speed| x step_dt (``speed_command``).
+      :data:`STUCK_PROGRESS` of the commanded |speed| x step_dt (``speed_command``), the
+      path counted as for ``success``.
     """
     path = float(np.sum(distance))
+    progress = _progress(distance, speed_command, forward_speed)
     made_good = float(np.linalg.norm(np.asarray(end)[:2] - np.asarray(start)[:2]))
-    ok = (not flipped) and (not out_of_arena) and path >= goal_fraction * commanded_path
+    ok = (
+        (not flipped)
+        and (not out_of_arena)
+        and float(np.sum(progress)) >= goal_fraction * commanded_path
+    )
     return {
         "mean_abs_slip": float(np.mean(slip_true_mean_abs)),
         "p95_abs_slip": float(np.percentile(np.abs(slip_true), 95)),
@@ -158,8 +171,17 @@ def episode_metrics(
         "flipped": float(flipped),
         "mean_sinkage": float(np.mean(sinkage)) if sinkage is not None else 0.0,
         "max_sinkage": float(np.max(sinkage)) if sinkage is not None else 0.0,
-        "time_stuck": time_stuck(distance, speed_command, step_dt),
+        "time_stuck": time_stuck(progress, speed_command, step_dt),
     }
+
+
+def _progress(distance: Array, speed_command: Array | None, forward_speed: Array | None) -> Array:
+    """Each step's path, negative where the rover moved against the commanded direction."""
+    d = np.asarray(distance, dtype=float)
+    if speed_command is None or forward_speed is None:
+        return d
+    against = np.asarray(forward_speed, dtype=float) * np.asarray(speed_command, dtype=float) < 0
+    return np.where(against, -d, d)
 
 
 def time_stuck(distance: Array, speed_command: Array | None, step_dt: float) -> float:
@@ -255,6 +277,7 @@ def run_on_sim(
         trace.distance.append(float(np.linalg.norm(pos[:2] - pos0[:2])))
         trace.position.append(pos)
         trace.sinkage.append(sim.wheel_truth().sinkage.copy())
+        trace.forward_speed.append(float(sim.segment_truth().forward_speed[1]))
         if sim.flipped():
             trace.flipped = True
             break
