@@ -34,6 +34,14 @@ Why each piece is there:
   seconds while the true slip is a few per cent (``docs/benchmark/README.md``), and a PI
   cannot tell such a common error from slip, since speeding every wheel up by the same ratio
   leaves every slip ratio unchanged.
+* Slip set-point (``slip_setpoint``, default 0): the centre of the traction allowance's band,
+  so the shared slip is held within ``slip_setpoint +- traction_allowance``. On hard ground
+  traction costs almost no slip and the band sits around 0. On loose soil a wheel pulls only
+  while it slips (Wong's s = -S of 0.2-0.6 for useful drawbar pull), so a band around 0
+  would slow the wheels exactly when the slope needs their pull; with a negative set-point
+  and a narrow band the loop *speeds up* wheels that slip less than the set-point and slows
+  those that dig in beyond it (``configs/control/slip_pi_soil.yaml``,
+  ``docs/benchmark-soil/README.md``). With 0 the loop is the hard-ground one, bit for bit.
 * Common-mode leak: within the allowance only the wheels' slip *differences* are observable,
   so where the four integrators settle together is set by history (a start-up transient,
   the deadband stopping each wheel anywhere within it), and a common offset of a few tenths
