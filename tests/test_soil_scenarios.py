@@ -40,9 +40,7 @@ def _input(slip: np.ndarray, t: float, v: float = 0.15, w: float = 0.0) -> Contr
 def _drive(cfg: SlipPIConfig, slips: np.ndarray, shift: float = 0.0) -> np.ndarray:
     pi = SlipPI(ROVER, cfg)
     cmds = [(0.15, 0.0)] * 30 + [(0.12, 0.2)] * 20 + [(0.15, -0.1)] * 30
-    return np.array(
-        [pi.act(_input(s + shift, 0.1 * k, *cmds[k])) for k, s in enumerate(slips)]
-    )
+    return np.array([pi.act(_input(s + shift, 0.1 * k, *cmds[k])) for k, s in enumerate(slips)])
 
 
 def test_setpoint_only_moves_the_band() -> None:

@@ -49,8 +49,8 @@ from rover_env.estimation.estimator import static_rolling_radius
 
 __all__ = [
     "DEFAULT_MIX",
-    "SOIL_MIX",
     "SCHEDULE_KNOBS",
+    "SOIL_MIX",
     "Residual",
     "ScenarioMixEnv",
     "Schedule",
