@@ -14,7 +14,8 @@ Gymnasium environment for each of them. A controller here turns the env's state 
 Specs: ``open-loop``, ``open-loop:axle_load`` (feed-forward with per-axle loaded radii, for
 comparison: what calibrating the radii alone buys), ``slip-pi`` (gains from
 ``configs/control/slip_pi.yaml``),
-``slip-pi:PATH.yaml`` (other gains), ``ppo:PATH`` (a run folder or a ``.zip``).
+``slip-pi:NAME`` or ``slip-pi:PATH.yaml`` (other gains: ``slip-pi:slip_pi_soil`` is the
+loose-soil loop with a slip set-point), ``ppo:PATH`` (a run folder or a ``.zip``).
 """
 
 from __future__ import annotations
