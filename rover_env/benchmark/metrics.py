@@ -72,6 +72,7 @@ STEP_KEYS: tuple[str, ...] = (
     "distance",
     "wheel_sinkage",
     "command",
+    "speed",
 )
 """The ``info`` entries of every step that the metrics need."""
 
@@ -96,6 +97,7 @@ def episode_metrics(
     out_of_arena: bool = False,
     wheel_sinkage: Array | None = None,
     command: Array | None = None,
+    speed: Array | None = None,
     step_dt: float = 0.1,
 ) -> dict[str, float]:
     """The benchmark's metrics of one episode from per-step arrays (truth, as in ``info``).
@@ -109,17 +111,26 @@ def episode_metrics(
       (J/m), the path floored at :data:`MIN_PATH`;
     * ``distance_made_good``: straight-line displacement of the middle segment (m);
     * ``success``: 1 if no flip, still in the arena, and the path length reached
-      ``goal_fraction`` of the commanded one (the rover was not stuck), else 0;
+      ``goal_fraction`` of the commanded one (the rover was not stuck), else 0; given
+      ``speed`` (the true forward speed at each step end) and ``command``, a step whose
+      forward speed opposes the command counts its path *against* the goal (a rover sliding
+      back down a loose slope while its wheels spin forward is not progressing);
     * ``flipped``: 1 if a segment tipped beyond 75 deg;
     * ``mean_sinkage``, ``max_sinkage``: sinkage into loose soil (m) of the six wheels at
       the step ends (``wheel_sinkage``, steps x 6), mean over steps and wheels and the
       largest; 0 on hard ground;
     * ``time_stuck``: seconds of control steps (``step_dt``) whose path length was below
-      :data:`STUCK_PROGRESS` of the commanded |speed| x step_dt (``command``, steps x 2).
+      :data:`STUCK_PROGRESS` of the commanded |speed| x step_dt (``command``, steps x 2),
+      the path counted as for ``success``.
     """
     path = float(np.sum(distance))
     made_good = float(np.linalg.norm(np.asarray(end)[:2] - np.asarray(start)[:2]))
-    ok = (not flipped) and (not out_of_arena) and path >= goal_fraction * commanded_path
+    progress = _progress(distance, command, speed)
+    ok = (
+        (not flipped)
+        and (not out_of_arena)
+        and float(np.sum(progress)) >= goal_fraction * commanded_path
+    )
     slip = np.asarray(slip_abs_step, dtype=np.float64)
     return {
         "mean_abs_slip": float(np.mean(slip)),
@@ -132,8 +143,18 @@ def episode_metrics(
         "flipped": float(flipped),
         "mean_sinkage": float(np.mean(wheel_sinkage)) if wheel_sinkage is not None else 0.0,
         "max_sinkage": float(np.max(wheel_sinkage)) if wheel_sinkage is not None else 0.0,
-        "time_stuck": time_stuck(distance, command, step_dt),
+        "time_stuck": time_stuck(progress, command, step_dt),
     }
+
+
+def _progress(distance: Array, command: Array | None, speed: Array | None) -> Array:
+    """Each step's path, negative where the rover moved against the commanded direction."""
+    d = np.asarray(distance, dtype=float)
+    if command is None or speed is None:
+        return d
+    v_cmd = np.asarray(command, dtype=float).reshape(-1, 2)[:, 0]
+    against = np.asarray(speed, dtype=float) * v_cmd < 0
+    return np.where(against, -d, d)
 
 
 def time_stuck(distance: Array, command: Array | None, step_dt: float) -> float:
@@ -184,5 +205,6 @@ def trace_metrics(
         goal_fraction=goal_fraction,
         wheel_sinkage=np.array(trace.wheel_sinkage),
         command=np.array(trace.command),
+        speed=np.array(trace.forward_speed) if trace.forward_speed else None,
         step_dt=trace.step_dt,
     )

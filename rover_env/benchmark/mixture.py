@@ -36,10 +36,10 @@ from rover_env.benchmark.run import ScenarioWrapper
 from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
 from rover_env.policies.residual import Residual, Schedule
 from rover_env.seeds import SPLITS
-from rover_env.tasks.mix import DEFAULT_MIX, ScenarioMix
+from rover_env.tasks.mix import DEFAULT_MIX, SOIL_MIX, ScenarioMix
 from rover_env.tasks.scenarios import Episode
 
-__all__ = ["DEFAULT_MIX", "ScenarioMixEnv"]
+__all__ = ["DEFAULT_MIX", "SOIL_MIX", "ScenarioMixEnv"]
 
 Obs = npt.NDArray[np.float32]
 

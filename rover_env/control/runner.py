@@ -68,6 +68,8 @@ class DriveTrace:
     position: list[Array] = field(default_factory=list)
     wheel_sinkage: list[Array] = field(default_factory=list)
     """Per step, the six wheels' sinkage into loose soil at the step's end (m)."""
+    forward_speed: list[float] = field(default_factory=list)
+    """True forward speed of the middle segment at the step end (m/s, signed)."""
     flipped: bool = False
     step_dt: float = 0.1
 
@@ -157,6 +159,7 @@ def run_on_sim(
         trace.distance.append(float(np.linalg.norm(pos[:2] - pos0[:2])))
         trace.position.append(pos)
         trace.wheel_sinkage.append(sim.wheel_truth().sinkage.copy())
+        trace.forward_speed.append(float(sim.segment_truth().forward_speed[1]))
         if sim.flipped():
             trace.flipped = True
             break

@@ -34,6 +34,14 @@ Why each piece is there:
   seconds while the true slip is a few per cent (``docs/benchmark/README.md``), and a PI
   cannot tell such a common error from slip, since speeding every wheel up by the same ratio
   leaves every slip ratio unchanged.
+* Slip set-point (``slip_setpoint``, default 0): the centre of the traction allowance's band,
+  so the shared slip is held within ``slip_setpoint +- traction_allowance``. On hard ground
+  traction costs almost no slip and the band sits around 0. On loose soil a wheel pulls only
+  while it slips (Wong's s = -S of 0.2-0.6 for useful drawbar pull), so a band around 0
+  would slow the wheels exactly when the slope needs their pull; with a negative set-point
+  and a narrow band the loop *speeds up* wheels that slip less than the set-point and slows
+  those that dig in beyond it (``configs/control/slip_pi_soil.yaml``,
+  ``docs/benchmark-soil/README.md``). With 0 the loop is the hard-ground one, bit for bit.
 * Common-mode leak: within the allowance only the wheels' slip *differences* are observable,
   so where the four integrators settle together is set by history (a start-up transient,
   the deadband stopping each wheel anywhere within it), and a common offset of a few tenths
@@ -143,7 +151,13 @@ class SlipPIConfig:
     max_correction: float = 0.5
     """Highest u: a wheel is sped up to no more than (1 + max_correction) of its target."""
     traction_allowance: float = 1.0
-    """Largest |slip| shared by all wheels that is left alone (module docstring)."""
+    """Largest |slip - slip_setpoint| shared by all wheels that is left alone (module
+    docstring)."""
+    slip_setpoint: float = 0.0
+    """Slip S the shared slip is held near (SPEC sign: < 0 spinning; Wong's s = -S): the
+    centre of the traction allowance's band. 0 on hard ground, where traction costs almost
+    no slip; negative on loose soil, where a wheel pulls only while it slips (module
+    docstring, "Slip set-point")."""
     retry_interval: float = 5.0
     """Seconds a wheel may sit frozen at ``min_correction`` before its integrator is released
     (0: never)."""
@@ -192,6 +206,11 @@ class SlipPIConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"slip_pi.{name} must be a finite number > 0, got {v!r}")
+        if not (math.isfinite(self.slip_setpoint) and -1.0 < self.slip_setpoint <= 0.0):
+            raise ConfigError(
+                f"slip_pi.slip_setpoint must lie in (-1, 0] (S < 0: spinning), "
+                f"got {self.slip_setpoint!r}"
+            )
         if not -1.0 <= self.min_correction <= 0.0:
             raise ConfigError(
                 f"slip_pi.min_correction must lie in [-1, 0], got {self.min_correction!r}"
@@ -301,13 +320,13 @@ class SlipPI(Controller):
         return min(width + c.turn_deadband_gain * ratio, c.max_deadband)
 
     def shared_slip(self, slip: Array, ok: npt.NDArray[np.bool_]) -> float:
-        """Median slip of the usable wheels (0 when none is usable)."""
-        return float(np.median(slip[ok])) if ok.any() else 0.0
+        """Median slip of the usable wheels (the set-point when none is usable)."""
+        return float(np.median(slip[ok])) if ok.any() else self.cfg.slip_setpoint
 
     def reference(self, slip: Array, ok: npt.NDArray[np.bool_]) -> float:
-        """Slip shared by the usable wheels, up to the traction allowance."""
-        a = self.cfg.traction_allowance
-        return float(np.clip(self.shared_slip(slip, ok), -a, a))
+        """Slip shared by the usable wheels, within the traction allowance of the set-point."""
+        s0, a = self.cfg.slip_setpoint, self.cfg.traction_allowance
+        return float(np.clip(self.shared_slip(slip, ok), s0 - a, s0 + a))
 
     def slip_error(
         self, x: Array, obs: ControllerInput, ok: npt.NDArray[np.bool_], all_moving: bool
@@ -354,7 +373,7 @@ class SlipPI(Controller):
         blocked = ((u_raw >= hi) & (e > 0)) | ((u_raw <= lo) & (e < 0))
         self.integral = np.clip(self.integral + np.where(ok & ~blocked, c.ki * e * dt, 0.0), lo, hi)
         shared = self.shared_slip(slip, moving)
-        calm = not stuck.any() and abs(shared) <= c.traction_allowance
+        calm = not stuck.any() and abs(shared - c.slip_setpoint) <= c.traction_allowance
         if c.common_mode_leak_time > 0 and calm and driven.any():
             common = float(np.median(self.integral[driven]))
             leak = min(1.0, dt / c.common_mode_leak_time) * common

@@ -6,6 +6,9 @@ import gymnasium as gym
 
 ENV_IDS = ("rover_env/ProtoExplorer-v0", "rover_env/ProtoExplorerRough-v0")
 MIX_ENV_ID = "rover_env/ProtoExplorerScenarioMix-v0"
+SOIL_ENV_ID = "rover_env/ProtoExplorerSoil-v0"
+"""Random tracking commands on loose soil (``configs/terrain/sand.yaml``). Not in ENV_IDS,
+the ids configs/ppo.yaml carries training settings for."""
 MAX_EPISODE_STEPS = 300
 """30 s at the default 10 Hz control frequency."""
 VECTOR_ENTRY_POINT = "rover_env.envs.vector:ProtoExplorerVectorEnv"
@@ -29,6 +32,13 @@ def register_envs() -> None:
         vector_entry_point=VECTOR_ENTRY_POINT,
         max_episode_steps=MAX_EPISODE_STEPS,
         kwargs={"terrain": "rough", "randomize_terrain": True},
+    )
+    gym.register(
+        id=SOIL_ENV_ID,
+        entry_point="rover_env.envs.proto_explorer:ProtoExplorerEnv",
+        vector_entry_point=VECTOR_ENTRY_POINT,
+        max_episode_steps=MAX_EPISODE_STEPS,
+        kwargs={"terrain": "sand"},
     )
     # The benchmark's scenarios as a training ground (one drawn per episode). It lives with
     # the benchmark, above this layer, so it is named by string and imported only on make.

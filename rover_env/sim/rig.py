@@ -65,7 +65,15 @@ def measure_fx(
     data.qvel[model.joint("spin").dofadr[0]] = omega
     data.ctrl[:] = [v_x, omega]
     n = round(duration / dt)
-    acc = {"F_servo": 0.0, "F_x": 0.0, "F_z": 0.0, "delta": 0.0, "v_x": 0.0, "v_w": 0.0}
+    acc = {
+        "F_servo": 0.0,
+        "F_x": 0.0,
+        "F_z": 0.0,
+        "delta": 0.0,
+        "v_x": 0.0,
+        "v_w": 0.0,
+        "depth": 0.0,
+    }
     n_avg = n // 3
     for k in range(n):
         mujoco.mj_step1(model, data)
