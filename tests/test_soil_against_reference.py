@@ -47,6 +47,7 @@ def _speed(rng: np.random.Generator) -> float:
 
 
 def _compare(v_x, v_y, v_w, h, p, tol=TOL):
+    """Assert soil_forces within tol of the reference (of |F_z|); return (error, s)."""
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         ref = reference_soil_forces(v_x, v_y, v_w, h, R, B, p)
@@ -63,6 +64,8 @@ def _compare(v_x, v_y, v_w, h, p, tol=TOL):
         )
     assert float(np.asarray(got.T)) == pytest.approx(ref["T"], abs=tol * scale * R), ("T", p)
     assert float(np.asarray(got.s)) == pytest.approx(ref["s"], abs=1e-12)
+    err = [abs(float(np.asarray(getattr(got, k))) - ref[k]) for k in ("F_x", "F_y", "F_z")]
+    return max(*err, abs(float(np.asarray(got.T)) - ref["T"]) / R) / scale, ref["s"]
 
 
 def test_soil_params_fields_match_soil_md():
@@ -120,20 +123,24 @@ HARD_BRAKING = [
         | {"a0": 0.356088, "a1": 0.021388, "lam": 0.105318},
     ),
 ]
-WIDE_TOL = 5e-4
-"""Bound of the wider cases: 1.4e-4 of F_z measured worst over 5000 of them (seed 7), the
-level of the cases without a kink (s >= 0); before the split the kinks reached 4e-3."""
+KINK_TOL = 2e-5
+"""Bound of the two cases above: 1.1e-6 and 2.6e-6 of F_z measured with the split arcs."""
+BRAKING_TOL = 5e-4
+"""Bound of the wide cases with s < 0 (where j_x can change sign): 1.7e-4 of F_z measured worst
+over 5000 of them (seed 1018), the level of the cases without a kink; 1.7e-2 before the split."""
 
 
 @pytest.mark.parametrize("case", range(len(HARD_BRAKING)))
 def test_hard_braking_kink(case):
     (v_x, v_y, v_w, h), p = HARD_BRAKING[case]
-    _compare(v_x, v_y, v_w, h, p, tol=WIDE_TOL)
+    _compare(v_x, v_y, v_w, h, p, tol=KINK_TOL)
 
 
 def _wide_case(rng: np.random.Generator) -> tuple[tuple[float, float, float, float], dict]:
-    """A case wider than test_random_parameters_speeds_and_sinkages' where the kinks live:
-    sinkage to 0.95 r, either travel direction, s uniform over [-1, 1), k_x down to 3 mm."""
+    """A case wider than test_random_parameters_speeds_and_sinkages' draws, where kinks live.
+
+    Sinkage to 0.95 r, either travel direction, s uniform over [-1, 1), k_x down to 3 mm.
+    """
     p = _random_params(rng)
     p["k_x"] = rng.uniform(0.003, 0.05)
     v = rng.uniform(0.005, 0.5) * (1.0 if rng.random() < 0.5 else -1.0)
@@ -146,7 +153,17 @@ def _wide_case(rng: np.random.Generator) -> tuple[tuple[float, float, float, flo
     ("seed", "cases"), [(SEED + 2, 300), pytest.param(SEED + 3, 5000, marks=pytest.mark.slow)]
 )
 def test_wide_random_cases(seed, cases):
+    """Every case within issue 15's 2e-3 of F_z; the braking ones (s < 0) within BRAKING_TOL.
+
+    The worst of all (1.2e-3 over 5000, seed 1018) is a shallow wheel whose F_z nearly
+    cancels (5e-4 N beside F_x = 3.7 N), where a relative error of F_z means little.
+    """
     rng = np.random.default_rng(seed)
+    braking = []
     for _ in range(cases):
         (v_x, v_y, v_w, h), p = _wide_case(rng)
-        _compare(v_x, v_y, v_w, h, p, tol=WIDE_TOL)
+        err, s = _compare(v_x, v_y, v_w, h, p)
+        if s < 0.0:
+            braking.append(err)
+    assert len(braking) > cases // 3
+    assert max(braking) < BRAKING_TOL

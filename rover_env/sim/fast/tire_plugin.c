@@ -82,7 +82,7 @@
 #define SOIL_STRIDE 14
 #define NTRUTH 17
 #define SOIL_NODES 8
-#define SOIL_NEWTON_STEPS 3  // soil._NEWTON_STEPS
+#define SOIL_NEWTON_STEPS 2  // soil._NEWTON_STEPS
 #define DEG_TO_RAD (3.141592653589793 / 180.0)  // math.radians
 #define SOIL_V_EPS 1e-3
 #define SOIL_MAX_TAN_BETA 20.0
