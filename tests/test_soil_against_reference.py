@@ -46,14 +46,15 @@ def _speed(rng: np.random.Generator) -> float:
     return float(v if rng.random() < 0.7 else -v)
 
 
-def _compare(v_x, v_y, v_w, h, p):
+def _compare(v_x, v_y, v_w, h, p, tol=TOL):
+    """Assert soil_forces within tol of the reference (of |F_z|); return (error, s)."""
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         ref = reference_soil_forces(v_x, v_y, v_w, h, R, B, p)
     got = soil.soil_forces(v_x, v_y, v_w, h, R, B, _params(p))
     scale = max(abs(ref["F_z"]), 1e-9)
     for key in ("F_x", "F_y", "F_z"):
-        assert float(np.asarray(getattr(got, key))) == pytest.approx(ref[key], abs=TOL * scale), (
+        assert float(np.asarray(getattr(got, key))) == pytest.approx(ref[key], abs=tol * scale), (
             key,
             v_x,
             v_y,
@@ -61,8 +62,10 @@ def _compare(v_x, v_y, v_w, h, p):
             h,
             p,
         )
-    assert float(np.asarray(got.T)) == pytest.approx(ref["T"], abs=TOL * scale * R), ("T", p)
+    assert float(np.asarray(got.T)) == pytest.approx(ref["T"], abs=tol * scale * R), ("T", p)
     assert float(np.asarray(got.s)) == pytest.approx(ref["s"], abs=1e-12)
+    err = [abs(float(np.asarray(getattr(got, k))) - ref[k]) for k in ("F_x", "F_y", "F_z")]
+    return max(*err, abs(float(np.asarray(got.T)) - ref["T"]) / R) / scale, ref["s"]
 
 
 def test_soil_params_fields_match_soil_md():
@@ -101,10 +104,11 @@ def test_edge_cases():
 
 
 # Found by 3000 random cases of _random_params (seed 1015, cases 1387 and 2385): the only two of
-# 3000 beyond 2e-3, both locked-and-reversed braking (s clamped at -1) with a deep wheel
-# (0.72-0.80 r) and a short shear modulus (k_x ~6 mm). There j_x changes sign inside the
-# contact arc, and |j_x| / k_x makes a sharp kink that fixed Gauss-Legendre arcs do not resolve;
-# the reference splits its integrals there (and agrees with 200001-point Simpson to 1e-13).
+# 3000 beyond 2e-3 before soil_forces split its arcs where j_x changes sign (4.1e-3 and 2.7e-3
+# of F_z), both locked-and-reversed braking (s clamped at -1) with a deep wheel (0.72-0.80 r)
+# and a short shear modulus (k_x ~6 mm): |j_x| / k_x makes a sharp kink there, which fixed
+# Gauss-Legendre arcs do not resolve; the reference splits its integrals there too (and agrees
+# with 200001-point Simpson to 1e-13).
 HARD_BRAKING = [
     (
         (0.3014934865711448, -0.13906514905933304, -0.08068985295519802, 0.06115931643213284),
@@ -119,14 +123,47 @@ HARD_BRAKING = [
         | {"a0": 0.356088, "a1": 0.021388, "lam": 0.105318},
     ),
 ]
+KINK_TOL = 2e-5
+"""Bound of the two cases above: 1.1e-6 and 2.6e-6 of F_z measured with the split arcs."""
+BRAKING_TOL = 5e-4
+"""Bound of the wide cases with s < 0 (where j_x can change sign): 1.7e-4 of F_z measured worst
+over 5000 of them (seed 1018), the level of the cases without a kink; 1.7e-2 before the split."""
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="rover_env.soil at 578ec67: 4.1e-3 / 2.7e-3 of F_z at s = -1, deep, k_x ~6 mm "
-    "(j_x sign change inside the arc); remove this mark when soil_forces resolves it",
-)
 @pytest.mark.parametrize("case", range(len(HARD_BRAKING)))
 def test_hard_braking_kink(case):
     (v_x, v_y, v_w, h), p = HARD_BRAKING[case]
-    _compare(v_x, v_y, v_w, h, p)
+    _compare(v_x, v_y, v_w, h, p, tol=KINK_TOL)
+
+
+def _wide_case(rng: np.random.Generator) -> tuple[tuple[float, float, float, float], dict]:
+    """A case wider than test_random_parameters_speeds_and_sinkages' draws, where kinks live.
+
+    Sinkage to 0.95 r, either travel direction, s uniform over [-1, 1), k_x down to 3 mm.
+    """
+    p = _random_params(rng)
+    p["k_x"] = rng.uniform(0.003, 0.05)
+    v = rng.uniform(0.005, 0.5) * (1.0 if rng.random() < 0.5 else -1.0)
+    v_x, v_w = slip_speeds(rng.uniform(-1.0, 1.0), v)
+    v_y = rng.uniform(-0.5, 0.5) * abs(v_x)
+    return (v_x, v_y, v_w, rng.uniform(0.0005, 0.95 * R)), p
+
+
+@pytest.mark.parametrize(
+    ("seed", "cases"), [(SEED + 2, 300), pytest.param(SEED + 3, 5000, marks=pytest.mark.slow)]
+)
+def test_wide_random_cases(seed, cases):
+    """Every case within issue 15's 2e-3 of F_z; the braking ones (s < 0) within BRAKING_TOL.
+
+    The worst of all (1.2e-3 over 5000, seed 1018) is a shallow wheel whose F_z nearly
+    cancels (5e-4 N beside F_x = 3.7 N), where a relative error of F_z means little.
+    """
+    rng = np.random.default_rng(seed)
+    braking = []
+    for _ in range(cases):
+        (v_x, v_y, v_w, h), p = _wide_case(rng)
+        err, s = _compare(v_x, v_y, v_w, h, p)
+        if s < 0.0:
+            braking.append(err)
+    assert len(braking) > cases // 3
+    assert max(braking) < BRAKING_TOL

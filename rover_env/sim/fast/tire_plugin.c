@@ -1,7 +1,8 @@
 // rover_env tire layer as a MuJoCo engine plugin (passive-force capability).
 //
 // The C twin of rover_env/sim/tire_layer.py + rover_env/tire.py (transient-slip
-// Gim-Nikravesh form) + rover_env/terrain.py (analytic ground): the numpy code is
+// Gim-Nikravesh form) + rover_env/soil.py (terramechanics stresses, arcs split at the
+// sign changes of j_x) + rover_env/terrain.py (analytic ground): the numpy code is
 // the reference, and this file follows it operation by operation (same formulas,
 // same order of floating-point operations, numpy's pairwise summation for sums),
 // so that results agree to the last bit or few. Compile with -ffp-contract=off:
@@ -81,6 +82,7 @@
 #define SOIL_STRIDE 14
 #define NTRUTH 17
 #define SOIL_NODES 8
+#define SOIL_NEWTON_STEPS 2  // soil._NEWTON_STEPS
 #define DEG_TO_RAD (3.141592653589793 / 180.0)  // math.radians
 #define SOIL_V_EPS 1e-3
 #define SOIL_V_BLEND 0.03
@@ -461,7 +463,52 @@ static void sincos_nodes(double mid, double half, double* sn, double* cs) {
   }
 }
 
-// soil.stress_integrals for one wheel: out = F_x, F_y, F_z, T
+// soil._kink_points for one wheel with s < 0 and q cos(th_c) < 1 (the caller's cheap test):
+// the sign changes rho_b <= rho_a of j_x inside (th_r, th_c), th_r standing for a missing one
+static double kink_newton(double x, double lo, double hi, double sg, double one_s, double th_c,
+                          double sin_c) {
+  for (int it = 0; it < SOIL_NEWTON_STEPS; it++) {
+    double sx, cx;
+    sincos(x, &sx, &cx);
+    double g = (th_c - x) - one_s*(sin_c - sx);
+    double dg = one_s*cx - 1.0;
+    if (sg*g < 0.0) lo = x; else hi = x;
+    double xn = x - g/dg;
+    x = (xn >= lo && xn <= hi) ? xn : 0.5*(lo + hi);
+  }
+  return x;
+}
+
+static void kink_points(double s, double one_s, double th_r, double th_c, double sin_c,
+                        double* rho_b, double* rho_a) {
+  double ci = 1.0/one_s;
+  double t_s = acos(ci);
+  double sin_s = sqrt((1.0 - ci)*(1.0 + ci));
+  double g_r = (th_c - th_r) - one_s*(sin_c - sin(th_r));
+  double g_m = (th_c + t_s) - one_s*(sin_c + sin_s);  // g(-theta*)
+  int deep = th_r < -t_s;
+  if (!(deep ? g_m < 0.0 : g_r < 0.0)) return;  // no root A, hence no root B
+  double g_p = (th_c - t_s) - one_s*(sin_c - sin_s);  // g(theta*)
+  double g_0 = th_c - one_s*sin_c;  // g(0)
+  double a = one_s*sin_s;
+  double u_m = sqrt(fmax(-2.0*g_m/a, 0.0));  // fmax == np.fmax (a NaN gives 0)
+  double u_p = sqrt(fmax(2.0*g_p/a, 0.0));
+  int right = g_0 < 0.0;
+  double lo = right ? 0.0 : np_max(th_r, -t_s);
+  double hi = right ? t_s : 0.0;
+  double u_a = right ? u_p : u_m;
+  double x_lin = g_0/s;
+  double x = fabs(x_lin) < u_a ? x_lin : (right ? t_s - u_a : u_a - t_s);
+  *rho_a = kink_newton(np_min(np_max(x, lo), hi), lo, hi, 1.0, one_s, th_c, sin_c);
+  if (deep && g_r > 0.0) {
+    x = np_min(np_max(-t_s - u_m, th_r), -t_s);
+    *rho_b = kink_newton(x, th_r, -t_s, -1.0, one_s, th_c, sin_c);
+  }
+}
+
+// soil.stress_integrals for one wheel: out = F_x, F_y, F_z, T. The four arcs lie between
+// th_r, the sorted break points (th_m and the sign changes of j_x) and th_c; numpy gives a
+// zero-width arc exactly zero terms, here it is skipped (a wheel with s >= 0 has two).
 static void stress_integrals(double s, double tb, double d, double h, double hc, double r,
                              double b, const double* sp, double out[4]) {
   double hh = np_min(np_max(h, 0.0), r);
@@ -471,7 +518,8 @@ static void stress_integrals(double s, double tb, double d, double h, double hc,
     return;
   }
   double th_f = acos(1.0 - hh/r);
-  double th_c = acos(1.0 - hc/r);
+  double cos_c = 1.0 - hc/r;
+  double th_c = acos(cos_c);
   double th_r = -acos(1.0 - sp[S_LAM]*hc/r);
   double th_m = np_min(np_max((sp[S_A0] + sp[S_A1]*s)*th_f, th_r), th_c);
   double n = sp[S_N0] + sp[S_N1]*fabs(s);
@@ -479,49 +527,51 @@ static void stress_integrals(double s, double tb, double d, double h, double hc,
   double cos_f = cos(th_f);
   double sin_c = sin(th_c);
   double tan_phi = tan(sp[S_PHI]*DEG_TO_RAD);
-  double half_r = 0.5*(th_m - th_r);
-  double half_f = 0.5*(th_c - th_m);
-  double mid_r = 0.5*(th_m + th_r);
-  double mid_f = 0.5*(th_c + th_m);
+  double one_s = 1.0 - s;
+  double rho_a = th_r, rho_b = th_r;
+  if (s < 0.0 && one_s*cos_c < 1.0) kink_points(s, one_s, th_r, th_c, sin_c, &rho_b, &rho_a);
+  double b_1 = np_min(rho_b, th_m);
+  double b_2 = np_max(rho_b, np_min(rho_a, th_m));
+  double b_3 = np_max(rho_a, th_m);
+  const double lo[4] = {th_r, b_1, b_2, b_3};
+  const double hi[4] = {b_1, b_2, b_3, th_c};
   double span = th_m > th_r ? th_m - th_r : 1.0;
   double slope = (th_f - th_m)/span;
-  double sin_r[SOIL_NODES], cos_r[SOIL_NODES], sin_fr[SOIL_NODES], cos_fr[SOIL_NODES];
-  double sin_eq[SOIL_NODES], cos_eq[SOIL_NODES];
-  sincos_nodes(mid_r, half_r, sin_r, cos_r);
-  sincos_nodes(mid_f, half_f, sin_fr, cos_fr);
-  sincos_nodes(th_f - (mid_r - th_r)*slope, -(half_r*slope), sin_eq, cos_eq);
-  double one_s = 1.0 - s;
-  double sums[2][4];
-  for (int arc = 0; arc < 2; arc++) {
+  double sums[4] = {0.0, 0.0, 0.0, 0.0};
+  for (int arc = 0; arc < 4; arc++) {
+    double mid = 0.5*(hi[arc] + lo[arc]);
+    double half = 0.5*(hi[arc] - lo[arc]);
+    if (half == 0.0) continue;
+    int rear = hi[arc] <= th_m;
+    double sin_t[SOIL_NODES], cos_t[SOIL_NODES], sin_eq[SOIL_NODES], cos_eq[SOIL_NODES];
+    sincos_nodes(mid, half, sin_t, cos_t);
+    if (rear) sincos_nodes(th_f - (mid - th_r)*slope, -(half*slope), sin_eq, cos_eq);
     double ax[SOIL_NODES], ay[SOIL_NODES], az[SOIL_NODES], at[SOIL_NODES];
-    double half = arc == 0 ? half_r : half_f;
     for (int k = 0; k < SOIL_NODES; k++) {
-      double th = arc == 0 ? mid_r + half_r*GL_X[k] : mid_f + half_f*GL_X[k];
-      double cos_t = arc == 0 ? cos_r[k] : cos_fr[k];
-      double sin_t = arc == 0 ? sin_r[k] : sin_fr[k];
-      double base = np_max(r*((arc == 0 ? cos_eq[k] : cos_t) - cos_f), 0.0);
+      double th = mid + half*GL_X[k];
+      double base = np_max(r*((rear ? cos_eq[k] : cos_t[k]) - cos_f), 0.0);
       double sigma = ks*(n == 1.0 ? base : pow(base, n));  // pow(x, 1) == x exactly
-      double j_x = r*((th_c - th) - one_s*(sin_c - sin_t));
+      double j_x = r*((th_c - th) - one_s*(sin_c - sin_t[k]));
       double j_y = r*one_s*(th_c - th)*tb;
       double tau_max = sp[S_C] + sigma*tan_phi;
       double tau_x = tau_max*np_sign(j_x)*-expm1(-fabs(j_x)/sp[S_KX]);
       double tau_y = j_y == 0.0 ? 0.0 : tau_max*np_sign(j_y)*-expm1(-fabs(j_y)/sp[S_KY]);
       double w = half*GL_W[k];
-      ax[k] = w*(tau_x*cos_t - sigma*sin_t);
+      ax[k] = w*(tau_x*cos_t[k] - sigma*sin_t[k]);
       ay[k] = w*tau_y;
-      az[k] = w*(tau_x*sin_t + sigma*cos_t);
+      az[k] = w*(tau_x*sin_t[k] + sigma*cos_t[k]);
       at[k] = w*tau_x;
     }
-    sums[arc][0] = pairwise_sum(ax, SOIL_NODES);
-    sums[arc][1] = pairwise_sum(ay, SOIL_NODES);
-    sums[arc][2] = pairwise_sum(az, SOIL_NODES);
-    sums[arc][3] = pairwise_sum(at, SOIL_NODES);
+    sums[0] += pairwise_sum(ax, SOIL_NODES);
+    sums[1] += pairwise_sum(ay, SOIL_NODES);
+    sums[2] += pairwise_sum(az, SOIL_NODES);
+    sums[3] += pairwise_sum(at, SOIL_NODES);
   }
   double rb = r*b;
-  out[0] = d*rb*(sums[0][0] + sums[1][0]);
-  out[1] = -rb*(sums[0][1] + sums[1][1]);
-  out[2] = rb*(sums[0][2] + sums[1][2]);
-  out[3] = d*r*rb*(sums[0][3] + sums[1][3]);
+  out[0] = d*rb*sums[0];
+  out[1] = -rb*sums[1];
+  out[2] = rb*sums[2];
+  out[3] = d*r*rb*sums[3];
 }
 
 //---------------------------------------------------------------- tire (rover_env.tire)
