@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 
 import rover_env  # noqa: F401  (registers the env ids)
+from rover_env.benchmark.metrics import episode_metrics
 from rover_env.benchmark.mixture import SOIL_MIX, ScenarioMixEnv
 from rover_env.benchmark.run import Job, run_jobs
 from rover_env.benchmark.scenarios import load_scenario, scenario_names
 from rover_env.benchmark.seeds import SPLITS
 from rover_env.config import ConfigError, load_rover
 from rover_env.control import ControllerInput, SlipPI, SlipPIConfig, load_slip_pi_config
-from rover_env.benchmark.metrics import episode_metrics
 from rover_env.envs.registration import SOIL_ENV_ID
 from rover_env.estimation.estimator import SlipEstimate
 

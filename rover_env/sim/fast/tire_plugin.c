@@ -446,11 +446,12 @@ static const double SC_SIN[12] = {
 static void sincos_nodes(double mid, double half, double* sn, double* cs) {
   double sm, cm;
   sincos(mid, &sm, &cm);
+  int terms = fabs(half) <= 0.6 ? 8 : 12;  // soil._SHORT_HALF
   for (int k = SOIL_NODES/2; k < SOIL_NODES; k++) {
     double a = half*GL_X[k];
     double a2 = a*a;
-    double c = SC_COS[11], s = SC_SIN[11];
-    for (int j = 10; j >= 0; j--) {
+    double c = SC_COS[terms - 1], s = SC_SIN[terms - 1];
+    for (int j = terms - 2; j >= 0; j--) {
       c = c*a2 + SC_COS[j];
       s = s*a2 + SC_SIN[j];
     }
@@ -510,6 +511,7 @@ static void kink_points(double s, double one_s, double th_r, double th_c, double
 // th_r, the sorted break points (th_m and the sign changes of j_x) and th_c; numpy gives a
 // zero-width arc exactly zero terms, here it is skipped (a wheel with s >= 0 has two).
 static void stress_integrals(double s, double tb, double d, double h, double hc, double r,
+                             double tan_phi,
                              double b, const double* sp, double out[4]) {
   double hh = np_min(np_max(h, 0.0), r);
   hc = np_min(np_max(np_min(hc, hh), 0.0), r);
@@ -517,16 +519,15 @@ static void stress_integrals(double s, double tb, double d, double h, double hc,
     out[0] = out[1] = out[2] = out[3] = 0.0;
     return;
   }
-  double th_f = acos(1.0 - hh/r);
+  double cos_f = 1.0 - hh/r;  // soil.py: cos θ_f and sin θ_c without a round trip through acos
+  double th_f = acos(cos_f);
   double cos_c = 1.0 - hc/r;
-  double th_c = acos(cos_c);
+  double th_c = hc == hh ? th_f : acos(cos_c);  // no rut: the same number, one call
   double th_r = -acos(1.0 - sp[S_LAM]*hc/r);
   double th_m = np_min(np_max((sp[S_A0] + sp[S_A1]*s)*th_f, th_r), th_c);
   double n = sp[S_N0] + sp[S_N1]*fabs(s);
   double ks = sp[S_KC]/b + sp[S_KPHI];
-  double cos_f = cos(th_f);
-  double sin_c = sin(th_c);
-  double tan_phi = tan(sp[S_PHI]*DEG_TO_RAD);
+  double sin_c = sqrt((1.0 - cos_c)*(1.0 + cos_c));
   double one_s = 1.0 - s;
   double rho_a = th_r, rho_b = th_r;
   if (s < 0.0 && one_s*cos_c < 1.0) kink_points(s, one_s, th_r, th_c, sin_c, &rho_b, &rho_a);
@@ -554,8 +555,8 @@ static void stress_integrals(double s, double tb, double d, double h, double hc,
       double j_x = r*((th_c - th) - one_s*(sin_c - sin_t[k]));
       double j_y = r*one_s*(th_c - th)*tb;
       double tau_max = sp[S_C] + sigma*tan_phi;
-      double tau_x = tau_max*np_sign(j_x)*-expm1(-fabs(j_x)/sp[S_KX]);
-      double tau_y = j_y == 0.0 ? 0.0 : tau_max*np_sign(j_y)*-expm1(-fabs(j_y)/sp[S_KY]);
+      double tau_x = tau_max*np_sign(j_x)*(1.0 - exp(-fabs(j_x)/sp[S_KX]));
+      double tau_y = j_y == 0.0 ? 0.0 : tau_max*np_sign(j_y)*(1.0 - exp(-fabs(j_y)/sp[S_KY]));
       double w = half*GL_W[k];
       ax[k] = w*(tau_x*cos_t[k] - sigma*sin_t[k]);
       ay[k] = w*tau_y;
@@ -938,9 +939,9 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       double rut = rut_lookup(&tv, st + L.rut, point[0], point[1]);
       double rho_x = np_max(np_max(fabs(v_x), fabs(v_w)), SOIL_V_EPS)/sx;
       double rho_y = np_max(fabs(v_x), SOIL_V_EPS)/sy;
-      double ex = exp(-rho_x*dt), ey = exp(-rho_y*dt);
-      ux_new = ux*ex + (v_x - v_w)*(-expm1(-rho_x*dt)/rho_x);
-      uy_new = uy*ey + v_y*(-expm1(-rho_y*dt)/rho_y);
+      double emx = expm1(-rho_x*dt), emy = expm1(-rho_y*dt);
+      ux_new = ux*(emx + 1.0) + (v_x - v_w)*(-emx/rho_x);
+      uy_new = uy*(emy + 1.0) + v_y*(-emy/rho_y);
       ux_new = np_min(np_max(ux_new, -sx), sx);
       uy_new = np_min(np_max(uy_new, -SOIL_MAX_TAN_BETA*sy), SOIL_MAX_TAN_BETA*sy);
       double s_fwd = -ux_new/sx;
@@ -955,8 +956,9 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       double z = np_min(np_max(lead/SOIL_V_BLEND, -1.0), 1.0);  // soil.V_BLEND smoothstep
       double w = 0.5 + z*(0.75 - 0.25*z*z);
       double f[4] = {0, 0, 0, 0}, g[4] = {0, 0, 0, 0};
-      if (w != 0.0) stress_integrals(s_fwd, tan_b, 1.0, h, h_c, r, c->width, sp, f);
-      if (w != 1.0) stress_integrals(-s_fwd, tan_b, -1.0, h, h_c, r, c->width, sp, g);
+      double tan_phi = tan(sp[S_PHI]*DEG_TO_RAD);  // math.tan(math.radians(phi_deg))
+      if (w != 0.0) stress_integrals(s_fwd, tan_b, 1.0, h, h_c, r, tan_phi, c->width, sp, f);
+      if (w != 1.0) stress_integrals(-s_fwd, tan_b, -1.0, h, h_c, r, tan_phi, c->width, sp, g);
       F_x = w*f[0] + (1.0 - w)*g[0];
       F_y = w*f[1] + (1.0 - w)*g[1];
       F_z = w*f[2] + (1.0 - w)*g[2];
