@@ -12,7 +12,11 @@ def _paper_sim(args: argparse.Namespace) -> int:
     from rover_env.experiments import paper_sim
 
     out = paper_sim.run(
-        args.out, progress=not args.quiet, terrain=args.terrain, duration=args.duration
+        args.out,
+        progress=not args.quiet,
+        terrain=args.terrain,
+        duration=args.duration,
+        backend=args.backend,
     )
     print((out / "summary.md").read_text())
     extra = " sinkage.png," if (out / "sinkage.png").exists() and args.terrain else ""
@@ -83,6 +87,12 @@ def build_parser() -> argparse.ArgumentParser:
         type=_positive_float,
         default=None,
         help="shorten the drive to this many seconds (default: the whole 32 s schedule)",
+    )
+    p.add_argument(
+        "--backend",
+        choices=("numpy", "plugin", "auto"),
+        default="numpy",
+        help="simulator backend (same results; plugin is the fast compiled one)",
     )
     p.set_defaults(func=_paper_sim)
 

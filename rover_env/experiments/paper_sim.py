@@ -60,6 +60,12 @@ def _plots(rec: DriveRecorder, out: Path, ground: str = "") -> None:
         ax.plot(tr["seg_pos"][:, i, 0], tr["seg_pos"][:, i, 1], label=name)
     ax.plot(*tr["seg_pos"][0, 1, :2], "ko", label="start")
     ax.set_aspect("equal")
+    xy = tr["seg_pos"][:, :, :2].reshape(-1, 2)
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    if np.min(hi - lo) < 0.5:  # a short straight drive: give the equal axes some extent
+        mid, half = 0.5 * (lo + hi), max(0.55 * float(np.max(hi - lo)), 0.5)
+        ax.set_xlim(mid[0] - half, mid[0] + half)
+        ax.set_ylim(mid[1] - half, mid[1] + half)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_title(f"Motion trace of the rover{on} (simulation, cf. paper Fig. 9)")

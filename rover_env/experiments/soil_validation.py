@@ -187,7 +187,7 @@ def plot_curves(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
             ax.set_ylabel(label)
             ax.grid(True, alpha=0.3)
         axes[0].legend(fontsize=8, loc="lower right")
-        axes[2].legend(fontsize=8, loc="upper left")
+        axes[2].legend(fontsize=8, loc="best")
         fig.suptitle(f"{soil}: single wheel r 0.085 m, b 0.05 m, {LOAD:g} N")
         fig.tight_layout()
         p = out / f"rig-{soil}.png"
@@ -403,14 +403,14 @@ def run(out_dir: str | Path, quick: bool = False, figures: str | Path | None = N
         e = max(c["d_F_x"], c["d_T"], c["d_sinkage"])
         worst_dt[c["soil"]] = max(worst_dt.get(c["soil"], 0.0), e)
         lines.append(
-            f"| {c['soil']} | {c['slip']:+.1f} | {100 * c['d_F_x']:.3f} % | {100 * c['d_T']:.3f} % |"
-            f" {100 * c['d_sinkage']:.3f} % |"
+            f"| {c['soil']} | {c['slip']:+.1f} | {100 * c['d_F_x']:.4f} % | {100 * c['d_T']:.4f} % |"
+            f" {100 * c['d_sinkage']:.4f} % |"
         )
     if dtc:
         a, z = dtc[0]["dt"]
         lines += ["", f"Largest change from {a * 1e3:g} ms to {z * 1e3:g} ms per preset:", ""]
         for soil, e in worst_dt.items():
-            lines.append(f"- {soil}: {100 * e:.3f} % ({_pf(e < DT_TOL)}: < {100 * DT_TOL:g} %)")
+            lines.append(f"- {soil}: {100 * e:.4f} % ({_pf(e < DT_TOL)}: < {100 * DT_TOL:g} %)")
     lines += ["", "## Curves", ""]
     for p in pngs:
         lines.append(f"![{p.stem}]({p.relative_to(out) if p.is_relative_to(out) else p})")
