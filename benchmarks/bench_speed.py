@@ -392,7 +392,7 @@ def main() -> None:
     out()
 
     # ------------------------------------------------------------------ summary
-    out("## Acceptance (issue 5)")
+    out("## Acceptance (issue 5; the soil row: issue 15)")
     out()
     out(
         f"- fast path / raw substeps/s: {fast_over_raw:.3f} in interleaved rounds"
