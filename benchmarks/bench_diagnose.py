@@ -7,6 +7,8 @@ to ``docs/calibration/matrix.md`` (and ``matrix.json``).
     python benchmarks/bench_diagnose.py            # the full matrix of the issue (hours)
     python benchmarks/bench_diagnose.py --quick    # one moderate seed per effect, 2 clean,
                                                    # 1 pair, the 2 outside-catalogue cases
+    python benchmarks/bench_diagnose.py --workers 2               # cases side by side
+    python benchmarks/bench_diagnose.py --executor ray --ray-address HOST:6379  # on a cluster
 
 When a moderate case ends in a tie that includes the true effect, the separating drive the
 report proposes is generated (``make-logs --plan``) and the case diagnosed again with it.
@@ -26,6 +28,7 @@ from _report import write_report
 from rover_env.calibration.diagnose import Options, diagnose
 from rover_env.calibration.make_logs import make_logs
 from rover_env.config import JointSpec, RoverConfig
+from rover_env.executor import add_executor_args, make_executor, run_study
 
 # effect -> (parameter, moderate, weak)
 LEVELS: dict[str, tuple[str, float, float | None]] = {
@@ -172,6 +175,31 @@ def run_case(case: dict[str, Any], root: Path) -> dict[str, Any]:
     return row
 
 
+def case_row(root: Path, c: dict[str, Any]) -> dict[str, Any]:
+    """``run_case``, or a row recording its error: one broken case must not stop the matrix."""
+    try:
+        return run_case(c, root)
+    except Exception as exc:  # record and go on: one broken case must not stop the matrix
+        return {
+            "case": "+".join(c["effects"]) or c.get("truth", "none"),
+            "kind": c["kind"],
+            "seed": c["seed"],
+            "truth": c["effects"] or c.get("truth", "none"),
+            "named": [],
+            "tie": None,
+            "followup_plan": None,
+            "first_named": [],
+            "main_signal": "error",
+            "main_reduction": 0.0,
+            "unexplained": [],
+            "make_logs_s": 0.0,
+            "diagnose_s": 0.0,
+            "followup_s": 0.0,
+            "fits": {},
+            "error": f"{type(exc).__name__}: {exc}",
+        }
+
+
 def summarise(rows: list[dict[str, Any]], total_s: float, quick: bool, planned_n: int) -> str:
     def share(xs: list[bool]) -> str:
         return f"{sum(xs)}/{len(xs)}" if xs else "–"
@@ -256,6 +284,8 @@ def main() -> int:
         " OUT/matrix_shard_K.json; --merge then writes matrix.md from all shards",
     )
     ap.add_argument("--merge", action="store_true", help="combine OUT/matrix_shard_*.json")
+    ap.add_argument("--workers", type=int, default=1, help="cases side by side (default 1)")
+    add_executor_args(ap)
     args = ap.parse_args()
     if args.merge:
         return merge(Path(args.out), args.quick)
@@ -277,44 +307,42 @@ def main() -> int:
     todo = planned(args.quick)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    for i, c in enumerate(todo, 1):
-        if (i - 1) % shard_n != shard_k:
-            continue
-        if args.only and args.only not in json.dumps(c):
-            continue
-        if any(_same_case(r, c) for r in rows):
-            continue  # --resume: done already
-        try:
-            row = run_case(c, root)
-        except Exception as exc:  # record and go on: one broken case must not stop the matrix
-            row = {
-                "case": "+".join(c["effects"]) or c.get("truth", "none"),
-                "kind": c["kind"],
-                "seed": c["seed"],
-                "truth": c["effects"] or c.get("truth", "none"),
-                "named": [],
-                "tie": None,
-                "followup_plan": None,
-                "first_named": [],
-                "main_signal": "error",
-                "main_reduction": 0.0,
-                "unexplained": [],
-                "make_logs_s": 0.0,
-                "diagnose_s": 0.0,
-                "followup_s": 0.0,
-                "fits": {},
-                "error": f"{type(exc).__name__}: {exc}",
-            }
+    mine = [
+        c
+        for i, c in enumerate(todo, 1)
+        if (i - 1) % shard_n == shard_k
+        and not (args.only and args.only not in json.dumps(c))
+        and not any(_same_case(r, c) for r in rows)  # --resume: done already
+    ]
+    rank = {json.dumps(c, sort_keys=True): i for i, c in enumerate(todo)}
+
+    def finished(key: str, row: dict[str, Any]) -> None:
+        from tqdm import tqdm
+
         rows.append(row)
-        print(
-            f"[{i}/{len(todo)} {time.perf_counter() - t0:6.0f}s] {row['case']} seed {row['seed']}:"
-            f" named {row['named'] or 'nothing'}, tie {row['tie']}, {row['diagnose_s']:.0f}s",
-            flush=True,
+        rows.sort(key=lambda r: next((i for i, c in enumerate(todo) if _same_case(r, c)), 0))
+        tqdm.write(
+            f"[{rank[key] + 1}/{len(todo)} {time.perf_counter() - t0:6.0f}s] {row['case']} seed"
+            f" {row['seed']}: named {row['named'] or 'nothing'}, tie {row['tie']},"
+            f" {row['diagnose_s']:.0f}s"
         )
         total = time.perf_counter() - t0
         (out / json_name).write_text(json.dumps(rows, indent=1, default=float))
         if not args.shard:
             write_report(out / "matrix.md", summarise(rows, total, args.quick, len(todo)))
+
+    with make_executor(args.executor, args.workers, args.ray_address) as ex:
+        run_study(
+            ex,
+            case_row,
+            mine,
+            [json.dumps(c, sort_keys=True) for c in mine],
+            shared=root,
+            desc="matrix",
+            unit="case",
+            done_before=len(rows),
+            on_result=finished,
+        )
     return 0
 
 

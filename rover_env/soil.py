@@ -53,8 +53,21 @@ ArrayLike = float | FloatArray
 NODES = 8
 """Gauss–Legendre points per arc (two arcs per wheel)."""
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(NODES)
+# Taylor coefficients of cos and sin/x in x^2 (to x^22): with the angle-addition rule they give
+# the nodes' sines and cosines from one sin/cos of the arc's middle (|x| <= pi/2 here, where
+# the truncation error is below 1e-16); the compiled plugin runs the same Horner steps.
+_COS = tuple((-1) ** k / math.factorial(2 * k) for k in range(12))
+_SIN = tuple((-1) ** k / math.factorial(2 * k + 1) for k in range(12))
 V_EPS = 1e-3
 """Speed floor of the slip and slip-angle denominators (m/s), the Gim layer's v_eps."""
+V_BLEND = 0.03
+"""Speed (m/s) over which the forward and backward stress fields are blended at standstill.
+
+The blend makes the zero-slip resistance a damper of slope 1.5 T0 / V_BLEND about rest,
+applied explicitly; a free wheel (inertia I about its axle) stays stable while
+1.5 r T0 dt / (I V_BLEND) < 2. At the rover's wheel (I 1.26e-3 kg m^2, r 0.085 m), dt 1 ms and
+T0 <= 0.17 N m (every preset at 27 N) that needs V_BLEND > 8.6 mm/s: 30 mm/s keeps a margin
+of 3.5 and is still well below driving speeds, where the blend is exactly one-sided."""
 _MAX_TAN_BETA = 20.0
 """Bound of the transient slip angle's tangent (β < 87°): a wheel sliding sideways at
 standstill integrates its lateral displacement; beyond this the shear is saturated anyway."""
@@ -143,6 +156,21 @@ class SoilForces(NamedTuple):
     beta: FloatArray
 
 
+def _sincos_nodes(mid: FloatArray, half: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """sin and cos at the Gauss nodes mid + half * x_k, shape (..., NODES)."""
+    a = half[..., None] * _GL_X
+    a2 = a * a
+    c = np.full_like(a, _COS[-1])
+    sn = np.full_like(a, _SIN[-1])
+    for k in range(len(_COS) - 2, -1, -1):
+        c = c * a2 + _COS[k]
+        sn = sn * a2 + _SIN[k]
+    sa = a * sn
+    sm = np.sin(mid)[..., None]
+    cm = np.cos(mid)[..., None]
+    return sm * c + cm * sa, cm * c - sm * sa
+
+
 def stress_integrals(
     s: ArrayLike,
     tan_beta: ArrayLike,
@@ -180,17 +208,18 @@ def stress_integrals(
     half_f = 0.5 * (th_c - th_m)
     th_rear = (0.5 * (th_m + th_r))[..., None] + half_r[..., None] * _GL_X
     th_front = (0.5 * (th_c + th_m))[..., None] + half_f[..., None] * _GL_X
-    # θ_eq maps the rear arc onto [θ_m, θ_f]; a degenerate arc (θ_m = θ_r) has zero weight.
+    # θ_eq maps the rear arc onto [θ_m, θ_f], affinely: θ_eq = A + B x_k; a degenerate arc
+    # (θ_m = θ_r) has zero weight.
     span = np.where(th_m > th_r, th_m - th_r, 1.0)
-    th_eq = (
-        th_f[..., None] - (th_rear - th_r[..., None]) / span[..., None] * (th_f - th_m)[..., None]
-    )
+    slope = (th_f - th_m) / span
+    sin_r, cos_r = _sincos_nodes(0.5 * (th_m + th_r), half_r)
+    sin_f, cos_f_n = _sincos_nodes(0.5 * (th_c + th_m), half_f)
+    cos_eq = _sincos_nodes(th_f - (0.5 * (th_m + th_r) - th_r) * slope, -(half_r * slope))[1]
     out = []
     # Rear arc: the normal stress at θ_eq; front arc: at θ itself.
-    for th, base_th, half in ((th_rear, th_eq, half_r), (th_front, th_front, half_f)):
-        cos_t = np.cos(th)
-        sin_t = np.sin(th)
-        base = np.maximum(r * (np.cos(base_th) - cos_f[..., None]), 0.0)
+    arcs = ((th_rear, sin_r, cos_r, cos_eq, half_r), (th_front, sin_f, cos_f_n, cos_f_n, half_f))
+    for th, sin_t, cos_t, cos_base, half in arcs:
+        base = np.maximum(r * (cos_base - cos_f[..., None]), 0.0)
         sigma = ks * base ** n[..., None]
         one_s = (1.0 - s)[..., None]
         j_x = r * ((th_c[..., None] - th) - one_s * (sin_c[..., None] - sin_t))
@@ -327,8 +356,9 @@ def soil_step(
       accumulated shear displacement (a spring). Likewise tan β = u_y/σ_y with
       ρ_y = max(|v_x|, v_eps)/σ_y. Exponential integration, exact for constant inputs.
     * Direction: the forward (d = +1) and backward (d = −1) stress fields are blended with
-      weight (1 + tanh(v_lead/v_eps))/2, so the compaction resistance vanishes at rest
-      instead of flipping sign; beyond 20 v_eps the weight is exactly 1 or 0.
+      the smoothstep weight w = 1/2 + z (3/4 − z²/4), z = clip(v_lead / V_BLEND, −1, 1), so
+      the compaction resistance vanishes at rest instead of flipping sign, stably (see
+      :data:`V_BLEND`); beyond V_BLEND the weight is exactly 1 or 0.
     * Digging: d(dig)/dt = k_dig max(|v_w| − |v_x|, 0) − (|v_x| / r) dig while in contact:
       a spinning wheel excavates, travel leaves the hole behind (depth k_dig r s/(1−s) in
       steady driving); sinkage counts from the dug surface, so a wheel kept spinning in
@@ -354,7 +384,8 @@ def soil_step(
     h = delta - dig
     h_c = delta - np.maximum(rut, dig)
     lead = np.where(np.abs(v_w) >= np.abs(v_x), v_w, v_x)
-    w = 0.5 * (1.0 + np.tanh(lead / v_eps))
+    z = np.clip(lead / V_BLEND, -1.0, 1.0)
+    w = 0.5 + z * (0.75 - 0.25 * z * z)
     fx_f, fy_f, fz_f, t_f = stress_integrals(s_fwd, tan_b, 1.0, h, h_c, radius, width, p)
     fx_b, fy_b, fz_b, t_b = stress_integrals(-s_fwd, tan_b, -1.0, h, h_c, radius, width, p)
     F_x = w * fx_f + (1.0 - w) * fx_b

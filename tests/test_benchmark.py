@@ -12,11 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rover_env.benchmark import seeds as seed_plan
+from rover_env import seeds as seed_plan
+from rover_env.benchmark.metrics import METRICS
 from rover_env.benchmark.report import paired, t_interval
 from rover_env.benchmark.scenarios import load_scenario, scenario_names
 from rover_env.config import ConfigError
-from rover_env.control.runner import METRICS
+from rover_env.tasks.scenario import ScenarioTask
 
 EXPECTED = {"flat-turns", "ice-patch", "split-mu", "slope", "bumps", "stuck-wheel"}
 
@@ -76,9 +77,28 @@ def test_scenario_wrapper_overrides_commands() -> None:
         done = term or trunc
         t = w.base.sim.time
         assert tuple(obs[i : i + 2]) == pytest.approx(ep.schedule.at(t))
-        assert w.base._next_command_t == math.inf
-    assert steps == 45
-    assert tuple(info["command"]) == pytest.approx(ep.schedule.at(4.4))  # (0.15, 0.2) from 4 s
+        assert tuple(info["command"]) == pytest.approx(ep.schedule.at(t))
+    assert steps == 45 and trunc and not term  # the task's length ends the episode
+    assert tuple(info["command"]) == pytest.approx((0.15, 0.2))  # from 4 s
+    assert isinstance(w.base.task, ScenarioTask) and w.base.task.episode is ep
+
+
+def test_scenario_wrapper_writes_no_private_env_state() -> None:
+    """The wrapper hands the env a task; it never assigns to the env's private attributes."""
+    import ast
+    import inspect
+
+    from rover_env.benchmark import run
+
+    tree = ast.parse(inspect.getsource(run.ScenarioWrapper))
+    writes = [
+        ast.unparse(t)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Assign | ast.AugAssign | ast.AnnAssign)
+        for t in (node.targets if isinstance(node, ast.Assign) else [node.target])
+        if isinstance(t, ast.Attribute | ast.Subscript) and "._" in ast.unparse(t)
+    ]
+    assert not writes, writes
 
 
 def test_t_interval_and_paired_differences() -> None:
@@ -95,7 +115,33 @@ def test_t_interval_and_paired_differences() -> None:
         rows.append({"controller": "A", "scenario": "s", "seed": seed, **base, "mean_abs_slip": a})
         rows.append({"controller": "B", "scenario": "s", "seed": seed, **base, "mean_abs_slip": b})
     p = {r["metric"]: r for r in paired(rows, "A")}["mean_abs_slip"]
-    assert p["diff_mean"] == pytest.approx(-0.5) and p["ci_high"] < 0 and p["verdict"] == "better"
+    assert p["diff_mean"] == pytest.approx(-0.5) and p["ci_high"] < 0
+    assert p["controller_mean"] == pytest.approx(1.5) and p["baseline_mean"] == pytest.approx(2.0)
+    assert p["p"] == pytest.approx(stats.ttest_rel([0.5, 1.4, 2.6], [1.0, 2.0, 3.0]).pvalue)
+    # The interval alone excludes 0, but not after Holm over the table's comparisons (one per metric).
+    assert p["p"] < 0.05 < p["p_holm"] and p["comparisons"] == len(METRICS)
+    assert p["verdict"] == "no difference"
+    rows += [
+        {
+            "controller": c,
+            "scenario": "s",
+            "seed": 10 + k,
+            **dict.fromkeys(METRICS, 0.0),
+            "mean_abs_slip": v,
+        }
+        for k in range(5)
+        for c, v in (("A", 2.0 + 0.1 * k), ("B", 1.5 + 0.1 * k + 0.05 * (k % 2)))
+    ]
+    p = {r["metric"]: r for r in paired(rows, "A")}["mean_abs_slip"]
+    assert p["p_holm"] < 0.05 and p["verdict"] == "better"
+
+
+def test_holm_correction() -> None:
+    from rover_env.benchmark.report import holm
+
+    assert holm([0.01, 0.04, 0.03, 0.005]) == pytest.approx([0.03, 0.06, 0.06, 0.02])
+    out = holm([0.2, float("nan"), 0.6])
+    assert out[0] == pytest.approx(0.4) and math.isnan(out[1]) and out[2] == pytest.approx(0.6)
 
 
 def test_benchmark_one_short_episode_writes_well_formed_tables(tmp_path: Path) -> None:
@@ -144,9 +190,9 @@ def test_ppo_controller_runs_through_the_env(tmp_path: Path) -> None:
     sb3 = pytest.importorskip("stable_baselines3")
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    from rover_env.benchmark.controllers import make_controller
     from rover_env.benchmark.run import Job, run_jobs
     from rover_env.envs.proto_explorer import ProtoExplorerEnv
+    from rover_env.policies.specs import make_controller
 
     venv = VecNormalize(DummyVecEnv([ProtoExplorerEnv]))
     model = sb3.PPO("MlpPolicy", venv, n_steps=8, batch_size=8, device="cpu")
@@ -155,7 +201,9 @@ def test_ppo_controller_runs_through_the_env(tmp_path: Path) -> None:
     ctrl = make_controller(f"ppo:{tmp_path}")
     assert ctrl.action_layout == "wheels"
     assert ctrl.normalizer is not None  # type: ignore[attr-defined]
-    (row,) = run_jobs([Job(f"ppo:{tmp_path}", "flat-turns", 3000, 1.0)])
+    (row,) = run_jobs([Job(f"ppo:{tmp_path}", "flat-turns", 2000, 1.0)])
+    with pytest.raises(ValueError, match="played only by a final run"):
+        run_jobs([Job("open-loop", "flat-turns", 3000, 1.0)])
     assert set(METRICS) <= set(row) and all(math.isfinite(row[m]) for m in METRICS)
     with pytest.raises(ValueError, match="unknown controller"):
         make_controller("pid")
@@ -166,10 +214,10 @@ def test_axle_fight_deadband_removes_the_axle_fight_on_ice() -> None:
     (front axle spinning, middle dragged); its own narrower deadband removes most of it."""
     import dataclasses
 
-    from rover_env.benchmark.controllers import ClassicalController
     from rover_env.benchmark.run import ScenarioWrapper
     from rover_env.control.slip_pi import SlipPI, load_slip_pi_config
     from rover_env.envs.proto_explorer import ProtoExplorerEnv
+    from rover_env.policies.controllers import ClassicalController
 
     ep = load_scenario("ice-patch").episode(seed_plan.SPLITS["validation"].start, duration=10.0)
     w = ScenarioWrapper(ProtoExplorerEnv(terrain=ep.terrain))
@@ -191,4 +239,34 @@ def test_axle_fight_deadband_removes_the_axle_fight_on_ice() -> None:
         rms[scale] = float(np.sqrt(np.mean(np.square(late))))
     assert rms[1.0] > 1e-3  # the fight is there, inside the 0.01 deadband
     assert rms[0.25] < 0.5 * rms[1.0]
+    w.close()
+
+
+def test_slip_mean_and_percentile_come_from_the_same_samples() -> None:
+    """info["slip_abs_step"] is each wheel's step mean; the env's mean |S| is its mean, and
+    the benchmark's mean and p95 both come from it."""
+    from rover_env.benchmark.metrics import STEP_KEYS, metrics_of_steps
+    from rover_env.benchmark.run import ScenarioWrapper
+    from rover_env.envs.proto_explorer import ProtoExplorerEnv
+
+    ep = load_scenario("split-mu").episode(seed_plan.SPLITS["validation"].start, duration=2.0)
+    w = ScenarioWrapper(ProtoExplorerEnv(terrain=ep.terrain))
+    w.set_episode(ep)
+    _, info = w.reset()
+    start = np.asarray(info["position"]).copy()
+    steps: dict[str, list[object]] = {k: [] for k in STEP_KEYS}
+    done = False
+    while not done:
+        _, _, term, trunc, info = w.step(np.full(4, 0.6, dtype=np.float32))
+        assert np.mean(info["slip_abs_step"]) == pytest.approx(info["slip_true_mean_abs"])
+        for k in STEP_KEYS:
+            steps[k].append(info[k])
+        done = term or trunc
+    m = metrics_of_steps(
+        steps, start=start, last_info=info, commanded_path=1.0, goal_fraction=ep.goal_fraction
+    )
+    samples = np.asarray(steps["slip_abs_step"])
+    assert samples.shape == (20, 4)
+    assert m["mean_abs_slip"] == pytest.approx(float(np.mean(samples)))
+    assert m["p95_abs_slip"] == pytest.approx(float(np.percentile(samples, 95)))
     w.close()

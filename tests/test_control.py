@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rover_env.benchmark.metrics import trace_metrics
 from rover_env.config import ConfigError, TerrainConfig, load_rover
 from rover_env.control import (
     CommandSchedule,
@@ -247,7 +248,7 @@ def test_run_on_bare_simulator() -> None:
     ol = run_on_sim(OpenLoop(ROVER), case)
     pi = run_on_sim(SlipPI(ROVER, load_slip_pi_config()), case)
     for tr in (ol, pi):
-        m = tr.metrics(case.schedule.path_length(case.duration))
+        m = trace_metrics(tr, case.schedule.path_length(case.duration))
         assert 0.35 < m["distance_made_good"] < 0.5
         assert m["rms_speed_error"] < 0.05 and not tr.flipped
         assert len(tr.t) == 30

@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 
 import rover_env
-from rover_env.benchmark.mixture import ScenarioMixEnv, residual_action
-from rover_env.benchmark.seeds import SPLITS
+from rover_env.benchmark.mixture import ScenarioMixEnv
 from rover_env.config import RoverConfig
 from rover_env.control.open_loop import OpenLoop
 from rover_env.envs.proto_explorer import OBS_NAMES
+from rover_env.policies.residual import residual_action
+from rover_env.seeds import SPLITS
 
 I_CMD = OBS_NAMES.index("command_speed")
 
@@ -90,8 +91,8 @@ def _drive(ctrl: Any, step: Any, scenario: str, steps: int = 30) -> tuple[np.nda
 
 
 def test_zero_residual_on_slip_pi_drives_exactly_like_slip_pi() -> None:
-    from rover_env.benchmark.controllers import make_controller
-    from rover_env.benchmark.mixture import Residual
+    from rover_env.policies.residual import Residual
+    from rover_env.policies.specs import make_controller
 
     pi, res = make_controller("slip-pi"), Residual("slip-pi", 0.5)
     plain, _ = _drive(pi, pi.action, "stuck-wheel")
@@ -103,8 +104,8 @@ def test_zero_residual_on_slip_pi_drives_exactly_like_slip_pi() -> None:
 
 
 def test_zero_schedule_is_slip_pi_and_the_schedule_changes_its_gains() -> None:
-    from rover_env.benchmark.controllers import make_controller
-    from rover_env.benchmark.mixture import Schedule
+    from rover_env.policies.residual import Schedule
+    from rover_env.policies.specs import make_controller
 
     pi = make_controller("slip-pi")
     plain, _ = _drive(pi, pi.action, "ice-patch")
@@ -135,7 +136,7 @@ def test_zero_schedule_is_slip_pi_and_the_schedule_changes_its_gains() -> None:
 
 
 def test_schedule_knobs_map_each_action_to_its_setting() -> None:
-    from rover_env.benchmark.mixture import Schedule, schedule_knobs
+    from rover_env.policies.residual import Schedule, schedule_knobs
 
     assert schedule_knobs([2.0, 0.5]) == {"deadband": 2.0, "gain": 0.5}  # the first agents' form
     s = Schedule("slip-pi", {"axle_fight": 2.0, "retry_interval": 1.0, "stuck_retry": 1.0})
@@ -167,13 +168,13 @@ def test_schedule_knobs_map_each_action_to_its_setting() -> None:
 
 
 def _is_residual(ctrl: Any) -> bool:
-    from rover_env.benchmark.mixture import Residual
+    from rover_env.policies.residual import Residual
 
     return isinstance(ctrl.residual, Residual) and ctrl.residual.scale == 0.5
 
 
 def _is_schedule(ctrl: Any) -> bool:
-    from rover_env.benchmark.mixture import Schedule
+    from rover_env.policies.residual import Schedule
 
     return isinstance(ctrl.residual, Schedule) and ctrl.residual.knobs == {
         "deadband": 2.0,
@@ -182,7 +183,7 @@ def _is_schedule(ctrl: Any) -> bool:
 
 
 def _is_axle_schedule(ctrl: Any) -> bool:
-    from rover_env.benchmark.mixture import Schedule
+    from rover_env.policies.residual import Schedule
 
     return isinstance(ctrl.residual, Schedule) and ctrl.residual.knobs == {"stuck_retry": 1.0}
 
@@ -200,8 +201,8 @@ def test_shipped_agent_loads_and_drives(name: str, scenario: str, mapping: Any) 
     pytest.importorskip("stable_baselines3")
     from pathlib import Path
 
-    from rover_env.benchmark.policy import PPOController
     from rover_env.benchmark.run import Job, run_jobs
+    from rover_env.policies.ppo import PPOController
 
     agent = Path(__file__).resolve().parent.parent / "agents" / name
     if not agent.is_dir():
@@ -209,5 +210,5 @@ def test_shipped_agent_loads_and_drives(name: str, scenario: str, mapping: Any) 
     ctrl = PPOController(agent)
     assert mapping(ctrl)
     assert ctrl.action_layout == "wheels" and ctrl.normalizer is not None
-    (row,) = run_jobs([Job(f"ppo:{agent}", scenario, SPLITS["test"].start, duration=2.0)])
+    (row,) = run_jobs([Job(f"ppo:{agent}", scenario, SPLITS["validation"].start, duration=2.0)])
     assert np.isfinite(row["mean_abs_slip"]) and row["distance_made_good"] > 0.1

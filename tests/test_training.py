@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import os
 import pickle
 import shutil
 import subprocess
@@ -203,9 +204,13 @@ def test_resume_refuses_a_mismatch(tmp_path: Path) -> None:
 # --------------------------------------------------------------------------- command lines
 
 
+# Scripts under train/ must import this checkout's rover_env, not an installed one.
+_ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
+
+
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, *args], cwd=REPO, capture_output=True, text=True, timeout=120
+        [sys.executable, *args], cwd=REPO, env=_ENV, capture_output=True, text=True, timeout=120
     )
 
 
@@ -216,6 +221,7 @@ def test_cli_train_kill_resume_evaluate(tmp_path: Path) -> None:
     proc = subprocess.Popen(
         [*cmd, "--out", str(run), "--total-timesteps", "100000", "--no-progress"],
         cwd=REPO,
+        env=_ENV,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
@@ -279,10 +285,23 @@ def test_cli_train_kill_resume_evaluate(tmp_path: Path) -> None:
     assert ev.returncode == 0, ev.stderr
     assert f"ppo:{run / 'model.zip'}" in ev.stdout and "flat-turns" in ev.stdout
     assert (tmp_path / "ev" / "benchmark.md").is_file()
+    assert "validation split" in ev.stdout
+
+    # The test seeds once: a second final run of the same agent is refused.
+    final = ["--which", "final", "--quiet", "--final", "--ledger", str(tmp_path / "ledger.csv")]
+    short = ["--episodes", "1", "--scenarios", "flat-turns", "--duration", "0.5"]
+    ev = _run("train/evaluate.py", str(run), *short, *final, "--out", str(tmp_path / "f"))
+    assert ev.returncode == 0, ev.stderr
+    assert "test split" in ev.stdout
+    with (tmp_path / "ledger.csv").open() as fh:
+        (row,) = list(csv.DictReader(fh))
+    assert row["agent"] == f"ppo:{run / 'model.zip'}"
+    ev = _run("train/evaluate.py", str(run), *short, *final, "--out", str(tmp_path / "f2"))
+    assert ev.returncode == 3 and "already had its final test run" in ev.stderr
 
 
 def test_best_model_is_paired_with_the_statistics_it_was_selected_with(tmp_path: Path) -> None:
-    from rover_env.benchmark.policy import resolve_model_path
+    from rover_env.policies.ppo import resolve_model_path
 
     for name in ("best_model.zip", "model.zip", "vecnormalize.pkl", "best_vecnormalize.pkl"):
         (tmp_path / name).write_bytes(b"")

@@ -1,4 +1,8 @@
-"""Evaluate a trained run on the test seeds: python train/evaluate.py RUN_DIR [--episodes N]."""
+"""Evaluate a trained run: python train/evaluate.py RUN_DIR [--episodes N] [--final].
+
+Validation seeds by default; ``--final`` is the agent's one run on the test seeds, recorded
+in docs/benchmark/test_ledger.csv (a second one is refused unless ``--force``).
+"""
 
 import sys
 

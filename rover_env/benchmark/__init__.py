@@ -4,5 +4,5 @@
 --out DIR`` runs every controller through ``ProtoExplorerEnv`` on every scenario of
 ``configs/scenarios`` for the same seeds and writes Markdown and CSV tables and PNG plots.
 Nothing here imports torch unless a ``ppo:`` controller is asked for. The seed plan:
-:mod:`rover_env.benchmark.seeds`.
+:mod:`rover_env.seeds`.
 """

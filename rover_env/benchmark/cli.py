@@ -1,4 +1,4 @@
-"""``rover-env benchmark`` and ``rover-env tune-slip-pi``.
+"""``rover-env benchmark``, ``rover-env ablate`` and ``rover-env tune-slip-pi``.
 
 Wire into ``rover_env.cli`` with ``add_cli(subparsers)``; standalone:
 ``python -m rover_env.benchmark.cli benchmark ...``.
@@ -7,14 +7,13 @@ Wire into ``rover_env.cli`` with ``add_cli(subparsers)``; standalone:
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import shlex
 import sys
-import time
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
+
+from rover_env.benchmark.suite import run_benchmark, run_tuning
 
 __all__ = ["add_cli", "main", "run_benchmark", "run_tuning"]
 
@@ -33,111 +32,27 @@ def _scenarios(text: str, default_filter: str | None = None) -> list[str]:
     return names
 
 
-def run_benchmark(
-    controllers: Sequence[str],
-    scenarios: Sequence[str],
-    episodes: int,
-    out: str | Path,
-    split: str = "test",
-    duration: float | None = None,
-    workers: int = 1,
-    progress: bool = True,
-    plots: bool = True,
-    command: str | None = None,
-) -> dict[str, Path]:
-    """Every controller on every scenario for the first ``episodes`` seeds of ``split``."""
-    from tqdm import tqdm
-
-    from rover_env.benchmark.report import write_report
-    from rover_env.benchmark.run import Job, run_jobs
-    from rover_env.benchmark.seeds import seeds as seed_split
-
-    seed_list = seed_split(split, episodes)
-    # Scenario-major, seed, then controller: paired episodes finish close together.
-    jobs = [Job(c, s, seed, duration) for s in scenarios for seed in seed_list for c in controllers]
-    t0 = time.perf_counter()
-    with tqdm(total=len(jobs), desc="benchmark", unit="ep", disable=not progress) as bar:
-
-        def tick(row: dict[str, Any]) -> None:
-            bar.set_postfix_str(f"{row['controller']} {row['scenario']} {row['seed']}")
-            bar.update(1)
-
-        rows = run_jobs(jobs, workers=workers, progress=tick)
-    wall = time.perf_counter() - t0
-    meta = {
-        "command": f"`{command}`" if command else "(API call)",
-        "controllers": ", ".join(controllers),
-        "scenarios": ", ".join(scenarios),
-        "seeds": f"{split} split, first {episodes} ({seed_list[0]}..{seed_list[-1]})",
-        "episode length": (
-            f"{duration:g} s (overridden)"
-            if duration
-            else "each scenario's own (configs/scenarios)"
-        ),
-        "control": "10 Hz through ProtoExplorerEnv (default sensor noise), estimator at 50 Hz",
-        "wall time": f"{wall:.0f} s on {workers} worker(s), {len(jobs)} episodes",
-    }
-    return write_report(out, rows, meta, plots=plots)
-
-
-def run_tuning(
-    scenarios: Sequence[str],
-    seeds_per_scenario: int,
-    duration: float,
-    out: str | Path,
-    workers: int = 1,
-    refine_evals: int = 8,
-    report: str | Path | None = None,
-    command: str | None = None,
-) -> Path:
-    """Tune (Kp, Ki) of the slip PI on tuning seeds and write the gains YAML."""
-    import dataclasses
-
-    from rover_env.benchmark.scenarios import load_scenario
-    from rover_env.benchmark.seeds import seeds as seed_split
-    from rover_env.control.slip_pi import SlipPIConfig, load_slip_pi_config
-    from rover_env.control.tuning import tune, write_config
-
-    seed_list = seed_split("tuning", seeds_per_scenario)
-    cases = [
-        load_scenario(s).episode(seed, duration).drive_case()
-        for s in scenarios
-        for seed in seed_list
-    ]
-    out_p = Path(out)
-    base = load_slip_pi_config(out_p) if out_p.is_file() else SlipPIConfig()
-    res = tune(cases, base=base, workers=workers, refine_evals=refine_evals)
-    best = dataclasses.replace(base, kp=res.kp, ki=res.ki)
-    header = (
-        "Slip PI gains (rover_env.control.slip_pi.SlipPIConfig; the module docstring says why\n"
-        "each field is there). Kp and Ki were tuned by rover_env.control.tuning (grid, then\n"
-        "Nelder-Mead on the bare simulator); the other fields are design choices kept fixed.\n"
-        f"Produced by: {command or '(API call)'}\n"
-        f"Scenarios: {', '.join(scenarios)}; tuning seeds {', '.join(map(str, seed_list))};\n"
-        f"{duration:g} s episodes; {len(res.evaluations)} gain pairs tried in {res.wall_s:.0f} s;\n"
-        f"objective J = {res.score:.4f} (open loop = 1 + 0 penalties)."
-    )
-    path = write_config(out_p, best, header)
-    if report is not None:
-        rp = Path(report)
-        rp.parent.mkdir(parents=True, exist_ok=True)
-        with rp.open("w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=["kp", "ki", "score"])
-            w.writeheader()
-            w.writerows(res.evaluations)
-    print(f"best kp={res.kp:.4f} ki={res.ki:.4f} J={res.score:.4f}; wrote {path}")
-    return path
-
-
 def _command_line() -> str:
     return "rover-env " + " ".join(shlex.quote(a) for a in sys.argv[1:])
 
 
 def _bench_cli(args: argparse.Namespace) -> int:
-    from rover_env.benchmark.controllers import parse_specs
+    from rover_env.benchmark.ledger import FinalRunRefused
+    from rover_env.policies.specs import parse_specs
 
+    if args.force and not args.final:
+        print("error: --force only applies to --final", file=sys.stderr)
+        return 2
+    try:
+        return _bench(args, parse_specs(args.controllers))
+    except FinalRunRefused as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 3
+
+
+def _bench(args: argparse.Namespace, specs: list[str]) -> int:
     files = run_benchmark(
-        parse_specs(args.controllers),
+        specs,
         _scenarios(args.scenarios),
         args.episodes,
         args.out,
@@ -147,9 +62,40 @@ def _bench_cli(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         plots=not args.no_plots,
         command=_command_line(),
+        final=args.final,
+        force=args.force,
+        ledger=args.ledger,
+        executor=args.executor,
+        ray_address=args.ray_address,
+        resume=args.resume,
     )
     print(files["markdown"].read_text())
     print("wrote " + ", ".join(str(p) for p in files.values()))
+    return 0
+
+
+def _ablate_cli(args: argparse.Namespace) -> int:
+    from rover_env.benchmark.ablation import run_ablation
+
+    try:
+        values = [float(v) for v in args.values.split(",") if v.strip()]
+    except ValueError:
+        print(f"error: --values must be numbers, got {args.values!r}", file=sys.stderr)
+        return 2
+    res = run_ablation(
+        args.base,
+        args.knob,
+        values,
+        _scenarios(args.scenarios),
+        args.episodes,
+        args.out,
+        metric=args.metric,
+        duration=args.duration,
+        workers=args.workers,
+        progress=not args.quiet,
+        command=_command_line(),
+    )
+    print(res.files["ablation"].read_text())
     return 0
 
 
@@ -168,7 +114,9 @@ def _tune_cli(args: argparse.Namespace) -> int:
 
 
 def add_cli(subparsers: Any) -> None:
-    """Register ``benchmark`` and ``tune-slip-pi``."""
+    """Register ``benchmark``, ``ablate`` and ``tune-slip-pi``."""
+    from rover_env.executor import add_executor_args
+
     workers = max(1, min(2, os.cpu_count() or 1))
     p = subparsers.add_parser(
         "benchmark", help="compare controllers on named scenarios (tables, paired CIs, plots)"
@@ -184,14 +132,52 @@ def add_cli(subparsers: Any) -> None:
     )
     p.add_argument("--episodes", type=int, default=20, help="seeds per scenario (default 20)")
     p.add_argument(
-        "--split", default="test", help="seed split (rover_env.benchmark.seeds, default test)"
+        "--split",
+        default="validation",
+        choices=("tuning", "validation"),
+        help="seed split for selection and tuning (rover_env.seeds, default validation); "
+        "the test split needs --final",
+    )
+    p.add_argument(
+        "--final",
+        action="store_true",
+        help="the one test-split run of an agent (every controller but the first baseline): "
+        "recorded in the test ledger; a second one is refused",
+    )
+    p.add_argument(
+        "--force", action="store_true", help="with --final: run again, the row marked a repeat"
+    )
+    p.add_argument(
+        "--ledger", default=None, help="test ledger CSV (default docs/benchmark/test_ledger.csv)"
     )
     p.add_argument("--duration", type=float, default=None, help="episode length override (s)")
     p.add_argument("--workers", type=int, default=workers, help=f"processes (default {workers})")
+    add_executor_args(p)
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="keep the episodes in OUT/episodes.jsonl, run the rest",
+    )
     p.add_argument("--out", default="out/benchmark", help="output folder")
     p.add_argument("--no-plots", action="store_true", help="tables only")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_bench_cli)
+
+    p = subparsers.add_parser(
+        "ablate",
+        help="the no-learning ablation: a grid of one fixed slip-PI setting on validation seeds",
+    )
+    p.add_argument("--base", default="slip-pi", help="slip-pi[:GAINS] controller (default slip-pi)")
+    p.add_argument("--knob", required=True, help="SlipPIConfig field, e.g. stuck_retry_scale")
+    p.add_argument("--values", required=True, help="comma list of values, e.g. 0.5,1,2")
+    p.add_argument("--scenarios", default="all", help="comma list, or all")
+    p.add_argument("--episodes", type=int, default=20, help="validation seeds per scenario (20)")
+    p.add_argument("--metric", default="mean_abs_slip", help="ranking metric (mean_abs_slip)")
+    p.add_argument("--duration", type=float, default=None, help="episode length override (s)")
+    p.add_argument("--workers", type=int, default=workers, help=f"processes (default {workers})")
+    p.add_argument("--out", default="out/ablation", help="output folder")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_ablate_cli)
 
     p = subparsers.add_parser(
         "tune-slip-pi", help="tune the slip PI's (Kp, Ki) on the tuning seeds, write its YAML"

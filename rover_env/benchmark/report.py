@@ -4,6 +4,12 @@ Intervals are Student-t intervals: over episodes for a controller's mean, over s
 paired difference of two controllers run on the same seeds (the paired t-interval, which
 removes the between-seed spread the two share). With one episode there is no spread to
 estimate; the half-width is then reported as 0 and the tables say n = 1.
+
+A paired table makes many comparisons at once (controllers x scenarios x metrics), so its
+verdicts (*better*, *worse*) come from the paired t-test's p-values after Holm's correction
+over all comparisons of the table (family-wise error 5 %), not from each interval alone;
+the table states the number of comparisons. Beside every relative difference it gives the
+absolute one and both means.
 """
 
 from __future__ import annotations
@@ -16,24 +22,21 @@ from typing import Any
 
 import numpy as np
 
-from rover_env.control.runner import METRICS
+from rover_env.benchmark.metrics import LOWER_IS_BETTER, METRICS, UNITS
 
-__all__ = ["UNITS", "paired", "summarise", "t_interval", "write_report"]
+__all__ = [
+    "ALPHA",
+    "UNITS",
+    "holm",
+    "paired",
+    "paired_p",
+    "summarise",
+    "t_interval",
+    "write_report",
+]
 
-UNITS: dict[str, str] = {
-    "mean_abs_slip": "1",
-    "p95_abs_slip": "1",
-    "rms_speed_error": "m/s",
-    "rms_yaw_rate_error": "rad/s",
-    "energy_per_metre": "J/m",
-    "distance_made_good": "m",
-    "success": "share",
-    "flipped": "share",
-    "mean_sinkage": "m",
-    "max_sinkage": "m",
-    "time_stuck": "s",
-}
-LOWER_IS_BETTER = {m: m not in ("distance_made_good", "success") for m in METRICS}
+ALPHA = 0.05
+"""Family-wise error rate of a paired table's verdicts (Holm)."""
 
 
 def t_interval(x: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
@@ -47,6 +50,32 @@ def t_interval(x: Sequence[float], level: float = 0.95) -> tuple[float, float, f
     sd = float(np.std(a, ddof=1))
     hw = float(stats.t.ppf(0.5 + level / 2, a.size - 1)) * sd / math.sqrt(a.size)
     return m, m - hw, m + hw
+
+
+def paired_p(d: Sequence[float]) -> float:
+    """Two-sided p-value of the paired t-test that the mean difference ``d`` is 0."""
+    from scipy import stats
+
+    a = np.asarray(d, dtype=np.float64)
+    if a.size < 2:
+        return float("nan")
+    m, sd = float(np.mean(a)), float(np.std(a, ddof=1))
+    if sd == 0.0:
+        return 1.0 if m == 0.0 else 0.0
+    t = m / (sd / math.sqrt(a.size))
+    return float(2.0 * stats.t.sf(abs(t), a.size - 1))
+
+
+def holm(p: Sequence[float]) -> list[float]:
+    """Holm's step-down adjusted p-values (NaN entries stay NaN and do not count)."""
+    idx = [i for i, x in enumerate(p) if math.isfinite(x)]
+    m = len(idx)
+    out = [float("nan")] * len(p)
+    running = 0.0
+    for rank, i in enumerate(sorted(idx, key=lambda i: p[i])):
+        running = max(running, min(1.0, (m - rank) * p[i]))
+        out[i] = running
+    return out
 
 
 def summarise(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -77,7 +106,8 @@ def summarise(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def paired(rows: Sequence[dict[str, Any]], baseline: str) -> list[dict[str, Any]]:
-    """Every other controller minus ``baseline``, per scenario and metric, on shared seeds."""
+    """Every other controller minus ``baseline``, per scenario and metric, on shared seeds;
+    verdicts after Holm's correction over all rows returned (module docstring)."""
     out = []
     ctrls = [c for c in _unique(r["controller"] for r in rows) if c != baseline]
     for other in ctrls:
@@ -93,15 +123,6 @@ def paired(rows: Sequence[dict[str, Any]], baseline: str) -> list[dict[str, Any]
                 d = [float(b[s][m]) - float(a[s][m]) for s in shared]
                 mean, lo, hi = t_interval(d)
                 base_mean = float(np.mean([float(a[s][m]) for s in shared]))
-                better = LOWER_IS_BETTER[m]
-                if lo > 0:
-                    verdict = "worse" if better else "better"
-                elif hi < 0:
-                    verdict = "better" if better else "worse"
-                else:
-                    verdict = "no difference"
-                if len(shared) < 2:
-                    verdict = "n = 1"
                 out.append(
                     {
                         "controller": other,
@@ -110,13 +131,26 @@ def paired(rows: Sequence[dict[str, Any]], baseline: str) -> list[dict[str, Any]
                         "metric": m,
                         "n": len(shared),
                         "baseline_mean": base_mean,
+                        "controller_mean": base_mean + mean,
                         "diff_mean": mean,
                         "ci_low": lo,
                         "ci_high": hi,
                         "relative": mean / base_mean if base_mean != 0 else float("nan"),
-                        "verdict": verdict,
+                        "p": paired_p(d),
                     }
                 )
+    adjusted = holm([r["p"] for r in out])
+    family = sum(math.isfinite(r["p"]) for r in out)
+    for r, q in zip(out, adjusted, strict=True):
+        r["p_holm"] = q
+        r["comparisons"] = family
+        if r["n"] < 2:
+            r["verdict"] = "n = 1"
+        elif q < ALPHA:
+            lower = LOWER_IS_BETTER[r["metric"]]
+            r["verdict"] = "better" if (r["diff_mean"] < 0) == lower else "worse"
+        else:
+            r["verdict"] = "no difference"
     return out
 
 
@@ -164,7 +198,7 @@ def _markdown(
     lines += [
         "",
         "Mean ± half-width of the 95 % Student-t interval over episodes (seeds). Metrics: "
-        "`rover_env.control.runner.episode_metrics`; slip is the simulator's true slip of the "
+        "`rover_env.benchmark.metrics.episode_metrics`; slip is the simulator's true slip of the "
         "driven wheels.",
         "",
     ]
@@ -187,22 +221,28 @@ def _markdown(
             lines.append(f"| {c} | {n} | " + " | ".join(cells) + " |")
         lines.append("")
     if pairs:
+        family = pairs[0]["comparisons"]
         lines += [
             "## Paired differences (controller − baseline, same seeds)",
             "",
-            "95 % paired t-interval of the per-seed difference; *relative* is the mean "
-            "difference over the baseline's mean. *better*/*worse*: the interval excludes 0.",
+            "95 % paired t-interval of the per-seed difference (absolute, in the metric's "
+            "unit); *relative* is that difference over the baseline's mean. *better*/*worse*: "
+            f"the paired t-test rejects no difference at 5 % after Holm's correction over the "
+            f"{family} comparisons of this table (p Holm < {ALPHA}); the intervals are not "
+            "adjusted.",
             "",
-            "| scenario | controller − baseline | metric | n | baseline mean | difference "
-            "[95 % CI] | relative | verdict |",
-            "|---|---|---|---|---|---|---|---|",
+            "| scenario | controller − baseline | metric | n | baseline mean | controller mean "
+            "| difference [95 % CI] | relative | p (Holm) | verdict |",
+            "|---|---|---|---|---|---|---|---|---|---|",
         ]
         for r in pairs:
             rel = f"{100 * r['relative']:+.1f} %" if math.isfinite(r["relative"]) else "–"
+            ph = f"{r['p_holm']:.2g}" if math.isfinite(r["p_holm"]) else "–"
             lines.append(
                 f"| {r['scenario']} | {r['controller']} − {r['baseline']} | {r['metric']} | "
-                f"{r['n']} | {_fmt(r['baseline_mean'])} | {_fmt(r['diff_mean'])} "
-                f"[{_fmt(r['ci_low'])}, {_fmt(r['ci_high'])}] | {rel} | {r['verdict']} |"
+                f"{r['n']} | {_fmt(r['baseline_mean'])} | {_fmt(r['controller_mean'])} | "
+                f"{_fmt(r['diff_mean'])} [{_fmt(r['ci_low'])}, {_fmt(r['ci_high'])}] | {rel} | "
+                f"{ph} | {r['verdict']} |"
             )
         lines.append("")
     return "\n".join(lines)
@@ -263,6 +303,8 @@ def _plots(
             ax.set_title(f"{m} [{UNITS[m]}]")
             ax.set_xticks(x, scens, rotation=30, ha="right", fontsize=8)
         fig.suptitle(f"Paired difference {other} − {base} (95 % paired t-interval)")
+        for ax in axes.ravel()[len(METRICS) :]:
+            ax.axis("off")
         fig.tight_layout()
         safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in f"{other}_vs_{base}")
         files.append(out / f"paired_{safe}.png")

@@ -1,25 +1,20 @@
 """Run controllers on scenarios through the environment and collect per-episode metrics.
 
-The env draws a new random command every few seconds; a benchmark needs the scenario's fixed
-schedule instead. :class:`ScenarioWrapper` (a ``gymnasium.Wrapper``, so the env itself is not
-changed) overrides it: after every reset and step it writes the command due at the current
-sim time into ``env.unwrapped._command``, sets ``_next_command_t`` to infinity so the env never
-draws its own, and patches the command entries of the observation just returned. The command
-seen by the controller for a step is therefore the one the env scores that step against.
-It also places the rover at the episode's start pose (``reset`` options) and puts the
-episode's jittered ground in with ``sim.set_terrain`` before the reset.
+A benchmark episode is the env with a scenario's task (:class:`rover_env.tasks.ScenarioTask`:
+the episode's ground, start pose, fixed command schedule and length) in place of its random
+commands. :class:`ScenarioWrapper` gives the env that task (``env.set_task``) and resets it
+with the episode's seed; the env itself then commands, observes, scores and truncates the
+episode, so the command a controller sees for a step is the one the env scores it against.
 
-Jobs (controller, scenario, seed) are independent; with ``workers > 1`` they run in spawned
-processes, each caching one env per (scenario, action layout) and one instance per controller.
+Jobs (controller, scenario, seed) are independent; they run through an executor
+(:mod:`rover_env.executor`: this process, spawned local processes or Ray workers), each worker
+caching one env per (scenario, action layout) and one instance per controller.
 """
 
 from __future__ import annotations
 
-import math
-import multiprocessing as mp
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from typing import Any
 
@@ -27,20 +22,22 @@ import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
-from rover_env.benchmark.controllers import EnvController, make_controller
-from rover_env.benchmark.scenarios import Episode, load_scenario
-from rover_env.control.runner import episode_metrics
-from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
+from rover_env.benchmark.metrics import STEP_KEYS, metrics_of_steps
+from rover_env.envs.proto_explorer import ProtoExplorerEnv
+from rover_env.executor import Executor, make_executor
+from rover_env.policies.controllers import EnvController
+from rover_env.policies.specs import make_controller
+from rover_env.seeds import split_of
+from rover_env.tasks.scenario import ScenarioTask
+from rover_env.tasks.scenarios import Episode, load_scenario
 
 __all__ = ["Job", "ScenarioWrapper", "run_episode", "run_jobs"]
 
 Obs = npt.NDArray[np.float32]
 
-_I_CMD = OBS_NAMES.index("command_speed")
-
 
 class ScenarioWrapper(gym.Wrapper[Obs, Obs, Obs, Obs]):
-    """Drives the env through one :class:`Episode`: start pose, ground, fixed commands."""
+    """Drives the env through one :class:`Episode` (its :class:`ScenarioTask`, its seed)."""
 
     def __init__(self, env: ProtoExplorerEnv) -> None:
         super().__init__(env)
@@ -52,17 +49,11 @@ class ScenarioWrapper(gym.Wrapper[Obs, Obs, Obs, Obs]):
         assert isinstance(env, ProtoExplorerEnv)
         return env
 
-    def set_episode(self, episode: Episode) -> None:
-        self.episode = episode
-
-    def _command(self, obs: Obs) -> tuple[float, float]:
-        assert self.episode is not None
-        base = self.base
-        v, w = self.episode.schedule.at(base.sim.time)
-        base._command = np.array([v, w])
-        base._next_command_t = math.inf
-        obs[_I_CMD : _I_CMD + 2] = (v, w)
-        return v, w
+    def set_episode(self, episode: Episode | ScenarioTask) -> None:
+        """The episode of the next reset (an :class:`Episode`, or its task)."""
+        task = episode if isinstance(episode, ScenarioTask) else ScenarioTask(episode)
+        self.episode = task.episode
+        self.base.set_task(task)
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -70,64 +61,37 @@ class ScenarioWrapper(gym.Wrapper[Obs, Obs, Obs, Obs]):
         ep = self.episode
         if ep is None:
             raise RuntimeError("set_episode() before reset()")
-        base = self.base
-        if base.sim.terrain_cfg != ep.terrain:
-            base.sim.set_terrain(ep.terrain)
-        x, y, yaw = ep.start
-        obs, info = self.env.reset(seed=ep.seed, options={"x": x, "y": y, "yaw": yaw})
-        info["command"] = np.array(self._command(obs))
-        return obs, info
-
-    def step(self, action: Obs) -> tuple[Obs, float, bool, bool, dict[str, Any]]:
-        obs, reward, terminated, truncated, info = self.env.step(action)
-        self._command(obs)
-        assert self.episode is not None
-        done_time = self.base.sim.time >= self.episode.duration - 1e-9
-        return obs, float(reward), terminated, truncated or done_time, info
+        if seed is not None and int(seed) != ep.seed:
+            raise ValueError(
+                f"ScenarioWrapper.reset(seed={seed}): the episode is {ep.scenario} seed "
+                f"{ep.seed}; set_episode() chooses the seed, so it stays in its split"
+            )
+        return self.env.reset(seed=ep.seed, options=options)
 
 
 def run_episode(
     wrapper: ScenarioWrapper, controller: EnvController, episode: Episode
 ) -> dict[str, float]:
-    """One episode; the metrics of ``rover_env.control.runner.episode_metrics``."""
+    """One episode; the metrics of :func:`rover_env.benchmark.metrics.episode_metrics`."""
     wrapper.set_episode(episode)
     obs, info = wrapper.reset()
     controller.reset(wrapper.base)
     start = np.asarray(info["position"]).copy()
-    keys = (
-        "slip_true",
-        "slip_true_mean_abs",
-        "tracking_error_speed",
-        "tracking_error_yaw_rate",
-        "energy",
-        "distance",
-        "wheel_sinkage",
-        "command",
-    )
-    acc: dict[str, list[Any]] = {k: [] for k in keys}
+    steps: dict[str, list[Any]] = {k: [] for k in STEP_KEYS}
     last = info
     while True:
         action = controller.action(wrapper.base, obs)
         obs, _, terminated, truncated, last = wrapper.step(action)
-        for k in keys:
-            acc[k].append(last[k])
+        for k in STEP_KEYS:
+            steps[k].append(last[k])
         if terminated or truncated:
             break
-    return episode_metrics(
-        slip_true=np.asarray(acc["slip_true"]),
-        slip_true_mean_abs=np.asarray(acc["slip_true_mean_abs"]),
-        tracking_error_speed=np.asarray(acc["tracking_error_speed"]),
-        tracking_error_yaw_rate=np.asarray(acc["tracking_error_yaw_rate"]),
-        energy=np.asarray(acc["energy"]),
-        distance=np.asarray(acc["distance"]),
+    return metrics_of_steps(
+        steps,
         start=start,
-        end=np.asarray(last["position"]),
-        flipped=bool(last.get("flipped", False)),
-        out_of_arena=bool(last.get("out_of_arena", False)),
+        last_info=last,
         commanded_path=episode.schedule.path_length(episode.duration),
         goal_fraction=episode.goal_fraction,
-        sinkage=np.asarray(acc["wheel_sinkage"]),
-        speed_command=np.asarray(acc["command"])[:, 0],
         step_dt=wrapper.base.control_dt,
     )
 
@@ -138,6 +102,11 @@ class Job:
     scenario: str
     seed: int
     duration: float | None = None
+
+    @property
+    def key(self) -> str:
+        """Names the episode in a study's results file (``--resume`` matches on it)."""
+        return f"{self.controller}|{self.scenario}|{self.seed}|{self.duration}"
 
 
 # Per-process caches: building an env compiles a MuJoCo model; loading a policy loads torch.
@@ -174,21 +143,22 @@ def run_jobs(
     jobs: Sequence[Job],
     workers: int = 1,
     progress: Callable[[dict[str, Any]], None] | None = None,
+    final: bool = False,
+    executor: Executor | None = None,
 ) -> list[dict[str, Any]]:
-    """All jobs, in their given order; ``progress`` is called as each one finishes."""
-    if workers <= 1:
-        rows = []
-        for job in jobs:
-            rows.append(_run_job(job))
-            if progress is not None:
-                progress(rows[-1])
-        return rows
-    out: dict[int, dict[str, Any]] = {}
-    ctx = mp.get_context("spawn")  # no MuJoCo or torch state shared through fork
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        futures = {pool.submit(_run_job, job): i for i, job in enumerate(jobs)}
-        for fut in as_completed(futures):
-            out[futures[fut]] = fut.result()
-            if progress is not None:
-                progress(out[futures[fut]])
-    return [out[i] for i in range(len(jobs))]
+    """All jobs, in their given order; ``progress`` is called as each one finishes.
+
+    Test seeds need ``final=True``: only a final run (``run_benchmark(final=True)``, which
+    the test ledger records) may play them. ``executor`` defaults to ``workers`` spawned local
+    processes (no MuJoCo or torch state shared through fork); ``workers <= 1`` runs them in
+    this process.
+    """
+    test = [j.seed for j in jobs if split_of(j.seed) == "test"]
+    if test and not final:
+        raise ValueError(
+            f"jobs on test seeds {sorted(set(test))[:5]}: the test split is played only by a "
+            "final run (rover-env benchmark --final), which the test ledger records"
+        )
+    ex = executor or make_executor("local", workers, start_method="spawn")
+    tick = None if progress is None else (lambda _i, row: progress(row))
+    return ex.map(_run_job, list(jobs), on_result=tick)

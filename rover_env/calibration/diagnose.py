@@ -32,7 +32,6 @@ import json
 import multiprocessing as mp
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -63,6 +62,7 @@ from rover_env.calibration.replay import (
     replay_config,
 )
 from rover_env.config import RoverConfig, load_rover, to_dict
+from rover_env.executor import add_executor_args, make_executor
 from rover_env.logs import DriveLog, LogError, read_log
 
 Array = NDArray[np.float64]
@@ -84,6 +84,9 @@ class Options:
     progress: bool = True
     workers: int = 1
     """Processes fitting candidates side by side (forked; 1: in this process)."""
+    executor: str = "local"
+    """Where candidate fits run: ``local`` (forked processes) or ``ray`` (rover_env.executor)."""
+    ray_address: str | None = None
 
 
 @dataclass
@@ -247,7 +250,7 @@ def diagnose(
             f"  dBIC={s.d_bic:+.1f}  ({f.nfev} fits, {f.seconds:.1f}s)"
         )
 
-    scored = _map_candidates(fit_one, report, cands, ev, opts.workers)
+    scored = _map_candidates(fit_one, report, cands, ev, opts)
     ranked = sorted(scored, key=lambda s: -s.gain)
     base_left = _unexplained(table_held_before, noise)
     if not any(s.significant for s in ranked) and base_left:
@@ -330,7 +333,7 @@ def diagnose(
             len(others),
             lambda i: [*w_cands, *others[i].fit.candidates],
             ev,
-            opts.workers,
+            opts,
         )
         if not any(s.significant for s in tried):
             for s2 in sorted(tried, key=lambda s: -s.gain):
@@ -549,14 +552,12 @@ def _unexplained(table: dict[str, dict[str, rs.Cell]], noise: dict[str, float]) 
     return out
 
 
-_POOL: dict[str, Any] = {}
-"""What forked candidate workers inherit (functions holding closures do not pickle)."""
-
-
-def _pool_task(i: int) -> tuple[Scored, int, float, dict[tuple[str, str], list[WindowResult]]]:
-    ev: Evaluator = _POOL["ev"]
+def _pool_task(
+    shared: dict[str, Any], i: int
+) -> tuple[Scored, int, float, dict[tuple[str, str], list[WindowResult]]]:
+    ev: Evaluator = shared["ev"]
     n0, s0, keys0 = ev.replays, ev.seconds, set(ev.cache)
-    s = _POOL["task"](i)
+    s = shared["task"](i)
     new = {k: v for k, v in ev.cache.items() if k not in keys0}
     keep = {k: v for k, v in new.items() if k[0] == json.dumps(s.fit.ext, sort_keys=True)}
     s.fit.candidates = []  # Candidate.to_ext is a closure; the parent puts them back
@@ -564,46 +565,42 @@ def _pool_task(i: int) -> tuple[Scored, int, float, dict[tuple[str, str], list[W
 
 
 def _map_candidates(
-    fit_one: Any, report: Any, cands: list[Candidate], ev: Evaluator, workers: int
+    fit_one: Any, report: Any, cands: list[Candidate], ev: Evaluator, opts: Options
 ) -> list[Scored]:
-    """``fit_one`` on every candidate, in ``workers`` forked processes; catalogue order."""
+    """``fit_one`` on every candidate, in ``opts.workers`` workers; catalogue order."""
     return _map_parallel(
-        lambda i: fit_one(cands[i]), report, len(cands), lambda i: [cands[i]], ev, workers
+        lambda i: fit_one(cands[i]), report, len(cands), lambda i: [cands[i]], ev, opts
     )
 
 
 def _map_parallel(
-    task: Any, report: Any, n_tasks: int, candidates_of: Any, ev: Evaluator, workers: int
+    task: Any, report: Any, n_tasks: int, candidates_of: Any, ev: Evaluator, opts: Options
 ) -> list[Scored]:
-    """``task(i)`` for i < n_tasks, in ``workers`` forked processes; results in order.
+    """``task(i)`` for i < n_tasks through ``opts.executor``; results in order.
 
-    The fits are independent and deterministic, so the result does not depend on
-    ``workers``; the children's replays of each fitted model come back into ``ev.cache``.
+    The fits are independent and deterministic, so the result does not depend on where they
+    run; the workers' replays of each fitted model come back into ``ev.cache``. Local workers
+    are forked (they inherit ``task``, a closure); Ray's are sent it once (cloudpickle).
     ``candidates_of(i)`` gives back the candidates of task i's fit (they do not pickle).
     """
-    n = min(max(1, int(workers)), n_tasks)
-    if n <= 1 or "fork" not in mp.get_all_start_methods():
+    n = min(max(1, int(opts.workers)), n_tasks)
+    if opts.executor == "local" and (n <= 1 or "fork" not in mp.get_all_start_methods()):
         out = []
         for i in range(n_tasks):
             out.append(task(i))
             report(out[-1])
         return out
-    _POOL.update(ev=ev, task=task)
     results: dict[int, Scored] = {}
-    try:
-        with ProcessPoolExecutor(n, mp_context=mp.get_context("fork")) as pool:
-            futures = {pool.submit(_pool_task, i): i for i in range(n_tasks)}
-            for fut in as_completed(futures):
-                i = futures[fut]
-                s, replays, seconds, cache = fut.result()
-                s.fit.candidates = candidates_of(i)
-                ev.replays += replays
-                ev.seconds += seconds
-                ev.cache.update(cache)
-                results[i] = s
-                report(s)
-    finally:
-        _POOL.clear()
+    with make_executor(opts.executor, n, opts.ray_address, start_method="fork") as ex:
+        for i, (s, replays, seconds, cache) in ex.imap(
+            _pool_task, range(n_tasks), shared={"ev": ev, "task": task}
+        ):
+            s.fit.candidates = candidates_of(i)
+            ev.replays += replays
+            ev.seconds += seconds
+            ev.cache.update(cache)
+            results[i] = s
+            report(s)
     return [results[i] for i in range(n_tasks)]
 
 
@@ -654,6 +651,8 @@ def _cli(args: argparse.Namespace) -> int:
         candidates=args.candidates.split(",") if args.candidates else None,
         progress=not args.quiet,
         workers=args.workers,
+        executor=args.executor,
+        ray_address=args.ray_address,
     )
     try:
         diagnose(args.logs, args.out, opts)
@@ -680,4 +679,5 @@ def add_cli(sub: Any) -> None:
         default=os.cpu_count() or 1,
         help="processes fitting candidates side by side (default: one per CPU)",
     )
+    add_executor_args(p)
     p.set_defaults(func=_cli)

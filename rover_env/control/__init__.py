@@ -7,11 +7,10 @@ bare simulator; the environment hands them ``ProtoExplorerEnv.controller_input()
 
 from rover_env.control.base import CommandSchedule, Controller, ControllerInput
 from rover_env.control.open_loop import OpenLoop, skid_steer_targets
-from rover_env.control.runner import METRICS, DriveCase, DriveTrace, episode_metrics, run_on_sim
+from rover_env.control.runner import DriveCase, DriveTrace, run_on_sim
 from rover_env.control.slip_pi import SlipPI, SlipPIConfig, load_slip_pi_config
 
 __all__ = [
-    "METRICS",
     "CommandSchedule",
     "Controller",
     "ControllerInput",
@@ -20,7 +19,6 @@ __all__ = [
     "OpenLoop",
     "SlipPI",
     "SlipPIConfig",
-    "episode_metrics",
     "load_slip_pi_config",
     "run_on_sim",
     "skid_steer_targets",

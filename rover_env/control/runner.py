@@ -6,6 +6,7 @@ with the benchmark's: physics at 1 ms, encoders and potentiometers read through
 :class:`SensorModel` and fed to :class:`SlipEstimator` at ``estimator_rate`` (50 Hz), the
 controller called at ``control_frequency`` (10 Hz) with the newest estimate; tracking
 errors, energy and slip are computed the way ``ProtoExplorerEnv.step`` computes them.
+The benchmark judges a trace with :func:`rover_env.benchmark.metrics.trace_metrics`.
 """
 
 from __future__ import annotations
@@ -23,35 +24,13 @@ from rover_env.estimation.sensors import SensorConfig, SensorModel
 from rover_env.sim.simulator import RoverSim
 
 __all__ = [
-    "METRICS",
     "DriveCase",
     "DriveTrace",
-    "episode_metrics",
     "motor_power",
     "run_on_sim",
 ]
 
 Array = npt.NDArray[np.float64]
-
-METRICS: tuple[str, ...] = (
-    "mean_abs_slip",
-    "p95_abs_slip",
-    "rms_speed_error",
-    "rms_yaw_rate_error",
-    "energy_per_metre",
-    "distance_made_good",
-    "success",
-    "flipped",
-    "mean_sinkage",
-    "max_sinkage",
-    "time_stuck",
-)
-"""Per-episode metrics, in table order (see :func:`episode_metrics`)."""
-
-STUCK_PROGRESS = 0.2
-"""A control step is stuck when the rover makes less than this share of the commanded progress."""
-MIN_PATH = 0.01
-"""Path length (m) below which energy per metre is taken over this floor (no division by 0)."""
 
 
 @dataclass(frozen=True)
@@ -77,6 +56,9 @@ class DriveTrace:
     command: list[tuple[float, float]] = field(default_factory=list)
     slip_true: list[Array] = field(default_factory=list)
     slip_true_mean_abs: list[float] = field(default_factory=list)
+    slip_abs_step: list[Array] = field(default_factory=list)
+    """Per step, each driven wheel's mean |S| over the step's samples (the env's
+    ``info["slip_abs_step"]``)."""
     slip_estimate: list[Array] = field(default_factory=list)
     reliable: list[npt.NDArray[np.bool_]] = field(default_factory=list)
     tracking_error_speed: list[float] = field(default_factory=list)
@@ -84,91 +66,10 @@ class DriveTrace:
     energy: list[float] = field(default_factory=list)
     distance: list[float] = field(default_factory=list)
     position: list[Array] = field(default_factory=list)
-    sinkage: list[Array] = field(default_factory=list)
+    wheel_sinkage: list[Array] = field(default_factory=list)
+    """Per step, the six wheels' sinkage into loose soil at the step's end (m)."""
     flipped: bool = False
     step_dt: float = 0.1
-
-    def metrics(self, commanded_path: float, goal_fraction: float = 0.5) -> dict[str, float]:
-        return episode_metrics(
-            slip_true=np.array(self.slip_true),
-            slip_true_mean_abs=np.array(self.slip_true_mean_abs),
-            tracking_error_speed=np.array(self.tracking_error_speed),
-            tracking_error_yaw_rate=np.array(self.tracking_error_yaw_rate),
-            energy=np.array(self.energy),
-            distance=np.array(self.distance),
-            start=self.position[0],
-            end=self.position[-1],
-            flipped=self.flipped,
-            commanded_path=commanded_path,
-            goal_fraction=goal_fraction,
-            sinkage=np.array(self.sinkage),
-            speed_command=np.array([c[0] for c in self.command]),
-            step_dt=self.step_dt,
-        )
-
-
-def episode_metrics(
-    *,
-    slip_true: Array,
-    slip_true_mean_abs: Array,
-    tracking_error_speed: Array,
-    tracking_error_yaw_rate: Array,
-    energy: Array,
-    distance: Array,
-    start: Array,
-    end: Array,
-    flipped: bool,
-    commanded_path: float,
-    goal_fraction: float = 0.5,
-    out_of_arena: bool = False,
-    sinkage: Array | None = None,
-    speed_command: Array | None = None,
-    step_dt: float = 0.1,
-) -> dict[str, float]:
-    """The benchmark's metrics of one episode from per-step arrays (truth, as in ``info``).
-
-    * ``mean_abs_slip``: mean |S| of the driven wheels over every estimator sample (the
-      env's ``slip_true_mean_abs``, averaged over steps);
-    * ``p95_abs_slip``: 95th percentile of |S| over the step-end samples of all four wheels;
-    * ``rms_speed_error``, ``rms_yaw_rate_error``: RMS over the episode of commanded minus
-      true forward speed and yaw rate of the middle segment (the env's step RMS, combined);
-    * ``energy_per_metre``: motor electrical energy over the middle segment's path length
-      (J/m), the path floored at :data:`MIN_PATH`;
-    * ``distance_made_good``: straight-line displacement of the middle segment (m);
-    * ``success``: 1 if no flip, still in the arena, and the path length reached
-      ``goal_fraction`` of the commanded one (the rover was not stuck), else 0;
-    * ``flipped``: 1 if a segment tipped beyond 75 deg;
-    * ``mean_sinkage``, ``max_sinkage``: sinkage into loose soil (m) of the six wheels at
-      the step ends (``sinkage``, steps x 6), mean over steps and wheels and the largest;
-      0 on hard ground;
-    * ``time_stuck``: seconds of control steps (``step_dt``) whose path length was below
-      :data:`STUCK_PROGRESS` of the commanded |speed| x step_dt (``speed_command``).
-    """
-    path = float(np.sum(distance))
-    made_good = float(np.linalg.norm(np.asarray(end)[:2] - np.asarray(start)[:2]))
-    ok = (not flipped) and (not out_of_arena) and path >= goal_fraction * commanded_path
-    return {
-        "mean_abs_slip": float(np.mean(slip_true_mean_abs)),
-        "p95_abs_slip": float(np.percentile(np.abs(slip_true), 95)),
-        "rms_speed_error": math.sqrt(float(np.mean(np.square(tracking_error_speed)))),
-        "rms_yaw_rate_error": math.sqrt(float(np.mean(np.square(tracking_error_yaw_rate)))),
-        "energy_per_metre": float(np.sum(energy)) / max(path, MIN_PATH),
-        "distance_made_good": made_good,
-        "success": float(ok),
-        "flipped": float(flipped),
-        "mean_sinkage": float(np.mean(sinkage)) if sinkage is not None else 0.0,
-        "max_sinkage": float(np.max(sinkage)) if sinkage is not None else 0.0,
-        "time_stuck": time_stuck(distance, speed_command, step_dt),
-    }
-
-
-def time_stuck(distance: Array, speed_command: Array | None, step_dt: float) -> float:
-    """Seconds of steps that made less than STUCK_PROGRESS of the commanded progress."""
-    if speed_command is None:
-        return 0.0
-    want = np.abs(np.asarray(speed_command, dtype=float)) * step_dt
-    stuck = (want > 1e-3) & (np.asarray(distance) < STUCK_PROGRESS * want)
-    return float(np.count_nonzero(stuck)) * step_dt
 
 
 def motor_power(sim: RoverSim) -> float:
@@ -247,6 +148,7 @@ def run_on_sim(
         trace.command.append((v_cmd, w_cmd))
         trace.slip_true.append(sim.wheel_truth().S[:4].copy())
         trace.slip_true_mean_abs.append(float(np.mean(slip_acc / samples)))
+        trace.slip_abs_step.append(slip_acc / samples)
         trace.slip_estimate.append(np.asarray(estimate.slip_ratio).copy())
         trace.reliable.append(np.asarray(estimate.reliable).copy())
         trace.tracking_error_speed.append(math.sqrt(ev2 / samples))
@@ -254,7 +156,7 @@ def run_on_sim(
         trace.energy.append(energy)
         trace.distance.append(float(np.linalg.norm(pos[:2] - pos0[:2])))
         trace.position.append(pos)
-        trace.sinkage.append(sim.wheel_truth().sinkage.copy())
+        trace.wheel_sinkage.append(sim.wheel_truth().sinkage.copy())
         if sim.flipped():
             trace.flipped = True
             break

@@ -1,4 +1,4 @@
-"""The Proto-Explorer Gymnasium environment."""
+"""The Proto-Explorer Gymnasium environment: simulation + sensors + one task (:mod:`rover_env.tasks`)."""
 
 from __future__ import annotations
 
@@ -39,6 +39,9 @@ from rover_env.estimation.fast import FastSlipEstimator
 from rover_env.estimation.sensors import SensorConfig, SensorModel
 from rover_env.sim.batch import RoverIndex
 from rover_env.sim.simulator import RoverSim
+from rover_env.tasks.base import Task
+from rover_env.tasks.reward import RewardWeights
+from rover_env.tasks.tracking import RandomTracking
 from rover_env.terrain import Terrain
 
 Array = NDArray[np.float64]
@@ -56,38 +59,6 @@ OBS_NAMES: tuple[str, ...] = (
     "command_yaw_rate",
     *(f"previous_action_{i}" for i in range(4)),
 )
-
-
-@dataclasses.dataclass(frozen=True)
-class RewardWeights:
-    """reward = tracking * (exp(-(e_v/sigma_v)^2) + exp(-(e_w/sigma_w)^2)) / 2
-    - slip * g(mean |S|) - energy * electrical power [W], with g(m) = m, or
-    g(m) = slip_scale * ln(1 + m / slip_scale) when ``slip_scale`` > 0."""
-
-    tracking: float = 1.0
-    slip: float = 1.0
-    energy: float = 0.02
-    sigma_speed: float = 0.05
-    sigma_yaw_rate: float = 0.1
-    slip_scale: float = 0.0
-    """0: the slip penalty is linear in mean |S|. > 0: linear below this slip, logarithmic
-    above, so that a wheel spinning at S = -1 (a stuck rover) does not outweigh by a factor of
-    hundreds the few 1e-3 of slip that separate controllers on ordinary ground; training
-    signals from both then have comparable size."""
-
-    def slip_penalty(self, mean_abs_slip: float) -> float:
-        """g(mean |S|) (see the class docstring), before the weight."""
-        if self.slip_scale > 0:
-            return self.slip_scale * math.log1p(mean_abs_slip / self.slip_scale)
-        return mean_abs_slip
-
-    def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"reward weight {f.name} must be finite and >= 0, got {v!r}")
-        if self.sigma_speed <= 0 or self.sigma_yaw_rate <= 0:
-            raise ValueError("reward sigmas must be > 0")
 
 
 # --------------------------------------------------------------------------- settings
@@ -464,6 +435,9 @@ class RoverEpisode:
         self._prev_action = np.zeros(4)
         self._command = np.zeros(2)
         self._next_command_t = 0.0
+        self.task: Task = RandomTracking(
+            s.max_speed_command, s.max_yaw_rate_command, s.command_interval
+        )
         self._est = None
         self._theta_meas = np.zeros(5)
         self._imu_rng = np.random.default_rng(0)
@@ -473,22 +447,48 @@ class RoverEpisode:
         motors' copper-loss factor R/K^2 and the time a sample stands for."""
         return self.substeps_per_sample, self.samples_per_step, self._copper, self.sample_dt
 
+    @property
+    def command(self) -> Array:
+        """The task's current command (forward speed m/s, yaw rate rad/s), a copy."""
+        return self._command.copy()
+
+    def set_task(self, task: Task) -> None:
+        """The task of the episodes from the next ``reset`` on (:mod:`rover_env.tasks`)."""
+        if not isinstance(task, Task):
+            raise TypeError(f"set_task needs a rover_env.tasks.Task, got {type(task).__name__}")
+        self.task = task
+
     # --- episode start
-    def _start_pose(self, rng: np.random.Generator, options: dict[str, Any] | None) -> tuple:
+    def _start_pose(
+        self,
+        rng: np.random.Generator,
+        options: dict[str, Any] | None,
+        default: tuple[float, float, float] | None = None,
+    ) -> tuple:
         opts = options or {}
         unknown = set(opts) - {"x", "y", "yaw"}
         if unknown:
             raise ValueError(f"reset options: unknown key(s) {sorted(unknown)}; allowed x, y, yaw")
-        yaw = float(opts["yaw"]) if "yaw" in opts else float(rng.uniform(-np.pi, np.pi))
-        return float(opts.get("x", 0.0)), float(opts.get("y", 0.0)), yaw
+        x0, y0, yaw0 = default if default is not None else (0.0, 0.0, None)
+        if "yaw" in opts:
+            yaw = float(opts["yaw"])
+        elif yaw0 is not None:
+            yaw = float(yaw0)
+        else:
+            yaw = float(rng.uniform(-np.pi, np.pi))
+        return float(opts.get("x", x0)), float(opts.get("y", y0)), yaw
 
     def _reset_sim(
         self, sim: RoverSim, rng: np.random.Generator, options: dict[str, Any] | None
     ) -> None:
-        """Draw this episode's terrain and start pose and put ``sim`` there."""
-        if self.randomize_terrain:
+        """This episode's terrain and start pose (the task's, else drawn) and ``sim`` there."""
+        setup = self.task.setup(rng)
+        if setup.terrain is not None:
+            if sim.terrain_cfg != setup.terrain:
+                sim.set_terrain(setup.terrain)
+        elif self.randomize_terrain:
             sim.set_terrain(self.settings.random_terrain(rng))
-        x, y, yaw = self._start_pose(rng, options)
+        x, y, yaw = self._start_pose(rng, options, setup.start)
         sim.reset(x=x, y=y, yaw=yaw)
 
     def _start_episode(self, rng: np.random.Generator) -> None:
@@ -500,11 +500,8 @@ class RoverEpisode:
         self._new_command(rng, 0.0)
 
     def _new_command(self, rng: np.random.Generator, t: float) -> None:
-        v = float(rng.uniform(0.3, 1.0)) * self.max_speed_command
-        # A third of the commands go straight: the rover must also hold a heading.
-        w = 0.0 if rng.random() < 1 / 3 else float(rng.uniform(-1, 1)) * self.max_yaw_rate_command
+        v, w, self._next_command_t = self.task.command(rng, t)
         self._command = np.array([v, w])
-        self._next_command_t = t + float(rng.uniform(*self.command_interval))
 
     def _read_sensors(self, phi: Array, theta: Array) -> tuple[Array, Array]:
         """The rover's electronics on one sample; the joint reading is kept for controllers."""
@@ -599,7 +596,8 @@ class RoverEpisode:
         e_v, e_w = math.sqrt(sums.err_v2[row] / n), math.sqrt(sums.err_w2[row] / n)
         est = self._est
         assert est is not None
-        x = (sums.slip[row] / n).tolist()
+        slip_abs_step = sums.slip[row] / n
+        x = slip_abs_step.tolist()
         slip_mean = (((x[0] + x[1]) + x[2]) + x[3]) / 4  # np.mean's sum and division, cheaper
         mean_abs_slip = (
             slip_mean if self.slip_source == "true" else float(np.mean(np.abs(est.slip_ratio)))
@@ -627,6 +625,7 @@ class RoverEpisode:
             tracking_error_yaw_rate=e_w,
             slip_true=slip_true,
             slip_true_mean_abs=slip_mean,
+            slip_abs_step=slip_abs_step,
             energy=energy,
             distance=float(np.linalg.norm(pos[:2] - pos0[:2])),
             flipped=flipped,
@@ -754,7 +753,9 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
 
     ## Info
     ``reward_tracking``, ``reward_slip``, ``reward_energy``; ``slip_true`` and
-    ``slip_estimate`` (4,); ``slip_estimate_reliable`` (4,); ``tracking_error_speed`` and
+    ``slip_estimate`` (4,); ``slip_estimate_reliable`` (4,); ``slip_abs_step`` (4,): each
+    driven wheel's true |S| averaged over the step's samples (``slip_true_mean_abs`` is their
+    mean); ``tracking_error_speed`` and
     ``tracking_error_yaw_rate`` (RMS over the step); ``command`` (2,); ``speed``,
     ``yaw_rate`` (true, middle segment); ``energy`` (J this step); ``distance`` (m this step);
     ``position`` (middle segment, world); ``wheel_F_z`` (6,), ``wheel_sinkage`` (6,) sinkage into loose soil (m, 0 on hard
@@ -781,8 +782,15 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
     with ``backend="plugin"`` (next-step autoreset, time limit included). For
     stable-baselines3: ``rover_env.training.vec_adapter.GymnasiumVecEnv``.
 
+    ## Task
+    What an episode asks (commands, start, ground, length, reward weights) is the env's
+    :class:`rover_env.tasks.Task`, :class:`rover_env.tasks.RandomTracking` by default;
+    ``set_task`` gives another one (a benchmark scenario, :class:`rover_env.tasks.ScenarioTask`)
+    from the next reset on. A task with a time limit truncates the episode at it.
+
     ## Version history
-    * v0: initial release.
+    * v0: initial release. (Issue 17 moved the command drawing into the task layer, draw for
+      draw, and added ``info["slip_abs_step"]``; the episodes of every seed are unchanged.)
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}  # noqa: RUF012
@@ -927,7 +935,7 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
         )
         if self.render_mode == "human":
             self.render()
-        return self._obs(), reward, terminated, False, info
+        return self._obs(), reward, terminated, self.task.truncated(sim.time), info
 
     def _step_fast(
         self, a4: Array
@@ -966,7 +974,7 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
         )
         if self.render_mode == "human":
             self.render()
-        return self._obs(), reward, terminated, False, info
+        return self._obs(), reward, terminated, self.task.truncated(sim.time), info
 
     def _info_static(self) -> dict[str, Any]:
         return self._info_from(self.sim, self._index, self._vel)

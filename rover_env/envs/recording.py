@@ -44,7 +44,7 @@ def record_episode(
     frames = [env.render()]
     fps = int(env.metadata.get("render_fps", 10))
     for _ in range(round(seconds * fps)):
-        v, w = (float(x) for x in base._command)
+        v, w = (float(x) for x in base.command)
         action = np.clip(ol.feedforward(v, w) / base.max_wheel_speed, -1, 1).astype(np.float32)
         _, _, terminated, truncated, _ = env.step(action)
         frames.append(env.render())

@@ -52,6 +52,7 @@ from rover_env.envs.proto_explorer import (
 from rover_env.estimation.estimator import EstimatorConfig
 from rover_env.estimation.fast import FastSlipEstimator
 from rover_env.estimation.sensors import SensorConfig, SensorModel
+from rover_env.seeds import check_split, split_of
 from rover_env.sim.batch import BatchRoverSim, RoverIndex
 from rover_env.sim.simulator import RoverSim, resolve_auto_backend
 from rover_env.terrain import Terrain
@@ -247,7 +248,10 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         if seed is None:
             seeds: list[int | None] = [None] * n
         elif isinstance(seed, int | np.integer):
-            seeds = [int(seed) + i for i in range(n)]
+            block = [int(seed) + i for i in range(n)]
+            # seed + i must not run out of the seed's split into the next block.
+            check_split(block, split_of(int(seed)), f"reset(seed={int(seed)}) of {n} rovers")
+            seeds = list(block)
         else:
             seeds = list(seed)
         if len(seeds) != n:

@@ -1,8 +1,9 @@
-"""Command lines behind ``train/ppo.py`` and ``train/evaluate.py`` (kept here so they install)."""
+"""Command lines behind ``train/ppo.py``, ``train/sweep.py`` and ``train/evaluate.py`` (kept here so they install)."""
 
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -74,10 +75,11 @@ def train_main(argv: Sequence[str] | None = None) -> int:
 def evaluate_main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="train/evaluate.py",
-        description="Benchmark a trained run's agent (ppo:RUN_DIR) on the test seeds.",
+        description="Benchmark a trained run's agent (ppo:RUN_DIR) on the validation seeds; "
+        "--final: its one run on the test seeds, recorded in the test ledger.",
     )
     ap.add_argument("run_dir", help="run directory written by train/ppo.py")
-    ap.add_argument("--episodes", type=int, default=20, help="test seeds per scenario (20)")
+    ap.add_argument("--episodes", type=int, default=20, help="seeds per scenario (20)")
     ap.add_argument("--scenarios", default="all", help="comma list of benchmark scenarios, or all")
     ap.add_argument(
         "--baselines", default="", help="controllers on the same seeds first, e.g. open-loop"
@@ -89,8 +91,17 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=1, help="benchmark processes (1)")
     ap.add_argument("--out", default=None, help="output directory (default RUN_DIR/benchmark)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
-    args = ap.parse_args(argv)
+    ap.add_argument(
+        "--final", action="store_true", help="the agent's one test-split run (test ledger)"
+    )
+    ap.add_argument("--force", action="store_true", help="with --final: again, marked a repeat")
+    ap.add_argument("--ledger", default=None, help="test ledger CSV (default docs/benchmark/)")
+    argv_list = list(sys.argv[1:] if argv is None else argv)
+    args = ap.parse_args(argv_list)
+    if args.force and not args.final:
+        ap.error("--force only applies to --final")
 
+    from rover_env.benchmark.ledger import FinalRunRefused
     from rover_env.training.evaluate import evaluate
 
     try:
@@ -104,9 +115,65 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
             duration=args.duration,
             workers=args.workers,
             progress=not args.quiet,
+            final=args.final,
+            force=args.force,
+            ledger=args.ledger,
+            command="python train/evaluate.py " + " ".join(shlex.quote(a) for a in argv_list),
         )
+    except FinalRunRefused as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 3
     except (ConfigError, FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(report)
+    return 0
+
+
+def sweep_main(argv: Sequence[str] | None = None) -> int:
+    from rover_env.executor import add_executor_args
+
+    ap = argparse.ArgumentParser(
+        prog="train/sweep.py",
+        description="One train/ppo.py run per (algorithm, seed), on local processes or Ray; "
+        "run folders OUT/{algo}_s{seed}, one line per finished run in OUT/sweep.jsonl.",
+    )
+    ap.add_argument("--config", required=True, help="hyperparameter YAML, or a shipped name")
+    ap.add_argument("--env-id", default=None, help="env id (default: the file's only entry)")
+    ap.add_argument("--seeds", required=True, help="run seeds: 0-9, or 0,3,5-7")
+    ap.add_argument("--algos", default="ppo", help="comma list of algorithms (default ppo)")
+    ap.add_argument("--out", required=True, help="sweep folder (shared by all nodes on a cluster)")
+    ap.add_argument("--total-timesteps", type=int, help="env steps per run (overrides n_timesteps)")
+    ap.add_argument("--workers", type=int, default=1, help="runs side by side (default 1)")
+    add_executor_args(ap)
+    ap.add_argument(
+        "--resume", action="store_true", help="skip finished runs, continue stopped ones"
+    )
+    ap.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = ap.parse_args(argv)
+
+    from rover_env.training.sweep import parse_seeds, sweep
+
+    try:
+        rows = sweep(
+            args.config,
+            parse_seeds(args.seeds),
+            args.out,
+            env_id=args.env_id,
+            algos=[a.strip() for a in args.algos.split(",") if a.strip()],
+            total_timesteps=args.total_timesteps,
+            executor=args.executor,
+            workers=args.workers,
+            ray_address=args.ray_address,
+            resume=args.resume,
+            progress=not args.quiet,
+        )
+    except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    for r in rows:
+        print(
+            f"{r['run_dir']}: {r['num_timesteps']} steps, best validation return "
+            f"{r['best_mean_reward']:.2f}"
+        )
     return 0

@@ -13,6 +13,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv,
 
 import rover_env
 from rover_env.config import ConfigError
+from rover_env.seeds import check_split
 from rover_env.training.config import PPOConfig
 
 
@@ -24,9 +25,12 @@ class SeedSchedule(gym.Wrapper[Any, Any, Any, Any]):
     before every evaluation makes successive evaluations comparable).
     """
 
-    def __init__(self, env: gym.Env[Any, Any], seeds: Sequence[int] = ()) -> None:
+    def __init__(
+        self, env: gym.Env[Any, Any], seeds: Sequence[int] = (), split: str = "training"
+    ) -> None:
         super().__init__(env)
-        self._seeds = [int(s) for s in seeds]
+        self.split = split
+        self._seeds = check_split(seeds, split, "SeedSchedule")
         self._next = 0
 
     def reset(
@@ -35,6 +39,8 @@ class SeedSchedule(gym.Wrapper[Any, Any, Any, Any]):
         if seed is None and self._next < len(self._seeds):
             seed = self._seeds[self._next]
             self._next += 1
+        elif seed is not None:
+            check_split([seed], self.split, f"{self.split} env reset")
         return self.env.reset(seed=seed, options=options)
 
     def rewind(self) -> None:
@@ -58,6 +64,7 @@ def make_env(
     seeds: Sequence[int] = (),
     monitor_file: Path | None = None,
     append: bool = False,
+    split: str = "training",
 ) -> gym.Env[Any, Any]:
     """One env: registered id + YAML env_kwargs, planned seeds, Monitor (episode return/length)."""
     import torch
@@ -68,7 +75,7 @@ def make_env(
     if cfg.max_episode_steps is not None:
         kwargs["max_episode_steps"] = cfg.max_episode_steps
     env = gym.make(env_id, **kwargs)
-    env = SeedSchedule(env, seeds)
+    env = SeedSchedule(env, seeds, split)
     filename = None if monitor_file is None else str(monitor_file)
     override = not (append and monitor_file is not None and monitor_file.is_file())
     return Monitor(env, filename=filename, override_existing=override)
@@ -93,21 +100,25 @@ def make_vec_env(
     monitor_dir: Path | None,
     prefix: str,
     append: bool = False,
+    split: str = "training",
 ) -> VecEnv:
     """``n`` envs, env ``i`` drawing its resets from ``seeds[i]``; subprocesses if configured and n > 1.
+
+    Every seed must lie in ``split`` (:mod:`rover_env.seeds`): "training" for the training
+    envs, "validation" for the evaluation envs.
 
     ``vec_env: batch`` steps all ``n`` rovers in this process on ``mujoco.batch`` (the env id's
     ``vector_entry_point``, :mod:`rover_env.envs.vector`) behind the same-step adapter
     :class:`rover_env.training.vec_adapter.GymnasiumVecEnv`, with one ``VecMonitor`` file.
     """
     if cfg.vec_env == "batch":
-        return make_batch_vec_env(env_id, cfg, n, seeds, monitor_dir, prefix)
+        return make_batch_vec_env(env_id, cfg, n, seeds, monitor_dir, prefix, split)
     fns: list[Callable[[], gym.Env[Any, Any]]] = []
     for i in range(n):
         mfile = None if monitor_dir is None else monitor_dir / f"{prefix}_{i}.monitor.csv"
 
         def fn(i: int = i, mfile: Path | None = mfile) -> gym.Env[Any, Any]:
-            return make_env(env_id, cfg, seeds[i], mfile, append)
+            return make_env(env_id, cfg, seeds[i], mfile, append, split)
 
         fns.append(fn)
     if cfg.vec_env == "subproc" and n > 1:
@@ -122,6 +133,7 @@ def make_batch_vec_env(
     seeds: Sequence[Sequence[int]],
     monitor_dir: Path | None,
     prefix: str,
+    split: str = "training",
 ) -> VecEnv:
     """``n`` rovers of ``env_id``'s vector env (``gym.make_vec(..., "vector_entry_point")``)."""
     from rover_env.training.vec_adapter import GymnasiumVecEnv
@@ -135,6 +147,8 @@ def make_batch_vec_env(
     except gym.error.Error as exc:
         raise ConfigError(f"vec_env: batch: {env_id} has no batched vector env ({exc})") from None
     filename = None if monitor_dir is None else str(monitor_dir / f"{prefix}_batch")
+    for i, ss in enumerate(seeds):
+        check_split(ss, split, f"{prefix} env {i}")
     return VecMonitor(GymnasiumVecEnv(venv, seeds), filename)
 
 
@@ -153,12 +167,12 @@ def split_episodes(seeds: Sequence[int], n_episodes: int, n_envs: int) -> list[l
 
 
 # --------------------------------------------------------------------------- the seed plan
-# The plan is rover_env.benchmark.seeds; these only name the parts training uses.
+# The plan is rover_env.seeds; these only name the parts training uses.
 
 
 def training_env_seeds(run_seed: int, n_envs: int) -> list[int]:
     """First-reset seed of each training env: the plan's ``training_seed(run, i)``."""
-    from rover_env.benchmark.seeds import training_seed
+    from rover_env.seeds import training_seed
 
     try:
         return [training_seed(run_seed, i) for i in range(n_envs)]
@@ -167,12 +181,12 @@ def training_env_seeds(run_seed: int, n_envs: int) -> list[int]:
 
 
 def validation_seeds() -> list[int]:
-    from rover_env.benchmark.seeds import seeds
+    from rover_env.seeds import seeds
 
     return seeds("validation")
 
 
 def benchmark_test_seeds() -> list[int]:
-    from rover_env.benchmark.seeds import seeds
+    from rover_env.seeds import seeds
 
     return seeds("test")

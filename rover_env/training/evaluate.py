@@ -1,4 +1,8 @@
-"""A trained run on the benchmark: its agent as the ``ppo:RUN_DIR`` controller on the test seeds.
+"""A trained run on the benchmark: its agent as the ``ppo:RUN_DIR`` controller.
+
+Validation seeds by default (selection, comparison of runs, ablations); the test seeds only
+with ``final=True`` (``--final``), once per agent, recorded in the test ledger
+(:mod:`rover_env.benchmark.ledger`).
 
 The benchmark (``rover_env.benchmark``) owns the scenarios, the seed plan, the metrics and
 the tables, so a trained agent is judged exactly like the hand-built controllers.
@@ -13,15 +17,15 @@ from typing import Any
 
 import yaml
 
-from rover_env.benchmark.cli import run_benchmark
-from rover_env.benchmark.controllers import parse_specs
-from rover_env.benchmark.policy import resolve_model_path
 from rover_env.benchmark.scenarios import load_scenario, scenario_names
+from rover_env.benchmark.suite import run_benchmark
 from rover_env.config import ConfigError
+from rover_env.policies.ppo import resolve_model_path
+from rover_env.policies.specs import parse_specs
 
 # env_kwargs that change only the reward, not what the agent sees or how the rover moves.
 # Also the ScenarioMixEnv's training-distribution keys; its action_residual is applied by the
-# ppo: controller itself (rover_env.benchmark.policy).
+# ppo: controller itself (rover_env.policies.ppo).
 _REWARD_ONLY = {
     "reward_weights",
     "slip_source",
@@ -75,12 +79,19 @@ def evaluate(
     duration: float | None = None,
     workers: int = 1,
     progress: bool = True,
+    final: bool = False,
+    force: bool = False,
+    ledger: str | Path | None = None,
+    command: str | None = None,
 ) -> str:
-    """Benchmark the run's agent on the first ``episodes`` test seeds (default 20) per scenario.
+    """Benchmark the run's agent on the first ``episodes`` seeds (default 20) per scenario:
+    validation seeds, or with ``final`` the test seeds (refused for an agent already in the
+    test ledger unless ``force``).
 
     ``baselines`` (e.g. ``["open-loop"]``) run on the same seeds; the first is the reference
     of the paired differences. Writes the benchmark's tables and plots to ``out`` (default
-    ``RUN_DIR/benchmark``) and returns its Markdown report.
+    ``RUN_DIR/benchmark``, ``RUN_DIR/benchmark-final`` for a final run) and returns its
+    Markdown report.
     """
     run = Path(run_dir)
     spec = agent_spec(run, which)
@@ -92,10 +103,14 @@ def evaluate(
         controllers,
         names,
         20 if episodes is None else episodes,
-        run / "benchmark" if out is None else out,
-        split="test",
+        (run / ("benchmark-final" if final else "benchmark")) if out is None else out,
+        split="validation",
         duration=duration,
         workers=workers,
         progress=progress,
+        final=final,
+        force=force,
+        ledger=ledger,
+        command=command,
     )
     return files["markdown"].read_text()

@@ -270,7 +270,9 @@ def train(
         if cfg.eval_freq > 0:
             eval_seeds = split_episodes(val_seeds, cfg.n_eval_episodes, cfg.n_eval_envs)
             eval_venv = _normalized(
-                make_vec_env(env_id, cfg, cfg.n_eval_envs, eval_seeds, None, "eval"),
+                make_vec_env(
+                    env_id, cfg, cfg.n_eval_envs, eval_seeds, None, "eval", split="validation"
+                ),
                 cfg,
                 training=False,
             )

@@ -63,6 +63,7 @@
 //     then P x (lo_x, lo_y, hi_x, hi_y, mu_x, mu_y, soil),
 //     then S x the 14 numbers of rover_env.soil.SoilParams.numbers()
 
+#define _GNU_SOURCE  // sincos
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -82,6 +83,7 @@
 #define SOIL_NODES 8
 #define DEG_TO_RAD (3.141592653589793 / 180.0)  // math.radians
 #define SOIL_V_EPS 1e-3
+#define SOIL_V_BLEND 0.03
 #define SOIL_MAX_TAN_BETA 20.0
 #define X_FLOOR 1e-300
 #define MAX_WAVES 4096
@@ -425,6 +427,40 @@ static int rut_cell_of(const TerrainView* t, double x, double y) {
 
 //---------------------------------------------------------------- soil (rover_env.soil)
 
+// soil._COS and soil._SIN: Taylor coefficients of cos and sin/x in x^2
+static const double SC_COS[12] = {
+  1.0, -0.5, 0.041666666666666664, -0.001388888888888889, 2.48015873015873e-05,
+  -2.755731922398589e-07, 2.08767569878681e-09, -1.1470745597729725e-11,
+  4.779477332387385e-14, -1.5619206968586225e-16, 4.110317623312165e-19,
+  -8.896791392450574e-22};
+static const double SC_SIN[12] = {
+  1.0, -0.16666666666666666, 0.008333333333333333, -0.0001984126984126984,
+  2.7557319223985893e-06, -2.505210838544172e-08, 1.6059043836821613e-10,
+  -7.647163731819816e-13, 2.8114572543455206e-15, -8.22063524662433e-18,
+  1.9572941063391263e-20, -3.868170170630684e-23};
+
+// soil._sincos_nodes: sin and cos at mid + half*x_k; the nodes are symmetric (x_{7-k} = -x_k),
+// so four polynomial pairs serve all eight (the sign flips are exact)
+static void sincos_nodes(double mid, double half, double* sn, double* cs) {
+  double sm, cm;
+  sincos(mid, &sm, &cm);
+  for (int k = SOIL_NODES/2; k < SOIL_NODES; k++) {
+    double a = half*GL_X[k];
+    double a2 = a*a;
+    double c = SC_COS[11], s = SC_SIN[11];
+    for (int j = 10; j >= 0; j--) {
+      c = c*a2 + SC_COS[j];
+      s = s*a2 + SC_SIN[j];
+    }
+    double sa = a*s;
+    sn[k] = sm*c + cm*sa;
+    cs[k] = cm*c - sm*sa;
+    int m = SOIL_NODES - 1 - k;
+    sn[m] = sm*c - cm*sa;
+    cs[m] = cm*c + sm*sa;
+  }
+}
+
 // soil.stress_integrals for one wheel: out = F_x, F_y, F_z, T
 static void stress_integrals(double s, double tb, double d, double h, double hc, double r,
                              double b, const double* sp, double out[4]) {
@@ -448,28 +484,28 @@ static void stress_integrals(double s, double tb, double d, double h, double hc,
   double mid_r = 0.5*(th_m + th_r);
   double mid_f = 0.5*(th_c + th_m);
   double span = th_m > th_r ? th_m - th_r : 1.0;
+  double slope = (th_f - th_m)/span;
+  double sin_r[SOIL_NODES], cos_r[SOIL_NODES], sin_fr[SOIL_NODES], cos_fr[SOIL_NODES];
+  double sin_eq[SOIL_NODES], cos_eq[SOIL_NODES];
+  sincos_nodes(mid_r, half_r, sin_r, cos_r);
+  sincos_nodes(mid_f, half_f, sin_fr, cos_fr);
+  sincos_nodes(th_f - (mid_r - th_r)*slope, -(half_r*slope), sin_eq, cos_eq);
   double one_s = 1.0 - s;
   double sums[2][4];
   for (int arc = 0; arc < 2; arc++) {
     double ax[SOIL_NODES], ay[SOIL_NODES], az[SOIL_NODES], at[SOIL_NODES];
     double half = arc == 0 ? half_r : half_f;
     for (int k = 0; k < SOIL_NODES; k++) {
-      double th, base_th;
-      if (arc == 0) {
-        th = mid_r + half_r*GL_X[k];
-        base_th = th_f - (th - th_r)/span*(th_f - th_m);
-      } else {
-        th = mid_f + half_f*GL_X[k];
-        base_th = th;
-      }
-      double cos_t = cos(th), sin_t = sin(th);
-      double base = np_max(r*(cos(base_th) - cos_f), 0.0);
-      double sigma = ks*pow(base, n);
+      double th = arc == 0 ? mid_r + half_r*GL_X[k] : mid_f + half_f*GL_X[k];
+      double cos_t = arc == 0 ? cos_r[k] : cos_fr[k];
+      double sin_t = arc == 0 ? sin_r[k] : sin_fr[k];
+      double base = np_max(r*((arc == 0 ? cos_eq[k] : cos_t) - cos_f), 0.0);
+      double sigma = ks*(n == 1.0 ? base : pow(base, n));  // pow(x, 1) == x exactly
       double j_x = r*((th_c - th) - one_s*(sin_c - sin_t));
       double j_y = r*one_s*(th_c - th)*tb;
       double tau_max = sp[S_C] + sigma*tan_phi;
       double tau_x = tau_max*np_sign(j_x)*-expm1(-fabs(j_x)/sp[S_KX]);
-      double tau_y = tau_max*np_sign(j_y)*-expm1(-fabs(j_y)/sp[S_KY]);
+      double tau_y = j_y == 0.0 ? 0.0 : tau_max*np_sign(j_y)*-expm1(-fabs(j_y)/sp[S_KY]);
       double w = half*GL_W[k];
       ax[k] = w*(tau_x*cos_t - sigma*sin_t);
       ay[k] = w*tau_y;
@@ -807,13 +843,15 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
 
     // tire.transient_step
     double ux = st[L.ux + i], uy = st[L.uy + i];
+    double ux_new = 0.0, uy_new = 0.0, F_x = 0.0, F_y = 0.0;
+    if (soil == 0) {  // hard ground (a soil wheel's Gim forces would be discarded)
     double speed = np_max(fabs(v_x), fabs(v_w));
     double x = np_max(speed*dt_sx, X_FLOOR);
     double y = np_max(speed*dt_sy, X_FLOOR);
     double em_x = expm1(-x);
     double em_y = y == x ? em_x : expm1(-y);  // sigma_x == sigma_y by default: one call
-    double ux_new = ux*(em_x + 1.0) - (v_x - v_w)*(dt*em_x/x);
-    double uy_new = uy*(em_y + 1.0) - v_y*(dt*em_y/y);
+    ux_new = ux*(em_x + 1.0) - (v_x - v_w)*(dt*em_x/x);
+    uy_new = uy*(em_y + 1.0) - v_y*(dt*em_y/y);
     double fz = np_max(F_z, 0.0);
     double lim_x = sx*np_min((fz*mu_x)*c->three_over_cs, 1.0);
     double lim_y = (fz*mu_y)*c->three_sy_over_calpha;
@@ -828,8 +866,8 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
     double mag_y = gim_magnitude(fabs(uy_new)/sy, fz, mu_y, c->three_over_calpha, &bound_y);
     double f_x = -np_sign(ux_new)*mag_x - tp[D_X]*ux_dot;
     double f_y = -np_sign(uy_new)*mag_y - tp[D_Y]*uy_dot;
-    double F_x = np_min(np_max(f_x, -bound_x), bound_x);
-    double F_y = np_min(np_max(f_y, -bound_y), bound_y);
+    F_x = np_min(np_max(f_x, -bound_x), bound_x);
+    F_y = np_min(np_max(f_y, -bound_y), bound_y);
     if (c->combined_on != 0.0) {  // effects.CombinedSlip.forces: the friction ellipse
       double fzc = np_max(F_z, 1e-12);
       double n = hypot(F_x/(mu_x*fzc), F_y/(mu_y*fzc));
@@ -837,6 +875,7 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       F_x = F_x*sc;
       F_y = F_y*sc;
     }
+    }  // hard ground
 
     double sink = 0.0, torque = 0.0, dig = 0.0;
     double* pw = st + L.pwrite + 4*i;
@@ -863,7 +902,8 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       double h = delta - dig;
       double h_c = delta - np_max(rut, dig);
       double lead = fabs(v_w) >= fabs(v_x) ? v_w : v_x;
-      double w = 0.5*(1.0 + tanh(lead/SOIL_V_EPS));
+      double z = np_min(np_max(lead/SOIL_V_BLEND, -1.0), 1.0);  // soil.V_BLEND smoothstep
+      double w = 0.5 + z*(0.75 - 0.25*z*z);
       double f[4] = {0, 0, 0, 0}, g[4] = {0, 0, 0, 0};
       if (w != 0.0) stress_integrals(s_fwd, tan_b, 1.0, h, h_c, r, c->width, sp, f);
       if (w != 1.0) stress_integrals(-s_fwd, tan_b, -1.0, h, h_c, r, c->width, sp, g);

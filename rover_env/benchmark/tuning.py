@@ -26,8 +26,9 @@ unbounded run chose Ki = 8 /s, and its wheel targets chattered in a limit cycle 
 the deadband.
 
 Everything is seeded by the cases, so the same call gives the same gains. The command line
-form (``rover-env tune-slip-pi``) lives in :mod:`rover_env.benchmark.cli`, which owns the
-scenarios and the seed plan (higher layers); this module only needs the cases.
+form is ``rover-env tune-slip-pi`` (:mod:`rover_env.benchmark.cli`). The tuner lives with the
+benchmark (it moved from ``rover_env.control``) because it judges gains with the
+benchmark's own metrics (:mod:`rover_env.benchmark.metrics`).
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from rover_env.benchmark.metrics import trace_metrics
 from rover_env.config import RoverConfig, load_rover, to_dict
 from rover_env.control.open_loop import OpenLoop
 from rover_env.control.runner import DriveCase, run_on_sim
@@ -103,7 +105,7 @@ def _run_case(args: tuple[RoverConfig, SlipPIConfig | None, DriveCase]) -> dict[
     rover, gains, case = args
     ctrl = OpenLoop(rover) if gains is None else SlipPI(rover, gains)
     trace = run_on_sim(ctrl, case, _sim_for(rover, case))
-    return trace.metrics(case.schedule.path_length(case.duration), case.goal_fraction)
+    return trace_metrics(trace, case.schedule.path_length(case.duration), case.goal_fraction)
 
 
 def evaluate(

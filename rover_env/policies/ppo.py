@@ -1,0 +1,124 @@
+"""The ``ppo:PATH`` controller: a stable-baselines3 PPO policy acting on the env's observation.
+
+Imported only when a ``ppo:`` controller is asked for (``make_controller``), so the rest of the
+benchmark never loads torch. PATH is a ``.zip`` saved by ``PPO.save`` or a run folder holding
+one (``best_model.zip`` preferred, then ``final_model.zip``, ``model.zip``, or the only
+``.zip``). VecNormalize statistics saved beside it (``vecnormalize.pkl`` or
+``vec_normalize.pkl``; for ``best_model.zip``, ``best_vecnormalize.pkl``, the statistics it was
+selected with, when present) normalise the observation as in training, frozen (no updates).
+
+The policy must have been trained on the plain ``ProtoExplorerEnv`` observation (46 values,
+``OBS_NAMES``); its action space decides the env's action layout (4 values: "wheels",
+2: "sides"). Actions are the deterministic (mean) ones. If the run's ``config.yaml`` beside
+the model sets ``env_kwargs.action_residual`` (``ScenarioMixEnv``), the policy's action is a
+residual on a base controller (``env_kwargs.residual_base``) and is mapped the same way here;
+``env_kwargs.action_schedule`` likewise makes it a gain schedule of the slip PI
+(:class:`rover_env.policies.residual.Schedule`).
+"""
+
+from __future__ import annotations
+
+import pickle
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import yaml
+
+from rover_env.envs.proto_explorer import ProtoExplorerEnv
+from rover_env.policies.residual import Residual, Schedule
+
+__all__ = ["PPOController", "resolve_model_path"]
+
+Obs = npt.NDArray[np.float32]
+
+_MODEL_NAMES = ("best_model.zip", "final_model.zip", "model.zip")
+_STATS_NAMES = ("vecnormalize.pkl", "vec_normalize.pkl")
+
+
+def resolve_model_path(path: str | Path) -> tuple[Path, Path | None]:
+    """(model .zip, VecNormalize stats or None) for a run folder or a .zip path."""
+    p = Path(path)
+    if p.is_dir():
+        found = [p / n for n in _MODEL_NAMES if (p / n).is_file()]
+        if not found:
+            zips = sorted(p.glob("*.zip"))
+            if len(zips) != 1:
+                raise FileNotFoundError(
+                    f"{p}: no {', '.join(_MODEL_NAMES)} and {len(zips)} other .zip files"
+                )
+            found = zips
+        model = found[0]
+    elif p.is_file() or p.with_suffix(".zip").is_file():
+        model = p if p.is_file() else p.with_suffix(".zip")
+    else:
+        raise FileNotFoundError(f"PPO model not found: {p}")
+    stats = next((model.parent / n for n in _STATS_NAMES if (model.parent / n).is_file()), None)
+    best_stats = model.parent / "best_vecnormalize.pkl"
+    if model.name == "best_model.zip" and best_stats.is_file():
+        stats = best_stats  # the statistics the best model was selected with
+    return model, stats
+
+
+class PPOController:
+    """Deterministic PPO actions from the (normalised) env observation."""
+
+    def __init__(self, path: str | Path, name: str | None = None) -> None:
+        import torch
+        from stable_baselines3 import PPO
+
+        torch.set_num_threads(1)  # one benchmark worker per core
+        self.model_path, self.stats_path = resolve_model_path(path)
+        self.name = name or f"ppo:{path}"
+        self.model: Any = PPO.load(str(self.model_path), device="cpu")
+        self.normalizer: Any = None
+        if self.stats_path is not None:
+            with self.stats_path.open("rb") as fh:
+                self.normalizer = pickle.load(fh)  # a VecNormalize without its venv
+            self.normalizer.training = False
+        self.residual: Residual | Schedule | None = None
+        cfg_file = self.model_path.parent / "config.yaml"
+        if cfg_file.is_file():
+            data = yaml.safe_load(cfg_file.read_text()) or {}
+            entry: dict[str, Any] = next(iter(data.values()), {}) or {}
+            kw = entry.get("env_kwargs") or {}
+            if kw.get("action_residual") is not None:
+                base = str(kw.get("residual_base", "open-loop"))
+                self.residual = Residual(base, float(kw["action_residual"]))
+            elif kw.get("action_schedule") is not None:
+                base = str(kw.get("residual_base", "slip-pi"))
+                self.residual = Schedule(base, kw["action_schedule"])
+        shape = tuple(self.model.action_space.shape or ())
+        if isinstance(self.residual, Schedule):
+            if shape != (self.residual.n_actions,):
+                raise ValueError(
+                    f"{self.model_path}: action space {shape}, but its action_schedule has "
+                    f"{self.residual.n_actions} knob(s) ({', '.join(self.residual.knobs)})"
+                )
+            self.action_layout = "wheels"  # the PI drives the wheels; the policy sets its gains
+        elif shape in ((4,), (2,)):
+            self.action_layout = "wheels" if shape == (4,) else "sides"
+        else:
+            raise ValueError(f"{self.model_path}: action space {shape}, expected (4,) or (2,)")
+        obs_shape = tuple(self.model.observation_space.shape or ())
+        if obs_shape != (46,):
+            raise ValueError(
+                f"{self.model_path}: observation space {obs_shape}; the benchmark feeds the "
+                "plain ProtoExplorerEnv observation (46,)"
+            )
+
+    def reset(self, env: ProtoExplorerEnv) -> None:
+        """The MLP is stateless; a residual's base controller is reset."""
+        if self.residual is not None:
+            self.residual.reset(env)
+
+    def action(self, env: ProtoExplorerEnv, obs: Obs) -> Obs:
+        o = np.asarray(obs, dtype=np.float32)
+        if self.normalizer is not None:
+            o = np.asarray(self.normalizer.normalize_obs(o), dtype=np.float32)
+        act, _ = self.model.predict(o, deterministic=True)
+        a = np.asarray(act, dtype=np.float32).reshape(-1)
+        if self.residual is not None:
+            a = self.residual(a, env, np.asarray(obs, dtype=np.float32))
+        return a

@@ -1,0 +1,55 @@
+"""The Task interface: what one episode asks of the rover (see :mod:`rover_env.tasks`)."""
+
+from __future__ import annotations
+
+import abc
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from rover_env.config import TerrainConfig
+
+__all__ = ["Command", "EpisodeSetup", "Task"]
+
+Command = tuple[float, float, float]
+"""(forward speed m/s, yaw rate rad/s, time from which the task wants a new command, s)."""
+
+
+@dataclass(frozen=True)
+class EpisodeSetup:
+    """Where an episode starts: ``None`` leaves the choice to the env (its ground; the arena
+    centre with a random heading, or the ``reset`` options)."""
+
+    terrain: TerrainConfig | None = None
+    start: tuple[float, float, float] | None = None
+    """x, y (m) and heading (rad) of the front axle at rest."""
+
+
+class Task(abc.ABC):
+    """Command schedule, episode setup and time limit of an episode.
+
+    The env calls :meth:`setup` at every reset, :meth:`command` at the start of the episode
+    and again whenever the simulated time reaches the time the last command named, and ends
+    the episode (truncation) once the time reaches :attr:`time_limit` (None: never; the
+    registered ``max_episode_steps`` then ends it). Randomness comes only from the env's
+    seeded generator ``rng``.
+    """
+
+    name: str = "task"
+    time_limit: float | None = None
+
+    def setup(self, rng: np.random.Generator) -> EpisodeSetup:
+        """The episode's ground and start pose (default: the env decides)."""
+        return EpisodeSetup()
+
+    @abc.abstractmethod
+    def command(self, rng: np.random.Generator, t: float) -> Command:
+        """The command from time ``t`` on and when to ask again (``math.inf``: never)."""
+
+    def truncated(self, t: float) -> bool:
+        """Whether time ``t`` is past the task's length."""
+        return self.time_limit is not None and t >= self.time_limit - 1e-9
+
+
+NEVER = math.inf

@@ -1,0 +1,88 @@
+"""The scenario mix: one benchmark scenario drawn per episode, its seed kept in its split.
+
+Not a :class:`~rover_env.tasks.base.Task` itself: scenarios differ in the structure of their
+ground (a rock, a slope), which needs another compiled simulator, so the env that plays the
+mix (``rover_env.benchmark.mixture.ScenarioMixEnv``) keeps one env per scenario and gives it
+the :class:`~rover_env.tasks.scenario.ScenarioTask` drawn here.
+
+Seeds (:mod:`rover_env.seeds`): the jitter seed of the drawn scenario is the reset seed
+itself when that seed is held out (a validation seed plays the benchmark's own validation
+episode of the drawn scenario) and otherwise a seed drawn from the split of the last reset
+seed (the training block after a training seed or none). Training seeds draw the scenario,
+jitter seed and command scales in the order the shipped agents were trained with.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import numpy as np
+
+from rover_env.control.base import CommandSchedule
+from rover_env.seeds import draw_seed, split_of
+from rover_env.tasks.scenario import ScenarioTask
+from rover_env.tasks.scenarios import Episode, ScenarioConfig, load_scenario
+
+__all__ = ["DEFAULT_MIX", "ScenarioMix"]
+
+DEFAULT_MIX: dict[str, float] = {
+    "stuck-wheel": 2.0,
+    "split-mu": 2.0,
+    "ice-patch": 2.0,
+    "flat-turns": 1.0,
+    "slope": 1.0,
+    "bumps": 1.0,
+}
+"""Scenario weights: where slip is wasted counts double."""
+
+
+def _scaled(schedule: CommandSchedule, speed: float, yaw: float) -> CommandSchedule:
+    return CommandSchedule(
+        schedule.times,
+        tuple(v * speed for v in schedule.speeds),
+        tuple(w * yaw for w in schedule.yaw_rates),
+    )
+
+
+class ScenarioMix:
+    """Draws one :class:`ScenarioTask` per episode (module docstring).
+
+    Args:
+        scenarios: name -> weight (default :data:`DEFAULT_MIX`), or names (equal weights).
+        speed_scale: range of the factor on every commanded speed of an episode.
+        yaw_scale: range of the factor on every commanded yaw rate (its sign is drawn too).
+    """
+
+    def __init__(
+        self,
+        scenarios: dict[str, float] | Sequence[str] | None = None,
+        speed_scale: tuple[float, float] = (0.6, 1.3),
+        yaw_scale: tuple[float, float] = (0.5, 1.5),
+    ) -> None:
+        mix = DEFAULT_MIX if scenarios is None else scenarios
+        if not isinstance(mix, dict):
+            mix = dict.fromkeys(mix, 1.0)
+        if not mix or any(not (w > 0) for w in mix.values()):
+            raise ValueError(f"scenarios need positive weights, got {mix}")
+        self.names = list(mix)
+        self.cfgs: list[ScenarioConfig] = [load_scenario(n) for n in self.names]
+        p = np.array([mix[n] for n in self.names], dtype=np.float64)
+        self.p = p / p.sum()
+        self.speed_scale = (float(speed_scale[0]), float(speed_scale[1]))
+        self.yaw_scale = (float(yaw_scale[0]), float(yaw_scale[1]))
+        self.split = "training"
+        """The split of the last reset seed; unseeded episodes stay in it."""
+
+    def draw(self, rng: np.random.Generator, seed: int | None) -> ScenarioTask:
+        """The next episode's task; ``seed`` is the reset seed (None: continue the stream)."""
+        if seed is not None:
+            self.split = split_of(seed)
+        i = int(rng.choice(len(self.cfgs), p=self.p))
+        episode_seed = draw_seed(self.split, rng)  # drawn always: the same stream either way
+        if seed is not None and self.split != "training":
+            episode_seed = int(seed)  # a held-out seed plays its own episode
+        episode: Episode = self.cfgs[i].episode(episode_seed)
+        yaw = float(rng.uniform(*self.yaw_scale)) * (1.0 if rng.random() < 0.5 else -1.0)
+        schedule = _scaled(episode.schedule, float(rng.uniform(*self.speed_scale)), yaw)
+        return ScenarioTask(dataclasses.replace(episode, schedule=schedule))

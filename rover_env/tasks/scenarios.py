@@ -1,0 +1,192 @@
+"""Named benchmark scenarios: a ground, a start pose, a fixed command schedule, per-seed jitter.
+
+Each lives in ``configs/scenarios/<name>.yaml`` (keys: :class:`ScenarioConfig`). The ground is
+a shipped terrain name, a terrain YAML path, or a terrain mapping written inline. A seed
+turns a scenario into one :class:`Episode`: the start pose and the friction of the ground's
+patches are jittered by a generator seeded with (seed, scenario name), so every controller
+sees the same episode for the same seed and the scenarios' draws are independent.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from rover_env.config import (
+    ConfigError,
+    TerrainConfig,
+    configs_dir,
+    from_dict,
+    load_terrain,
+)
+from rover_env.control.base import CommandSchedule
+from rover_env.control.runner import DriveCase
+
+__all__ = [
+    "Episode",
+    "Jitter",
+    "ScenarioConfig",
+    "StartPose",
+    "load_scenario",
+    "scenario_names",
+]
+
+
+@dataclass(frozen=True)
+class StartPose:
+    """Front axle at rest at (x, y), heading ``yaw_deg`` (``RoverSim.reset``)."""
+
+    x: float = 0.0
+    y: float = 0.0
+    yaw_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class Jitter:
+    """Half-widths of the uniform per-seed perturbations."""
+
+    x: float = 0.0
+    y: float = 0.0
+    yaw_deg: float = 0.0
+    mu_scale: float = 0.0
+    """Every friction patch's mu_x and mu_y scaled by one factor in 1 +- mu_scale."""
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ConfigError(f"jitter.{f.name} must be a finite number >= 0, got {v!r}")
+        if self.mu_scale >= 1:
+            raise ConfigError("jitter.mu_scale must be below 1")
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One seed of a scenario: everything needed to run it on the env or the bare sim."""
+
+    scenario: str
+    seed: int
+    terrain: TerrainConfig
+    start: tuple[float, float, float]
+    """x, y (m), heading (rad)."""
+    schedule: CommandSchedule
+    duration: float
+    goal_fraction: float
+
+    def drive_case(self) -> DriveCase:
+        """The same episode for :func:`rover_env.control.runner.run_on_sim` (bare simulator)."""
+        return DriveCase(
+            terrain=self.terrain,
+            schedule=self.schedule,
+            duration=self.duration,
+            start=self.start,
+            seed=self.seed,
+            goal_fraction=self.goal_fraction,
+        )
+
+
+@dataclass(frozen=True)
+class ScenarioConfig:
+    name: str
+    description: str
+    terrain: Any
+    """Shipped terrain name, YAML path, or an inline terrain mapping."""
+    commands: tuple[tuple[float, float, float], ...]
+    """Rows [t (s), forward speed (m/s), yaw rate (rad/s)]: piecewise constant from t on."""
+    duration: float = 20.0
+    start: StartPose = field(default_factory=StartPose)
+    jitter: Jitter = field(default_factory=Jitter)
+    goal_fraction: float = 0.5
+    """Success needs this share of the commanded path length (see ``episode_metrics``)."""
+    slip_wasted: bool = False
+    """True where the benchmark expects slip control to pay (tuning set, acceptance)."""
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.duration) and self.duration > 0):
+            raise ConfigError(f"scenario {self.name}: duration must be > 0")
+        if not 0 <= self.goal_fraction <= 1:
+            raise ConfigError(f"scenario {self.name}: goal_fraction must lie in [0, 1]")
+        CommandSchedule.from_rows(self.commands)  # validates
+
+    @property
+    def schedule(self) -> CommandSchedule:
+        return CommandSchedule.from_rows(self.commands)
+
+    def terrain_config(self, base: Path | None = None) -> TerrainConfig:
+        t = self.terrain
+        if isinstance(t, dict):
+            return from_dict(TerrainConfig, t, "terrain")
+        if isinstance(t, str):
+            p = Path(t)
+            if base is not None and not p.is_absolute() and (base / p).is_file():
+                return load_terrain(base / p)
+            return load_terrain(t)
+        raise ConfigError(f"scenario {self.name}: terrain must be a name, path or mapping")
+
+    def episode(self, seed: int, duration: float | None = None) -> Episode:
+        """The jittered episode of ``seed`` (``duration`` overrides the scenario's length)."""
+        rng = np.random.default_rng([int(seed), zlib.crc32(self.name.encode())])
+        j, s = self.jitter, self.start
+        dx, dy, dyaw, dmu = rng.uniform(-1.0, 1.0, 4)
+        terrain = self.terrain_config()
+        if j.mu_scale > 0 and terrain.patches:
+            k = 1.0 + j.mu_scale * float(dmu)
+            patches = tuple(
+                p
+                if p.mu_x is None or p.mu_y is None  # a soil patch: no friction to scale
+                else dataclasses.replace(p, mu_x=p.mu_x * k, mu_y=p.mu_y * k)
+                for p in terrain.patches
+            )
+            terrain = dataclasses.replace(terrain, patches=patches)
+        return Episode(
+            scenario=self.name,
+            seed=int(seed),
+            terrain=terrain,
+            start=(
+                s.x + j.x * float(dx),
+                s.y + j.y * float(dy),
+                math.radians(s.yaw_deg + j.yaw_deg * float(dyaw)),
+            ),
+            schedule=self.schedule,
+            duration=self.duration if duration is None else float(duration),
+            goal_fraction=self.goal_fraction,
+        )
+
+
+def _scenario_dir() -> Path:
+    return configs_dir() / "scenarios"
+
+
+def scenario_names() -> list[str]:
+    """Shipped scenarios, in the benchmark's order (file order by name)."""
+    return sorted(p.stem for p in _scenario_dir().glob("*.yaml"))
+
+
+def load_scenario(name_or_path: str | Path) -> ScenarioConfig:
+    """A shipped scenario by name or a scenario YAML path."""
+    p = Path(name_or_path)
+    if p.suffix not in (".yaml", ".yml"):
+        p = _scenario_dir() / f"{name_or_path}.yaml"
+        if not p.is_file():
+            raise ConfigError(
+                f"no shipped scenario named {name_or_path!r}; have {scenario_names()}"
+            )
+    if not p.is_file():
+        raise ConfigError(f"scenario file not found: {p}")
+    try:
+        with p.open() as fh:
+            data = yaml.safe_load(fh)
+        cfg = from_dict(ScenarioConfig, data)
+        cfg.terrain_config()  # fail early on a bad ground
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{p}: malformed YAML: {exc}") from None
+    except ConfigError as exc:
+        raise ConfigError(f"{p}: {exc}") from None
+    return cfg
