@@ -13,11 +13,13 @@ Bounds of the parking check (derived, not fitted; docs/soil.md):
 * creep speed < ``V_EPS``: at standstill the soil's slip state relaxes at the floor rate
   ``V_EPS / sigma_x``, so a held wheel the soil carries at slip ``s`` creeps at
   ``V_EPS |s|`` in steady state, and ``|s| < 1`` unless the wheel slides outright;
-* no jitter: the forward/backward stress blend has width ``V_EPS``; a contact that chatters
-  between the two fields swings its F_x by up to twice the compaction resistance
-  ``|F_x(s=0)|`` from one substep to the next. Nothing jitters when the substep-to-substep
-  RMS change of every wheel's F_x stays below a tenth of the compaction resistance of its
-  preset, and that of the middle segment's velocity below a tenth of ``V_EPS``.
+* no jitter: a contact that chatters between the forward and backward stress fields (the
+  direction blend at rest, ``rover_env.soil.V_BLEND``) swings its F_x by up to twice the
+  compaction resistance ``|F_x(s=0)|`` from one substep to the next. Nothing jitters when
+  the substep-to-substep RMS change of every wheel's F_x stays below a tenth of its preset's
+  compaction resistance, and that of the middle segment's velocity below a tenth of the
+  creep bound ``V_EPS`` (a velocity jumping by more than the creep speed from one substep to
+  the next is not creeping).
 """
 
 from __future__ import annotations
@@ -447,7 +449,8 @@ def run(out_dir: str | Path, quick: bool = False, figures: str | Path | None = N
         f" sampled on every substep over the last {2 if quick else 10} s. Bounds (derived in the"
         " module docstring of rover_env/experiments/soil_validation.py and in docs/soil.md):"
         f" creep speed < v_eps = {V_EPS * 1e3:g} mm/s; jitter, the RMS substep-to-substep change,"
-        f" < {JITTER_FRACTION:g} v_eps for the middle segment's velocity and < {JITTER_FRACTION:g}"
+        f" < {JITTER_FRACTION:g} v_eps (the creep bound) for the middle segment's velocity and"
+        f" < {JITTER_FRACTION:g}"
         " x the preset's compaction resistance |F_x(s=0)| for every wheel's F_x.",
         "",
     ]
@@ -475,10 +478,9 @@ def run(out_dir: str | Path, quick: bool = False, figures: str | Path | None = N
             "",
         ]
     lines += [
-        "A jitter FAIL here is the standstill chatter described in docs/soil.md ('Standstill'):"
-        " the direction blend's damping is too stiff for the explicit 1 ms force update, so a"
-        " free wheel's spin rate and F_x flip sign every substep (it is invisible when sampled"
-        " every 10 substeps). Tests: tests/test_soil_validation.py (strict xfail until fixed).",
+        "Sampled on every substep on purpose: a period-2 chatter is invisible at every 10th. With"
+        " the direction blend a tanh over v_eps (before commit 0ab7405) this check failed: the"
+        " free wheels' F_x flipped by +-0.42 N (regolith) every substep; docs/soil.md, 3.2.",
         "",
     ]
     t3 = time.perf_counter()
