@@ -270,3 +270,23 @@ def test_slip_mean_and_percentile_come_from_the_same_samples() -> None:
     assert m["mean_abs_slip"] == pytest.approx(float(np.mean(samples)))
     assert m["p95_abs_slip"] == pytest.approx(float(np.percentile(samples, 95)))
     w.close()
+
+
+def test_a_task_brings_its_reward_weights() -> None:
+    from rover_env.envs.proto_explorer import ProtoExplorerEnv
+    from rover_env.tasks import RewardWeights
+
+    ep = load_scenario("ice-patch").episode(seed_plan.SPLITS["validation"].start, duration=0.3)
+    env = ProtoExplorerEnv(terrain=ep.terrain, reward_weights={"slip": 3.0})
+    a = np.full(4, 0.5, dtype=np.float32)
+    infos = []
+    for weights in (None, RewardWeights(slip=0.0, energy=0.0)):
+        env.set_task(ScenarioTask(ep, reward_weights=weights))
+        env.reset(seed=ep.seed)
+        *_, info = env.step(a)
+        infos.append(info)
+    own, task = infos
+    assert own["reward_slip"] == pytest.approx(-3.0 * own["slip_true_mean_abs"])  # the env's
+    assert task["reward_slip"] == 0.0 and task["reward_energy"] == 0.0  # the task's
+    assert task["reward_tracking"] == pytest.approx(own["reward_tracking"])  # same episode
+    env.close()

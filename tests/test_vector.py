@@ -234,3 +234,5 @@ def test_training_batch_vec_env(tmp_path: Any) -> None:
     assert len(episodes) == 2 and all(e["l"] == 3 for e in episodes)
     venv.close()
     assert (tmp_path / "train_batch.monitor.csv").is_file()
+    with pytest.raises(ValueError, match="eval env 1: seeds \\[3000\\] are not validation seeds"):
+        make_vec_env(ID, cfg, 2, [[2000], [3000]], None, "eval", split="validation")

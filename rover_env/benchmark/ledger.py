@@ -25,8 +25,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from rover_env.config import configs_dir
-
 __all__ = [
     "FIELDS",
     "FinalRunRefused",
@@ -54,8 +52,12 @@ class FinalRunRefused(RuntimeError):
 
 
 def default_ledger() -> Path:
-    """``docs/benchmark/test_ledger.csv`` of the repository."""
-    return configs_dir().parent / "docs" / "benchmark" / "test_ledger.csv"
+    """``docs/benchmark/test_ledger.csv`` of the repository checkout (of the working
+    directory when rover_env runs from an installed wheel, which has no ``docs/``)."""
+    repo = Path(__file__).resolve().parents[2]
+    if (repo / "docs" / "benchmark").is_dir() and (repo / "pyproject.toml").is_file():
+        return repo / "docs" / "benchmark" / "test_ledger.csv"
+    return Path.cwd() / "docs" / "benchmark" / "test_ledger.csv"
 
 
 def agents_under_test(controllers: Sequence[str]) -> list[str]:

@@ -15,6 +15,10 @@ the validation block for unseeded resets after a validation seed. Episodes of tr
 are those the shipped agents were trained on, draw for draw. ``info["seed_split"]`` and
 ``info["episode_seed"]`` say which episode was played.
 
+Version history: v0. Issue 17 made held-out seeds play their own split's episodes (before,
+every reset seed drew a training-block episode, so "validation" was training episodes);
+episodes of training seeds are unchanged draw for draw, so the id was kept.
+
 The action may be a residual or a gain schedule (``action_residual``, ``action_schedule``;
 :mod:`rover_env.policies.residual`).
 """

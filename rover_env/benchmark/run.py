@@ -31,7 +31,7 @@ from rover_env.seeds import split_of
 from rover_env.tasks.scenario import ScenarioTask
 from rover_env.tasks.scenarios import Episode, load_scenario
 
-__all__ = ["Job", "ScenarioWrapper", "run_episode", "run_jobs"]
+__all__ = ["Job", "ScenarioWrapper", "run_episode", "run_jobs", "wrapper_for"]
 
 Obs = npt.NDArray[np.float32]
 
@@ -114,7 +114,8 @@ _ENVS: dict[tuple[str, str], ScenarioWrapper] = {}
 _CONTROLLERS: dict[str, EnvController] = {}
 
 
-def _wrapper_for(scenario: str, layout: str, episode: Episode) -> ScenarioWrapper:
+def wrapper_for(scenario: str, layout: str, episode: Episode) -> ScenarioWrapper:
+    """This process's env for ``scenario`` with the given action layout (built once)."""
     key = (scenario, layout)
     if key not in _ENVS:
         env = ProtoExplorerEnv(terrain=episode.terrain, action_layout=layout)  # type: ignore[arg-type]
@@ -128,7 +129,7 @@ def _run_job(job: Job) -> dict[str, Any]:
         _CONTROLLERS[job.controller] = make_controller(job.controller)
     ctrl = _CONTROLLERS[job.controller]
     episode = load_scenario(job.scenario).episode(job.seed, job.duration)
-    wrapper = _wrapper_for(job.scenario, ctrl.action_layout, episode)
+    wrapper = wrapper_for(job.scenario, ctrl.action_layout, episode)
     metrics = run_episode(wrapper, ctrl, episode)
     return {
         "controller": job.controller,

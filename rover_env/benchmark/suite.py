@@ -128,11 +128,7 @@ def run_tuning(
     from rover_env.seeds import seeds as seed_split
 
     seed_list = seed_split("tuning", seeds_per_scenario)
-    cases = [
-        load_scenario(s).episode(seed, duration).drive_case()
-        for s in scenarios
-        for seed in seed_list
-    ]
+    cases = [load_scenario(s).episode(seed, duration) for s in scenarios for seed in seed_list]
     out_p = Path(out)
     base = load_slip_pi_config(out_p) if out_p.is_file() else SlipPIConfig()
     res = tune(cases, base=base, workers=workers, refine_evals=refine_evals)
@@ -140,7 +136,8 @@ def run_tuning(
     header = (
         "Slip PI gains (rover_env.control.slip_pi.SlipPIConfig; the module docstring says why\n"
         "each field is there). Kp and Ki were tuned by rover_env.benchmark.tuning (grid, then\n"
-        "Nelder-Mead on the bare simulator); the other fields are design choices kept fixed.\n"
+        "Nelder-Mead through the env, the benchmark's episode loop); the other fields are\n"
+        "design choices kept fixed.\n"
         f"Produced by: {command or '(API call)'}\n"
         f"Scenarios: {', '.join(scenarios)}; tuning seeds {', '.join(map(str, seed_list))};\n"
         f"{duration:g} s episodes; {len(res.evaluations)} gain pairs tried in {res.wall_s:.0f} s;\n"

@@ -1,4 +1,4 @@
-"""Reproducible gain tuning of :class:`SlipPI` on the bare simulator.
+"""Reproducible gain tuning of :class:`SlipPI`, judged by the benchmark's own episode loop.
 
 Procedure (``tune``):
 
@@ -25,10 +25,14 @@ beyond that (a stuck wheel, whose slip does not answer at all, only stops sooner
 unbounded run chose Ki = 8 /s, and its wheel targets chattered in a limit cycle held only by
 the deadband.
 
-Everything is seeded by the cases, so the same call gives the same gains. The command line
-form is ``rover-env tune-slip-pi`` (:mod:`rover_env.benchmark.cli`). The tuner lives with the
-benchmark (it moved from ``rover_env.control``) because it judges gains with the
-benchmark's own metrics (:mod:`rover_env.benchmark.metrics`).
+Every case is a benchmark :class:`~rover_env.tasks.scenarios.Episode` (tuning seeds) run
+through the environment by :func:`rover_env.benchmark.run.run_episode`, the loop and metrics
+(:mod:`rover_env.benchmark.metrics`) the benchmark judges the tuned gains with: a gain pair's
+metrics equal the benchmark's for ``slip-pi@kp=..@ki=..`` on the same episodes. (Until issue
+17 the tuner ran its own loop on the bare simulator, ``rover_env.control.runner.run_on_sim``;
+the shipped gains were tuned that way.) Everything is seeded by the cases, so the same call
+gives the same gains. The command line form is ``rover-env tune-slip-pi``
+(:mod:`rover_env.benchmark.cli`).
 """
 
 from __future__ import annotations
@@ -46,13 +50,14 @@ from typing import Any
 import numpy as np
 import yaml
 
-from rover_env.benchmark.metrics import trace_metrics
-from rover_env.config import RoverConfig, load_rover, to_dict
+from rover_env.benchmark.run import run_episode, wrapper_for
+from rover_env.config import to_dict
 from rover_env.control.open_loop import OpenLoop
-from rover_env.control.runner import DriveCase, run_on_sim
 from rover_env.control.slip_pi import SlipPI, SlipPIConfig
 from rover_env.estimation.estimator import EstimatorConfig
-from rover_env.sim.simulator import RoverSim
+from rover_env.policies.controllers import ClassicalController
+from rover_env.seeds import split_of
+from rover_env.tasks.scenarios import Episode
 
 __all__ = ["TuningResult", "evaluate", "objective", "stability_bounds", "tune", "write_config"]
 
@@ -89,33 +94,29 @@ class TuningResult:
 
 # --------------------------------------------------------------------------- episodes
 
-_SIMS: dict[str, RoverSim] = {}
+
+def _controller(gains: SlipPIConfig | None) -> ClassicalController:
+    if gains is None:
+        return ClassicalController("open-loop", lambda cfg, dt: OpenLoop(cfg))
+    return ClassicalController("slip-pi", lambda cfg, dt: SlipPI(cfg, gains, dt=dt))
 
 
-def _sim_for(rover: RoverConfig, case: DriveCase) -> RoverSim:
-    """One simulator per ground structure per process (compiling is the slow part)."""
-    t = case.terrain
-    key = f"{rover.name}/{t.name}/{t.is_flat}/{len(t.obstacles)}/{t.size}/{t.slope_deg}"
-    if key not in _SIMS:
-        _SIMS[key] = RoverSim(rover, t, backend="auto")
-    return _SIMS[key]
-
-
-def _run_case(args: tuple[RoverConfig, SlipPIConfig | None, DriveCase]) -> dict[str, float]:
-    rover, gains, case = args
-    ctrl = OpenLoop(rover) if gains is None else SlipPI(rover, gains)
-    trace = run_on_sim(ctrl, case, _sim_for(rover, case))
-    return trace_metrics(trace, case.schedule.path_length(case.duration), case.goal_fraction)
+def _run_case(args: tuple[SlipPIConfig | None, Episode]) -> dict[str, float]:
+    gains, episode = args
+    ctrl = _controller(gains)
+    return run_episode(wrapper_for(episode.scenario, ctrl.action_layout, episode), ctrl, episode)
 
 
 def evaluate(
-    rover: RoverConfig,
     gains: SlipPIConfig | None,
-    cases: Sequence[DriveCase],
+    cases: Sequence[Episode],
     pool: ProcessPoolExecutor | None = None,
 ) -> list[dict[str, float]]:
     """Metrics of every case with SlipPI(gains), or OpenLoop when ``gains`` is None."""
-    jobs = [(rover, gains, c) for c in cases]
+    for c in cases:
+        if split_of(c.seed) == "test":
+            raise ValueError(f"tuning case {c.scenario} seed {c.seed} is a test seed")
+    jobs = [(gains, c) for c in cases]
     if pool is None:
         return [_run_case(j) for j in jobs]
     return list(pool.map(_run_case, jobs))
@@ -143,9 +144,8 @@ def objective(
 
 
 def tune(
-    cases: Sequence[DriveCase],
+    cases: Sequence[Episode],
     base: SlipPIConfig | None = None,
-    rover: RoverConfig | None = None,
     grid: tuple[Sequence[float], Sequence[float]] = DEFAULT_GRID,
     refine_evals: int = 8,
     workers: int = 1,
@@ -154,7 +154,6 @@ def tune(
     """Grid then Nelder–Mead over (Kp, Ki); other fields of ``base`` stay as they are."""
     from scipy.optimize import minimize
 
-    rover = rover or load_rover()
     base = base or SlipPIConfig()
     t0 = time.perf_counter()
     say = log or (lambda _m: None)
@@ -164,7 +163,7 @@ def tune(
         else None
     )
     try:
-        ref = evaluate(rover, None, cases, pool)
+        ref = evaluate(None, cases, pool)
         say(f"open loop on {len(cases)} cases: " + _brief(ref))
         seen: dict[tuple[float, float], float] = {}
         evals: list[dict[str, float]] = []
@@ -173,7 +172,7 @@ def tune(
             key = (round(max(kp, 0.0), 4), round(max(ki, 0.0), 4))
             if key not in seen:
                 gains = dataclasses.replace(base, kp=key[0], ki=key[1])
-                res = evaluate(rover, gains, cases, pool)
+                res = evaluate(gains, cases, pool)
                 seen[key] = objective(res, ref)
                 evals.append({"kp": key[0], "ki": key[1], "score": seen[key]})
                 say(f"kp={key[0]:.4f} ki={key[1]:.4f}  J={seen[key]:.4f}  " + _brief(res))

@@ -453,7 +453,8 @@ class RoverEpisode:
         return self._command.copy()
 
     def set_task(self, task: Task) -> None:
-        """The task of the episodes from the next ``reset`` on (:mod:`rover_env.tasks`)."""
+        """The task of the episodes from the next ``reset`` on (:mod:`rover_env.tasks`); its
+        reward weights, when it has its own, replace the env's ``reward_weights``."""
         if not isinstance(task, Task):
             raise TypeError(f"set_task needs a rover_env.tasks.Task, got {type(task).__name__}")
         self.task = task
@@ -482,6 +483,7 @@ class RoverEpisode:
         self, sim: RoverSim, rng: np.random.Generator, options: dict[str, Any] | None
     ) -> None:
         """This episode's terrain and start pose (the task's, else drawn) and ``sim`` there."""
+        self.reward_weights = self.task.reward_weights or self.settings.reward_weights
         setup = self.task.setup(rng)
         if setup.terrain is not None:
             if sim.terrain_cfg != setup.terrain:

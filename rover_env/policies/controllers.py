@@ -71,6 +71,11 @@ class ClassicalController:
         self._ctrl: Controller | None = None
         self._for: tuple[int, float] | None = None
 
+    @property
+    def controller(self) -> Controller | None:
+        """The rover-side controller (built at the first ``reset``)."""
+        return self._ctrl
+
     def reset(self, env: ProtoExplorerEnv) -> None:
         key = (id(env.rover_cfg), env.control_dt)
         if self._ctrl is None or self._for != key:

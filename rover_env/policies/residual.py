@@ -145,7 +145,7 @@ class Schedule:
 
     def reset(self, env: ProtoExplorerEnv) -> None:
         self.base.reset(env)
-        pi = getattr(self.base, "_ctrl", None)
+        pi = self.base.controller
         assert isinstance(pi, SlipPI)
         if pi is not self._pi or self._cfg0 is None:
             self._pi, self._cfg0 = pi, pi.cfg

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rover_env.config import TerrainConfig
+from rover_env.tasks.reward import RewardWeights
 
 __all__ = ["Command", "EpisodeSetup", "Task"]
 
@@ -38,6 +39,9 @@ class Task(abc.ABC):
 
     name: str = "task"
     time_limit: float | None = None
+    reward_weights: RewardWeights | None = None
+    """The weights of the env's reward terms for this task (None: the env's own
+    ``reward_weights`` argument)."""
 
     def setup(self, rng: np.random.Generator) -> EpisodeSetup:
         """The episode's ground and start pose (default: the env decides)."""

@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from rover_env.tasks.base import Command, EpisodeSetup, Task
+from rover_env.tasks.reward import RewardWeights
 from rover_env.tasks.scenarios import Episode
 
 __all__ = ["ScenarioTask"]
@@ -19,10 +20,11 @@ class ScenarioTask(Task):
     """The :class:`Episode` of one scenario seed. The command at time t is
     ``episode.schedule.at(t)``; the env asks again at the schedule's next breakpoint."""
 
-    def __init__(self, episode: Episode) -> None:
+    def __init__(self, episode: Episode, reward_weights: RewardWeights | None = None) -> None:
         self.episode = episode
         self.name = episode.scenario
         self.time_limit = episode.duration
+        self.reward_weights = reward_weights
 
     def setup(self, rng: np.random.Generator) -> EpisodeSetup:
         return EpisodeSetup(terrain=self.episode.terrain, start=self.episode.start)

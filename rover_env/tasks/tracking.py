@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from rover_env.tasks.base import Command, Task
+from rover_env.tasks.reward import RewardWeights
 
 __all__ = ["RandomTracking"]
 
@@ -17,8 +18,13 @@ class RandomTracking(Task):
     name = "random-tracking"
 
     def __init__(
-        self, max_speed: float, max_yaw_rate: float, interval: tuple[float, float]
+        self,
+        max_speed: float,
+        max_yaw_rate: float,
+        interval: tuple[float, float],
+        reward_weights: RewardWeights | None = None,
     ) -> None:
+        self.reward_weights = reward_weights
         if not 0 < interval[0] <= interval[1]:
             raise ValueError(f"command_interval must be 0 < min <= max, got {interval}")
         self.max_speed = float(max_speed)

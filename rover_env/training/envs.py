@@ -138,6 +138,8 @@ def make_batch_vec_env(
     """``n`` rovers of ``env_id``'s vector env (``gym.make_vec(..., "vector_entry_point")``)."""
     from rover_env.training.vec_adapter import GymnasiumVecEnv
 
+    for i, ss in enumerate(seeds):
+        check_split(ss, split, f"{prefix} env {i}")
     gym.register_envs(rover_env)
     kwargs: dict[str, Any] = dict(cfg.env_kwargs)
     if cfg.max_episode_steps is not None:
@@ -147,8 +149,6 @@ def make_batch_vec_env(
     except gym.error.Error as exc:
         raise ConfigError(f"vec_env: batch: {env_id} has no batched vector env ({exc})") from None
     filename = None if monitor_dir is None else str(monitor_dir / f"{prefix}_batch")
-    for i, ss in enumerate(seeds):
-        check_split(ss, split, f"{prefix} env {i}")
     return VecMonitor(GymnasiumVecEnv(venv, seeds), filename)
 
 
