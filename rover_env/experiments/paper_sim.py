@@ -99,7 +99,8 @@ def _plots(rec: DriveRecorder, out: Path, ground: str = "") -> None:
 
 
 def _sinkage_plot(t: np.ndarray, sinkage: np.ndarray, out: Path, on: str) -> None:
-    """Sinkage of every wheel below the soil surface it meets (mm), front to rear."""
+    """Sinkage of every wheel (mm) below the undisturbed soil surface (a follower in a rut
+    counts the rut; a wheel that dug counts from the bottom of its hole)."""
     fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True, sharey=True)
     for i, w in enumerate(WHEELS):
         ax = axes[0] if w.endswith("L") else axes[1]
