@@ -16,7 +16,10 @@ Prints, all measured in this process, best of several timed chunks (the machine 
 3. batched throughput in rover-seconds per wall second for N rovers: the vector env
    (``gym.make_vec(..., vectorization_mode="vector_entry_point")``) and ``BatchRoverSim``
    alone, on ``--threads`` threads;
-4. Gymnasium's Ant-v5 (random actions) in simulated seconds per wall second, for context.
+4. Gymnasium's Ant-v5 (random actions) in simulated seconds per wall second, for context;
+5. loose soil (issue 15): the compiled path with each soil preset over the whole ground
+   against the Gim fast path on hard ground, same drive (the same speed targets from rest),
+   same arena, in interleaved rounds; the ratio soil / hard per preset.
 """
 
 from __future__ import annotations
@@ -34,12 +37,16 @@ import numpy as np
 from _report import write_report
 
 import rover_env
+from rover_env.config import TerrainConfig
 from rover_env.sim.batch import BatchRoverSim
 from rover_env.sim.simulator import RoverSim
 
 gym.register_envs(rover_env)
 ID = "rover_env/ProtoExplorer-v0"
 TARGETS = [2.0, 3.0, 2.0, 3.0]
+SOIL_PRESETS = ("regolith", "mars-sand", "dune-sand")
+SOIL_ARENA = (20.0, 20.0)
+"""Arena of the soil rows (flat; its size sets the rut map: 800 x 800 cells)."""
 
 
 CPU_RATES: dict[str, float] = {}
@@ -345,8 +352,47 @@ def main() -> None:
         )
         out()
 
+    # ------------------------------------------------------------------ loose soil
+    def ground(soil: str | None) -> RoverSim:
+        t = TerrainConfig(name=soil or "hard", size=SOIL_ARENA, soil=soil)
+        sim = RoverSim(terrain=t, backend="plugin")
+        sim.set_speed_targets(TARGETS)
+        return sim
+
+    grounds = {name: ground(None if name == "hard" else name) for name in ("hard", *SOIL_PRESETS)}
+
+    def ground_chunk(sim: RoverSim) -> Callable[[], int]:
+        def run() -> int:
+            sim.step(chunk)
+            return chunk
+
+        return run
+
+    soil_rounds = interleaved({k: ground_chunk(v) for k, v in grounds.items()}, 2 * budget)
+    soil_ratio = {k: median_ratio(soil_rounds[k], soil_rounds["hard"]) for k in SOIL_PRESETS}
+    out("## Loose soil (issue 15): compiled path on soil / Gim fast path")
+    out()
+    out(
+        f"One plugin rover per ground on a flat {SOIL_ARENA[0]:g} m x {SOIL_ARENA[1]:g} m arena,"
+        f" the same targets {TARGETS} rad/s from rest; median over {len(soil_rounds['hard'])}"
+        " interleaved rounds of 0.5 simulated s each (ratio of the per-round rates)."
+    )
+    out()
+    out("| ground | substeps/s (best round) | / Gim fast path (median ratio) |")
+    out("|---|---:|---:|")
+    out(f"| hard ground, Gim | {max(soil_rounds['hard']):,.0f} | 1.000 |")
+    for k in SOIL_PRESETS:
+        out(f"| soil: {k} | {max(soil_rounds[k]):,.0f} | {soil_ratio[k]:.3f} |")
+    out()
+    sinkage = {k: float(np.mean(grounds[k].wheel_truth().sinkage)) for k in SOIL_PRESETS}
+    out(
+        "Mean sinkage at the end (mm; the rovers did drive in the soil): "
+        + ", ".join(f"{k} {1e3 * v:.1f}" for k, v in sinkage.items())
+    )
+    out()
+
     # ------------------------------------------------------------------ summary
-    out("## Acceptance (issue 5)")
+    out("## Acceptance (issue 5; the soil row: issue 15)")
     out()
     out(
         f"- fast path / raw substeps/s: {fast_over_raw:.3f} in interleaved rounds"
@@ -362,6 +408,10 @@ def main() -> None:
         " (target >= 1.6)"
     )
     out(f"- single env / Ant-v5, sim s per wall s: {env_sim / ant_sim:.3f}")
+    out(
+        "- soil compiled path / Gim fast path, same drive, interleaved rounds (issue 15,"
+        " target >= 0.7): " + ", ".join(f"{k} {v:.3f}" for k, v in soil_ratio.items())
+    )
     load1 = os.getloadavg()
     out()
     out(

@@ -11,10 +11,27 @@ from pathlib import Path
 def _paper_sim(args: argparse.Namespace) -> int:
     from rover_env.experiments import paper_sim
 
-    out = paper_sim.run(args.out, progress=not args.quiet)
+    out = paper_sim.run(
+        args.out,
+        progress=not args.quiet,
+        terrain=args.terrain,
+        duration=args.duration,
+        backend=args.backend,
+    )
     print((out / "summary.md").read_text())
-    print(f"wrote {out}/trajectory.png, slip.png, drive.csv, drive.yaml, summary.md")
+    extra = " sinkage.png," if (out / "sinkage.png").exists() and args.terrain else ""
+    print(f"wrote {out}/trajectory.png, slip.png,{extra} drive.csv, drive.yaml, summary.md")
     return 0
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (v > 0 and v < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
+    return v
 
 
 def _build_assets(args: argparse.Namespace) -> int:
@@ -29,18 +46,21 @@ def _build_assets(args: argparse.Namespace) -> int:
 
 def _validate(args: argparse.Namespace) -> int:
     from rover_env.envs.checks import random_steps
-    from rover_env.experiments import validation
+    from rover_env.experiments import soil_validation, validation
 
-    report = validation.run(args.out, quick=args.quick)
-    r = random_steps(steps=500 if args.quick else 10_000)
-    with report.open("a") as fh:
-        fh.write(
-            "\n## Environment endurance\n"
-            f"- `rover_env/ProtoExplorerRough-v0`, {r['steps']} random-action steps (seed 0): no NaN,"
-            f" no MuJoCo warning, no crash; {r['episodes']} episodes ended, {r['flips']} flips,"
-            f" {r['exits']} arena exits. Wall time {r['wall_s']:.0f} s.\n"
-        )
-    print(report.read_text())
+    if args.only in (None, "core"):
+        report = validation.run(args.out, quick=args.quick)
+        r = random_steps(steps=500 if args.quick else 10_000)
+        with report.open("a") as fh:
+            fh.write(
+                "\n## Environment endurance\n"
+                f"- `rover_env/ProtoExplorerRough-v0`, {r['steps']} random-action steps (seed 0):"
+                f" no NaN, no MuJoCo warning, no crash; {r['episodes']} episodes ended,"
+                f" {r['flips']} flips, {r['exits']} arena exits. Wall time {r['wall_s']:.0f} s.\n"
+            )
+        print(report.read_text())
+    if args.only in (None, "soil"):
+        print(soil_validation.run(args.out, quick=args.quick).read_text())
     return 0
 
 
@@ -56,6 +76,24 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", default="out/paper-sim", help="output folder (default: out/paper-sim)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--terrain",
+        default=None,
+        help="terrain name or YAML path (default: flat hard ground, the paper's); on loose soil,"
+        " e.g. paper-sand, sinkage.png is drawn too",
+    )
+    p.add_argument(
+        "--duration",
+        type=_positive_float,
+        default=None,
+        help="shorten the drive to this many seconds (default: the whole 32 s schedule)",
+    )
+    p.add_argument(
+        "--backend",
+        choices=("numpy", "plugin", "auto"),
+        default="numpy",
+        help="simulator backend (same results; plugin is the fast compiled one)",
+    )
     p.set_defaults(func=_paper_sim)
 
     p = sub.add_parser("build-assets", help="regenerate assets/*.xml from a rover configuration")
@@ -64,10 +102,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_build_assets)
 
     p = sub.add_parser(
-        "validate", help="long physical checks (timestep convergence, 5-minute rough drive)"
+        "validate",
+        help="long physical checks (timestep convergence, 5-minute rough drive, loose soil)",
     )
     p.add_argument("--out", default="out/validation", help="output folder")
     p.add_argument("--quick", action="store_true", help="shortened runs (smoke test)")
+    p.add_argument(
+        "--only",
+        choices=("core", "soil"),
+        default=None,
+        help="run one part: core (validation.md) or soil (soil.md and its rig curves);"
+        " default both",
+    )
     p.set_defaults(func=_validate)
 
     from rover_env.experiments import dead_reckoning

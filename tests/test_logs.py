@@ -434,6 +434,7 @@ def test_truth_arrays_line_up(straight_drive) -> None:
         "F_z": (n, 6),
         "v_x": (n, 6),
         "v_w": (n, 6),
+        "sinkage": (n, 6),
         "forward_speed": (n, 3),
         "yaw_rate": (n, 3),
         "seg_pos": (n, 3, 3),
@@ -446,6 +447,7 @@ def test_truth_arrays_line_up(straight_drive) -> None:
     # The rover carries its weight on its tires; the free rear wheels roll without slip, so
     # segment 3 moves at their rim speed.
     assert truth["F_z"][-1].sum() == pytest.approx(16.4 * 9.81, rel=0.05)
+    assert np.all(truth["sinkage"] == 0.0)  # hard ground: no soil
     rim = np.mean(truth["v_w"][-25:, 4:])
     assert np.mean(truth["forward_speed"][-25:, 2]) == pytest.approx(rim, rel=0.05)
     # Pose x is the integral of segment 3's forward speed.

@@ -19,7 +19,7 @@ from rover_env.sim.simulator import RoverSim
 
 Array = NDArray[np.float64]
 
-WHEEL_TRUTH_KEYS: tuple[str, ...] = ("S", "S_alpha", "F_x", "F_y", "F_z", "v_x", "v_w")
+WHEEL_TRUTH_KEYS: tuple[str, ...] = ("S", "S_alpha", "F_x", "F_y", "F_z", "v_x", "v_w", "sinkage")
 
 
 def _quat_to_mat(q: Array) -> Array:
@@ -142,7 +142,7 @@ class DriveRecorder:
         """Privileged arrays, row k matching the log's row k.
 
         Keys: ``t`` (N,); per wheel in WHEELS order (N, 6): ``S``, ``S_alpha``, ``F_x``,
-        ``F_y``, ``F_z``, ``v_x``, ``v_w`` (from the last substep before the sample); per
+        ``F_y``, ``F_z``, ``v_x``, ``v_w``, ``sinkage`` (0 on hard ground) (from the last substep before the sample); per
         segment (N, 3): ``forward_speed``, ``yaw_rate``; ``seg_pos`` (N, 3, 3) and
         ``seg_quat`` (N, 3, 4) world frame; ``motor_torque`` (N, 4); ``pose`` (N, 3), the
         full-rate true pose of segment 3 that the log subsamples.
