@@ -68,7 +68,8 @@ def rut_writes(
     half = 0.5 * (width - g.cell)
     for i in np.flatnonzero(on_soil & (np.abs(v_x) > soil.V_EPS) & (delta > 0.0)):
         h = min(float(sinkage[i]), radius)
-        back = radius * np.sqrt(max(0.0, 1.0 - (1.0 - h / radius) ** 2)) + 1.5 * g.cell
+        e = 1.0 - h / radius
+        back = radius * np.sqrt(max(0.0, 1.0 - e * e)) + 1.5 * g.cell
         sgn = 1.0 if v_x[i] > 0 else -1.0
         for k in (-1.0, 0.0, 1.0):
             q = point[i] - sgn * back * xc[i] + k * half * axis[i]

@@ -539,6 +539,8 @@ static void stress_integrals(double s, double tb, double d, double h, double hc,
   double span = th_m > th_r ? th_m - th_r : 1.0;
   double slope = (th_f - th_m)/span;
   double sums[4] = {0.0, 0.0, 0.0, 0.0};
+  double g = fabs(r*one_s*tb)/sp[S_KY];  // soil._lateral_decay
+  double sgn_y = np_sign(tb)*(one_s > 0.0 ? 1.0 : 0.0);  // soil._lateral_sign
   for (int arc = 0; arc < 4; arc++) {
     double mid = 0.5*(hi[arc] + lo[arc]);
     double half = 0.5*(hi[arc] - lo[arc]);
@@ -547,16 +549,28 @@ static void stress_integrals(double s, double tb, double d, double h, double hc,
     double sin_t[SOIL_NODES], cos_t[SOIL_NODES], sin_eq[SOIL_NODES], cos_eq[SOIL_NODES];
     sincos_nodes(mid, half, sin_t, cos_t);
     if (rear) sincos_nodes(th_f - (mid - th_r)*slope, -(half*slope), sin_eq, cos_eq);
+    // soil._lateral_decay: exp(-|j_y|/k_y) at the nodes, factored where it cannot overflow
+    double ey[SOIL_NODES];
+    double gh = g*half;
+    if (gh > 300.0) {  // soil._LATERAL_DIRECT
+      for (int k = 0; k < SOIL_NODES; k++) ey[k] = exp(-(g*(th_c - (mid + half*GL_X[k]))));
+    } else {
+      double e_mid = exp(-g*(th_c - mid));
+      for (int k = SOIL_NODES/2; k < SOIL_NODES; k++) {
+        double fac = exp(gh*GL_X[k]);
+        ey[k] = e_mid*fac;
+        ey[SOIL_NODES - 1 - k] = e_mid/fac;
+      }
+    }
     double ax[SOIL_NODES], ay[SOIL_NODES], az[SOIL_NODES], at[SOIL_NODES];
     for (int k = 0; k < SOIL_NODES; k++) {
       double th = mid + half*GL_X[k];
       double base = np_max(r*((rear ? cos_eq[k] : cos_t[k]) - cos_f), 0.0);
       double sigma = ks*(n == 1.0 ? base : pow(base, n));  // pow(x, 1) == x exactly
       double j_x = r*((th_c - th) - one_s*(sin_c - sin_t[k]));
-      double j_y = r*one_s*(th_c - th)*tb;
       double tau_max = sp[S_C] + sigma*tan_phi;
       double tau_x = tau_max*np_sign(j_x)*(1.0 - exp(-fabs(j_x)/sp[S_KX]));
-      double tau_y = j_y == 0.0 ? 0.0 : tau_max*np_sign(j_y)*(1.0 - exp(-fabs(j_y)/sp[S_KY]));
+      double tau_y = tau_max*sgn_y*(1.0 - ey[k]);
       double w = half*GL_W[k];
       ax[k] = w*(tau_x*cos_t[k] - sigma*sin_t[k]);
       ay[k] = w*tau_y;
@@ -970,7 +984,7 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       if (fabs(v_x) > SOIL_V_EPS && delta > 0.0) {
         double hw = np_min(sink, r);
         double e = 1.0 - hw/r;
-        double back = r*sqrt(np_max(0.0, 1.0 - pow(e, 2.0))) + 1.5*tv.rut_cell;
+        double back = r*sqrt(np_max(0.0, 1.0 - e*e)) + 1.5*tv.rut_cell;
         double sgn = v_x > 0 ? 1.0 : -1.0;
         double half = 0.5*(c->width - tv.rut_cell);
         for (int k = 0; k < 3; k++) {
