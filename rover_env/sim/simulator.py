@@ -29,7 +29,13 @@ from rover_env.config import (
     load_rover,
     load_terrain,
 )
-from rover_env.effects import CommandEffect, TireEffect, build_effects, plugin_refusals
+from rover_env.effects import (
+    CommandEffect,
+    HingeEffect,
+    TireEffect,
+    build_effects,
+    plugin_refusals,
+)
 from rover_env.sim.fast import FastBackendError, PluginView, inject_plugin, load_plugin
 from rover_env.sim.model import fill_hfield, hfield_data, scene_xml, static_deflection
 from rover_env.sim.tire_layer import TireLayer, TireState
@@ -156,6 +162,7 @@ class RoverSim:
             phys = dataclasses.replace(phys, extensions={})
         self.phys_cfg = phys
         self._cmd_effects = [e for e in self.effects if isinstance(e, CommandEffect)]
+        self._hinge_effects = [e for e in self.effects if isinstance(e, HingeEffect)]
         # --- end of model extensions ---
         self.terrain = Terrain(self.terrain_cfg, self.phys_cfg.tire)
         xml = scene_xml(self.phys_cfg, self.terrain_cfg)
@@ -166,6 +173,7 @@ class RoverSim:
                     slots.update(e.plugin_values(self.phys_cfg))
             xml = inject_plugin(xml, self.phys_cfg, self.terrain, slots)
         self.model = mujoco.MjModel.from_xml_string(xml)
+        frictionloss0 = self.model.dof_frictionloss.copy()  # before any effect
         for e in self.effects:
             e.apply_model(self.model, self.phys_cfg)
         self._plugin = PluginView(self.model) if backend == "plugin" else None
@@ -188,6 +196,7 @@ class RoverSim:
         self._ctrl_vel = self._ctrl_pos + 1
         self._driven_qpos = self._wheel_qpos[:4]
         self._driven_dof = self._wheel_dof[:4]
+        self._hinge_friction0 = frictionloss0[self._wheel_dof]
         self._sensor = {
             m.sensor(i).name: slice(m.sensor_adr[i], m.sensor_adr[i] + m.sensor_dim[i])
             for i in range(m.nsensor)
@@ -252,6 +261,11 @@ class RoverSim:
         self.tires.reset()
         for ce in self._cmd_effects:
             ce.reset(np.zeros(4))
+        if self._hinge_effects:  # static load until the first substep sets each wheel's own
+            d0 = static_deflection(self.phys_cfg)
+            self._set_hinges(
+                np.full(len(WHEELS), self.phys_cfg.tire.C_z * d0), np.full(len(WHEELS), d0)
+            )
         if self._plugin is not None:  # fast backend: the plugin owns setpoints and tire states
             self._plugin.set_setpoints(d.plugin_state, d.ctrl[self._ctrl_pos])
             self._plugin.reset_tires(d.plugin_state)
@@ -321,7 +335,7 @@ class RoverSim:
     def step(self, n: int = 1) -> None:
         """Advance ``n`` physics substeps, applying the tire layer on each."""
         m, d = self.model, self.data
-        if self._cmd_effects:
+        if self._cmd_effects or self._hinge_effects:
             self._step_commanded(n)
             return
         if self._plugin is not None:
@@ -351,8 +365,16 @@ class RoverSim:
             u = ce.step(u, self.dt)
         return u
 
+    def _set_hinges(self, F_z: Array, delta: Array) -> None:
+        """Wheel hinges' dry friction from this substep's loads (hinge effects)."""
+        fl = self._hinge_friction0.copy()
+        for he in self._hinge_effects:
+            fl += he.hinge_friction(F_z, delta, self.radius)
+        self.model.dof_frictionloss[self._wheel_dof] = fl
+
     def _step_commanded(self, n: int) -> None:
-        """``step`` with command effects: the motors' targets change on every substep."""
+        """``step`` substep by substep: command effects change the motors' targets, hinge
+        effects the wheel hinges' friction, on every substep."""
         m, d = self.model, self.data
         dt = self.dt
         err = self.phys_cfg.motor.max_angle_error
@@ -361,6 +383,9 @@ class RoverSim:
             if self._plugin is not None:  # the plugin integrates ctrl[vel] itself
                 d.ctrl[self._ctrl_vel] = u
                 mujoco.mj_step(m, d, 1)
+                if self._hinge_effects:
+                    tr = self._plugin.truth(d.plugin_state)
+                    self._set_hinges(tr.F_z, tr.delta)
                 continue
             q = d.qpos[self._driven_qpos]
             sp = d.ctrl[self._ctrl_pos] + u * dt
@@ -368,6 +393,8 @@ class RoverSim:
             d.ctrl[self._ctrl_vel] = u
             mujoco.mj_step1(m, d)
             self.tires.apply(d)
+            if self._hinge_effects and self.tires.last is not None:
+                self._set_hinges(self.tires.last.F_z, self.tires.last.delta)
             mujoco.mj_step2(m, d)
         self._check()
 
