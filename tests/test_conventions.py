@@ -177,3 +177,13 @@ def test_load_dependent_friction_falls_by_fall_across_the_operating_range() -> N
 def test_static_deflection_matches_the_rig_lever() -> None:
     # The rolling-resistance lever d - delta at static load (used before the first substep).
     assert static_deflection(CFG) == pytest.approx(FZ0 / CFG.tire.C_z)
+
+
+def test_plugin_load_view_is_the_committed_truth() -> None:
+    sim = RoverSim(RoverConfig(extensions={"rolling_resistance": {"c_rr": 0.02}}), "flat", "plugin")
+    sim.set_speed_targets((1.0, 2.0, 1.0, 2.0))
+    sim.step(50)
+    assert sim._load_view is not None
+    wt = sim.wheel_truth()
+    np.testing.assert_array_equal(sim._load_view[0], wt.F_z)
+    np.testing.assert_array_equal(sim._load_view[1], wt.delta)

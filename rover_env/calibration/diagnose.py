@@ -243,8 +243,8 @@ def diagnose(
     def report(s: Scored) -> None:
         f = s.fit
         say(
-            f"{f.name:24s} {_fmt_phys(f)}  held-out {-100 * s.gain:+6.1f}%  p={s.p:.2g}"
-            f"  dBIC={s.d_bic:+.1f}  ({f.nfev} fits, {f.seconds:.1f}s)"
+            f"{f.name:24s} {_fmt_phys(f)}  held-out {better_worse(s.gain)}  p={s.p:.2g}"
+            f"  dBIC={s.d_bic:+.1f}  ({f.nfev} replays, {f.seconds:.1f}s)"
         )
 
     scored = _map_candidates(fit_one, report, cands, ev, opts.workers)
@@ -286,7 +286,7 @@ def diagnose(
     if winner is not None:
         # Bias of the fitted values through the replay (parametric bootstrap on twins).
         bias_correct(ev, winner, sensor_noise, st)
-        say(f"bias-corrected {winner.fit.name}: {_fmt_phys(winner.fit)}")
+        say(f"{winner.fit.name} with the replay's bias in its interval: {_fmt_phys(winner.fit)}")
         # Against the floor of the winner's own model (a tilted or slower model replays
         # its own twin less exactly than the nominal one).
         w_floor = replay_floor(ev.config(winner.fit.ext), prepared, held_w, sensor_noise, st)
@@ -321,7 +321,8 @@ def diagnose(
 
         def report2(s2: Scored) -> None:
             say(
-                f"second: {s2.fit.name:40s} {_fmt_phys(s2.fit)}  held-out {-100 * s2.gain:+6.1f}% vs winner  p={s2.p:.2g}  dBIC={s2.d_bic:+.1f}"
+                f"second: {s2.fit.name:40s} {_fmt_phys(s2.fit)}  held-out {better_worse(s2.gain)}"
+                f" than the winner alone  p={s2.p:.2g}  dBIC={s2.d_bic:+.1f}"
             )
 
         tried = _map_parallel(
@@ -342,7 +343,7 @@ def diagnose(
 
     if second is not None:
         bias_correct(ev, second, sensor_noise, st)
-        say(f"bias-corrected {second.fit.name}: {_fmt_phys(second.fit)}")
+        say(f"{second.fit.name} with the replay's bias in its interval: {_fmt_phys(second.fit)}")
 
     # 6. outputs
     final_ext = merge(base.extensions, *(s.fit.ext for s in chosen))
@@ -407,7 +408,7 @@ def diagnose(
         "config": str(cfg_path),
         "unexplained": _unexplained(table_held_after, final_floor),
     }
-    (out / "result.json").write_text(json.dumps(result, indent=2, default=float))
+    (out / "result.json").write_text(json.dumps(strict_json(result), indent=2, allow_nan=False))
     from rover_env.calibration.report import write_report
 
     write_report(
@@ -438,14 +439,15 @@ def diagnose(
 def bias_correct(
     ev: Evaluator, s: Scored, sensor_noise: dict[str, float], st: ReplaySettings
 ) -> None:
-    """Remove the bias the replay itself puts on the fitted values; widen the intervals.
+    """Widen the intervals by the bias the replay itself may put on the fitted values.
 
     The window initialisation is not exact (e.g. segment 3's speed from its free wheels
     assumes no slip), which can pull a fit a few per cent off. The fitted model's own twins
-    of the training drives (same commands, same sensor noise) are fitted the same way;
-    the difference from the value they were made with estimates that bias. The value is
-    corrected by it and the interval widened by it (added in quadrature to the standard
-    error).
+    of the training drives (same commands, same sensor noise) are fitted the same way; the
+    difference from the value they were made with estimates that bias. It is *not*
+    subtracted: learnt on this project's own replays it moved estimates from logs of another
+    implementation away from their truth (issue 16); it widens the interval instead (added
+    in quadrature to each side's half-width, as a one-sigma term).
     """
     f = s.fit
     if f.x.size == 0:
@@ -469,18 +471,14 @@ def bias_correct(
     free = [c for c in f.candidates if not c.discrete]
     lo = np.concatenate([c.lo for c in free])
     hi = np.concatenate([c.hi for c in free])
-    x = np.clip(f.x - bias, lo, hi)
-    se = np.sqrt(f.se**2 + bias**2)
-    half = np.where(f.se > 0, (f.ci_hi - f.x) / np.maximum(f.se, 1e-300), 1.96) * se
-    fixed = merge(*[c.to_ext(np.zeros(0)) for c in f.candidates if c.discrete])
-    parts, i = [], 0
-    for c in free:
-        n = len(c.labels)
-        parts.append(c.to_ext(x[i : i + n]))
-        i += n
+    extra = 1.96 * np.abs(bias)
+    h_lo = np.sqrt((f.x - f.ci_lo) ** 2 + extra**2)
+    h_hi = np.sqrt((f.ci_hi - f.x) ** 2 + extra**2)
+    sided = f.sided or ("",) * f.x.size
     f.bias = bias
-    f.x, f.se, f.ci_lo, f.ci_hi = x, se, x - half, x + half
-    f.ext = merge(fixed, *parts)
+    f.se = np.sqrt(f.se**2 + bias**2)
+    f.ci_lo = np.where([sd == "upper" for sd in sided], f.ci_lo, np.maximum(f.x - h_lo, lo))
+    f.ci_hi = np.where([sd == "lower" for sd in sided], f.ci_hi, np.minimum(f.x + h_hi, hi))
 
 
 def _median_window_rms(results: list[WindowResult], j: int) -> float:
@@ -617,23 +615,59 @@ def base_backend(cfg: RoverConfig) -> str:
     return resolve_auto_backend(cfg)
 
 
+def better_worse(gain: float) -> str:
+    """A relative held-out change in words: "12.3 % better" or "4.0 % worse"."""
+    if gain >= 0:
+        return f"{100 * gain:.1f} % better"
+    return f"{-100 * gain:.1f} % worse"
+
+
+def interval_text(k: str, v: float, lo: float, hi: float, side: str) -> str:
+    """``c_rr=0.031 [0.027, 0.035]`` or, at a bound, ``c_rr < 0.004 (95 %)``."""
+    if side == "upper":
+        return f"{k} < {hi:.3g} (95 %; fitted {v:.3g})"
+    if side == "lower":
+        return f"{k} > {lo:.3g} (95 %; fitted {v:.3g})"
+    if np.isfinite(lo) and np.isfinite(hi):
+        return f"{k}={v:.4g} [{lo:.3g}, {hi:.3g}]"
+    return f"{k}={v:.4g}"
+
+
 def _fmt_phys(f: Fit) -> str:
     parts = []
+    sides = f.sides()
     for eff, params in f.physical().items():
         for k, (v, lo, hi) in params.items():
             if k == "heading_deg":
                 parts.append(f"{k}={v:.0f}")
-            elif np.isfinite(lo) and lo != hi:
-                parts.append(f"{k}={v:.4g} [{lo:.3g}, {hi:.3g}]")
             else:
-                parts.append(f"{k}={v:.4g}")
-        del eff
+                parts.append(interval_text(k, v, lo, hi, sides.get(eff, {}).get(k, "")))
     return ", ".join(parts)
+
+
+def strict_json(obj: Any) -> Any:
+    """``obj`` with every non-finite float as None (JSON ``null``), numpy scalars as floats."""
+    if isinstance(obj, dict):
+        return {str(k): strict_json(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [strict_json(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return [strict_json(v) for v in obj.tolist()]
+    if isinstance(obj, bool | np.bool_):
+        return bool(obj)
+    if isinstance(obj, int | np.integer):
+        return int(obj)
+    if isinstance(obj, float | np.floating):
+        return float(obj) if np.isfinite(obj) else None
+    return obj
 
 
 def _fit_dict(s: Scored) -> dict[str, Any]:
     return {
         "params": {e: {k: list(v) for k, v in p.items()} for e, p in s.fit.physical().items()},
+        "sides": s.fit.sides(),
+        "interval_method": s.fit.method,
+        "replay_bias": None if s.fit.bias is None else [float(b) for b in s.fit.bias],
         "train_cost": s.fit.cost,
         "held_cost": s.held_cost,
         "held_gain": s.gain,

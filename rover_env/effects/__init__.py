@@ -230,8 +230,8 @@ class RollingResistance(HingeEffect):
     params = (Param("c_rr", "-", 0.0, 0.3, 0.0, "rolling resistance coefficient", moderate=0.05),)
 
     def hinge_friction(self, F_z: Array, delta: Array, radius: float) -> Array:
-        lever = np.maximum(radius - np.maximum(delta, 0.0), 0.0)
-        return np.asarray(self["c_rr"] * np.maximum(F_z, 0.0) * lever, dtype=np.float64)
+        # F_z >= 0 (eq. 17) and is 0 whenever the wheel is off the ground (delta < 0).
+        return np.asarray(self.values["c_rr"] * F_z * (radius - delta), dtype=np.float64)
 
 
 @register

@@ -44,6 +44,11 @@ from rover_env.terrain import Terrain
 Array = NDArray[np.float64]
 
 
+HINGE_EVERY = 10
+"""Substeps between updates of the hinge effects' friction from the tire loads (10 ms at the
+default step: far faster than the loads change, ~3 Hz tire bounce; per substep it cost ~3x)."""
+
+
 class SimulationError(RuntimeError):
     """MuJoCo reported a warning (instability, contact overflow, ...) or the state is not finite."""
 
@@ -180,6 +185,12 @@ class RoverSim:
         # --- end of integration point ---
         fill_hfield(self.model, self.terrain_cfg)
         self.data = mujoco.MjData(self.model)
+        self._load_view: tuple[Array, Array] | None = None
+        if self._plugin is not None:  # views of the committed F_z and delta (hinge effects)
+            nw = len(WHEELS)
+            t0 = self._plugin.slice.start + self._plugin.layout.truth
+            ps = self.data.plugin_state
+            self._load_view = (ps[t0 + 5 * nw : t0 + 6 * nw], ps[t0 + 6 * nw : t0 + 7 * nw])
         m = self.model
         self.dt = float(m.opt.timestep)
         self._wheel_body = np.array([m.body(f"wheel_{w}").id for w in WHEELS])
@@ -213,6 +224,7 @@ class RoverSim:
             effects=[e for e in self.effects if isinstance(e, TireEffect)],
         )
         self.speed_targets = np.zeros(4)
+        self._substep = 0
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -237,6 +249,7 @@ class RoverSim:
         """
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
+        self._substep = 0
         h, hx, hy = self.terrain.height_and_gradient(np.array([x]), np.array([y]))
         n = np.array([-hx[0], -hy[0], 1.0])
         n /= np.linalg.norm(n)
@@ -367,25 +380,41 @@ class RoverSim:
 
     def _set_hinges(self, F_z: Array, delta: Array) -> None:
         """Wheel hinges' dry friction from this substep's loads (hinge effects)."""
-        fl = self._hinge_friction0.copy()
+        fl = self._hinge_friction0
         for he in self._hinge_effects:
-            fl += he.hinge_friction(F_z, delta, self.radius)
+            fl = fl + he.hinge_friction(F_z, delta, self.radius)
         self.model.dof_frictionloss[self._wheel_dof] = fl
 
     def _step_commanded(self, n: int) -> None:
-        """``step`` substep by substep: command effects change the motors' targets, hinge
-        effects the wheel hinges' friction, on every substep."""
+        """``step`` substep by substep where needed: command effects change the motors'
+        targets on every substep; hinge effects set the wheel hinges' friction from the
+        tire loads every ``HINGE_EVERY`` substeps (identically on both backends; with hinge
+        effects only, the plugin runs the substeps in between in one call)."""
         m, d = self.model, self.data
         dt = self.dt
         err = self.phys_cfg.motor.max_angle_error
-        for _ in range(n):
+        k = HINGE_EVERY
+        left = n
+        while left > 0:
+            if self._plugin is not None and not self._cmd_effects:
+                # Hinge effects only: up to the next hinge update in one call.
+                run = min(left, k - self._substep % k)
+                d.ctrl[self._ctrl_vel] = self.speed_targets
+                mujoco.mj_step(m, d, run)
+                self._substep += run
+                left -= run
+                if self._substep % k == 0 and self._load_view is not None:
+                    self._set_hinges(*self._load_view)
+                continue
+            left -= 1
+            self._substep += 1
+            update = bool(self._hinge_effects) and self._substep % k == 0
             u = self._command()
             if self._plugin is not None:  # the plugin integrates ctrl[vel] itself
                 d.ctrl[self._ctrl_vel] = u
                 mujoco.mj_step(m, d, 1)
-                if self._hinge_effects:
-                    tr = self._plugin.truth(d.plugin_state)
-                    self._set_hinges(tr.F_z, tr.delta)
+                if update and self._load_view is not None:
+                    self._set_hinges(*self._load_view)
                 continue
             q = d.qpos[self._driven_qpos]
             sp = d.ctrl[self._ctrl_pos] + u * dt
@@ -393,7 +422,7 @@ class RoverSim:
             d.ctrl[self._ctrl_vel] = u
             mujoco.mj_step1(m, d)
             self.tires.apply(d)
-            if self._hinge_effects and self.tires.last is not None:
+            if update and self.tires.last is not None:
                 self._set_hinges(self.tires.last.F_z, self.tires.last.delta)
             mujoco.mj_step2(m, d)
         self._check()
