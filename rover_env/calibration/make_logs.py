@@ -250,6 +250,26 @@ def make_logs(
 def _cli(args: argparse.Namespace) -> int:
     effects = parse_effects(args.effect or [])
     RoverConfig(extensions=effects)  # validate before simulating
+    if args.generator == "foreign":
+        from rover_env.calibration.foreign_logs import make_foreign_logs
+
+        if args.pose_end_only or args.pose_rate != 1.0:
+            raise ConfigError("--generator foreign: the pose reference is fixed at 1 Hz")
+        paths = make_foreign_logs(
+            args.out,
+            effects,
+            drives=args.drives,
+            seed=args.seed,
+            duration=args.duration,
+            plan=args.plan,
+            rover=args.rover,
+            progress=not args.quiet,
+            first_index=args.first_index,
+        )
+        for p in paths:
+            print(f"wrote {p}")
+        print(f"truth in {Path(args.out) / 'truth.yaml'}")
+        return 0
     paths = make_logs(
         args.out,
         effects,
@@ -287,6 +307,13 @@ def add_cli(sub: Any) -> None:
     g.add_argument("--pose-end-only", action="store_true", help="pose at the last sample only")
     p.add_argument("--rover", default="proto_explorer", help="nominal rover named in the logs")
     p.add_argument("--first-index", type=int, default=0, help="number drives from this index")
+    p.add_argument(
+        "--generator",
+        choices=("rover_env", "foreign"),
+        default="rover_env",
+        help="rover_env: this project's simulator; foreign: a deliberately different"
+        " implementation of the same rover (rover_env.calibration.foreign_logs)",
+    )
     p.add_argument("--out", required=True)
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=_cli)
