@@ -50,7 +50,7 @@ from rover_env.calibration.candidates import (
     merge,
     separating_plan,
 )
-from rover_env.calibration.fit import Evaluator, Fit, fit, information_criteria
+from rover_env.calibration.fit import Evaluator, Fit, fit, information_criteria, noise_threshold
 from rover_env.calibration.replay import (
     SIGNALS,
     PreparedLog,
@@ -84,6 +84,8 @@ class Options:
     progress: bool = True
     workers: int = 1
     """Processes fitting candidates side by side (forked; 1: in this process)."""
+    evidence: int = 2
+    """Candidates for which a deciding drive is proposed and simulated, at most."""
 
 
 @dataclass
@@ -101,6 +103,8 @@ class Scored:
     significant: bool = False
     test: str = ""
     """Which held-out test named it (the window test, or the noise-floor test and what it cleared)."""
+    threshold: dict[str, float] = field(default_factory=dict)
+    """Noise threshold of the effect on these drives (:func:`.fit.noise_threshold`)."""
 
 
 def _log_ratios(before: Array, after: Array) -> Array:
@@ -226,11 +230,14 @@ def diagnose(
         s = score(f, held0, {})
         s.significant = s.gain >= opts.min_gain and s.p < opts.alpha and s.d_bic < 0
         s.test = "windows" if s.significant else ""
+        s.threshold = noise_threshold(ev, c, which, noise)
         return s
 
     def noise_test(s: Scored, ref_left: list[str], ref_floor: dict[str, float]) -> bool:
-        """The fallback held-out test: see :func:`_noise_test`."""
-        if s.gain < opts.min_gain or s.d_bic >= 0 or not ref_left:
+        """The fallback held-out test: see :func:`_noise_test`. Each signal is judged against
+        its own floor, so a candidate need not reach the window test's overall gain (a
+        rolling radius shows in the pose alone); it must not make the held-out drive worse."""
+        if s.gain < 0.0 or s.d_bic >= 0 or not ref_left:
             return False
         after = rs.table(rs.stack(ev.run(s.fit.ext, "held"), prepared), ref_floor)
         cleared = _noise_test(ref_left, _unexplained(after, ref_floor))
@@ -345,6 +352,9 @@ def diagnose(
         bias_correct(ev, second, sensor_noise, st)
         say(f"{second.fit.name} with the replay's bias in its interval: {_fmt_phys(second.fit)}")
 
+    # 5b. evidence the drives lack (see rover_env.calibration.evidence)
+    evidence = missing_evidence(ev, ranked, chosen, noise, base, opts, say)
+
     # 6. outputs
     final_ext = merge(base.extensions, *(s.fit.ext for s in chosen))
     final_cfg = replace(base, extensions=final_ext)
@@ -407,6 +417,7 @@ def diagnose(
         "replay_seconds": ev.seconds,
         "config": str(cfg_path),
         "unexplained": _unexplained(table_held_after, final_floor),
+        "evidence": evidence,
     }
     (out / "result.json").write_text(json.dumps(strict_json(result), indent=2, allow_nan=False))
     from rover_env.calibration.report import write_report
@@ -434,6 +445,60 @@ def diagnose(
         f"{rb:.4g} -> {ra:.4g}; wrote {out}/report.md, rover.yaml ({elapsed:.0f}s)"
     )
     return result
+
+
+def missing_evidence(
+    ev: Evaluator,
+    ranked: list[Scored],
+    chosen: list[Scored],
+    noise: dict[str, float],
+    base: RoverConfig,
+    opts: Options,
+    say: Any,
+) -> list[dict[str, Any]]:
+    """Candidates the training drives support but the held-out drive cannot confirm.
+
+    A candidate qualifies when it is not named, lowers the training BIC, moves some training
+    signal by at least one replay floor, and on the held-out drive either moves no signal
+    by a floor (not excited) or only the 1 Hz pose (a sparse signal). For each (at most
+    ``opts.evidence``, best training BIC first) the drive that would decide is proposed and
+    simulated (:func:`rover_env.calibration.evidence.propose`).
+    """
+    from rover_env.calibration.evidence import propose
+    from rover_env.calibration.fit import signal_change
+
+    named = {c.name for s in chosen for c in s.fit.candidates}
+    out: list[dict[str, Any]] = []
+    for s in sorted(ranked, key=lambda s: s.d_bic):
+        if len(out) >= opts.evidence:
+            break
+        name = s.fit.name
+        if name in named or s.d_bic >= 0 or s.fit.x.size == 0:
+            continue
+        if all(v == 0.0 for v in s.fit.x):
+            continue
+        train = signal_change(ev, s.fit.ext, {}, s.fit.which, noise)
+        if max(train.values()) < 1.0:
+            continue
+        held = signal_change(ev, s.fit.ext, {}, "held", noise)
+        strong = [k for k, v in held.items() if v >= 1.0]
+        sparse = bool(strong) and all(k.startswith("pose_") for k in strong)
+        if strong and not sparse:
+            continue  # the held-out drive could judge it, and did
+        why = (
+            "only the 1 Hz pose carries it on the held-out drive"
+            if sparse
+            else "the held-out drive does not excite it"
+        )
+        p = propose(base, name, s.fit.ext, noise, held)
+        p["reason"] = why
+        out.append(p)
+        say(
+            f"evidence missing for {name} ({why}): propose a drive of plan {p['plan']!r}; in"
+            f" simulation it moves {p['best_signal']} by {p['best_floor_units']:.1f}x its floor"
+            f" (held-out drive: {p['held_out_best_signal']} {p['held_out_floor_units']:.1f}x)"
+        )
+    return out
 
 
 def bias_correct(
@@ -676,6 +741,7 @@ def _fit_dict(s: Scored) -> dict[str, Any]:
         "d_bic": s.d_bic,
         "significant": s.significant,
         "test": s.test,
+        "threshold": s.threshold,
         "nfev": s.fit.nfev,
         "seconds": s.fit.seconds,
     }

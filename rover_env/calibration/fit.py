@@ -434,3 +434,60 @@ def information_criteria(sum_log_ratio: float, n: int, k: int) -> tuple[float, f
     -2 log likelihood when each window has its own Gaussian error scale (profiled out).
     """
     return sum_log_ratio + 2 * k, sum_log_ratio + k * math.log(max(n, 2))
+
+
+def signal_change(
+    ev: Evaluator, ext_a: Extensions, ext_b: Extensions, which: str, floor: dict[str, float]
+) -> dict[str, float]:
+    """Per signal: RMS of the change of the replayed signal between two models, in units of
+    that signal's replay floor (each signal weighed by its own noise)."""
+    from rover_env.calibration.replay import SIGNALS
+
+    ra, rb = ev.run(ext_a, which), ev.run(ext_b, which)
+    d_w = np.concatenate([a.resid - b.resid for a, b in zip(ra, rb, strict=True)])
+    d_p = np.concatenate([a.pose_resid - b.pose_resid for a, b in zip(ra, rb, strict=True)])
+    out = {}
+    for j, s in enumerate(SIGNALS):
+        col = d_w[:, j] if j < 11 else d_p[:, j - 11]
+        col = col[np.isfinite(col)]
+        out[s] = float(np.sqrt(np.mean(col**2)) / floor[s]) if col.size else 0.0
+    return out
+
+
+def noise_threshold(
+    ev: Evaluator, c: Candidate, which: str, floor: dict[str, float]
+) -> dict[str, float]:
+    """Magnitude at which the effect moves its most sensitive signal by one replay floor.
+
+    Per side of "off" ("+": above, "-": below; a slope: "deg"), from the ladder's replays
+    (already in the cache after the fit): each rung k gives m_k / S_k, S_k the largest
+    per-signal RMS change against "off" in floor units (linear response near the
+    threshold); the rung whose S_k is nearest 1 decides. An effect must exceed this to be
+    visible at all on these drives; the benchmark's detection curves are drawn against it.
+    """
+    if c.discrete or not c.ladder:
+        return {}
+    off = c.to_ext(np.array(c.off))
+    groups: dict[str, list[tuple[float, float]]] = {}
+    for p in c.ladder:
+        x = np.array(p, dtype=float)
+        if c.name == "slope":
+            key, mag = "deg", float(np.hypot(x[0], x[1]))
+        else:
+            key = "+" if x[0] > c.off[0] else "-"
+            mag = abs(float(x[0] - c.off[0]))
+        try:
+            s = max(signal_change(ev, c.to_ext(x), off, which, floor).values())
+        except (EffectError, SimulationError):
+            continue
+        if s > 0:
+            groups.setdefault(key, []).append((mag, s))
+    out = {}
+    for key, pts in groups.items():
+        mag, s = min(pts, key=lambda q: abs(math.log(q[1])))
+        if c.name == "slope":  # four directions per magnitude: the median of their estimates
+            near = [m / v for m, v in pts if m == mag]
+            out[key] = float(np.median(near))
+        else:
+            out[key] = mag / s
+    return out

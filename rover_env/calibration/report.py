@@ -284,6 +284,32 @@ def write_report(
             + ". See the regime table above for where they concentrate.",
             "",
         ]
+    ev_list = result.get("evidence") or []
+    if ev_list:
+        L += [
+            "## Evidence the drives lack",
+            "",
+            "These candidates improve the training drives but the held-out drive cannot confirm"
+            " them. Each proposed drive was simulated with and without the fitted effect; the"
+            " change of each logged signal over 3 s windows is given in units of that signal's"
+            " own replay floor (≥ 3: the drive separates the hypotheses).",
+            "",
+            "| effect | why unconfirmed | proposed drive (`make-logs --plan`) | largest change on it |"
+            " on the held-out drive | separates |",
+            "|---|---|---|---|---|---|",
+        ]
+        for e in ev_list:
+            L.append(
+                f"| {e['effect']} | {e['reason']} | `{e['plan']}`: {e['why']} |"
+                f" {e['best_signal']} {e['best_floor_units']:.1f}× |"
+                f" {e['held_out_best_signal']} {e['held_out_floor_units']:.1f}× |"
+                f" {'yes' if e['separates'] else 'no'} |"
+            )
+        L += [
+            "",
+            "Drive the proposed plan, add its log (last, so it is held out) and diagnose again.",
+            "",
+        ]
     L += ["## Held-out drive before / after (RMS residual / replay floor)", "", "Before:", ""]
     L += _ratio_table(table_held_before, SIGNALS)
     L += ["", "After:", ""]
