@@ -495,8 +495,9 @@ def missing_evidence(
         out.append(p)
         say(
             f"evidence missing for {name} ({why}): propose a drive of plan {p['plan']!r}; in"
-            f" simulation it moves {p['best_signal']} by {p['best_floor_units']:.1f}x its floor"
-            f" (held-out drive: {p['held_out_best_signal']} {p['held_out_floor_units']:.1f}x)"
+            f" simulation its replay moves {p['best_signal']} by {p['best_per_window']:.1f}x its"
+            f" floor per window, {p['best_floor_units']:.1f}x over the drive (held-out drive:"
+            f" {p['held_out_best_signal']} {p['held_out_floor_units']:.1f}x per window)"
         )
     return out
 

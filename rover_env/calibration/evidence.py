@@ -104,22 +104,37 @@ def replay_separation(
     log: DriveLog,
     floor: dict[str, float],
     st: ReplaySettings | None = None,
-) -> dict[str, float]:
-    """Per signal: RMS change of the replayed signal between the two models on ``log``, in
-    units of the signal's replay floor."""
+) -> tuple[dict[str, float], dict[str, float]]:
+    """Per signal, the change of the replayed signal between the two models on ``log`` in
+    units of the signal's replay floor: (per window RMS, over the whole drive).
+
+    The whole-drive figure is sqrt(sum over windows of the window's mean square change) /
+    floor: the evidence a drive of that many windows carries, one degree of freedom per
+    window as in diagnose's tables (a rolling radius moves the pose by about one floor per
+    3 s window, and a long straight has many windows).
+    """
     st = st or ReplaySettings()
     prep = [prepare(log, base, "proposed", st)]
     windows = make_windows(prep, st)
     ra = Replayer(with_effect, st).run(prep, windows)
     rb = Replayer(base, st).run(prep, windows)
-    d_w = np.concatenate([a.resid - b.resid for a, b in zip(ra, rb, strict=True)])
-    d_p = np.concatenate([a.pose_resid - b.pose_resid for a, b in zip(ra, rb, strict=True)])
-    out = {}
+    per_window: dict[str, float] = {}
+    total: dict[str, float] = {}
     for j, name in enumerate(SIGNALS):
-        col = d_w[:, j] if j < 11 else d_p[:, j - 11]
-        col = col[np.isfinite(col)]
-        out[name] = float(np.sqrt(np.mean(col**2)) / floor[name]) if col.size else 0.0
-    return out
+        ms = []
+        for a, b in zip(ra, rb, strict=True):
+            col = (
+                (a.resid[:, j] - b.resid[:, j])
+                if j < 11
+                else (a.pose_resid[:, j - 11] - b.pose_resid[:, j - 11])
+            )
+            col = col[np.isfinite(col)]
+            if col.size:
+                ms.append(float(np.mean(col**2)))
+        if ms:
+            per_window[name] = float(np.sqrt(np.mean(ms)) / floor[name])
+            total[name] = float(np.sqrt(np.sum(ms)) / floor[name])
+    return per_window, total
 
 
 def propose(
@@ -136,7 +151,7 @@ def propose(
 
     plan, why = evidence_plan(name)
     with_effect = replace(base, extensions={**base.extensions, **ext})
-    sep = replay_separation(
+    per_window, sep = replay_separation(
         base, with_effect, simulate_plan(with_effect, plan, seed, duration), floor
     )
     best = max(sep, key=lambda k: sep[k]) if sep else ""
@@ -148,6 +163,7 @@ def propose(
         "separation": sep,
         "best_signal": best,
         "best_floor_units": sep.get(best, 0.0),
+        "best_per_window": per_window.get(best, 0.0),
         "held_out_best_signal": held_best,
         "held_out_floor_units": held_change.get(held_best, 0.0),
         "separates": bool(sep) and sep.get(best, 0.0) >= 3.0,

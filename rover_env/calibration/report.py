@@ -290,18 +290,19 @@ def write_report(
             "## Evidence the drives lack",
             "",
             "These candidates improve the training drives but the held-out drive cannot confirm"
-            " them. Each proposed drive was simulated with and without the fitted effect; the"
-            " change of each logged signal over 3 s windows is given in units of that signal's"
-            " own replay floor (≥ 3: the drive separates the hypotheses).",
+            " them. Each proposed drive was simulated with the fitted effect and replayed by"
+            " both models; the change of each replayed signal is given in units of that"
+            " signal's own replay floor, per window and over the whole drive (one degree of"
+            " freedom per window; ≥ 3 over the drive: it separates the hypotheses).",
             "",
-            "| effect | why unconfirmed | proposed drive (`make-logs --plan`) | largest change on it |"
-            " on the held-out drive | separates |",
+            "| effect | why unconfirmed | proposed drive (`make-logs --plan`) | largest change on it"
+            " (per window; drive) | on the held-out drive (per window) | separates |",
             "|---|---|---|---|---|---|",
         ]
         for e in ev_list:
             L.append(
                 f"| {e['effect']} | {e['reason']} | `{e['plan']}`: {e['why']} |"
-                f" {e['best_signal']} {e['best_floor_units']:.1f}× |"
+                f" {e['best_signal']} {e['best_per_window']:.1f}×; {e['best_floor_units']:.1f}× |"
                 f" {e['held_out_best_signal']} {e['held_out_floor_units']:.1f}× |"
                 f" {'yes' if e['separates'] else 'no'} |"
             )
