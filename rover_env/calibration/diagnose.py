@@ -694,9 +694,9 @@ def interval_text(k: str, v: float, lo: float, hi: float, side: str) -> str:
         return f"{k} < {hi:.3g} (95 %; fitted {v:.3g})"
     if side == "lower":
         return f"{k} > {lo:.3g} (95 %; fitted {v:.3g})"
-    if np.isfinite(lo) and np.isfinite(hi):
+    if np.isfinite(lo) and np.isfinite(hi) and lo != hi:
         return f"{k}={v:.4g} [{lo:.3g}, {hi:.3g}]"
-    return f"{k}={v:.4g}"
+    return f"{k}={v:.4g}"  # a switch (combined slip): tried on, no interval
 
 
 def _fmt_phys(f: Fit) -> str:

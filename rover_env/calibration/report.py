@@ -39,7 +39,7 @@ def _phys(s: Scored) -> str:
                 out.append(f"{eff}.{k} < {hi:.3g} (95 %, one-sided; fitted {v:.3g})")
             elif side == "lower":
                 out.append(f"{eff}.{k} > {lo:.3g} (95 %, one-sided; fitted {v:.3g})")
-            elif np.isfinite(lo) and np.isfinite(hi):
+            elif np.isfinite(lo) and np.isfinite(hi) and lo != hi:
                 out.append(f"{eff}.{k} = {v:.4g} (95 %: {lo:.3g} … {hi:.3g})")
             else:
                 out.append(f"{eff}.{k} = {v:.4g}")
