@@ -1,6 +1,6 @@
 """How far could the main residual fall? Replay each matrix case's held-out drive with the truth.
 
-For every moderate case of the blind matrix (``bench_diagnose.py``'s work folder), the held-out
+For every single-effect case of the matrix (``bench_diagnose.py``'s work folder), the held-out
 drive is replayed three times, with the same settings as ``diagnose``: the nominal model, the
 configuration ``diagnose`` wrote, and the *truth*, the exact configuration the logs were made
 with (``truth.yaml``, which ``diagnose`` never reads). The truth's reduction of the main
@@ -28,7 +28,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--work", default="out/bench_diagnose")
     ap.add_argument("--out", default="docs/calibration")
-    ap.add_argument("--kind", default="moderate")
+    ap.add_argument("--kind", default="own_single", help="case folder prefix (GEN_KIND)")
     args = ap.parse_args()
     rows = []
     cases = sorted(p for p in Path(args.work).glob(f"{args.kind}_*") if (p / "out").is_dir())

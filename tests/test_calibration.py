@@ -278,3 +278,14 @@ def test_environment_runs_with_extensions() -> None:
         assert env.unwrapped.sim.backend == backend  # type: ignore[attr-defined]
         assert np.all(np.isfinite(obs))
         env.close()
+
+
+def test_result_json_is_strict_json(rr_case: tuple[Path, dict]) -> None:
+    root, _ = rr_case
+    text = (root / "out" / "result.json").read_text()
+
+    def refuse(name: str) -> None:
+        raise AssertionError(f"result.json holds {name}: not JSON")
+
+    data = json.loads(text, parse_constant=refuse)
+    assert data["final"]["rolling_resistance"]["interval_method"] == "bootstrap"

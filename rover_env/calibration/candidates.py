@@ -28,9 +28,10 @@ class Candidate:
     lo: tuple[float, ...]
     hi: tuple[float, ...]
     off: tuple[float, ...]
-    probe: tuple[tuple[float, ...], ...] | None
-    """Clearly-present values tried before fitting (effects with no gradient at "off", or
-    a strongly nonlinear response): the fit starts from the best of these and "off"."""
+    ladder: tuple[tuple[float, ...], ...] | None
+    """Magnitude-blind start points: a log-spaced ladder over the parameter's physical range
+    [lo, hi] on each side of "off" (built from the bounds alone, never from an example
+    magnitude). The fit evaluates all of them and "off", then refines around the best."""
     to_ext: Callable[[Array], Extensions]
     discrete: bool = False
     plugin_ok: bool = True
@@ -43,6 +44,22 @@ class Candidate:
     def reported(self, x: Array) -> dict[str, float]:
         """Physical parameter values (the effect's own names) for fitted variables x."""
         return dict(next(iter(self.to_ext(x).values())))
+
+
+LADDER_RUNGS = 5
+LADDER_RATIO = 3.0
+"""Rungs per side and their ratio: span/81 ... span, i.e. 1.2 % to 100 % of the range."""
+
+
+def magnitude_ladder(lo: float, hi: float, off: float) -> tuple[float, ...]:
+    """Log-spaced values from ``off`` toward each bound: (bound - off) / 3^k, k = 4 .. 0."""
+    out: list[float] = []
+    for end in (lo, hi):
+        span = end - off
+        if span == 0.0:
+            continue
+        out += [off + span / LADDER_RATIO**k for k in range(LADDER_RUNGS - 1, -1, -1)]
+    return tuple(sorted(out))
 
 
 def _simple(name: str) -> Candidate:
@@ -60,8 +77,9 @@ def _simple(name: str) -> Candidate:
             return {name: {pname: on}}
 
         return Candidate(name, (), (), (), (), None, switch_on, True, cls.plugin_ok)
+    ladder = tuple((v,) for v in magnitude_ladder(p.lo, p.hi, p.off))
     return Candidate(
-        name, (p.name,), (p.lo,), (p.hi,), (p.off,), ((p.moderate,),), to_ext, False, cls.plugin_ok
+        name, (p.name,), (p.lo,), (p.hi,), (p.off,), ladder, to_ext, False, cls.plugin_ok
     )
 
 
@@ -71,13 +89,17 @@ def _slope() -> Candidate:
         head = math.degrees(math.atan2(float(x[1]), float(x[0]))) if deg > 0 else 0.0
         return {"slope": {"deg": deg, "heading_deg": head}}
 
+    # Tilts of 14/9, 14/3 and 14 degrees in four directions: blind to magnitude and heading
+    # (a tilt vector's response is smooth, the local fit finds the heading in between).
+    mags = [14.0 / LADDER_RATIO**k for k in (2, 1, 0)]
+    ladder = tuple((m * dx, m * dy) for m in mags for dx, dy in ((1, 0), (0, 1), (-1, 0), (0, -1)))
     return Candidate(
         "slope",
         ("tilt_x_deg", "tilt_y_deg"),
         (-14.0, -14.0),
         (14.0, 14.0),
         (0.0, 0.0),
-        ((4.0, 0.0), (0.0, 4.0), (-4.0, 0.0), (0.0, -4.0)),
+        ladder,
         to_ext,
     )
 

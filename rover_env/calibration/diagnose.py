@@ -49,7 +49,7 @@ from rover_env.calibration.candidates import (
     merge,
     separating_plan,
 )
-from rover_env.calibration.fit import Evaluator, Fit, fit, information_criteria
+from rover_env.calibration.fit import Evaluator, Fit, fit, information_criteria, noise_threshold
 from rover_env.calibration.replay import (
     SIGNALS,
     PreparedLog,
@@ -87,6 +87,8 @@ class Options:
     executor: str = "local"
     """Where candidate fits run: ``local`` (forked processes) or ``ray`` (rover_env.executor)."""
     ray_address: str | None = None
+    evidence: int = 2
+    """Candidates for which a deciding drive is proposed and simulated, at most."""
 
 
 @dataclass
@@ -104,6 +106,8 @@ class Scored:
     significant: bool = False
     test: str = ""
     """Which held-out test named it (the window test, or the noise-floor test and what it cleared)."""
+    threshold: dict[str, float] = field(default_factory=dict)
+    """Noise threshold of the effect on these drives (:func:`.fit.noise_threshold`)."""
 
 
 def _log_ratios(before: Array, after: Array) -> Array:
@@ -229,11 +233,14 @@ def diagnose(
         s = score(f, held0, {})
         s.significant = s.gain >= opts.min_gain and s.p < opts.alpha and s.d_bic < 0
         s.test = "windows" if s.significant else ""
+        s.threshold = noise_threshold(ev, c, which, noise)
         return s
 
     def noise_test(s: Scored, ref_left: list[str], ref_floor: dict[str, float]) -> bool:
-        """The fallback held-out test: see :func:`_noise_test`."""
-        if s.gain < opts.min_gain or s.d_bic >= 0 or not ref_left:
+        """The fallback held-out test: see :func:`_noise_test`. Each signal is judged against
+        its own floor, so a candidate need not reach the window test's overall gain (a
+        rolling radius shows in the pose alone); it must not make the held-out drive worse."""
+        if s.gain < 0.0 or s.d_bic >= 0 or not ref_left:
             return False
         after = rs.table(rs.stack(ev.run(s.fit.ext, "held"), prepared), ref_floor)
         cleared = _noise_test(ref_left, _unexplained(after, ref_floor))
@@ -246,8 +253,8 @@ def diagnose(
     def report(s: Scored) -> None:
         f = s.fit
         say(
-            f"{f.name:24s} {_fmt_phys(f)}  held-out {-100 * s.gain:+6.1f}%  p={s.p:.2g}"
-            f"  dBIC={s.d_bic:+.1f}  ({f.nfev} fits, {f.seconds:.1f}s)"
+            f"{f.name:24s} {_fmt_phys(f)}  held-out {better_worse(s.gain)}  p={s.p:.2g}"
+            f"  dBIC={s.d_bic:+.1f}  ({f.nfev} replays, {f.seconds:.1f}s)"
         )
 
     scored = _map_candidates(fit_one, report, cands, ev, opts)
@@ -289,7 +296,7 @@ def diagnose(
     if winner is not None:
         # Bias of the fitted values through the replay (parametric bootstrap on twins).
         bias_correct(ev, winner, sensor_noise, st)
-        say(f"bias-corrected {winner.fit.name}: {_fmt_phys(winner.fit)}")
+        say(f"{winner.fit.name} with the replay's bias in its interval: {_fmt_phys(winner.fit)}")
         # Against the floor of the winner's own model (a tilted or slower model replays
         # its own twin less exactly than the nominal one).
         w_floor = replay_floor(ev.config(winner.fit.ext), prepared, held_w, sensor_noise, st)
@@ -324,7 +331,8 @@ def diagnose(
 
         def report2(s2: Scored) -> None:
             say(
-                f"second: {s2.fit.name:40s} {_fmt_phys(s2.fit)}  held-out {-100 * s2.gain:+6.1f}% vs winner  p={s2.p:.2g}  dBIC={s2.d_bic:+.1f}"
+                f"second: {s2.fit.name:40s} {_fmt_phys(s2.fit)}  held-out {better_worse(s2.gain)}"
+                f" than the winner alone  p={s2.p:.2g}  dBIC={s2.d_bic:+.1f}"
             )
 
         tried = _map_parallel(
@@ -345,7 +353,10 @@ def diagnose(
 
     if second is not None:
         bias_correct(ev, second, sensor_noise, st)
-        say(f"bias-corrected {second.fit.name}: {_fmt_phys(second.fit)}")
+        say(f"{second.fit.name} with the replay's bias in its interval: {_fmt_phys(second.fit)}")
+
+    # 5b. evidence the drives lack (see rover_env.calibration.evidence)
+    evidence = missing_evidence(ev, ranked, chosen, noise, base, opts, say)
 
     # 6. outputs
     final_ext = merge(base.extensions, *(s.fit.ext for s in chosen))
@@ -409,8 +420,9 @@ def diagnose(
         "replay_seconds": ev.seconds,
         "config": str(cfg_path),
         "unexplained": _unexplained(table_held_after, final_floor),
+        "evidence": evidence,
     }
-    (out / "result.json").write_text(json.dumps(result, indent=2, default=float))
+    (out / "result.json").write_text(json.dumps(strict_json(result), indent=2, allow_nan=False))
     from rover_env.calibration.report import write_report
 
     write_report(
@@ -438,17 +450,73 @@ def diagnose(
     return result
 
 
+def missing_evidence(
+    ev: Evaluator,
+    ranked: list[Scored],
+    chosen: list[Scored],
+    noise: dict[str, float],
+    base: RoverConfig,
+    opts: Options,
+    say: Any,
+) -> list[dict[str, Any]]:
+    """Candidates the training drives support but the held-out drive cannot confirm.
+
+    A candidate qualifies when it is not named, lowers the training BIC, moves some training
+    signal by at least one replay floor, and on the held-out drive either moves no signal
+    by a floor (not excited) or only the 1 Hz pose (a sparse signal). For each (at most
+    ``opts.evidence``, best training BIC first) the drive that would decide is proposed and
+    simulated (:func:`rover_env.calibration.evidence.propose`).
+    """
+    from rover_env.calibration.evidence import propose
+    from rover_env.calibration.fit import signal_change
+
+    named = {c.name for s in chosen for c in s.fit.candidates}
+    out: list[dict[str, Any]] = []
+    for s in sorted(ranked, key=lambda s: s.d_bic):
+        if len(out) >= opts.evidence:
+            break
+        name = s.fit.name
+        if name in named or s.d_bic >= 0 or s.fit.x.size == 0:
+            continue
+        if all(v == 0.0 for v in s.fit.x):
+            continue
+        train = signal_change(ev, s.fit.ext, {}, s.fit.which, noise)
+        if max(train.values()) < 1.0:
+            continue
+        held = signal_change(ev, s.fit.ext, {}, "held", noise)
+        strong = [k for k, v in held.items() if v >= 1.0]
+        sparse = bool(strong) and all(k.startswith("pose_") for k in strong)
+        if strong and not sparse:
+            continue  # the held-out drive could judge it, and did
+        why = (
+            "only the 1 Hz pose carries it on the held-out drive"
+            if sparse
+            else "the held-out drive does not excite it"
+        )
+        p = propose(base, name, s.fit.ext, noise, held)
+        p["reason"] = why
+        out.append(p)
+        say(
+            f"evidence missing for {name} ({why}): propose a drive of plan {p['plan']!r}; in"
+            f" simulation its replay moves {p['best_signal']} by {p['best_per_window']:.1f}x its"
+            f" floor per window, {p['best_floor_units']:.1f}x over the drive (held-out drive:"
+            f" {p['held_out_best_signal']} {p['held_out_floor_units']:.1f}x per window)"
+        )
+    return out
+
+
 def bias_correct(
     ev: Evaluator, s: Scored, sensor_noise: dict[str, float], st: ReplaySettings
 ) -> None:
-    """Remove the bias the replay itself puts on the fitted values; widen the intervals.
+    """Widen the intervals by the bias the replay itself may put on the fitted values.
 
     The window initialisation is not exact (e.g. segment 3's speed from its free wheels
     assumes no slip), which can pull a fit a few per cent off. The fitted model's own twins
-    of the training drives (same commands, same sensor noise) are fitted the same way;
-    the difference from the value they were made with estimates that bias. The value is
-    corrected by it and the interval widened by it (added in quadrature to the standard
-    error).
+    of the training drives (same commands, same sensor noise) are fitted the same way; the
+    difference from the value they were made with estimates that bias. It is *not*
+    subtracted: learnt on this project's own replays it moved estimates from logs of another
+    implementation away from their truth (issue 16); it widens the interval instead (added
+    in quadrature to each side's half-width, as a one-sigma term).
     """
     f = s.fit
     if f.x.size == 0:
@@ -472,18 +540,14 @@ def bias_correct(
     free = [c for c in f.candidates if not c.discrete]
     lo = np.concatenate([c.lo for c in free])
     hi = np.concatenate([c.hi for c in free])
-    x = np.clip(f.x - bias, lo, hi)
-    se = np.sqrt(f.se**2 + bias**2)
-    half = np.where(f.se > 0, (f.ci_hi - f.x) / np.maximum(f.se, 1e-300), 1.96) * se
-    fixed = merge(*[c.to_ext(np.zeros(0)) for c in f.candidates if c.discrete])
-    parts, i = [], 0
-    for c in free:
-        n = len(c.labels)
-        parts.append(c.to_ext(x[i : i + n]))
-        i += n
+    extra = 1.96 * np.abs(bias)
+    h_lo = np.sqrt((f.x - f.ci_lo) ** 2 + extra**2)
+    h_hi = np.sqrt((f.ci_hi - f.x) ** 2 + extra**2)
+    sided = f.sided or ("",) * f.x.size
     f.bias = bias
-    f.x, f.se, f.ci_lo, f.ci_hi = x, se, x - half, x + half
-    f.ext = merge(fixed, *parts)
+    f.se = np.sqrt(f.se**2 + bias**2)
+    f.ci_lo = np.where([sd == "upper" for sd in sided], f.ci_lo, np.maximum(f.x - h_lo, lo))
+    f.ci_hi = np.where([sd == "lower" for sd in sided], f.ci_hi, np.minimum(f.x + h_hi, hi))
 
 
 def _median_window_rms(results: list[WindowResult], j: int) -> float:
@@ -614,23 +678,59 @@ def base_backend(cfg: RoverConfig) -> str:
     return resolve_auto_backend(cfg)
 
 
+def better_worse(gain: float) -> str:
+    """A relative held-out change in words: "12.3 % better" or "4.0 % worse"."""
+    if gain >= 0:
+        return f"{100 * gain:.1f} % better"
+    return f"{-100 * gain:.1f} % worse"
+
+
+def interval_text(k: str, v: float, lo: float, hi: float, side: str) -> str:
+    """``c_rr=0.031 [0.027, 0.035]`` or, at a bound, ``c_rr < 0.004 (95 %)``."""
+    if side == "upper":
+        return f"{k} < {hi:.3g} (95 %; fitted {v:.3g})"
+    if side == "lower":
+        return f"{k} > {lo:.3g} (95 %; fitted {v:.3g})"
+    if np.isfinite(lo) and np.isfinite(hi) and lo != hi:
+        return f"{k}={v:.4g} [{lo:.3g}, {hi:.3g}]"
+    return f"{k}={v:.4g}"  # a switch (combined slip): tried on, no interval
+
+
 def _fmt_phys(f: Fit) -> str:
     parts = []
+    sides = f.sides()
     for eff, params in f.physical().items():
         for k, (v, lo, hi) in params.items():
             if k == "heading_deg":
                 parts.append(f"{k}={v:.0f}")
-            elif np.isfinite(lo) and lo != hi:
-                parts.append(f"{k}={v:.4g} [{lo:.3g}, {hi:.3g}]")
             else:
-                parts.append(f"{k}={v:.4g}")
-        del eff
+                parts.append(interval_text(k, v, lo, hi, sides.get(eff, {}).get(k, "")))
     return ", ".join(parts)
+
+
+def strict_json(obj: Any) -> Any:
+    """``obj`` with every non-finite float as None (JSON ``null``), numpy scalars as floats."""
+    if isinstance(obj, dict):
+        return {str(k): strict_json(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [strict_json(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return [strict_json(v) for v in obj.tolist()]
+    if isinstance(obj, bool | np.bool_):
+        return bool(obj)
+    if isinstance(obj, int | np.integer):
+        return int(obj)
+    if isinstance(obj, float | np.floating):
+        return float(obj) if np.isfinite(obj) else None
+    return obj
 
 
 def _fit_dict(s: Scored) -> dict[str, Any]:
     return {
         "params": {e: {k: list(v) for k, v in p.items()} for e, p in s.fit.physical().items()},
+        "sides": s.fit.sides(),
+        "interval_method": s.fit.method,
+        "replay_bias": None if s.fit.bias is None else [float(b) for b in s.fit.bias],
         "train_cost": s.fit.cost,
         "held_cost": s.held_cost,
         "held_gain": s.gain,
@@ -639,6 +739,7 @@ def _fit_dict(s: Scored) -> dict[str, Any]:
         "d_bic": s.d_bic,
         "significant": s.significant,
         "test": s.test,
+        "threshold": s.threshold,
         "nfev": s.fit.nfev,
         "seconds": s.fit.seconds,
     }

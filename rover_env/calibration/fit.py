@@ -9,10 +9,21 @@ evaluated point) and mature bound handling. ``mujoco.minimize`` offers the same
 Gauss–Newton idea but expects its Jacobian from MuJoCo-level finite differences of a
 residual it owns, and gives no extra accuracy here.
 
+Start (issue 16): no fit starts from an example magnitude. A one-parameter effect is
+searched blind to its magnitude: "off" and a log-spaced ladder over the parameter's
+physical range (:func:`rover_env.calibration.candidates.magnitude_ladder`), then a
+bounded Brent search between the best rung's neighbours (in log-magnitude where the
+bracket keeps one sign). Several parameters (a slope's tilt vector, a pair of effects)
+start from the best ladder point (or the single fits) and are refined by least squares.
+
 Intervals: the residuals inside a window are strongly correlated (one initial-state error
-shifts all of them), so the naive ``s^2 (J^T J)^-1`` is far too narrow. The covariance is
-the cluster-robust (sandwich) estimate with windows as clusters, and intervals use
-Student's t with (windows - 1) degrees of freedom.
+shifts all of them), so windows are the independent units. One parameter: block bootstrap
+over training windows (windows resampled with replacement, the minimiser of the resampled
+loss found on the per-window loss curves already evaluated, refined by a parabola), so no
+replay is added. Several: the cluster-robust (sandwich) covariance with windows as
+clusters and Student's t with (windows - 1) degrees of freedom. Either way an interval is
+one-sided where the estimate sits at a bound ("c_rr < 0.004, 95 %"), and never narrower
+than the search's own resolution: an interval of zero width would claim certainty.
 """
 
 from __future__ import annotations
@@ -90,7 +101,14 @@ class Fit:
     seconds: float
     which: str
     bias: Array | None = None
-    """Replay bias removed from x (diagnose's bias correction), if estimated."""
+    """Replay bias estimated on the model's own twins (diagnose), added to the interval."""
+    sided: tuple[str, ...] = ()
+    """Per free variable: "" two-sided, "upper" (estimate at the lower bound: only an upper
+    95 % bound is known) or "lower"."""
+    method: str = ""
+    """How the intervals were found: "bootstrap" (windows) or "sandwich"."""
+    tq: float = 1.96
+    """Two-sided 95 % quantile the sandwich intervals used (Student's t, windows - 1)."""
 
     @property
     def name(self) -> str:
@@ -114,14 +132,32 @@ class Fit:
                 se = self.se[i : i + n]
                 g = np.array([x[0], x[1]]) / deg if deg > 0 else np.array([1.0, 0.0])
                 s = float(math.sqrt(float(np.sum((g * se) ** 2))))
-                tq = (hi[0] - x[0]) / se[0] if se[0] > 0 else 1.96
                 head = c.reported(x)["heading_deg"]
+                low = deg - self.tq * s
                 out[c.name] = {
-                    "deg": (deg, max(0.0, deg - tq * s), deg + tq * s),
+                    # A tilt cannot be negative: at zero only an upper bound is known.
+                    "deg": (deg, max(0.0, low), deg + self.tq * s),
                     "heading_deg": (head, math.nan, math.nan),
                 }
             else:
                 out[c.name] = {c.labels[0]: (float(x[0]), float(lo[0]), float(hi[0]))}
+            i += n
+        return out
+
+    def sides(self) -> dict[str, dict[str, str]]:
+        """Effect -> parameter -> "", "upper" or "lower" (see :attr:`sided`)."""
+        out: dict[str, dict[str, str]] = {}
+        i = 0
+        for c in self.candidates:
+            n = len(c.labels)
+            sd = list(self.sided[i : i + n]) if len(self.sided) >= i + n else [""] * n
+            if c.name == "slope":
+                se = self.se[i : i + n]
+                deg = math.hypot(self.x[i], self.x[i + 1])
+                at0 = deg - self.tq * float(np.max(se)) <= 0.0
+                out[c.name] = {"deg": "upper" if at0 else "", "heading_deg": ""}
+            elif n:
+                out[c.name] = {c.labels[0]: sd[0]}
             i += n
         return out
 
@@ -135,17 +171,139 @@ def _to_ext(cands: list[Candidate], x: Array) -> Extensions:
     return merge(*parts)
 
 
-def _diff_step(c: Candidate) -> list[float]:
+def _diff_step(c: Candidate, x0: Array) -> list[float]:
+    """Finite-difference steps from where the fit starts and the range, not from examples."""
     out = []
-    scale = np.max(np.abs(np.array(c.probe)), axis=0) if c.probe else None
     for i, (lab, lo, hi) in enumerate(zip(c.labels, c.lo, c.hi, strict=True)):
         if lab == "delay":
-            out.append(0.02)  # 20 substeps: the delay is quantised to the physics step
-        elif scale is not None and scale[i] > 0:
-            out.append(float(scale[i]) * 0.1)
+            out.append(max(0.02, 0.1 * abs(float(x0[i]))))  # the delay is quantised to 1 ms
         else:
-            out.append((hi - lo) * 0.01)
+            out.append(max(0.1 * abs(float(x0[i])), (hi - lo) * 0.002))
     return out
+
+
+def _parabola_min(x: Array, y: Array, j: int) -> float:
+    """Vertex of the parabola through points j-1, j, j+1 (x sorted), kept inside them."""
+    if j <= 0 or j >= len(x) - 1:
+        return float(x[j])
+    x0, x1, x2 = x[j - 1], x[j], x[j + 1]
+    y0, y1, y2 = y[j - 1], y[j], y[j + 1]
+    den = (x0 - x1) * (x0 - x2) * (x1 - x2)
+    a = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / den
+    b = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / den
+    if a <= 0:
+        return float(x1)
+    return float(np.clip(-b / (2 * a), x0, x2))
+
+
+def bootstrap_interval(
+    xs: Array, losses: Array, lo: float, hi: float, off: float, n_boot: int = 1000, seed: int = 0
+) -> tuple[float, float, float, str]:
+    """(estimate, 95 % low, 95 % high, side) from per-window loss curves.
+
+    ``losses[i, w]`` is window w's loss at parameter ``xs[i]``. Windows are resampled with
+    replacement; each resample's minimiser is the best evaluated point refined by a
+    parabola through its neighbours. When the estimate sits at a bound of the physical range
+    (or at "off" of a one-signed parameter, the edge of its range) the interval is
+    one-sided: "upper" means only the 95 % upper bound is claimed.
+    """
+    order = np.argsort(xs)
+    x, L = np.asarray(xs, dtype=float)[order], np.asarray(losses, dtype=float)[order]
+    total = L.sum(axis=1)
+    j = int(np.argmin(total))
+    est = _parabola_min(x, total, j)
+    rng = np.random.default_rng(seed)
+    nw = L.shape[1]
+    w = rng.multinomial(nw, np.full(nw, 1.0 / nw), size=n_boot).astype(float)
+    tb = w @ L.T  # (n_boot, n_points)
+    jb = np.argmin(tb, axis=1)
+    xb = np.array([_parabola_min(x, tb[b], int(jb[b])) for b in range(n_boot)])
+    span = hi - lo
+    # Resolution of the search: the estimate cannot be placed finer than this.
+    res = max(0.02 * abs(est - off), 0.002 * span)
+    at_lo = est <= lo + res or (off == lo and est <= off + res)
+    at_hi = est >= hi - res or (off == hi and est >= off - res)
+    if at_lo:
+        return est, lo, max(float(np.quantile(xb, 0.95)), est + res), "upper"
+    if at_hi:
+        return est, min(float(np.quantile(xb, 0.05)), est - res), hi, "lower"
+    q_lo, q_hi = (float(v) for v in np.quantile(xb, [0.025, 0.975]))
+    return est, min(q_lo, est - res), max(q_hi, est + res), ""
+
+
+def _fit_1d(
+    ev: Evaluator, c: Candidate, which: str, fixed: Extensions, refine: int, t0: float
+) -> Fit:
+    """Magnitude-blind search of one parameter: "off", the ladder, a bounded Brent search
+    between the best rung's neighbours; intervals by block bootstrap over windows."""
+    lo, hi, off = c.lo[0], c.hi[0], c.off[0]
+    seen: dict[float, Array] = {}
+    size = 0
+
+    def losses(v: float) -> Array:
+        nonlocal size
+        v = float(np.clip(v, lo, hi))
+        if v not in seen:
+            ext = merge(fixed, c.to_ext(np.array([v])))
+            try:
+                res = ev.run(ext, which)
+                seen[v] = np.array(
+                    [float(np.sum(residual_vector([r], ev.scale) ** 2)) for r in res]
+                )
+                size = len(res)
+            except (EffectError, SimulationError) as exc:
+                ev.log(f"  {c.name}={v:.4g}: {exc}; treated as a very poor fit")
+                seen[v] = np.full(size or len(ev.sets[which]), np.inf)
+        return seen[v]
+
+    def cost(v: float) -> float:
+        return float(np.sum(losses(v)))
+
+    pts = sorted({off, *(float(p[0]) for p in (c.ladder or ()))})
+    for v in pts:
+        cost(v)
+    j = int(np.argmin([cost(v) for v in pts]))
+    a = pts[j - 1] if j > 0 else pts[j]
+    b = pts[j + 1] if j < len(pts) - 1 else pts[j]
+    if refine > 0 and b > a:
+        one_sign = (a - off) * (b - off) > 0
+        if one_sign:  # in log-magnitude: the rungs are a factor 3 apart
+            sgn = 1.0 if a > off else -1.0
+            ua, ub = sorted((math.log(abs(a - off)), math.log(abs(b - off))))
+            optimize.fminbound(
+                lambda u: cost(off + sgn * math.exp(u)),
+                ua,
+                ub,
+                xtol=0.02,
+                maxfun=refine,
+                disp=0,
+            )
+        else:
+            optimize.fminbound(cost, a, b, xtol=0.002 * (hi - lo), maxfun=refine, disp=0)
+    xs = np.array(sorted(seen))
+    L = np.array([seen[v] for v in xs])
+    finite = np.all(np.isfinite(L), axis=1)
+    xs, L = xs[finite], L[finite]
+    est, ci_lo, ci_hi, side = bootstrap_interval(xs, L, lo, hi, off)
+    # The reported value is an evaluated point when the parabola adds nothing.
+    x = np.array([est])
+    ext = merge(fixed, c.to_ext(x))
+    r = ev.vector(ext, which)
+    se = np.array([(ci_hi - ci_lo) / (2 * 1.96)])
+    return Fit(
+        [c],
+        x,
+        np.array([ci_lo]),
+        np.array([ci_hi]),
+        se,
+        float(r @ r),
+        len(seen) + 1,
+        ext,
+        time.perf_counter() - t0,
+        which,
+        sided=(side,),
+        method="bootstrap",
+    )
 
 
 def fit(
@@ -183,18 +341,25 @@ def fit(
         size = r.size
         return r
 
-    if probe and x_start is None and len(free) == 1 and free[0].probe:
-        # Effects with no gradient at "off" (a torque limit never reached) or a strongly
-        # nonlinear response (a slope's direction) need a start where they act: try the
-        # clearly-present values too and start from the best.
+    if probe and x_start is None and len(free) == 1 and len(free[0].labels) == 1:
+        return _fit_1d(ev, free[0], which, fixed, refine=max(2, max_nfev + 1), t0=t0)
+    if probe and x_start is None and len(free) == 1 and free[0].ladder:
+        # Several parameters of one effect (a slope's tilt vector): the best of "off" and
+        # the magnitude-blind ladder starts the local fit.
         best = fun(x0)
         best_cost = float(best @ best)
-        for trial in free[0].probe:
-            r1 = fun(np.clip(np.array(trial, dtype=float), lo, hi))
+        for trial in free[0].ladder:
+            xt = np.clip(np.array(trial, dtype=float), lo, hi)
+            r1 = fun(xt)
             if float(r1 @ r1) < best_cost:
-                best_cost, x0 = float(r1 @ r1), np.clip(np.array(trial, dtype=float), lo, hi)
+                best_cost, x0 = float(r1 @ r1), xt
     x0 = np.clip(x0, lo, hi)
-    diff = np.concatenate([_diff_step(c) for c in free])
+    steps: list[float] = []
+    i = 0
+    for c in free:
+        steps += _diff_step(c, x0[i : i + len(c.labels)])
+        i += len(c.labels)
+    diff = np.array(steps)
     # least_squares' 2-point step is diff_step * max(1, |x|): give it absolute steps.
     res = optimize.least_squares(
         fun,
@@ -220,7 +385,21 @@ def fit(
     cov = bread @ meat @ bread * (g / max(g - 1, 1))
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
     tq = float(stats.t.ppf(0.975, max(g - 1, 1)))
+    offs = np.concatenate([c.off for c in free])
+    res_ = np.maximum(0.02 * np.abs(x - offs), 0.002 * (hi - lo))
+    se = np.maximum(se, res_ / tq)  # never narrower than the search's resolution
     ci_lo, ci_hi = x - tq * se, x + tq * se
+    sided = []
+    for k in range(len(x)):
+        t1 = float(stats.t.ppf(0.95, max(g - 1, 1)))
+        if x[k] <= lo[k] + res_[k] or (offs[k] == lo[k] and x[k] <= offs[k] + res_[k]):
+            ci_lo[k], ci_hi[k] = lo[k], max(x[k] + t1 * se[k], x[k] + res_[k])
+            sided.append("upper")
+        elif x[k] >= hi[k] - res_[k] or (offs[k] == hi[k] and x[k] >= offs[k] - res_[k]):
+            ci_lo[k], ci_hi[k] = min(x[k] - t1 * se[k], x[k] - res_[k]), hi[k]
+            sided.append("lower")
+        else:
+            sided.append("")
     # Pad the free-variable arrays with the discrete candidates' (empty) slots in order.
     xs, los, his, ses = [], [], [], []
     i = 0
@@ -242,6 +421,9 @@ def fit(
         merge(fixed, _to_ext(free, x)),
         time.perf_counter() - t0,
         which,
+        sided=tuple(sided),
+        method="sandwich",
+        tq=tq,
     )
 
 
@@ -252,3 +434,60 @@ def information_criteria(sum_log_ratio: float, n: int, k: int) -> tuple[float, f
     -2 log likelihood when each window has its own Gaussian error scale (profiled out).
     """
     return sum_log_ratio + 2 * k, sum_log_ratio + k * math.log(max(n, 2))
+
+
+def signal_change(
+    ev: Evaluator, ext_a: Extensions, ext_b: Extensions, which: str, floor: dict[str, float]
+) -> dict[str, float]:
+    """Per signal: RMS of the change of the replayed signal between two models, in units of
+    that signal's replay floor (each signal weighed by its own noise)."""
+    from rover_env.calibration.replay import SIGNALS
+
+    ra, rb = ev.run(ext_a, which), ev.run(ext_b, which)
+    d_w = np.concatenate([a.resid - b.resid for a, b in zip(ra, rb, strict=True)])
+    d_p = np.concatenate([a.pose_resid - b.pose_resid for a, b in zip(ra, rb, strict=True)])
+    out = {}
+    for j, s in enumerate(SIGNALS):
+        col = d_w[:, j] if j < 11 else d_p[:, j - 11]
+        col = col[np.isfinite(col)]
+        out[s] = float(np.sqrt(np.mean(col**2)) / floor[s]) if col.size else 0.0
+    return out
+
+
+def noise_threshold(
+    ev: Evaluator, c: Candidate, which: str, floor: dict[str, float]
+) -> dict[str, float]:
+    """Magnitude at which the effect moves its most sensitive signal by one replay floor.
+
+    Per side of "off" ("+": above, "-": below; a slope: "deg"), from the ladder's replays
+    (already in the cache after the fit): each rung k gives m_k / S_k, S_k the largest
+    per-signal RMS change against "off" in floor units (linear response near the
+    threshold); the rung whose S_k is nearest 1 decides. An effect must exceed this to be
+    visible at all on these drives; the benchmark's detection curves are drawn against it.
+    """
+    if c.discrete or not c.ladder:
+        return {}
+    off = c.to_ext(np.array(c.off))
+    groups: dict[str, list[tuple[float, float]]] = {}
+    for p in c.ladder:
+        x = np.array(p, dtype=float)
+        if c.name == "slope":
+            key, mag = "deg", float(np.hypot(x[0], x[1]))
+        else:
+            key = "+" if x[0] > c.off[0] else "-"
+            mag = abs(float(x[0] - c.off[0]))
+        try:
+            s = max(signal_change(ev, c.to_ext(x), off, which, floor).values())
+        except (EffectError, SimulationError):
+            continue
+        if s > 0:
+            groups.setdefault(key, []).append((mag, s))
+    out = {}
+    for key, pts in groups.items():
+        mag, s = min(pts, key=lambda q: abs(math.log(q[1])))
+        if c.name == "slope":  # four directions per magnitude: the median of their estimates
+            near = [m / v for m, v in pts if m == mag]
+            out[key] = float(np.median(near))
+        else:
+            out[key] = mag / s
+    return out

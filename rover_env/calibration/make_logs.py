@@ -19,7 +19,12 @@ Test plans (``--plan``), each 50 s by default, drawn with the seed:
 * ``steps``: command steps of many sizes with holds of varied length (separates lag from
   delay);
 * ``speeds``: slow constant speeds and gentle turns at many loads (separates rolling radius
-  from slip).
+  from slip);
+* ``straight``: a measured straight: long runs at constant speed, forward and back, so the
+  pose reference sees many metres of travel against many wheel turns (decides a rolling
+  radius that changes all wheels alike, which only the pose can see);
+* ``accel``: hard accelerations from rest and full reversals at the largest target, the
+  drive that reaches a motor's torque limit (on flat ground, the nearest to a hard climb).
 """
 
 from __future__ import annotations
@@ -43,7 +48,7 @@ from rover_env.sim.simulator import RoverSim
 
 Array = NDArray[np.float64]
 
-PLANS = ("test", "reversals", "turn-accel", "steps", "speeds")
+PLANS = ("test", "reversals", "turn-accel", "steps", "speeds", "straight", "accel")
 POSE_NOISE_M = 0.005
 """External pose reference noise (m rms), e.g. a total station or motion capture."""
 POSE_NOISE_YAW = 0.005
@@ -114,12 +119,35 @@ def _speeds_plan(rng: np.random.Generator, vmax: float) -> list[Segment]:
     return out
 
 
+def _straight_plan(rng: np.random.Generator, vmax: float) -> list[Segment]:
+    out: list[Segment] = []
+    for f in (0.5, 0.8, 0.65):
+        v = float(f + rng.uniform(-0.05, 0.05)) * vmax
+        out += [(12.0, (v, v)), (1.0, (0.0, 0.0)), (12.0, (-v, -v)), (1.0, (0.0, 0.0))]
+    return out
+
+
+def _accel_plan(rng: np.random.Generator, vmax: float) -> list[Segment]:
+    out: list[Segment] = []
+    for _ in range(6):
+        hold = float(rng.uniform(1.5, 2.5))
+        out += [
+            (hold, (vmax, vmax)),
+            (1.0, (0.0, 0.0)),
+            (hold, (-vmax, -vmax)),
+            (0.5, (vmax, vmax)),
+        ]
+    return out
+
+
 _PLANS: dict[str, Callable[[np.random.Generator, float], list[Segment]]] = {
     "test": _test_plan,
     "reversals": _reversal_plan,
     "turn-accel": _turn_accel_plan,
     "steps": _steps_plan,
     "speeds": _speeds_plan,
+    "straight": _straight_plan,
+    "accel": _accel_plan,
 }
 
 
@@ -250,6 +278,26 @@ def make_logs(
 def _cli(args: argparse.Namespace) -> int:
     effects = parse_effects(args.effect or [])
     RoverConfig(extensions=effects)  # validate before simulating
+    if args.generator == "foreign":
+        from rover_env.calibration.foreign_logs import make_foreign_logs
+
+        if args.pose_end_only or args.pose_rate != 1.0:
+            raise ConfigError("--generator foreign: the pose reference is fixed at 1 Hz")
+        paths = make_foreign_logs(
+            args.out,
+            effects,
+            drives=args.drives,
+            seed=args.seed,
+            duration=args.duration,
+            plan=args.plan,
+            rover=args.rover,
+            progress=not args.quiet,
+            first_index=args.first_index,
+        )
+        for p in paths:
+            print(f"wrote {p}")
+        print(f"truth in {Path(args.out) / 'truth.yaml'}")
+        return 0
     paths = make_logs(
         args.out,
         effects,
@@ -287,6 +335,13 @@ def add_cli(sub: Any) -> None:
     g.add_argument("--pose-end-only", action="store_true", help="pose at the last sample only")
     p.add_argument("--rover", default="proto_explorer", help="nominal rover named in the logs")
     p.add_argument("--first-index", type=int, default=0, help="number drives from this index")
+    p.add_argument(
+        "--generator",
+        choices=("rover_env", "foreign"),
+        default="rover_env",
+        help="rover_env: this project's simulator; foreign: a deliberately different"
+        " implementation of the same rover (rover_env.calibration.foreign_logs)",
+    )
     p.add_argument("--out", required=True)
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=_cli)

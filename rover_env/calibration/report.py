@@ -29,15 +29,26 @@ def _p(p: float) -> str:
 
 def _phys(s: Scored) -> str:
     out = []
+    sides = s.fit.sides()
     for eff, params in s.fit.physical().items():
         for k, (v, lo, hi) in params.items():
+            side = sides.get(eff, {}).get(k, "")
             if k == "heading_deg":
                 out.append(f"heading {v:.0f}°")
-            elif np.isfinite(lo) and lo != hi:
+            elif side == "upper":
+                out.append(f"{eff}.{k} < {hi:.3g} (95 %, one-sided; fitted {v:.3g})")
+            elif side == "lower":
+                out.append(f"{eff}.{k} > {lo:.3g} (95 %, one-sided; fitted {v:.3g})")
+            elif np.isfinite(lo) and np.isfinite(hi) and lo != hi:
                 out.append(f"{eff}.{k} = {v:.4g} (95 %: {lo:.3g} … {hi:.3g})")
             else:
                 out.append(f"{eff}.{k} = {v:.4g}")
     return "; ".join(out)
+
+
+def _change(gain: float) -> str:
+    """Held-out change in words (a bare "+28 %" did not say whether that is worse)."""
+    return f"{100 * gain:.1f} % better" if gain >= 0 else f"{-100 * gain:.1f} % worse"
 
 
 def _ratio_table(t: dict[str, dict[str, Cell]], signals: tuple[str, ...]) -> list[str]:
@@ -200,10 +211,15 @@ def write_report(
         f" setpoints from the logged commands), first {st.burn_in:g} s of each not scored; residuals every"
         f" {st.stride:g} s: wheel-angle increments, joint angles, and pose increments where the log has pose."
         " Open-loop replay of a whole drive was rejected: one early heading error dominates everything after it.",
-        "- Fit: bounded least squares (`scipy.optimize.least_squares`, trust-region reflective, finite-difference"
-        " Jacobian with chosen steps, a handful of replays per candidate); residuals scaled per signal by the"
-        " larger of the baseline training RMS and the sensor noise. 95 % intervals: cluster-robust (windows as"
-        " clusters) sandwich covariance, Student t.",
+        '- Fit, blind to magnitude: one parameter is searched over its whole physical range ("off" and a'
+        " log-spaced ladder of 5 values per sign from 1.2 % to 100 % of the range, then a bounded Brent search"
+        " between the best value's neighbours); several parameters start from the best ladder point or the"
+        " single fits and are refined by bounded least squares (`scipy.optimize.least_squares`). Residuals"
+        " scaled per signal by the larger of the baseline training RMS and the sensor noise. 95 % intervals:"
+        " one parameter, block bootstrap over training windows on the evaluated loss curves; several,"
+        " cluster-robust (windows as clusters) sandwich covariance with Student t; one-sided where the"
+        " estimate sits at a bound of its range, never narrower than the search's resolution, widened by"
+        " the replay's own bias measured on the fitted model's twin drives.",
         f"- Decision: named only if the held-out error falls by ≥ {100 * opts.min_gain:.0f} % (geometric mean over"
         " held-out windows of the per-window ratio, so that a few very sensitive windows do not decide alone)"
         f" with a one-sided Wilcoxon signed-rank test of the per-window log ratios at p < {opts.alpha:g} and the"
@@ -235,7 +251,7 @@ def write_report(
     ]
     for i, s in enumerate(ranked, 1):
         L.append(
-            f"| {i} | {s.fit.name} | {_phys(s)} | {_f(s.fit.cost, 4)} | {-100 * s.gain:+.1f} % | {_p(s.p)} "
+            f"| {i} | {s.fit.name} | {_phys(s)} | {_f(s.fit.cost, 4)} | {_change(s.gain)} | {_p(s.p)} "
             f"| {s.d_aic:+.1f} | {s.d_bic:+.1f} | {_sig(s)} |"
         )
     L += ["", "![candidates](candidates.png)", ""]
@@ -247,7 +263,7 @@ def write_report(
         ]
         for s in tried:
             L.append(
-                f"| {s.fit.name} | {_phys(s)} | {-100 * s.gain:+.1f} % | {_p(s.p)} | {s.d_bic:+.1f} |"
+                f"| {s.fit.name} | {_phys(s)} | {_change(s.gain)} | {_p(s.p)} | {s.d_bic:+.1f} |"
                 f" {_sig(s)} |"
             )
         L.append("")
@@ -266,6 +282,33 @@ def write_report(
             "Largest residuals relative to noise: "
             + ", ".join(f"{s} ({r:.1f}×)" for r, s in top)
             + ". See the regime table above for where they concentrate.",
+            "",
+        ]
+    ev_list = result.get("evidence") or []
+    if ev_list:
+        L += [
+            "## Evidence the drives lack",
+            "",
+            "These candidates improve the training drives but the held-out drive cannot confirm"
+            " them. Each proposed drive was simulated with the fitted effect and replayed by"
+            " both models; the change of each replayed signal is given in units of that"
+            " signal's own replay floor, per window and over the whole drive (one degree of"
+            " freedom per window; ≥ 3 over the drive: it separates the hypotheses).",
+            "",
+            "| effect | why unconfirmed | proposed drive (`make-logs --plan`) | largest change on it"
+            " (per window; drive) | on the held-out drive (per window) | separates |",
+            "|---|---|---|---|---|---|",
+        ]
+        for e in ev_list:
+            L.append(
+                f"| {e['effect']} | {e['reason']} | `{e['plan']}`: {e['why']} |"
+                f" {e['best_signal']} {e['best_per_window']:.1f}×; {e['best_floor_units']:.1f}× |"
+                f" {e['held_out_best_signal']} {e['held_out_floor_units']:.1f}× |"
+                f" {'yes' if e['separates'] else 'no'} |"
+            )
+        L += [
+            "",
+            "Drive the proposed plan, add its log (last, so it is held out) and diagnose again.",
             "",
         ]
     L += ["## Held-out drive before / after (RMS residual / replay floor)", "", "Before:", ""]

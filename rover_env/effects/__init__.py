@@ -46,6 +46,7 @@ __all__ = [
     "CommandEffect",
     "Effect",
     "EffectError",
+    "HingeEffect",
     "Param",
     "TireEffect",
     "build_effects",
@@ -71,7 +72,8 @@ class Param:
     discrete: bool = False
     """Only ``off`` and ``hi`` are meaningful (a switch): fitted by trying it, not by gradient."""
     moderate: float = 0.0
-    """A typical clearly-present value: the scale of finite differences and of plots."""
+    """A typical clearly-present value, for examples and ``make-logs`` defaults only: the
+    diagnosis never reads it (its fits start from a search over [lo, hi]; issue 16)."""
 
 
 class Effect:
@@ -168,6 +170,21 @@ class TireEffect(Effect):
         return F_x, F_y
 
 
+class HingeEffect(Effect):
+    """Dry friction of the wheel hinges set every substep from each wheel's tire state.
+
+    ``RoverSim`` steps substep by substep when one is on (both tire backends: the numpy
+    layer's state, or the compiled plugin's committed truth) and sets each wheel hinge's
+    ``frictionloss`` to its static value plus :meth:`hinge_friction`. The value computed from
+    substep k's load acts from substep k + 1 (the constraint rows of a step are built
+    before its tire forces), identically on both backends.
+    """
+
+    def hinge_friction(self, F_z: Array, delta: Array, radius: float) -> Array:
+        """Friction moment (N m) of each wheel hinge for loads F_z and deflections delta."""
+        raise NotImplementedError
+
+
 CATALOGUE: dict[str, type[Effect]] = {}
 
 
@@ -195,27 +212,26 @@ def _static_wheel_load(cfg: RoverConfig) -> float:
 
 
 @register
-class RollingResistance(Effect):
-    """Rolling resistance: a moment c_rr * F_z0 * r_e opposing each wheel's spin.
+class RollingResistance(HingeEffect):
+    """Rolling resistance: a resisting force c_rr * F_z at steady rolling, F_z the wheel's own load.
 
-    Applied as dry friction of the wheel hinges (MuJoCo ``frictionloss``) with the static
-    wheel load F_z0 = m g / 6 and the static rolling radius, so the ground must push back
-    with c_rr * F_z0 per wheel: the classic load-proportional resistance at nominal load.
-    Free wheels slow down, driven wheels need more torque and slip more.
+    The textbook definition (Wong, *Theory of Ground Vehicles*): the ground pushes back on a
+    rolling wheel with c_rr times its normal load. It acts as dry friction of each wheel
+    hinge (MuJoCo ``frictionloss``, so a wheel at rest sticks instead of chattering) whose
+    moment c_rr * F_z * (d - delta) is set every substep from that wheel's actual load F_z
+    and deflection delta: the tire force acts at the contact point, d - delta below the
+    hub, so at steady rolling the ground's resisting force is c_rr * F_z exactly (rig test).
+    Free wheels slow down; driven wheels need more torque and slip more. Until issue 16 the
+    moment was c_rr * F_z0 * r_e with the static load F_z0 and the rolling radius r_e as
+    lever, which made the resisting force about 1.3 c_rr F_z0 whatever the wheel carried.
     """
 
     name = "rolling_resistance"
     params = (Param("c_rr", "-", 0.0, 0.3, 0.0, "rolling resistance coefficient", moderate=0.05),)
 
-    def apply_model(self, model: Any, cfg: RoverConfig) -> None:
-        c = self["c_rr"]
-        if c == 0.0:
-            return
-        fz0 = _static_wheel_load(cfg)
-        r_e = cfg.geometry.wheel_radius - cfg.tire.k_re * fz0 / cfg.tire.C_z
-        for i in range(model.njnt):
-            if model.joint(i).name.startswith("wheel_"):
-                model.dof_frictionloss[model.jnt_dofadr[i]] += c * fz0 * r_e
+    def hinge_friction(self, F_z: Array, delta: Array, radius: float) -> Array:
+        # F_z >= 0 (eq. 17) and is 0 whenever the wheel is off the ground (delta < 0).
+        return np.asarray(self.values["c_rr"] * F_z * (radius - delta), dtype=np.float64)
 
 
 @register

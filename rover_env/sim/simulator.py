@@ -29,13 +29,24 @@ from rover_env.config import (
     load_rover,
     load_terrain,
 )
-from rover_env.effects import CommandEffect, TireEffect, build_effects, plugin_refusals
+from rover_env.effects import (
+    CommandEffect,
+    HingeEffect,
+    TireEffect,
+    build_effects,
+    plugin_refusals,
+)
 from rover_env.sim.fast import FastBackendError, PluginView, inject_plugin, load_plugin
 from rover_env.sim.model import fill_hfield, hfield_data, scene_xml, static_deflection
 from rover_env.sim.tire_layer import TireLayer, TireState
 from rover_env.terrain import Terrain
 
 Array = NDArray[np.float64]
+
+
+HINGE_EVERY = 10
+"""Substeps between updates of the hinge effects' friction from the tire loads (10 ms at the
+default step: far faster than the loads change, ~3 Hz tire bounce; per substep it cost ~3x)."""
 
 
 class SimulationError(RuntimeError):
@@ -160,6 +171,7 @@ class RoverSim:
             phys = dataclasses.replace(phys, extensions={})
         self.phys_cfg = phys
         self._cmd_effects = [e for e in self.effects if isinstance(e, CommandEffect)]
+        self._hinge_effects = [e for e in self.effects if isinstance(e, HingeEffect)]
         # --- end of model extensions ---
         self.terrain = Terrain(self.terrain_cfg, self.phys_cfg.tire)
         xml = scene_xml(self.phys_cfg, self.terrain_cfg)
@@ -170,12 +182,19 @@ class RoverSim:
                     slots.update(e.plugin_values(self.phys_cfg))
             xml = inject_plugin(xml, self.phys_cfg, self.terrain, slots)
         self.model = mujoco.MjModel.from_xml_string(xml)
+        frictionloss0 = self.model.dof_frictionloss.copy()  # before any effect
         for e in self.effects:
             e.apply_model(self.model, self.phys_cfg)
         self._plugin = PluginView(self.model) if backend == "plugin" else None
         # --- end of integration point ---
         fill_hfield(self.model, self.terrain_cfg)
         self.data = mujoco.MjData(self.model)
+        self._load_view: tuple[Array, Array] | None = None
+        if self._plugin is not None:  # views of the committed F_z and delta (hinge effects)
+            nw = len(WHEELS)
+            t0 = self._plugin.slice.start + self._plugin.layout.truth
+            ps = self.data.plugin_state
+            self._load_view = (ps[t0 + 5 * nw : t0 + 6 * nw], ps[t0 + 6 * nw : t0 + 7 * nw])
         m = self.model
         self.dt = float(m.opt.timestep)
         self._wheel_body = np.array([m.body(f"wheel_{w}").id for w in WHEELS])
@@ -192,6 +211,7 @@ class RoverSim:
         self._ctrl_vel = self._ctrl_pos + 1
         self._driven_qpos = self._wheel_qpos[:4]
         self._driven_dof = self._wheel_dof[:4]
+        self._hinge_friction0 = frictionloss0[self._wheel_dof]
         self._sensor = {
             m.sensor(i).name: slice(m.sensor_adr[i], m.sensor_adr[i] + m.sensor_dim[i])
             for i in range(m.nsensor)
@@ -209,6 +229,7 @@ class RoverSim:
             width=self.cfg.geometry.wheel_width,
         )
         self.speed_targets = np.zeros(4)
+        self._substep = 0
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -233,6 +254,7 @@ class RoverSim:
         """
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
+        self._substep = 0
         h, hx, hy = self.terrain.height_and_gradient(np.array([x]), np.array([y]))
         n = np.array([-hx[0], -hy[0], 1.0])
         n /= np.linalg.norm(n)
@@ -257,6 +279,11 @@ class RoverSim:
         self.tires.reset()
         for ce in self._cmd_effects:
             ce.reset(np.zeros(4))
+        if self._hinge_effects:  # static load until the first substep sets each wheel's own
+            d0 = static_deflection(self.phys_cfg)
+            self._set_hinges(
+                np.full(len(WHEELS), self.phys_cfg.tire.C_z * d0), np.full(len(WHEELS), d0)
+            )
         if self._plugin is not None:  # fast backend: the plugin owns setpoints and tire states
             self._plugin.set_setpoints(d.plugin_state, d.ctrl[self._ctrl_pos])
             self._plugin.reset_tires(d.plugin_state)
@@ -326,7 +353,7 @@ class RoverSim:
     def step(self, n: int = 1) -> None:
         """Advance ``n`` physics substeps, applying the tire layer on each."""
         m, d = self.model, self.data
-        if self._cmd_effects:
+        if self._cmd_effects or self._hinge_effects:
             self._step_commanded(n)
             return
         if self._plugin is not None:
@@ -356,16 +383,43 @@ class RoverSim:
             u = ce.step(u, self.dt)
         return u
 
+    def _set_hinges(self, F_z: Array, delta: Array) -> None:
+        """Wheel hinges' dry friction from this substep's loads (hinge effects)."""
+        fl = self._hinge_friction0
+        for he in self._hinge_effects:
+            fl = fl + he.hinge_friction(F_z, delta, self.radius)
+        self.model.dof_frictionloss[self._wheel_dof] = fl
+
     def _step_commanded(self, n: int) -> None:
-        """``step`` with command effects: the motors' targets change on every substep."""
+        """``step`` substep by substep where needed: command effects change the motors'
+        targets on every substep; hinge effects set the wheel hinges' friction from the
+        tire loads every ``HINGE_EVERY`` substeps (identically on both backends; with hinge
+        effects only, the plugin runs the substeps in between in one call)."""
         m, d = self.model, self.data
         dt = self.dt
         err = self.phys_cfg.motor.max_angle_error
-        for _ in range(n):
+        k = HINGE_EVERY
+        left = n
+        while left > 0:
+            if self._plugin is not None and not self._cmd_effects:
+                # Hinge effects only: up to the next hinge update in one call.
+                run = min(left, k - self._substep % k)
+                d.ctrl[self._ctrl_vel] = self.speed_targets
+                mujoco.mj_step(m, d, run)
+                self._substep += run
+                left -= run
+                if self._substep % k == 0 and self._load_view is not None:
+                    self._set_hinges(*self._load_view)
+                continue
+            left -= 1
+            self._substep += 1
+            update = bool(self._hinge_effects) and self._substep % k == 0
             u = self._command()
             if self._plugin is not None:  # the plugin integrates ctrl[vel] itself
                 d.ctrl[self._ctrl_vel] = u
                 mujoco.mj_step(m, d, 1)
+                if update and self._load_view is not None:
+                    self._set_hinges(*self._load_view)
                 continue
             q = d.qpos[self._driven_qpos]
             sp = d.ctrl[self._ctrl_pos] + u * dt
@@ -373,6 +427,8 @@ class RoverSim:
             d.ctrl[self._ctrl_vel] = u
             mujoco.mj_step1(m, d)
             self.tires.apply(d)
+            if update and self.tires.last is not None:
+                self._set_hinges(self.tires.last.F_z, self.tires.last.delta)
             mujoco.mj_step2(m, d)
         self._check()
 

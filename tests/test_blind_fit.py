@@ -1,0 +1,140 @@
+"""Fits that do not know the answer, and intervals that never claim certainty (issue 16)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rover_env.calibration import residuals as rs
+from rover_env.calibration.candidates import catalogue, magnitude_ladder
+from rover_env.calibration.diagnose import better_worse, interval_text, strict_json
+from rover_env.calibration.fit import Evaluator, Fit, bootstrap_interval, fit
+from rover_env.calibration.make_logs import make_logs
+from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
+from rover_env.config import RoverConfig
+from rover_env.effects import CATALOGUE
+from rover_env.logs import read_log
+
+
+def _evaluator(paths: list[Path]) -> Evaluator:
+    st = ReplaySettings()
+    base = RoverConfig()
+    prep = [prepare(read_log(p), base, p.name, st) for p in paths]
+    windows = make_windows(prep, st)
+    return Evaluator(
+        base, st, prep, {"train": windows}, scale=rs.noise_floor(prep), log=lambda m: None
+    )
+
+
+@pytest.fixture(scope="module")
+def lag_logs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    """A lag of 0.05 s, six times shorter than the catalogue's example magnitude (0.3 s)."""
+    root = tmp_path_factory.mktemp("lag")
+    return make_logs(
+        root, {"command_lag": {"tau": 0.05}}, drives=1, seed=11, duration=15.0, progress=False
+    )
+
+
+@pytest.fixture(scope="module")
+def lag_fit(lag_logs: list[Path]) -> Fit:
+    return fit(_evaluator(lag_logs), catalogue(["command_lag"]), "train", max_nfev=3)
+
+
+def test_ladder_comes_from_the_physical_range_only() -> None:
+    assert magnitude_ladder(0.0, 0.3, 0.0) == pytest.approx((0.3 / 81, 0.3 / 27, 0.3 / 9, 0.1, 0.3))
+    signed = magnitude_ladder(-0.8, 1.0, 0.0)
+    assert min(signed) == -0.8 and max(signed) == 1.0 and len(signed) == 10
+    for c in catalogue():
+        if c.discrete:
+            continue
+        pts = np.array(c.ladder)
+        assert np.all(np.isfinite(pts))
+        assert np.all(pts >= np.array(c.lo)) and np.all(pts <= np.array(c.hi))
+
+
+def test_diagnose_never_reads_the_example_magnitudes(
+    lag_logs: list[Path], lag_fit: Fit, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """With every ``Param.moderate`` set to NaN the candidates and the fit are unchanged."""
+    cands = catalogue()
+    before = lag_fit
+    for cls in CATALOGUE.values():
+        params = tuple(dataclasses.replace(p, moderate=math.nan) for p in cls.params)
+        monkeypatch.setattr(cls, "params", params)
+    blind = catalogue()
+    assert [(c.name, c.ladder, c.lo, c.hi, c.off) for c in blind] == [
+        (c.name, c.ladder, c.lo, c.hi, c.off) for c in cands
+    ]
+    after = fit(_evaluator(lag_logs), catalogue(["command_lag"]), "train", max_nfev=3)
+    np.testing.assert_array_equal(after.x, before.x)
+    np.testing.assert_array_equal(after.ci_lo, before.ci_lo)
+    np.testing.assert_array_equal(after.ci_hi, before.ci_hi)
+
+
+def test_a_lag_far_from_the_example_magnitude_is_fitted(lag_fit: Fit) -> None:
+    f = lag_fit
+    v, lo, hi = f.physical()["command_lag"]["tau"]
+    assert v == pytest.approx(0.05, rel=0.15)
+    assert lo < 0.05 < hi and hi - lo > 0
+    assert f.sided == ("",) and f.method == "bootstrap"
+
+
+@pytest.mark.slow
+def test_a_small_rolling_resistance_is_fitted(tmp_path: Path) -> None:
+    """c_rr 0.012, a quarter of the catalogue's example (0.05)."""
+    paths = make_logs(
+        tmp_path,
+        {"rolling_resistance": {"c_rr": 0.012}},
+        drives=1,
+        seed=12,
+        duration=15.0,
+        progress=False,
+    )
+    f = fit(_evaluator(paths), catalogue(["rolling_resistance"]), "train", max_nfev=3)
+    v, lo, hi = f.physical()["rolling_resistance"]["c_rr"]
+    assert v == pytest.approx(0.012, rel=0.15)
+    assert lo < hi
+
+
+def _quadratic_losses(minima: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    return (xs[:, None] - minima[None, :]) ** 2 + 1.0
+
+
+def test_bootstrap_interval_covers_the_spread_of_the_windows() -> None:
+    rng = np.random.default_rng(0)
+    minima = rng.normal(0.1, 0.02, 30)
+    xs = np.array([0.0, 0.01, 0.03, 0.07, 0.09, 0.1, 0.11, 0.2, 0.3])
+    est, lo, hi, side = bootstrap_interval(xs, _quadratic_losses(minima, xs), 0.0, 0.3, 0.0)
+    assert side == ""
+    assert est == pytest.approx(minima.mean(), abs=0.003)
+    se = minima.std(ddof=1) / math.sqrt(len(minima))
+    assert lo < minima.mean() < hi
+    assert (hi - lo) == pytest.approx(2 * 1.96 * se, rel=0.4)
+
+
+def test_interval_at_a_bound_is_one_sided_and_never_of_zero_width() -> None:
+    xs = np.array([0.0, 0.0037, 0.011, 0.033, 0.1, 0.3])
+    # Every window prefers "off": only an upper bound can be claimed.
+    minima = np.full(20, -0.05)
+    est, lo, hi, side = bootstrap_interval(xs, _quadratic_losses(minima, xs), 0.0, 0.3, 0.0)
+    assert side == "upper" and est == 0.0 and lo == 0.0 and hi > 0.0
+    assert interval_text("c_rr", est, lo, hi, side).startswith("c_rr < ")
+    # All windows identical: still not a zero-width interval.
+    same = np.full(20, 0.1)
+    est, lo, hi, side = bootstrap_interval(xs, _quadratic_losses(same, xs), 0.0, 0.3, 0.0)
+    assert side == "" and hi - lo > 0 and lo < est < hi
+
+
+def test_result_json_is_strict_and_log_lines_say_better_or_worse() -> None:
+    obj = {"a": math.nan, "b": [1.0, math.inf, np.float64(2.0)], "c": {"d": np.nan}, "e": True}
+    text = json.dumps(strict_json(obj), allow_nan=False)
+    assert json.loads(text) == {"a": None, "b": [1.0, None, 2.0], "c": {"d": None}, "e": True}
+    with pytest.raises(ValueError):
+        json.dumps(obj, allow_nan=False)
+    assert better_worse(0.285) == "28.5 % better"
+    assert better_worse(-0.285) == "28.5 % worse"

@@ -1,0 +1,201 @@
+"""Each catalogue effect's parameter means its textbook definition, measured in the simulator
+(issue 16): one rig test per effect, on the single-wheel rig or the rover at rest."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rover_env.config import RoverConfig
+from rover_env.effects import (
+    CATALOGUE,
+    CombinedSlip,
+    Friction,
+    LoadDependentFriction,
+    RollingRadius,
+    RollingResistance,
+)
+from rover_env.sim.model import static_deflection
+from rover_env.sim.rig import measure_fx
+from rover_env.sim.simulator import RoverSim
+
+G = 9.81
+CFG = RoverConfig()
+FZ0 = CFG.masses.total * G / 6
+WHEEL_MASS = 0.35  # the rig's wheel
+
+
+def test_every_catalogue_effect_has_a_rig_test() -> None:
+    tested = {
+        "rolling_resistance",
+        "slope",
+        "rolling_radius",
+        "torque_limit",
+        "command_lag",
+        "command_delay",
+        "friction",
+        "combined_slip",
+        "load_dependent_friction",
+    }
+    assert set(CATALOGUE) == tested
+
+
+@pytest.mark.parametrize("load_mass", [2.0, 4.0])
+def test_rolling_resistance_is_c_rr_times_the_wheels_own_load(load_mass: float) -> None:
+    """Free-rolling wheel pulled at steady speed: the ground resists with c_rr F_z (2 %)."""
+    c = 0.04
+    r = measure_fx(0.3, None, load_mass=load_mass, effects=[RollingResistance({"c_rr": c})])
+    assert r["F_z"] == pytest.approx((load_mass + WHEEL_MASS) * G, rel=0.01)  # its own load
+    assert -r["F_servo"] == pytest.approx(c * r["F_z"], rel=0.02)
+    off = measure_fx(0.3, None, load_mass=load_mass)
+    assert abs(off["F_servo"]) < 1e-3 * c * off["F_z"]
+
+
+def test_rolling_resistance_runs_alike_on_both_tire_backends() -> None:
+    ext = {"rolling_resistance": {"c_rr": 0.05}}
+    runs = {}
+    for backend in ("plugin", "numpy"):
+        sim = RoverSim(RoverConfig(extensions=ext), backend=backend)
+        assert sim.backend == backend
+        sim.set_speed_targets((2.0, 2.0, 1.0, 3.0))
+        sim.step(300)
+        wt = sim.wheel_truth()
+        # Each hinge's friction moment is c_rr F_z (d - delta) of its own wheel.
+        lever = CFG.geometry.wheel_radius - wt.delta
+        fl = sim.model.dof_frictionloss[sim._wheel_dof]
+        np.testing.assert_allclose(fl, 0.05 * wt.F_z * lever, rtol=0.05)
+        assert np.ptp(wt.F_z) > 0.5  # loads differ, and so do the moments
+        runs[backend] = sim.sensors().phi
+    np.testing.assert_allclose(runs["plugin"], runs["numpy"], atol=1e-9)
+
+
+def test_slope_is_the_tilt_of_the_ground_in_degrees() -> None:
+    """Rover standing still: the specific force its accelerometer measures, turned into the
+    ground's axes (x, y in the ground plane, z its normal), leans by ``deg`` from the
+    normal, toward ``heading_deg``: the ground rises by ``deg`` in that direction."""
+    ext = {"slope": {"deg": 6.0, "heading_deg": 30.0}}
+    sim = RoverSim(RoverConfig(extensions=ext), backend="plugin")
+    f = np.zeros(3)
+    seg2 = sim._seg_body[1]
+    for _ in range(50):
+        sim.step(10)
+        rot = sim.data.xmat[seg2].reshape(3, 3)  # segment 2's axes in the ground's
+        f += rot @ sim.sensors().imu_accel[1]
+    tilt = math.degrees(math.atan2(math.hypot(f[0], f[1]), f[2]))
+    assert tilt == pytest.approx(6.0, abs=0.1)
+    # The specific force (-gravity) points uphill in the ground plane: toward the heading.
+    assert math.degrees(math.atan2(f[1], f[0])) == pytest.approx(30.0, abs=1.0)
+
+
+def test_rolling_radius_changes_travel_per_turn_by_fraction_of_d_at_static_load() -> None:
+    load = FZ0 / G - WHEEL_MASS  # the rover's static wheel load on the rig
+    base = measure_fx(0.2, None, load_mass=load, params=CFG.tire)
+    eff = RollingRadius({"fraction": -0.05})
+    cfg = eff.apply_config(CFG)
+    changed = measure_fx(0.2, None, load_mass=load, params=cfg.tire)
+    r0, r1 = base["v_x"] / base["omega"], changed["v_x"] / changed["omega"]
+    assert r1 - r0 == pytest.approx(-0.05 * CFG.geometry.wheel_radius, rel=0.02)
+
+
+def test_torque_limit_is_a_fraction_of_the_motor_limit() -> None:
+    peak = {}
+    for f in (0.0, -0.6):
+        sim = RoverSim(RoverConfig(extensions={"torque_limit": {"fraction": f}} if f else {}))
+        sim.set_speed_targets((4.0, 4.0, 4.0, 4.0))
+        m = 0.0
+        for _ in range(30):
+            sim.step(2)
+            m = max(m, float(np.abs(sim.motor_torque()).max()))
+        peak[f] = m
+    lim = CFG.motor.torque_limit
+    assert peak[0.0] > 0.4 * lim * 1.05  # without it the step asks for more than 0.4 limit
+    assert peak[-0.6] == pytest.approx(0.4 * lim, rel=1e-6)  # (1 + fraction) x the limit
+
+
+def _targets_seen(ext: dict, seconds: float) -> tuple[np.ndarray, np.ndarray]:
+    sim = RoverSim(RoverConfig(extensions=ext), backend="plugin")
+    sim.set_speed_targets((2.0, 2.0, 2.0, 2.0))
+    n = round(seconds / sim.dt)
+    u = np.zeros(n)
+    for k in range(n):
+        sim.step(1)
+        u[k] = sim.data.ctrl[sim._ctrl_vel][0]
+    return (np.arange(n) + 1) * sim.dt, u / 2.0
+
+
+def test_command_lag_is_a_first_order_time_constant() -> None:
+    tau = 0.25
+    t, u = _targets_seen({"command_lag": {"tau": tau}}, 1.0)
+    k = int(np.argmin(np.abs(t - tau)))
+    assert u[k] == pytest.approx(1 - math.exp(-1), abs=0.005)  # 63 % after one tau
+    np.testing.assert_allclose(u, 1 - np.exp(-t / tau), atol=0.005)
+
+
+def test_command_delay_is_a_dead_time() -> None:
+    delay = 0.12
+    t, u = _targets_seen({"command_delay": {"delay": delay}}, 0.3)
+    assert np.all(u[t < delay - 1e-9] == 0.0)
+    assert np.all(u[t > delay + 1e-3] == 1.0)
+
+
+def test_friction_is_a_fraction_of_mu() -> None:
+    """A locked wheel dragged along: F_x = mu_x (1 + fraction) F_z."""
+    for f in (0.0, -0.4):
+        tire = Friction({"fraction": f}).apply_config(CFG).tire
+        r = measure_fx(0.3, 0.0, params=tire)
+        assert -r["F_x"] / r["F_z"] == pytest.approx(CFG.tire.mu_x * (1 + f), rel=0.01)
+        assert -r["F_servo"] / r["F_z"] == pytest.approx(CFG.tire.mu_x * (1 + f), rel=0.01)
+
+
+def test_combined_slip_keeps_the_force_pair_inside_the_friction_ellipse() -> None:
+    """Locked wheel dragged forward and sideways: both directions saturate off, the pair
+    lies on the ellipse (F_x / mu_x F_z)^2 + (F_y / mu_y F_z)^2 = 1 on."""
+    tp = CFG.tire
+
+    def ellipse(on: float) -> float:
+        eff = [CombinedSlip({"on": on})] if on else []
+        r = measure_fx(0.3, 0.0, v_y=0.2, params=tp, effects=eff, duration=2.0)
+        return math.hypot(r["F_x"] / (tp.mu_x * r["F_z"]), r["F_y"] / (tp.mu_y * r["F_z"]))
+
+    assert ellipse(1.0) == pytest.approx(1.0, abs=0.01)
+    assert ellipse(0.0) > 1.3
+
+
+def test_load_dependent_friction_falls_by_fall_across_the_operating_range() -> None:
+    eff = LoadDependentFriction({"fall": 0.3, "range": 0.1})
+    eff.apply_model(None, CFG)
+    mu = {}
+    for s in (-1.0, 1.0):  # loads F_z0 (1 - range) and F_z0 (1 + range)
+        load = FZ0 * (1 + s * 0.12) / G - WHEEL_MASS  # just beyond the range: the clip holds
+        r = measure_fx(0.3, 0.0, load_mass=load, params=CFG.tire, effects=[eff], duration=2.0)
+        mu[s] = -r["F_x"] / r["F_z"]
+    assert (mu[-1.0] - mu[1.0]) / CFG.tire.mu_x == pytest.approx(0.3, rel=0.01)
+
+
+def test_static_deflection_matches_the_rig_lever() -> None:
+    # The rolling-resistance lever d - delta at static load (used before the first substep).
+    assert static_deflection(CFG) == pytest.approx(FZ0 / CFG.tire.C_z)
+
+
+def test_plugin_load_view_is_the_committed_truth() -> None:
+    sim = RoverSim(RoverConfig(extensions={"rolling_resistance": {"c_rr": 0.02}}), "flat", "plugin")
+    sim.set_speed_targets((1.0, 2.0, 1.0, 2.0))
+    sim.step(50)
+    assert sim._load_view is not None
+    wt = sim.wheel_truth()
+    np.testing.assert_array_equal(sim._load_view[0], wt.F_z)
+    np.testing.assert_array_equal(sim._load_view[1], wt.delta)
+
+
+def test_hinge_and_command_effects_together_agree_across_backends() -> None:
+    ext = {"rolling_resistance": {"c_rr": 0.05}, "command_lag": {"tau": 0.1}}
+    runs = {}
+    for backend in ("plugin", "numpy"):
+        sim = RoverSim(RoverConfig(extensions=ext), backend=backend)
+        sim.set_speed_targets((2.0, 1.0, 2.0, 1.0))
+        for _ in range(13):
+            sim.step(7)  # steps that do not line up with the 10-substep hinge updates
+        runs[backend] = sim.sensors().phi
+    np.testing.assert_allclose(runs["plugin"], runs["numpy"], atol=1e-9)
