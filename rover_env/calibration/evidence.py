@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rover_env.calibration.candidates import Extensions
-from rover_env.calibration.make_logs import drive_schedule
+from rover_env.calibration.drives import drive_schedule
 from rover_env.calibration.replay import SIGNALS, Replayer, ReplaySettings, make_windows, prepare
 from rover_env.config import JOINTS, WHEELS, RoverConfig
 from rover_env.logs import DriveLog

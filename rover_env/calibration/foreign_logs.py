@@ -45,7 +45,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from rover_env.calibration.make_logs import drive_schedule
+from rover_env.calibration.drives import drive_schedule
 from rover_env.config import JOINTS, WHEELS, RoverConfig, load_rover, to_dict
 from rover_env.effects import build_effects
 from rover_env.logs import DriveLog, LogMeta, write_log
