@@ -295,6 +295,11 @@ class RoverSim:
             d.ctrl[self._ctrl_pos] = 0.0
             if self._plugin is not None:  # fast backend
                 self._plugin.set_setpoints(d.plugin_state, d.ctrl[self._ctrl_pos])
+            # Settling is not part of the drive: the soil keeps no rut or hole from it (the
+            # wheels were placed at the hard-ground deflection and popped up in the soil).
+            self.tires.clear_ground_memory()
+            if self._plugin is not None:
+                self._plugin.clear_ground_memory(d.plugin_state)
             mujoco.mj_forward(m, d)
 
     def set_terrain(self, terrain: TerrainConfig) -> None:

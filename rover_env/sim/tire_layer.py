@@ -133,6 +133,11 @@ class TireLayer:
         self.rut[:] = 0.0
         self.last = None
 
+    def clear_ground_memory(self) -> None:
+        """Forget the ruts and dug holes (the soil becomes virgin again); tire states stay."""
+        self.rut[:] = 0.0
+        self.dig[:] = 0.0
+
     def apply(self, data: mujoco.MjData) -> None:
         """Compute and apply this substep's tire forces (call after mj_step1)."""
         tp = self.params

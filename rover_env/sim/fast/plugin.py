@@ -268,6 +268,12 @@ class PluginView:
         st[..., self.layout.dig] = 0.0
         st[..., self.layout.rut] = 0.0
 
+    def clear_ground_memory(self, plugin_state: Array) -> None:
+        """Forget the ruts and dug holes (TireLayer.clear_ground_memory); tire states stay."""
+        st = self.state(plugin_state)
+        st[..., self.layout.dig] = 0.0
+        st[..., self.layout.rut] = 0.0
+
     def nstep(self, plugin_state: Array) -> Array:
         return self.state(plugin_state)[..., self.layout.nstep]
 
