@@ -66,7 +66,9 @@ def rut_writes(
     g = terrain.rut_grid
     out: list[tuple[int, float]] = []
     half = 0.5 * (width - g.cell)
-    for i in np.flatnonzero(on_soil & (np.abs(v_x) > soil.V_EPS) & (delta > 0.0)):
+    # Only a wheel clearly travelling (beyond the direction blend) leaves a rut: at start-up
+    # creep the sign of v_x is noise, and a write "behind" could land ahead of the wheel.
+    for i in np.flatnonzero(on_soil & (np.abs(v_x) > soil.V_BLEND) & (delta > 0.0)):
         h = min(float(sinkage[i]), radius)
         e = 1.0 - h / radius
         back = radius * np.sqrt(max(0.0, 1.0 - e * e)) + 1.5 * g.cell

@@ -961,7 +961,7 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       F_z = contact ? np_max(F_z + sp[S_DAMP]*delta_dot, 0.0) : 0.0;
       sink = np_max(h, 0.0);
       // rut_writes: behind a moving wheel, across its width
-      if (fabs(v_x) > SOIL_V_EPS && delta > 0.0) {
+      if (fabs(v_x) > SOIL_V_BLEND && delta > 0.0) {  // clearly travelling (rut_writes)
         double hw = np_min(sink, r);
         double e = 1.0 - hw/r;
         double back = r*sqrt(np_max(0.0, 1.0 - e*e)) + 1.5*tv.rut_cell;
