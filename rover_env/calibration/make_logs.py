@@ -162,39 +162,29 @@ def make_logs(
 def _cli(args: argparse.Namespace) -> int:
     effects = parse_effects(args.effect or [])
     RoverConfig(extensions=effects)  # validate before simulating
+    common: dict[str, Any] = {
+        "drives": args.drives,
+        "seed": args.seed,
+        "duration": args.duration,
+        "plan": args.plan,
+        "rover": args.rover,
+        "progress": not args.quiet,
+        "first_index": args.first_index,
+    }
     if args.generator == "foreign":
         from rover_env.calibration.foreign_logs import make_foreign_logs
 
         if args.pose_end_only or args.pose_rate != 1.0:
             raise ConfigError("--generator foreign: the pose reference is fixed at 1 Hz")
-        paths = make_foreign_logs(
+        paths = make_foreign_logs(args.out, effects, **common)
+    else:
+        paths = make_logs(
             args.out,
             effects,
-            drives=args.drives,
-            seed=args.seed,
-            duration=args.duration,
-            plan=args.plan,
-            rover=args.rover,
-            progress=not args.quiet,
-            first_index=args.first_index,
+            pose_rate_hz=args.pose_rate,
+            pose_end_only=args.pose_end_only,
+            **common,
         )
-        for p in paths:
-            print(f"wrote {p}")
-        print(f"truth in {Path(args.out) / 'truth.yaml'}")
-        return 0
-    paths = make_logs(
-        args.out,
-        effects,
-        drives=args.drives,
-        seed=args.seed,
-        duration=args.duration,
-        plan=args.plan,
-        pose_rate_hz=args.pose_rate,
-        pose_end_only=args.pose_end_only,
-        rover=args.rover,
-        progress=not args.quiet,
-        first_index=args.first_index,
-    )
     for p in paths:
         print(f"wrote {p}")
     print(f"truth in {Path(args.out) / 'truth.yaml'}")

@@ -45,6 +45,34 @@ RIG_XML = """
 """
 
 
+def _rig(
+    dt: float,
+    z0: float,
+    load_mass: float,
+    kv_spin: float,
+    radius: float,
+    terrain: Terrain,
+    params: TireParams,
+    effects: Sequence[TireEffect] = (),
+    width: float = 0.05,
+) -> tuple[mujoco.MjModel, mujoco.MjData, TireLayer]:
+    """The rig's model and data (carrier at height z0) and its wheel's tire layer."""
+    xml = RIG_XML.format(dt=dt, z0=z0, load_mass=load_mass, kv_x=2e4, kv_spin=kv_spin)
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    layer = TireLayer(
+        model,
+        np.array([model.body("wheel").id]),
+        np.array([model.joint("spin").id]),
+        radius,
+        terrain,
+        params,
+        effects=effects,
+        width=width,
+    )
+    return model, data, layer
+
+
 def measure_fx(
     v_x: float,
     omega: float | None,
@@ -64,19 +92,11 @@ def measure_fx(
     params = params or TireParams()
     delta0 = (load_mass + 0.35) * 9.81 / params.C_z
     kv_spin = 50.0 if omega is not None else 0.0
-    xml = RIG_XML.format(dt=dt, z0=radius - delta0, load_mass=load_mass, kv_x=2e4, kv_spin=kv_spin)
-    model = mujoco.MjModel.from_xml_string(xml)
-    data = mujoco.MjData(model)
     terrain = Terrain(TerrainConfig(name="rig", size=(1e3, 1e3)), params)
-    layer = TireLayer(
-        model,
-        np.array([model.body("wheel").id]),
-        np.array([model.joint("spin").id]),
-        radius,
-        terrain,
-        params,
+    model, data, layer = _rig(
+        dt, radius - delta0, load_mass, kv_spin, radius, terrain, params,
         effects=[e for e in effects if isinstance(e, TireEffect)],
-    )
+    )  # fmt: skip
     hinges = [e for e in effects if isinstance(e, HingeEffect)]
     spin = model.joint("spin").dofadr[0]
     w0 = omega if omega is not None else v_x / (radius - params.k_re * delta0)
@@ -135,19 +155,8 @@ def measure_soil(
     params = TireParams()
     wheel_mass = 0.35
     load_mass = load / 9.81 - wheel_mass
-    xml = RIG_XML.format(dt=dt, z0=radius, load_mass=load_mass, kv_x=2e4, kv_spin=50.0)
-    model = mujoco.MjModel.from_xml_string(xml)
-    data = mujoco.MjData(model)
     terrain = Terrain(TerrainConfig(name="rig", size=(40.0, 4.0), soil=soil), params)
-    layer = TireLayer(
-        model,
-        np.array([model.body("wheel").id]),
-        np.array([model.joint("spin").id]),
-        radius,
-        terrain,
-        params,
-        width=width,
-    )
+    model, data, layer = _rig(dt, radius, load_mass, 50.0, radius, terrain, params, width=width)
     if slip >= 1.0:  # spinning in place: the carrier held, the wheel at v_w = 0.25 m/s
         v_x, v_w = 0.0, 0.25
     else:
