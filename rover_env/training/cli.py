@@ -201,3 +201,79 @@ def sweep_main(argv: Sequence[str] | None = None) -> int:
             f"{r['best_mean_reward']:.2f}"
         )
     return 0
+
+
+def search_main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="train/search.py",
+        description="Optuna hyperparameter search: each trial a short training run scored by "
+        "its mean validation return (validation seeds only), TPE sampler, median pruner on "
+        "the intermediate evaluations; resumable through --storage.",
+    )
+    ap.add_argument("--algo", choices=ALGO_NAMES, default="ppo", help="algorithm (default ppo)")
+    ap.add_argument(
+        "--config",
+        default=None,
+        help="base hyperparameters: YAML, shipped name or folder of {algo}.yaml (default: "
+        "the shipped file named for the algorithm)",
+    )
+    ap.add_argument("--env-id", required=True, help="env id of the entry to search around")
+    ap.add_argument("--trials", type=int, default=20, help="finished trials in the study (20)")
+    ap.add_argument(
+        "--timesteps-per-trial", type=int, default=50_000, help="env steps per trial (50000)"
+    )
+    ap.add_argument(
+        "--budget-minutes", type=float, default=None, help="start no trial after this wall time"
+    )
+    ap.add_argument(
+        "--storage", default=None, help="Optuna storage URL (default sqlite:///OUT/study.db)"
+    )
+    ap.add_argument("--study-name", default=None, help="default '{algo}|{env id}'")
+    ap.add_argument("--out", default=None, help="output folder (default runs/search/{algo})")
+    ap.add_argument("--seed", type=int, default=0, help="sampler seed (0)")
+    ap.add_argument("--run-seed", type=int, default=0, help="training run seed of every trial (0)")
+    ap.add_argument(
+        "--evaluations", type=int, default=4, help="validation evaluations per trial (4)"
+    )
+    ap.add_argument("--space", default=None, help="search-space YAML replacing the default")
+    ap.add_argument(
+        "--startup-trials", type=int, default=5, help="random trials before TPE models (5)"
+    )
+    ap.add_argument(
+        "--pruner-startup", type=int, default=3, help="trials before the pruner acts (3)"
+    )
+    args = ap.parse_args(argv)
+
+    from rover_env.training.search import load_space, search
+
+    try:
+        res = search(
+            args.algo,
+            args.config or args.algo,
+            args.env_id,
+            args.out or f"runs/search/{args.algo}",
+            trials=args.trials,
+            timesteps_per_trial=args.timesteps_per_trial,
+            budget_minutes=args.budget_minutes,
+            storage=args.storage,
+            study_name=args.study_name,
+            seed=args.seed,
+            run_seed=args.run_seed,
+            evaluations=args.evaluations,
+            space=None if args.space is None else load_space(args.space),
+            startup_trials=args.startup_trials,
+            pruner_startup=args.pruner_startup,
+        )
+    except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(
+        f"{res.out}: {res.n_complete} complete, {res.n_pruned} pruned trials; "
+        + (
+            f"best trial {res.best_number} (validation return {res.best_value:.3f}): "
+            f"{res.out / 'best.yaml'}"
+            if res.best_number is not None
+            else "no complete trial"
+        )
+    )
+    return 0
