@@ -63,6 +63,16 @@ def resolve_model_path(path: str | Path) -> tuple[Path, Path | None]:
     return model, stats
 
 
+def _run_algo(folder: Path) -> str | None:
+    """The algorithm a training run dir records (``command.txt``; before SAC/TD3: ppo)."""
+    cmd = folder / "command.txt"
+    if not cmd.is_file():
+        return None
+    data = yaml.safe_load(cmd.read_text())
+    first = data[0] if isinstance(data, list) and data and isinstance(data[0], dict) else {}
+    return str(first.get("algo") or "ppo")
+
+
 class SB3Controller:
     """Deterministic actions of a PPO, SAC or TD3 policy from the (normalised) env observation."""
 
@@ -77,7 +87,13 @@ class SB3Controller:
         self.model_path, self.stats_path = resolve_model_path(path)
         self.algo = algo
         self.name = name or f"{algo}:{path}"
-        self.model: Any = classes[algo].load(str(self.model_path), device="cpu")
+        trained = _run_algo(self.model_path.parent)
+        if trained is not None and trained != algo:
+            raise ValueError(f"{path} holds a {trained} agent; use {trained}:{path}")
+        try:
+            self.model: Any = classes[algo].load(str(self.model_path), device="cpu")
+        except (AttributeError, KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"{self.model_path}: not a {algo.upper()} model ({exc})") from None
         self.normalizer: Any = None
         if self.stats_path is not None:
             with self.stats_path.open("rb") as fh:
