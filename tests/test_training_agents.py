@@ -288,3 +288,18 @@ def test_search_space_errors(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="no entry for env id"):
         search("ppo", cfg, MIX, tmp_path / "s", space=SPACE)
     shutil.rmtree(tmp_path / "s", ignore_errors=True)
+
+
+def test_sweep_trains_each_algorithm_from_a_folder_of_configs(tmp_path: Path) -> None:
+    from rover_env.training.sweep import sweep
+
+    folder = tmp_path / "agents"
+    folder.mkdir()
+    for algo in ("sac", "td3"):
+        (folder / f"{algo}.yaml").write_text(yaml.safe_dump({ENV: {**OFF, "n_timesteps": 64}}))
+    rows = sweep(folder, [0], tmp_path / "sweep", algos=["sac", "td3"], progress=False)
+    assert [(r["algo"], r["num_timesteps"]) for r in rows] == [("sac", 64), ("td3", 64)]
+    for algo in ("sac", "td3"):
+        cmd = yaml.safe_load((tmp_path / "sweep" / f"{algo}_s0" / "command.txt").read_text())[0]
+        assert cmd["algo"] == algo and cmd["argv"].split()[1] == f"train/{algo}.py"
+        assert cmd["config"] == str(folder.resolve() / f"{algo}.yaml")
