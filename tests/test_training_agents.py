@@ -303,3 +303,20 @@ def test_sweep_trains_each_algorithm_from_a_folder_of_configs(tmp_path: Path) ->
         cmd = yaml.safe_load((tmp_path / "sweep" / f"{algo}_s0" / "command.txt").read_text())[0]
         assert cmd["algo"] == algo and cmd["argv"].split()[1] == f"train/{algo}.py"
         assert cmd["config"] == str(folder.resolve() / f"{algo}.yaml")
+
+
+def test_search_retries_a_trial_a_killed_search_left_running(tmp_path: Path) -> None:
+    from rover_env.training.search import _suggest
+
+    cfg = _write(tmp_path, "ppo.yaml", PPO_SMALL)
+    out = tmp_path / "search"
+    out.mkdir()
+    storage = f"sqlite:///{out / 'study.db'}"
+    study = optuna.create_study(storage=storage, study_name=f"ppo|{ENV}", direction="maximize")
+    orphan = study.ask()  # as a search killed mid-trial leaves it: RUNNING
+    params = {k: _suggest(orphan, k, s) for k, s in SPACE.items()}
+    res = search("ppo", cfg, ENV, out, trials=1, timesteps_per_trial=64, evaluations=1, space=SPACE)
+    trials = optuna.load_study(study_name=f"ppo|{ENV}", storage=storage).trials
+    assert [t.state.name for t in trials] == ["FAIL", "COMPLETE"]
+    assert trials[1].params == params and trials[1].user_attrs["retry_of"] == 0
+    assert res.best_number == 1 and res.n_complete == 1

@@ -10,8 +10,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from rover_env.config import ConfigError
+from rover_env.training.config import ALGOS
 
-ALGO_NAMES = ("ppo", "sac", "td3")
+ALGO_NAMES = ALGOS
 
 
 def train_main(argv: Sequence[str] | None = None, algo: str | None = None) -> int:
