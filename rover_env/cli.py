@@ -123,8 +123,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_record_cli(sub)
     from rover_env.benchmark.cli import add_cli as add_benchmark_cli
+    from rover_env.benchmark.video import add_cli as add_compare_cli
 
     add_benchmark_cli(sub)
+    add_compare_cli(sub)
     from rover_env.calibration.diagnose import add_cli as add_diagnose_cli
     from rover_env.calibration.make_logs import add_cli as add_make_logs_cli
 

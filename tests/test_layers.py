@@ -36,7 +36,7 @@ RANKS = {
     "rover_env": 8,
 }
 # Third-party packages each rank may not import.
-_NO_ML = {"stable_baselines3", "torch"}
+_NO_ML = {"stable_baselines3", "torch", "optuna"}
 BANNED = {
     0: {"mujoco", "gymnasium", *_NO_ML},
     1: {"gymnasium", *_NO_ML},
@@ -48,7 +48,7 @@ BANNED = {
     7: set(),
     8: _NO_ML,
 }
-# The lazily loaded PPO policy is the one module below training allowed torch/SB3.
+# The lazily loaded PPO/SAC/TD3 policy is the one module below training allowed torch/SB3.
 EXEMPT = {"rover_env.policies.ppo"}
 
 

@@ -9,4 +9,4 @@ import sys
 from rover_env.training.cli import train_main
 
 if __name__ == "__main__":
-    sys.exit(train_main())
+    sys.exit(train_main(algo="ppo"))

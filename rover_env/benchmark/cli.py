@@ -124,8 +124,9 @@ def add_cli(subparsers: Any) -> None:
     p.add_argument(
         "--controllers",
         default="open-loop,slip-pi",
-        help="comma list of open-loop, slip-pi[:GAINS.yaml][@field=value...], ppo:PATH; the "
-        "first is the baseline of the paired differences (default open-loop,slip-pi)",
+        help="comma list of open-loop, slip-pi[:GAINS.yaml][@field=value...], ppo:PATH, "
+        "sac:PATH, td3:PATH; the first is the baseline of the paired differences "
+        "(default open-loop,slip-pi)",
     )
     p.add_argument(
         "--scenarios", default="all", help="comma list of names in configs/scenarios, or all"

@@ -11,7 +11,7 @@ looked at more than once.
 
 The agents under test are every controller but the first, which is the paired baseline
 (a run of one controller tests that one). The hash covers what decides the agent's
-actions: for ``ppo:PATH`` the model ``.zip``, its normalisation statistics and the run's
+actions: for ``ppo:PATH`` (``sac:``, ``td3:``) the model ``.zip``, its normalisation statistics and the run's
 ``config.yaml``; for a classical controller its spec and its resolved settings.
 """
 
@@ -68,12 +68,14 @@ def agents_under_test(controllers: Sequence[str]) -> list[str]:
 def agent_hash(spec: str) -> str:
     """SHA-256 (first 16 hex digits) of what decides the actions of controller ``spec``."""
     h = hashlib.sha256()
+    from rover_env.policies.specs import is_learned
+
     kind, _, arg = spec.partition(":")
-    if kind == "ppo":
+    if is_learned(spec):
         from rover_env.policies.ppo import resolve_model_path
 
         model, stats = resolve_model_path(arg)
-        h.update(b"ppo\0" + model.read_bytes())
+        h.update(kind.encode() + b"\0" + model.read_bytes())
         if stats is not None:
             h.update(b"\0stats\0" + stats.read_bytes())
         cfg = model.parent / "config.yaml"

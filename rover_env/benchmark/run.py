@@ -70,12 +70,20 @@ class ScenarioWrapper(gym.Wrapper[Obs, Obs, Obs, Obs]):
 
 
 def run_episode(
-    wrapper: ScenarioWrapper, controller: EnvController, episode: Episode
+    wrapper: ScenarioWrapper,
+    controller: EnvController,
+    episode: Episode,
+    observer: Callable[[], None] | None = None,
 ) -> dict[str, float]:
-    """One episode; the metrics of :func:`rover_env.benchmark.metrics.episode_metrics`."""
+    """One episode; the metrics of :func:`rover_env.benchmark.metrics.episode_metrics`.
+
+    ``observer`` is called after the reset and after every step (e.g. to render a frame).
+    """
     wrapper.set_episode(episode)
     obs, info = wrapper.reset()
     controller.reset(wrapper.base)
+    if observer is not None:
+        observer()
     start = np.asarray(info["position"]).copy()
     steps: dict[str, list[Any]] = {k: [] for k in STEP_KEYS}
     last = info
@@ -84,6 +92,8 @@ def run_episode(
         obs, _, terminated, truncated, last = wrapper.step(action)
         for k in STEP_KEYS:
             steps[k].append(last[k])
+        if observer is not None:
+            observer()
         if terminated or truncated:
             break
     return metrics_of_steps(

@@ -8,7 +8,8 @@ Gymnasium environment for each of them. A controller here turns the env's state 
   noisy estimate, joint angles and command the env just sampled - and their rad/s targets are
   divided by the motor's ``max_wheel_speed`` (the env multiplies them back; both clip at the
   same limit, so nothing is lost);
-* a learnt policy (``ppo:PATH``, :mod:`rover_env.policies.ppo`) gets the observation the
+* a learnt policy (``ppo:PATH``, ``sac:PATH``, ``td3:PATH``, :mod:`rover_env.policies.ppo`)
+  gets the observation the
   env returned, exactly as in training.
 
 Classical specs (:func:`make_classical`): ``open-loop``, ``open-loop:axle_load``
@@ -38,6 +39,7 @@ from rover_env.envs.proto_explorer import ProtoExplorerEnv
 from rover_env.estimation.estimator import axle_load_radii
 
 __all__ = [
+    "LEARNED_KINDS",
     "ClassicalController",
     "EnvController",
     "classical_settings",
@@ -46,6 +48,9 @@ __all__ = [
 ]
 
 Obs = npt.NDArray[np.float32]
+
+LEARNED_KINDS = ("ppo", "sac", "td3")
+"""Spec prefixes of learned agents (``ppo:PATH``, ``sac:PATH``, ``td3:PATH``)."""
 
 
 class EnvController(Protocol):

@@ -1,7 +1,9 @@
-"""The ``ppo:PATH`` controller: a stable-baselines3 PPO policy acting on the env's observation.
+"""The ``ppo:PATH``, ``sac:PATH`` and ``td3:PATH`` controllers: a stable-baselines3 policy
+acting on the env's observation.
 
-Imported only when a ``ppo:`` controller is asked for (``make_controller``), so the rest of the
-benchmark never loads torch. PATH is a ``.zip`` saved by ``PPO.save`` or a run folder holding
+Imported only when a learned controller is asked for (``make_controller``), so the rest of the
+benchmark never loads torch. PATH is a ``.zip`` saved by ``PPO.save`` (``SAC.save``,
+``TD3.save``) or a run folder holding
 one (``best_model.zip`` preferred, then ``final_model.zip``, ``model.zip``, or the only
 ``.zip``). VecNormalize statistics saved beside it (``vecnormalize.pkl`` or
 ``vec_normalize.pkl``; for ``best_model.zip``, ``best_vecnormalize.pkl``, the statistics it was
@@ -29,7 +31,7 @@ import yaml
 from rover_env.envs.proto_explorer import ProtoExplorerEnv
 from rover_env.policies.residual import Residual, Schedule
 
-__all__ = ["PPOController", "resolve_model_path"]
+__all__ = ["PPOController", "SB3Controller", "resolve_model_path"]
 
 Obs = npt.NDArray[np.float32]
 
@@ -53,7 +55,7 @@ def resolve_model_path(path: str | Path) -> tuple[Path, Path | None]:
     elif p.is_file() or p.with_suffix(".zip").is_file():
         model = p if p.is_file() else p.with_suffix(".zip")
     else:
-        raise FileNotFoundError(f"PPO model not found: {p}")
+        raise FileNotFoundError(f"model not found: {p}")
     stats = next((model.parent / n for n in _STATS_NAMES if (model.parent / n).is_file()), None)
     best_stats = model.parent / "best_vecnormalize.pkl"
     if model.name == "best_model.zip" and best_stats.is_file():
@@ -61,17 +63,37 @@ def resolve_model_path(path: str | Path) -> tuple[Path, Path | None]:
     return model, stats
 
 
-class PPOController:
-    """Deterministic PPO actions from the (normalised) env observation."""
+def _run_algo(folder: Path) -> str | None:
+    """The algorithm a training run dir records (``command.txt``; before SAC/TD3: ppo)."""
+    cmd = folder / "command.txt"
+    if not cmd.is_file():
+        return None
+    data = yaml.safe_load(cmd.read_text())
+    first = data[0] if isinstance(data, list) and data and isinstance(data[0], dict) else {}
+    return str(first.get("algo") or "ppo")
 
-    def __init__(self, path: str | Path, name: str | None = None) -> None:
+
+class SB3Controller:
+    """Deterministic actions of a PPO, SAC or TD3 policy from the (normalised) env observation."""
+
+    def __init__(self, path: str | Path, name: str | None = None, algo: str = "ppo") -> None:
         import torch
-        from stable_baselines3 import PPO
+        from stable_baselines3 import PPO, SAC, TD3
 
+        classes: dict[str, Any] = {"ppo": PPO, "sac": SAC, "td3": TD3}
+        if algo not in classes:
+            raise ValueError(f"unknown algorithm {algo!r}; use one of {', '.join(classes)}")
         torch.set_num_threads(1)  # one benchmark worker per core
         self.model_path, self.stats_path = resolve_model_path(path)
-        self.name = name or f"ppo:{path}"
-        self.model: Any = PPO.load(str(self.model_path), device="cpu")
+        self.algo = algo
+        self.name = name or f"{algo}:{path}"
+        trained = _run_algo(self.model_path.parent)
+        if trained is not None and trained != algo:
+            raise ValueError(f"{path} holds a {trained} agent; use {trained}:{path}")
+        try:
+            self.model: Any = classes[algo].load(str(self.model_path), device="cpu")
+        except (AttributeError, KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"{self.model_path}: not a {algo.upper()} model ({exc})") from None
         self.normalizer: Any = None
         if self.stats_path is not None:
             with self.stats_path.open("rb") as fh:
@@ -122,3 +144,10 @@ class PPOController:
         if self.residual is not None:
             a = self.residual(a, env, np.asarray(obs, dtype=np.float32))
         return a
+
+
+class PPOController(SB3Controller):
+    """The ``ppo:PATH`` controller (:class:`SB3Controller` of a PPO model)."""
+
+    def __init__(self, path: str | Path, name: str | None = None) -> None:
+        super().__init__(path, name, algo="ppo")

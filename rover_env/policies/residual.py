@@ -36,7 +36,7 @@ from rover_env.control.slip_pi import SlipPI, SlipPIConfig
 from rover_env.control.slip_pi import replace as replace_gains
 from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
 from rover_env.estimation.estimator import static_rolling_radius
-from rover_env.policies.controllers import make_classical
+from rover_env.policies.controllers import LEARNED_KINDS, make_classical
 
 __all__ = [
     "SCHEDULE_KNOBS",
@@ -73,7 +73,7 @@ class Residual:
     """Env action = base controller's env action + scale * policy action, clipped to [-1, 1]."""
 
     def __init__(self, base: str, scale: float) -> None:
-        if base.startswith("ppo"):
+        if base.split(":")[0] in LEARNED_KINDS:
             raise ValueError(f"residual_base must be a classical controller, got {base!r}")
         if not 0 < scale <= 2:
             raise ValueError(f"action_residual must be in (0, 2], got {scale}")

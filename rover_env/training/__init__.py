@@ -1,13 +1,31 @@
-"""PPO training (stable-baselines3): with the benchmark's policy loader, the only part that imports torch.
+"""Training (stable-baselines3 PPO, SAC, TD3; Optuna search): with the benchmark's lazily
+loaded policies, the only part that imports torch.
 
-``train(env_id, config_path, seed, out_dir, resume=False, total_timesteps=None)`` writes a
-run dir (layout in ``rover_env.training.ppo``); ``train/ppo.py`` and ``train/evaluate.py``
+``train(env_id, config_path, seed, out_dir, resume=False, total_timesteps=None, algo="ppo")``
+writes a run dir (layout in ``rover_env.training.run``); ``train/ppo.py``, ``train/sac.py``,
+``train/td3.py`` (``train/train.py --algo``), ``train/search.py`` and ``train/evaluate.py``
 are its command lines.
 """
 
 from __future__ import annotations
 
-from rover_env.training.config import PPOConfig, load_config
-from rover_env.training.ppo import TrainResult, train
+from rover_env.training.config import (
+    ALGOS,
+    PPOConfig,
+    SACConfig,
+    TD3Config,
+    load_algo_config,
+    load_config,
+)
+from rover_env.training.run import TrainResult, train
 
-__all__ = ["PPOConfig", "TrainResult", "load_config", "train"]
+__all__ = [
+    "ALGOS",
+    "PPOConfig",
+    "SACConfig",
+    "TD3Config",
+    "TrainResult",
+    "load_algo_config",
+    "load_config",
+    "train",
+]

@@ -194,26 +194,40 @@ class ValidationEval(EvalCallback):
 
 # --------------------------------------------------------------------------- checkpoints
 
-_STATE_RE = re.compile(r"^ppo_state_(\d+)_steps\.pkl$")
+_STATE_RE = re.compile(r"^(ppo|sac|td3)_state_(\d+)_steps\.pkl$")
 
 
-def checkpoint_paths(ckpt_dir: Path, steps: int) -> tuple[Path, Path, Path]:
+def checkpoint_paths(ckpt_dir: Path, steps: int, algo: str = "ppo") -> tuple[Path, Path, Path]:
     """Model, VecNormalize stats and training state of the checkpoint at ``steps``."""
     return (
-        ckpt_dir / f"ppo_{steps}_steps.zip",
-        ckpt_dir / f"ppo_vecnormalize_{steps}_steps.pkl",
-        ckpt_dir / f"ppo_state_{steps}_steps.pkl",
+        ckpt_dir / f"{algo}_{steps}_steps.zip",
+        ckpt_dir / f"{algo}_vecnormalize_{steps}_steps.pkl",
+        ckpt_dir / f"{algo}_state_{steps}_steps.pkl",
     )
 
 
-def latest_checkpoint(ckpt_dir: Path) -> int | None:
+def replay_buffer_path(ckpt_dir: Path, steps: int, algo: str) -> Path:
+    """An off-policy checkpoint's replay buffer (only the newest checkpoint keeps one)."""
+    return ckpt_dir / f"{algo}_replay_buffer_{steps}_steps.pkl"
+
+
+def latest_checkpoint(ckpt_dir: Path, algo: str = "ppo") -> int | None:
     """Step count of the newest complete checkpoint (the state file is written last)."""
     steps = []
-    for p in ckpt_dir.glob("ppo_state_*_steps.pkl") if ckpt_dir.is_dir() else []:
+    for p in ckpt_dir.glob(f"{algo}_state_*_steps.pkl") if ckpt_dir.is_dir() else []:
         m = _STATE_RE.match(p.name)
-        if m and all(q.is_file() for q in checkpoint_paths(ckpt_dir, int(m.group(1)))):
-            steps.append(int(m.group(1)))
+        if m and all(q.is_file() for q in checkpoint_paths(ckpt_dir, int(m.group(2)), algo)):
+            steps.append(int(m.group(2)))
     return max(steps) if steps else None
+
+
+def checkpoint_algo(ckpt_dir: Path) -> str | None:
+    """The algorithm whose checkpoints a folder holds (from the state files' names)."""
+    for p in sorted(ckpt_dir.glob("*_state_*_steps.pkl")) if ckpt_dir.is_dir() else []:
+        m = _STATE_RE.match(p.name)
+        if m:
+            return m.group(1)
+    return None
 
 
 def rng_state() -> dict[str, Any]:
@@ -243,11 +257,16 @@ class RolloutCheckpoint(BaseCallback):
     Only there do the weights, VecNormalize statistics, step count and RNG agree with each
     other (no half-collected rollout), so a resumed run reaches exactly the step counts of an
     uninterrupted one. Saves the model, the VecNormalize statistics and a state file: global
-    RNGs, each env's generator, and the evaluation callback's best-so-far.
+    RNGs, the action space's generator (an off-policy algorithm's random warm-up actions),
+    each env's generator, and the evaluation callback's best-so-far. An off-policy
+    algorithm's replay buffer is saved with the newest checkpoint (and removed from the one
+    before, as it is as large as the buffer), so a resumed SAC/TD3 run continues from the
+    same transitions.
     """
 
-    def __init__(self, ckpt_dir: Path, freq: int, meta: dict[str, Any]) -> None:
+    def __init__(self, ckpt_dir: Path, freq: int, meta: dict[str, Any], algo: str = "ppo") -> None:
         super().__init__()
+        self.algo = algo
         self.ckpt_dir = ckpt_dir
         self.freq = freq
         self.meta = meta
@@ -264,8 +283,13 @@ class RolloutCheckpoint(BaseCallback):
     def save(self) -> None:
         steps = self.model.num_timesteps
         self.ckpt_dir.mkdir(parents=True, exist_ok=True)
-        model_p, vn_p, state_p = checkpoint_paths(self.ckpt_dir, steps)
+        model_p, vn_p, state_p = checkpoint_paths(self.ckpt_dir, steps, self.algo)
         _atomic(model_p, lambda p: self.model.save(p))
+        buffers = sorted(self.ckpt_dir.glob(f"{self.algo}_replay_buffer_*_steps.pkl"))
+        has_buffer = getattr(self.model, "replay_buffer", None) is not None
+        rb_p = replay_buffer_path(self.ckpt_dir, steps, self.algo)
+        if has_buffer:
+            _atomic(rb_p, lambda p: self.model.save_replay_buffer(p))  # type: ignore[attr-defined]
         vn = self.model.get_vec_normalize_env()
         if vn is None:
             raise RuntimeError("training env is expected to be wrapped in VecNormalize")
@@ -276,6 +300,7 @@ class RolloutCheckpoint(BaseCallback):
             **self.meta,
             "num_timesteps": steps,
             "rng": rng_state(),
+            "action_space_rng": self.model.action_space.np_random.bit_generator.state,
             "env_rng": env.env_method("rng_state"),
             "eval": None if self.eval_cb is None else self.eval_cb.state(),
         }
@@ -286,3 +311,6 @@ class RolloutCheckpoint(BaseCallback):
 
         _atomic(state_p, dump)
         self.last_saved = steps
+        for old in buffers if has_buffer else []:
+            if old != rb_p:
+                old.unlink(missing_ok=True)

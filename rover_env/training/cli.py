@@ -1,4 +1,5 @@
-"""Command lines behind ``train/ppo.py``, ``train/sweep.py`` and ``train/evaluate.py`` (kept here so they install)."""
+"""Command lines behind ``train/ppo.py`` (``sac.py``, ``td3.py``, ``train.py --algo``),
+``train/sweep.py``, ``train/search.py`` and ``train/evaluate.py`` (kept here so they install)."""
 
 from __future__ import annotations
 
@@ -9,16 +10,32 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from rover_env.config import ConfigError
+from rover_env.training.config import ALGOS
+
+ALGO_NAMES = ALGOS
 
 
-def train_main(argv: Sequence[str] | None = None) -> int:
+def train_main(argv: Sequence[str] | None = None, algo: str | None = None) -> int:
+    """``algo`` fixes the algorithm (train/ppo.py, sac.py, td3.py); None: ``--algo`` chooses."""
+    name = algo.upper() if algo else "PPO, SAC or TD3"
     ap = argparse.ArgumentParser(
-        prog="train/ppo.py",
-        description="Train PPO on a rover env; hyperparameters from a YAML entry keyed by env id.",
+        prog=f"train/{algo}.py" if algo else "train/train.py",
+        description=f"Train {name} on a rover env; hyperparameters from a YAML entry keyed by "
+        "env id.",
     )
+    if algo is None:
+        ap.add_argument(
+            "--algo",
+            choices=ALGO_NAMES,
+            default=None,
+            help="algorithm (default ppo; resume: the run dir's)",
+        )
     ap.add_argument("--env-id", help="e.g. rover_env/ProtoExplorer-v0 (resume: from the run dir)")
     ap.add_argument(
-        "--config", default="ppo", help="hyperparameter YAML, or a shipped name (default: ppo)"
+        "--config",
+        default=None,
+        help="hyperparameter YAML, a shipped name, or a folder of {algo}.yaml files "
+        "(default: the shipped file named for the algorithm, e.g. configs/sac.yaml)",
     )
     ap.add_argument("--seed", type=int, help="run seed (resume: from the run dir)")
     ap.add_argument("--out", help="run directory")
@@ -48,25 +65,28 @@ def train_main(argv: Sequence[str] | None = None) -> int:
     if not resume and (args.env_id is None or args.seed is None):
         ap.error("a new run needs --env-id and --seed")
 
-    from rover_env.training.ppo import train
+    chosen = algo or args.algo
+    from rover_env.training.run import train
 
     try:
         res = train(
             args.env_id,
-            None if resume else args.config,
+            None if resume else (args.config or chosen or "ppo"),
             args.seed,
             out,
             resume=resume,
             total_timesteps=args.total_timesteps,
             progress=not args.no_progress,
             verbose=args.verbose,
+            algo=chosen,
         )
     except ConfigError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     resumed = f" (resumed at step {res.resumed_from})" if res.resumed_from is not None else ""
     print(
-        f"{res.run_dir}: {res.num_timesteps} steps{resumed}, {res.steps_per_second:.1f} steps/s, "
+        f"{res.run_dir} ({res.algo}): {res.num_timesteps} steps{resumed}, "
+        f"{res.steps_per_second:.1f} steps/s, "
         f"best validation return {res.best_mean_reward:.2f}"
     )
     return 0
@@ -75,10 +95,11 @@ def train_main(argv: Sequence[str] | None = None) -> int:
 def evaluate_main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="train/evaluate.py",
-        description="Benchmark a trained run's agent (ppo:RUN_DIR) on the validation seeds; "
+        description="Benchmark a trained run's agent (ppo:, sac: or td3:RUN_DIR) on the "
+        "validation seeds; "
         "--final: its one run on the test seeds, recorded in the test ledger.",
     )
-    ap.add_argument("run_dir", help="run directory written by train/ppo.py")
+    ap.add_argument("run_dir", help="run directory written by train/ppo.py, sac.py or td3.py")
     ap.add_argument("--episodes", type=int, default=20, help="seeds per scenario (20)")
     ap.add_argument("--scenarios", default="all", help="comma list of benchmark scenarios, or all")
     ap.add_argument(
@@ -135,13 +156,17 @@ def sweep_main(argv: Sequence[str] | None = None) -> int:
 
     ap = argparse.ArgumentParser(
         prog="train/sweep.py",
-        description="One train/ppo.py run per (algorithm, seed), on local processes or Ray; "
+        description="One training run per (algorithm, seed), on local processes or Ray; "
         "run folders OUT/{algo}_s{seed}, one line per finished run in OUT/sweep.jsonl.",
     )
-    ap.add_argument("--config", required=True, help="hyperparameter YAML, or a shipped name")
+    ap.add_argument(
+        "--config",
+        required=True,
+        help="hyperparameter YAML, a shipped name, or a folder of {algo}.yaml files",
+    )
     ap.add_argument("--env-id", default=None, help="env id (default: the file's only entry)")
     ap.add_argument("--seeds", required=True, help="run seeds: 0-9, or 0,3,5-7")
-    ap.add_argument("--algos", default="ppo", help="comma list of algorithms (default ppo)")
+    ap.add_argument("--algos", default="ppo", help="comma list of ppo, sac, td3 (default ppo)")
     ap.add_argument("--out", required=True, help="sweep folder (shared by all nodes on a cluster)")
     ap.add_argument("--total-timesteps", type=int, help="env steps per run (overrides n_timesteps)")
     ap.add_argument("--workers", type=int, default=1, help="runs side by side (default 1)")
@@ -176,4 +201,80 @@ def sweep_main(argv: Sequence[str] | None = None) -> int:
             f"{r['run_dir']}: {r['num_timesteps']} steps, best validation return "
             f"{r['best_mean_reward']:.2f}"
         )
+    return 0
+
+
+def search_main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="train/search.py",
+        description="Optuna hyperparameter search: each trial a short training run scored by "
+        "its mean validation return (validation seeds only), TPE sampler, median pruner on "
+        "the intermediate evaluations; resumable through --storage.",
+    )
+    ap.add_argument("--algo", choices=ALGO_NAMES, default="ppo", help="algorithm (default ppo)")
+    ap.add_argument(
+        "--config",
+        default=None,
+        help="base hyperparameters: YAML, shipped name or folder of {algo}.yaml (default: "
+        "the shipped file named for the algorithm)",
+    )
+    ap.add_argument("--env-id", required=True, help="env id of the entry to search around")
+    ap.add_argument("--trials", type=int, default=20, help="finished trials in the study (20)")
+    ap.add_argument(
+        "--timesteps-per-trial", type=int, default=50_000, help="env steps per trial (50000)"
+    )
+    ap.add_argument(
+        "--budget-minutes", type=float, default=None, help="start no trial after this wall time"
+    )
+    ap.add_argument(
+        "--storage", default=None, help="Optuna storage URL (default sqlite:///OUT/study.db)"
+    )
+    ap.add_argument("--study-name", default=None, help="default '{algo}|{env id}'")
+    ap.add_argument("--out", default=None, help="output folder (default runs/search/{algo})")
+    ap.add_argument("--seed", type=int, default=0, help="sampler seed (0)")
+    ap.add_argument("--run-seed", type=int, default=0, help="training run seed of every trial (0)")
+    ap.add_argument(
+        "--evaluations", type=int, default=4, help="validation evaluations per trial (4)"
+    )
+    ap.add_argument("--space", default=None, help="search-space YAML replacing the default")
+    ap.add_argument(
+        "--startup-trials", type=int, default=5, help="random trials before TPE models (5)"
+    )
+    ap.add_argument(
+        "--pruner-startup", type=int, default=3, help="trials before the pruner acts (3)"
+    )
+    args = ap.parse_args(argv)
+
+    from rover_env.training.search import load_space, search
+
+    try:
+        res = search(
+            args.algo,
+            args.config or args.algo,
+            args.env_id,
+            args.out or f"runs/search/{args.algo}",
+            trials=args.trials,
+            timesteps_per_trial=args.timesteps_per_trial,
+            budget_minutes=args.budget_minutes,
+            storage=args.storage,
+            study_name=args.study_name,
+            seed=args.seed,
+            run_seed=args.run_seed,
+            evaluations=args.evaluations,
+            space=None if args.space is None else load_space(args.space),
+            startup_trials=args.startup_trials,
+            pruner_startup=args.pruner_startup,
+        )
+    except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(
+        f"{res.out}: {res.n_complete} complete, {res.n_pruned} pruned trials; "
+        + (
+            f"best trial {res.best_number} (validation return {res.best_value:.3f}): "
+            f"{res.out / 'best.yaml'}"
+            if res.best_number is not None
+            else "no complete trial"
+        )
+    )
     return 0

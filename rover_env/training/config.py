@@ -1,7 +1,9 @@
-"""PPO hyperparameters: one YAML entry per env id (rl-zoo style), validated before any training.
+"""Hyperparameters of PPO, SAC and TD3: one YAML entry per env id (rl-zoo style), validated
+before any training.
 
 A typo in a hyperparameter file must fail at start-up with the key and file named, not after
-an hour of training with a default silently used instead.
+an hour of training with a default silently used instead. ``load_algo_config(algo, file,
+env_id)`` reads an entry of any algorithm (``ALGOS``); ``load_config`` is the PPO one.
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ from rover_env.config import ConfigError, configs_dir
 ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu", "gelu", "silu")
 VEC_ENVS = ("subproc", "dummy", "batch")
 POLICIES = ("MlpPolicy",)
+ALGOS = ("ppo", "sac", "td3")
+NOISE_TYPES = ("normal", "ornstein-uhlenbeck")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -89,34 +93,120 @@ class PPOConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """The YAML form; ``load_config`` reads it back to an equal config."""
-        pk = self.policy_kwargs
-        arch: Any = (
-            {k: list(v) for k, v in pk.net_arch.items()}
-            if isinstance(pk.net_arch, dict)
-            else list(pk.net_arch)
-        )
-        norm: Any = (
-            {f.name: getattr(self.normalize, f.name) for f in dataclasses.fields(NormalizeConfig)}
-            if self.normalize.enabled
-            else False
-        )
-        if norm:
-            del norm["enabled"]
-        out: dict[str, Any] = {}
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if isinstance(v, Schedule):
-                v = v.to_yaml()
-            out[f.name] = v
-        out["policy_kwargs"] = {
-            "net_arch": arch,
-            "activation": pk.activation,
-            "log_std_init": pk.log_std_init,
-            "ortho_init": pk.ortho_init,
-        }
-        out["normalize"] = norm
-        out["env_kwargs"] = _plain(self.env_kwargs)
-        return out
+        return _to_dict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class OffPolicyKwargs:
+    """SAC/TD3 networks: one layer list for actor and critics, or ``{pi: [...], qf: [...]}``."""
+
+    net_arch: tuple[int, ...] | dict[str, tuple[int, ...]] = (256, 256)
+    activation: str = "relu"
+    log_std_init: float | None = None
+    """SAC only (its gSDE's initial log std); None: SB3's default."""
+    n_critics: int = 2
+
+
+@dataclasses.dataclass(frozen=True)
+class ActionNoise:
+    """Exploration noise added to the actor's action (TD3's; SAC may take one too)."""
+
+    type: str = "normal"
+    sigma: float = 0.1
+    """Standard deviation in action units (the env's actions span [-1, 1])."""
+
+
+@dataclasses.dataclass(frozen=True)
+class OffPolicyConfig:
+    """What SAC and TD3 share (SB3's off-policy algorithms, replay buffer)."""
+
+    n_timesteps: int = 1_000_000
+    n_envs: int = 1
+    policy: str = "MlpPolicy"
+    learning_rate: Schedule = Schedule(3e-4)
+    buffer_size: int = 1_000_000
+    learning_starts: int = 100
+    """Env steps of uniformly random actions before the first update."""
+    batch_size: int = 256
+    tau: float = 0.005
+    gamma: float = 0.99
+    train_freq: int = 1
+    """Env steps per env between updates (rl-zoo's ``[n, "episode"]`` form is not taken, so
+    checkpoints stay on a step grid)."""
+    gradient_steps: int = 1
+    """Gradient steps per update; -1: as many as env steps collected (train_freq * n_envs)."""
+    action_noise: ActionNoise | None = None
+    policy_kwargs: OffPolicyKwargs = OffPolicyKwargs()
+    normalize: NormalizeConfig = NormalizeConfig()
+    env_kwargs: dict[str, Any] = dataclasses.field(default_factory=dict)
+    max_episode_steps: int | None = None
+    eval_freq: int = 10_000
+    n_eval_episodes: int = 5
+    n_eval_envs: int = 1
+    checkpoint_freq: int = 50_000
+    vec_env: str = "subproc"
+
+    @property
+    def rollout_size(self) -> int:
+        """Env steps per collection between updates: checkpoints fall on multiples of it."""
+        return self.train_freq * self.n_envs
+
+    def to_dict(self) -> dict[str, Any]:
+        """The YAML form; ``load_algo_config`` reads it back to an equal config."""
+        return _to_dict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class SACConfig(OffPolicyConfig):
+    ent_coef: str | float = "auto"
+    """Entropy weight: a number, ``auto`` (learnt, from 1) or ``auto_<start>``."""
+    target_entropy: str | float = "auto"
+    use_sde: bool = False
+    sde_sample_freq: int = -1
+
+
+@dataclasses.dataclass(frozen=True)
+class TD3Config(OffPolicyConfig):
+    learning_rate: Schedule = Schedule(1e-3)
+    policy_delay: int = 2
+    target_policy_noise: float = 0.2
+    target_noise_clip: float = 0.5
+
+
+AlgoConfig = PPOConfig | SACConfig | TD3Config
+
+
+def _to_dict(cfg: Any) -> dict[str, Any]:
+    """The YAML form of any algorithm's config (networks as lists, normalisation as a mapping
+    or false, None-valued network options left out)."""
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(cfg):
+        v = getattr(cfg, f.name)
+        if isinstance(v, Schedule):
+            v = v.to_yaml()
+        out[f.name] = v
+    pk = cfg.policy_kwargs
+    pk_out: dict[str, Any] = {}
+    for f in dataclasses.fields(pk):
+        v = getattr(pk, f.name)
+        if f.name == "net_arch":
+            v = {k: list(a) for k, a in v.items()} if isinstance(v, dict) else list(v)
+        if v is not None:
+            pk_out[f.name] = v
+    out["policy_kwargs"] = pk_out
+    norm: Any = (
+        {f.name: getattr(cfg.normalize, f.name) for f in dataclasses.fields(NormalizeConfig)}
+        if cfg.normalize.enabled
+        else False
+    )
+    if norm:
+        del norm["enabled"]
+    out["normalize"] = norm
+    if "action_noise" in out:
+        n = out["action_noise"]
+        out["action_noise"] = None if n is None else {"type": n.type, "sigma": n.sigma}
+    out["env_kwargs"] = _plain(cfg.env_kwargs)
+    return out
 
 
 def _plain(value: Any) -> Any:
@@ -212,19 +302,19 @@ def _layers(v: Any, where: str) -> tuple[int, ...]:
     return tuple(_int(x, f"{where}[{i}]", 1) for i, x in enumerate(v))
 
 
+def _net_arch(v: Any, where: str, keys: tuple[str, ...]) -> Any:
+    if isinstance(v, Mapping):
+        arch_m = _mapping(v, where, set(keys))
+        return {k: _layers(arch_m.get(k, []), f"{where}.{k}") for k in keys}
+    return _layers(v, where)
+
+
 def _policy_kwargs(v: Any, where: str) -> PolicyKwargs:
     names = {f.name for f in dataclasses.fields(PolicyKwargs)}
     m = _mapping(v, where, names)
     out: dict[str, Any] = {}
     if "net_arch" in m:
-        arch = m["net_arch"]
-        if isinstance(arch, Mapping):
-            arch_m = _mapping(arch, f"{where}.net_arch", {"pi", "vf"})
-            out["net_arch"] = {
-                k: _layers(arch_m.get(k, []), f"{where}.net_arch.{k}") for k in ("pi", "vf")
-            }
-        else:
-            out["net_arch"] = _layers(arch, f"{where}.net_arch")
+        out["net_arch"] = _net_arch(m["net_arch"], f"{where}.net_arch", ("pi", "vf"))
     if "activation" in m:
         out["activation"] = _choice(m["activation"], f"{where}.activation", ACTIVATIONS)
     if "log_std_init" in m:
@@ -232,6 +322,42 @@ def _policy_kwargs(v: Any, where: str) -> PolicyKwargs:
     if "ortho_init" in m:
         out["ortho_init"] = _bool(m["ortho_init"], f"{where}.ortho_init")
     return PolicyKwargs(**out)
+
+
+def _off_policy_kwargs(v: Any, where: str, sac: bool) -> OffPolicyKwargs:
+    names = {f.name for f in dataclasses.fields(OffPolicyKwargs)} - (
+        set() if sac else {"log_std_init"}
+    )
+    m = _mapping(v, where, names)
+    out: dict[str, Any] = {}
+    if "net_arch" in m:
+        out["net_arch"] = _net_arch(m["net_arch"], f"{where}.net_arch", ("pi", "qf"))
+    if "activation" in m:
+        out["activation"] = _choice(m["activation"], f"{where}.activation", ACTIVATIONS)
+    if m.get("log_std_init") is not None:
+        out["log_std_init"] = _number(m["log_std_init"], f"{where}.log_std_init")
+    if "n_critics" in m:
+        out["n_critics"] = _int(m["n_critics"], f"{where}.n_critics", 1)
+    return OffPolicyKwargs(**out)
+
+
+def _action_noise(v: Any, where: str) -> ActionNoise | None:
+    if v is None:
+        return None
+    m = _mapping(v, where, {"type", "sigma"})
+    return ActionNoise(
+        type=_choice(m.get("type", "normal"), f"{where}.type", NOISE_TYPES),
+        sigma=_positive(m.get("sigma", 0.1), f"{where}.sigma"),
+    )
+
+
+def _auto_or_number(v: Any, where: str, nonneg: bool) -> str | float:
+    """``auto``, ``auto_<number>`` (SAC's learnt entropy weight and its start) or a number."""
+    if v == "auto":
+        return "auto"
+    if isinstance(v, str) and v.startswith("auto_") and nonneg:
+        return f"auto_{_positive(v[5:], where)!r}"
+    return _nonneg(v, where) if nonneg else _number(v, where)
 
 
 def _normalize(v: Any, where: str) -> NormalizeConfig:
@@ -249,24 +375,13 @@ def _normalize(v: Any, where: str) -> NormalizeConfig:
     return NormalizeConfig(**out)
 
 
-_CHECKS: dict[str, Any] = {
+_COMMON: dict[str, Any] = {
     "n_timesteps": lambda v, w: _int(v, w, 1),
     "n_envs": lambda v, w: _int(v, w, 1),
     "policy": lambda v, w: _choice(v, w, POLICIES),
     "learning_rate": _schedule,
-    "n_steps": lambda v, w: _int(v, w, 2),
     "batch_size": lambda v, w: _int(v, w, 2),
-    "n_epochs": lambda v, w: _int(v, w, 1),
     "gamma": _unit,
-    "gae_lambda": _unit,
-    "clip_range": _schedule,
-    "ent_coef": _nonneg,
-    "vf_coef": _nonneg,
-    "max_grad_norm": _positive,
-    "target_kl": lambda v, w: None if v is None else _positive(v, w),
-    "use_sde": lambda v, w: _bool(v, w),
-    "sde_sample_freq": lambda v, w: _int(v, w, -1),
-    "policy_kwargs": _policy_kwargs,
     "normalize": _normalize,
     "env_kwargs": lambda v, w: dict(_mapping(v, w, set(map(str, v or {})))),
     "max_episode_steps": lambda v, w: None if v is None else _int(v, w, 1),
@@ -276,23 +391,107 @@ _CHECKS: dict[str, Any] = {
     "checkpoint_freq": lambda v, w: _int(v, w, 1),
     "vec_env": lambda v, w: _choice(v, w, VEC_ENVS),
 }
+
+_CHECKS: dict[str, Any] = {
+    **_COMMON,
+    "n_steps": lambda v, w: _int(v, w, 2),
+    "n_epochs": lambda v, w: _int(v, w, 1),
+    "gae_lambda": _unit,
+    "clip_range": _schedule,
+    "ent_coef": _nonneg,
+    "vf_coef": _nonneg,
+    "max_grad_norm": _positive,
+    "target_kl": lambda v, w: None if v is None else _positive(v, w),
+    "use_sde": lambda v, w: _bool(v, w),
+    "sde_sample_freq": lambda v, w: _int(v, w, -1),
+    "policy_kwargs": _policy_kwargs,
+}
 assert set(_CHECKS) == {f.name for f in dataclasses.fields(PPOConfig)}
 
 
-def parse_config(data: Any, where: str = "") -> PPOConfig:
-    """Validate one env id's entry; every error names ``where`` (file and env id) and the key."""
-    m = _mapping(data, where or "PPO config", set(_CHECKS))
-    kwargs = {k: _CHECKS[k](v, f"{where}.{k}" if where else k) for k, v in m.items()}
-    cfg = PPOConfig(**kwargs)
-    if cfg.batch_size > cfg.rollout_size:
+def _gradient_steps(v: Any, where: str) -> int:
+    x = _int(v, where, -1)
+    if x == 0:
+        raise ConfigError(f"{where}: must be -1 (as many as env steps) or >= 1, got {v!r}")
+    return x
+
+
+_OFF_POLICY: dict[str, Any] = {
+    **_COMMON,
+    "buffer_size": lambda v, w: _int(v, w, 1),
+    "learning_starts": lambda v, w: _int(v, w, 0),
+    "tau": _unit,
+    "train_freq": lambda v, w: _int(v, w, 1),
+    "gradient_steps": _gradient_steps,
+    "action_noise": _action_noise,
+}
+_SAC_CHECKS: dict[str, Any] = {
+    **_OFF_POLICY,
+    "policy_kwargs": lambda v, w: _off_policy_kwargs(v, w, sac=True),
+    "ent_coef": lambda v, w: _auto_or_number(v, w, nonneg=True),
+    "target_entropy": lambda v, w: _auto_or_number(v, w, nonneg=False),
+    "use_sde": lambda v, w: _bool(v, w),
+    "sde_sample_freq": lambda v, w: _int(v, w, -1),
+}
+_TD3_CHECKS: dict[str, Any] = {
+    **_OFF_POLICY,
+    "policy_kwargs": lambda v, w: _off_policy_kwargs(v, w, sac=False),
+    "policy_delay": lambda v, w: _int(v, w, 1),
+    "target_policy_noise": _nonneg,
+    "target_noise_clip": _nonneg,
+}
+assert set(_SAC_CHECKS) == {f.name for f in dataclasses.fields(SACConfig)}
+assert set(_TD3_CHECKS) == {f.name for f in dataclasses.fields(TD3Config)}
+_ALGO: dict[str, tuple[type, dict[str, Any]]] = {
+    "ppo": (PPOConfig, _CHECKS),
+    "sac": (SACConfig, _SAC_CHECKS),
+    "td3": (TD3Config, _TD3_CHECKS),
+}
+
+
+def check_algo(algo: str) -> str:
+    if algo not in ALGOS:
+        raise ConfigError(f"unknown algorithm {algo!r}; available: {', '.join(ALGOS)}")
+    return algo
+
+
+def parse_algo_config(algo: str, data: Any, where: str = "") -> AlgoConfig:
+    """Validate one env id's entry for ``algo``; every error names ``where`` and the key."""
+    cls, checks = _ALGO[check_algo(algo)]
+    m = _mapping(data, where or f"{algo.upper()} config", set(checks))
+    kwargs = {k: checks[k](v, f"{where}.{k}" if where else k) for k, v in m.items()}
+    cfg: AlgoConfig = cls(**kwargs)
+    if isinstance(cfg, PPOConfig) and cfg.batch_size > cfg.rollout_size:
         raise ConfigError(
             f"{where}.batch_size: {cfg.batch_size} exceeds n_steps * n_envs = {cfg.rollout_size}"
+        )
+    if isinstance(cfg, OffPolicyConfig) and cfg.batch_size > cfg.buffer_size:
+        raise ConfigError(
+            f"{where}.batch_size: {cfg.batch_size} exceeds buffer_size = {cfg.buffer_size}"
         )
     if cfg.n_eval_envs > cfg.n_eval_episodes:
         raise ConfigError(
             f"{where}.n_eval_envs: {cfg.n_eval_envs} exceeds n_eval_episodes = {cfg.n_eval_episodes}"
         )
     return cfg
+
+
+def parse_config(data: Any, where: str = "") -> PPOConfig:
+    """Validate one env id's PPO entry; every error names ``where`` (file and env id) and the key."""
+    cfg = parse_algo_config("ppo", data, where)
+    assert isinstance(cfg, PPOConfig)
+    return cfg
+
+
+def config_for(config: str | Path, algo: str) -> str | Path:
+    """A folder of per-algorithm files (``configs/agents_soil``) names ``DIR/{algo}.yaml``."""
+    p = Path(config)
+    if p.is_dir():
+        return p / f"{algo}.yaml"
+    shipped = configs_dir() / str(config)
+    if not p.suffix and shipped.is_dir():
+        return shipped / f"{algo}.yaml"
+    return config
 
 
 def resolve_config_path(config: str | Path) -> Path:
@@ -308,8 +507,8 @@ def resolve_config_path(config: str | Path) -> Path:
     return shipped
 
 
-def load_config(config: str | Path, env_id: str) -> PPOConfig:
-    """The entry for ``env_id`` in a hyperparameter file (path or shipped name)."""
+def read_entry(config: str | Path, env_id: str) -> tuple[Path, Any]:
+    """(file, raw entry for ``env_id``) of a hyperparameter file (path or shipped name)."""
     path = resolve_config_path(config)
     try:
         data = yaml.safe_load(path.read_text())
@@ -320,4 +519,17 @@ def load_config(config: str | Path, env_id: str) -> PPOConfig:
     if env_id not in data:
         ids = sorted(str(k) for k in data if not str(k).startswith("."))
         raise ConfigError(f"{path}: no entry for env id {env_id!r}; have {ids}")
-    return parse_config(data[env_id], f"{path}: {env_id}")
+    return path, data[env_id]
+
+
+def load_algo_config(algo: str, config: str | Path, env_id: str) -> AlgoConfig:
+    """The ``algo`` entry for ``env_id`` in a hyperparameter file (path, shipped name, or a
+    folder of ``{algo}.yaml`` files)."""
+    path, entry = read_entry(config_for(config, check_algo(algo)), env_id)
+    return parse_algo_config(algo, entry, f"{path}: {env_id}")
+
+
+def load_config(config: str | Path, env_id: str) -> PPOConfig:
+    """The PPO entry for ``env_id`` in a hyperparameter file (path or shipped name)."""
+    path, entry = read_entry(config, env_id)
+    return parse_config(entry, f"{path}: {env_id}")

@@ -14,7 +14,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv,
 import rover_env
 from rover_env.config import ConfigError
 from rover_env.seeds import check_split
-from rover_env.training.config import PPOConfig
+from rover_env.training.config import AlgoConfig
 
 
 class SeedSchedule(gym.Wrapper[Any, Any, Any, Any]):
@@ -60,7 +60,7 @@ class SeedSchedule(gym.Wrapper[Any, Any, Any, Any]):
 
 def make_env(
     env_id: str,
-    cfg: PPOConfig,
+    cfg: AlgoConfig,
     seeds: Sequence[int] = (),
     monitor_file: Path | None = None,
     append: bool = False,
@@ -81,7 +81,7 @@ def make_env(
     return Monitor(env, filename=filename, override_existing=override)
 
 
-def check_env_kwargs(env_id: str, cfg: PPOConfig, where: str) -> None:
+def check_env_kwargs(env_id: str, cfg: AlgoConfig, where: str) -> None:
     """Build one env in this process so a bad env_kwargs entry fails here, named, not in a worker."""
     try:
         env = make_env(env_id, cfg)
@@ -94,7 +94,7 @@ def check_env_kwargs(env_id: str, cfg: PPOConfig, where: str) -> None:
 
 def make_vec_env(
     env_id: str,
-    cfg: PPOConfig,
+    cfg: AlgoConfig,
     n: int,
     seeds: Sequence[Sequence[int]],
     monitor_dir: Path | None,
@@ -128,7 +128,7 @@ def make_vec_env(
 
 def make_batch_vec_env(
     env_id: str,
-    cfg: PPOConfig,
+    cfg: AlgoConfig,
     n: int,
     seeds: Sequence[Sequence[int]],
     monitor_dir: Path | None,

@@ -1,4 +1,4 @@
-"""A trained run on the benchmark: its agent as the ``ppo:RUN_DIR`` controller.
+"""A trained run on the benchmark: its agent as the ``ppo:RUN_DIR`` (``sac:``, ``td3:``) controller.
 
 Validation seeds by default (selection, comparison of runs, ablations); the test seeds only
 with ``final=True`` (``--final``), once per agent, recorded in the test ledger
@@ -25,7 +25,7 @@ from rover_env.policies.specs import parse_specs
 
 # env_kwargs that change only the reward, not what the agent sees or how the rover moves.
 # Also the ScenarioMixEnv's training-distribution keys; its action_residual is applied by the
-# ppo: controller itself (rover_env.policies.ppo).
+# agent's controller itself (rover_env.policies.ppo).
 _REWARD_ONLY = {
     "reward_weights",
     "slip_source",
@@ -39,14 +39,18 @@ _REWARD_ONLY = {
 
 
 def agent_spec(run_dir: str | Path, which: str = "best") -> str:
-    """The controller spec of a run's agent: ``best`` (validation-selected, if any) or ``final``."""
+    """The controller spec of a run's agent (``{algo}:...``): ``best`` (validation-selected, if
+    any) or ``final``."""
+    from rover_env.training.run import run_algo
+
     run = Path(run_dir)
     if not (run / "config.yaml").is_file():
         raise FileNotFoundError(f"{run} is not a training run dir: no config.yaml")
+    algo = run_algo(run)
     if which == "final":
         if not (run / "model.zip").is_file():
             raise FileNotFoundError(f"{run}: no model.zip (the run has not finished)")
-        return f"ppo:{run / 'model.zip'}"
+        return f"{algo}:{run / 'model.zip'}"
     if which != "best":
         raise ConfigError(f"which must be 'best' or 'final', got {which!r}")
     data = yaml.safe_load((run / "config.yaml").read_text()) or {}
@@ -66,7 +70,7 @@ def agent_spec(run_dir: str | Path, which: str = "best") -> str:
             "use which='final' for a consistent pair",
             stacklevel=2,
         )
-    return f"ppo:{run}"
+    return f"{algo}:{run}"
 
 
 def evaluate(

@@ -1,6 +1,6 @@
-"""Training sweeps: one ``train/ppo.py`` run per (algorithm, seed), through an executor.
+"""Training sweeps: one ``train/{algo}.py`` run per (algorithm, seed), through an executor.
 
-Each run is :func:`rover_env.training.ppo.train` in a worker (a local process or a Ray
+Each run is :func:`rover_env.training.run.train` in a worker (a local process or a Ray
 task) and writes the same run folder as ``train/ppo.py``, at ``OUT/{algo}_s{seed}``, with the
 single-run command that reproduces it in its ``command.txt``. ``OUT/sweep.jsonl`` gets one line
 per finished run. ``resume`` skips finished runs; a run stopped mid-way (the sweep was killed,
@@ -25,8 +25,9 @@ from rover_env.executor import make_executor, run_study
 
 __all__ = ["ALGOS", "SweepRun", "default_env_id", "parse_seeds", "run_one", "sweep"]
 
-ALGOS = ("ppo",)
-"""Algorithms a sweep can train (the library trains PPO; others join here when they exist)."""
+ALGOS = ("ppo", "sac", "td3")
+"""Algorithms a sweep can train. With several, ``config`` is a folder of ``{algo}.yaml`` files
+(``configs/agents_soil``) or one file each of them can read."""
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -76,8 +77,8 @@ class SweepRun:
         return f"{self.algo}|{self.env_id}|{self.seed}"
 
     def argv(self) -> list[str]:
-        """The ``train/ppo.py`` command line of this run alone."""
-        a = ["train/ppo.py", "--env-id", self.env_id, "--config", self.config]
+        """The ``train/{algo}.py`` command line of this run alone."""
+        a = [f"train/{self.algo}.py", "--env-id", self.env_id, "--config", self.config]
         a += ["--seed", str(self.seed), "--out", self.run_dir]
         if self.total_timesteps is not None:
             a += ["--total-timesteps", str(self.total_timesteps)]
@@ -87,10 +88,12 @@ class SweepRun:
 def run_one(run: SweepRun) -> dict[str, Any]:
     """Train one run (continuing it from its newest checkpoint if it has one)."""
     from rover_env.training.callbacks import latest_checkpoint
-    from rover_env.training.ppo import RUN_FILES, train
+    from rover_env.training.run import RUN_FILES, train
 
     d = Path(run.run_dir)
-    resume = (d / "config.yaml").is_file() and latest_checkpoint(d / "checkpoints") is not None
+    resume = (d / "config.yaml").is_file() and latest_checkpoint(
+        d / "checkpoints", run.algo
+    ) is not None
     if not resume and any((d / f).exists() for f in RUN_FILES):
         shutil.rmtree(d)  # stopped before its first checkpoint: nothing in it to keep
     argv = sys.argv
@@ -104,6 +107,7 @@ def run_one(run: SweepRun) -> dict[str, Any]:
             resume=resume,
             total_timesteps=run.total_timesteps,
             progress=False,
+            algo=run.algo,
         )
     finally:
         sys.argv = argv
@@ -133,22 +137,23 @@ def sweep(
     progress: bool = True,
 ) -> list[dict[str, Any]]:
     """Every (algo, seed) run; their summaries, in (algo, seed) order."""
-    from rover_env.training.config import load_config, resolve_config_path
+    from rover_env.training.config import config_for, load_algo_config, resolve_config_path
 
     for a in algos:
         if a not in ALGOS:
             raise ConfigError(f"--algos: unknown algorithm {a!r}; available: {', '.join(ALGOS)}")
-    cfg_path = resolve_config_path(config).resolve()
-    env = env_id or default_env_id(cfg_path)
-    load_config(cfg_path, env)  # a bad file or env id fails here, not in every worker
+    paths = {a: resolve_config_path(config_for(config, a)).resolve() for a in algos}
+    env = env_id or default_env_id(paths[algos[0]])
+    for a in algos:
+        load_algo_config(a, paths[a], env)  # a bad file or env id fails here, not in a worker
     root = Path(out).resolve()
     runs = [
-        SweepRun(a, env, str(cfg_path), s, str(root / f"{a}_s{s}"), total_timesteps)
+        SweepRun(a, env, str(paths[a]), s, str(root / f"{a}_s{s}"), total_timesteps)
         for a in algos
         for s in seeds
     ]
     if not resume:
-        from rover_env.training.ppo import RUN_FILES
+        from rover_env.training.run import RUN_FILES
 
         for r in runs:
             if any((Path(r.run_dir) / f).exists() for f in RUN_FILES):

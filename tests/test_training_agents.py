@@ -1,0 +1,322 @@
+"""SAC and TD3 beside PPO, and the Optuna search: configs, replay-buffer resume, agents on the
+benchmark, a 2-trial search that resumes (CPU, tiny step counts, seconds each)."""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import pickle
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+pytest.importorskip("stable_baselines3")
+pytest.importorskip("optuna")
+
+import optuna
+
+from rover_env.benchmark.ledger import agent_hash
+from rover_env.benchmark.run import ScenarioWrapper, run_episode
+from rover_env.config import ConfigError
+from rover_env.envs.proto_explorer import ProtoExplorerEnv
+from rover_env.envs.registration import ENV_IDS
+from rover_env.policies.residual import Residual
+from rover_env.policies.specs import make_controller, parse_specs
+from rover_env.tasks.scenarios import load_scenario
+from rover_env.training import SACConfig, TD3Config, load_algo_config, train
+from rover_env.training.callbacks import latest_checkpoint, replay_buffer_path
+from rover_env.training.config import parse_algo_config
+from rover_env.training.evaluate import agent_spec
+from rover_env.training.search import apply_params, search
+
+ENV = "rover_env/ProtoExplorer-v0"
+MIX = "rover_env/ProtoExplorerScenarioMix-v0"
+REPO = Path(__file__).resolve().parent.parent
+OFF: dict[str, Any] = {
+    "n_timesteps": 128,
+    "n_envs": 2,
+    "vec_env": "dummy",
+    "learning_starts": 32,
+    "batch_size": 16,
+    "buffer_size": 1000,
+    "train_freq": 4,
+    "gradient_steps": -1,
+    "policy_kwargs": {"net_arch": [16, 16]},
+    "max_episode_steps": 20,
+    "eval_freq": 64,
+    "n_eval_episodes": 1,
+    "checkpoint_freq": 64,
+}
+PPO_SMALL: dict[str, Any] = {
+    "n_timesteps": 256,
+    "n_envs": 2,
+    "vec_env": "dummy",
+    "learning_rate": "lin_3e-4",
+    "n_steps": 32,
+    "batch_size": 32,
+    "n_epochs": 1,
+    "policy_kwargs": {"net_arch": [8, 8]},
+    "max_episode_steps": 20,
+    "eval_freq": 64,
+    "n_eval_episodes": 1,
+    "checkpoint_freq": 64,
+}
+
+
+def _write(tmp_path: Path, name: str, entry: dict[str, Any]) -> Path:
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump({ENV: entry}))
+    return path
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with path.open() as fh:
+        return list(csv.DictReader(fh))
+
+
+# --------------------------------------------------------------------------- configuration
+
+
+@pytest.mark.parametrize("algo", ["sac", "td3"])
+def test_shipped_off_policy_configs_load_and_round_trip(tmp_path: Path, algo: str) -> None:
+    for env_id in (*ENV_IDS[:1], MIX):
+        cfg = load_algo_config(algo, algo, env_id)
+        assert isinstance(cfg, SACConfig if algo == "sac" else TD3Config)
+        path = tmp_path / f"{algo}.yaml"
+        path.write_text(yaml.safe_dump({env_id: cfg.to_dict()}))
+        assert load_algo_config(algo, path, env_id) == cfg
+    td3 = load_algo_config("td3", "td3", ENV)
+    assert isinstance(td3, TD3Config) and td3.action_noise is not None
+    assert td3.action_noise.type == "normal" and td3.action_noise.sigma == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize("algo", ["ppo", "sac", "td3"])
+def test_soil_agent_configs(algo: str) -> None:
+    """configs/agents_soil/{algo}.yaml: the soil mix, acting on the wheels (open-loop base)."""
+    for where in ("agents_soil", REPO / "configs" / "agents_soil"):
+        cfg = load_algo_config(algo, where, MIX)
+        kw = cfg.env_kwargs
+        assert kw["scenarios"] == {
+            "sand-slope": 2,
+            "soft-patch": 1,
+            "sand-turns": 1,
+            "flat-turns": 1,
+        }
+        assert kw["residual_base"] == "open-loop" and kw["action_residual"] == 0.5
+
+
+@pytest.mark.parametrize(
+    ("algo", "over", "match"),
+    [
+        ("sac", {"policy_delay": 2}, r"unknown key\(s\) policy_delay"),
+        ("td3", {"ent_coef": "auto"}, r"unknown key\(s\) ent_coef"),
+        ("td3", {"policy_kwargs": {"log_std_init": -2}}, r"policy_kwargs: unknown key"),
+        ("sac", {"ent_coef": "autox"}, r"\.ent_coef: expected a number"),
+        ("td3", {"action_noise": {"type": "pink"}}, r"action_noise\.type: expected one of"),
+        ("sac", {"gradient_steps": 0}, r"\.gradient_steps: must be -1"),
+        ("td3", {"batch_size": 2000}, r"\.batch_size: 2000 exceeds buffer_size"),
+        ("sac", {"tau": 1.5}, r"\.tau: must be in \(0, 1\]"),
+    ],
+)
+def test_off_policy_config_errors_name_key_and_file(
+    tmp_path: Path, algo: str, over: dict[str, Any], match: str
+) -> None:
+    path = _write(tmp_path, f"{algo}_bad.yaml", {**OFF, **over})
+    with pytest.raises(ConfigError, match=match) as err:
+        load_algo_config(algo, path, ENV)
+    assert str(path) in str(err.value) and ENV in str(err.value)
+
+
+def test_unknown_algorithm_and_learned_specs() -> None:
+    with pytest.raises(ConfigError, match="unknown algorithm 'ddpg'"):
+        parse_algo_config("ddpg", {})
+    assert parse_specs("open-loop,sac:runs/a,td3:runs/b") == [
+        "open-loop",
+        "sac:runs/a",
+        "td3:runs/b",
+    ]
+    for bad in ("sac", "td3:", "a2c:runs/x"):
+        with pytest.raises(ValueError, match="unknown controller"):
+            parse_specs(bad)
+    with pytest.raises(ValueError, match="residual_base must be a classical"):
+        Residual("sac:runs/a", 0.5)
+
+
+# --------------------------------------------------------------------------- off-policy runs
+
+
+def test_sac_checkpoint_keeps_the_replay_buffer_and_resume_continues_it(tmp_path: Path) -> None:
+    cfg = _write(tmp_path, "sac.yaml", OFF)
+    run = tmp_path / "sac_run"
+    res = train(ENV, cfg, 3, run, progress=False, algo="sac")
+    assert res.algo == "sac" and res.num_timesteps == 128
+    ckpt = run / "checkpoints"
+    assert latest_checkpoint(ckpt, "sac") == 128
+    assert sorted(p.name for p in ckpt.glob("*replay_buffer*")) == [
+        "sac_replay_buffer_128_steps.pkl"
+    ]
+    with replay_buffer_path(ckpt, 128, "sac").open("rb") as fh:
+        before = pickle.load(fh)
+    assert before.pos == 64  # 128 env steps over 2 envs
+    assert yaml.safe_load((run / "command.txt").read_text())[0]["algo"] == "sac"
+
+    with pytest.raises(ConfigError, match="the run trains sac"):
+        train(None, None, None, run, resume=True, algo="td3", progress=False)
+    res2 = train(None, None, None, run, resume=True, total_timesteps=192, progress=False)
+    assert res2.resumed_from == 128 and res2.num_timesteps == 192 and res2.algo == "sac"
+    assert not replay_buffer_path(ckpt, 128, "sac").exists()  # only the newest keeps one
+    with replay_buffer_path(ckpt, 192, "sac").open("rb") as fh:
+        after = pickle.load(fh)
+    assert after.pos == 96
+    np.testing.assert_array_equal(after.observations[:64], before.observations[:64])
+    np.testing.assert_array_equal(after.actions[:64], before.actions[:64])
+    assert np.any(after.observations[64:96] != 0)
+
+    # a checkpoint whose buffer is gone cannot silently restart with an empty buffer
+    replay_buffer_path(ckpt, 192, "sac").unlink()
+    with pytest.raises(ConfigError, match="no replay buffer"):
+        train(None, None, None, run, resume=True, total_timesteps=256, progress=False)
+
+
+def test_td3_agent_runs_on_the_benchmark(tmp_path: Path) -> None:
+    entry = {**OFF, "action_noise": {"type": "normal", "sigma": 0.2}, "n_timesteps": 64}
+    cfg = _write(tmp_path, "td3.yaml", entry)
+    run = tmp_path / "td3_run"
+    train(ENV, cfg, 0, run, progress=False, algo="td3")
+    spec = agent_spec(run)
+    assert spec == f"td3:{run}"
+    assert len(agent_hash(spec)) == 16 and agent_hash(spec) != agent_hash(f"sac:{run}")
+    ctrl = make_controller(spec)
+    assert ctrl.name == spec and ctrl.action_layout == "wheels"
+    episode = load_scenario("flat-turns").episode(2000, 0.5)
+    wrapper = ScenarioWrapper(ProtoExplorerEnv(terrain=episode.terrain))
+    m = run_episode(wrapper, ctrl, episode)
+    assert math.isfinite(m["mean_abs_slip"]) and math.isfinite(m["energy_per_metre"])
+    with pytest.raises(ValueError, match=r"holds a td3 agent; use td3:"):
+        make_controller(f"sac:{run}")
+
+
+# --------------------------------------------------------------------------- search
+
+
+def test_apply_params_nested_keys_arch_and_linear_schedule() -> None:
+    base = {"learning_rate": "lin_3e-4", "n_steps": 32, "n_envs": 2, "batch_size": 256}
+    out = apply_params(
+        base,
+        {"learning_rate": 1e-3, "policy_kwargs.net_arch": "32x16", "action_noise.sigma": 0.2},
+    )
+    assert out["learning_rate"] == "lin_0.001"
+    assert out["policy_kwargs"]["net_arch"] == [32, 16]
+    assert out["action_noise"] == {"sigma": 0.2}
+    assert out["batch_size"] == 64  # capped at n_steps * n_envs
+    assert base["learning_rate"] == "lin_3e-4"  # the base entry is not modified
+
+
+SPACE = {
+    "learning_rate": {"low": 1e-4, "high": 1e-3, "log": True},
+    "n_epochs": {"choices": [1, 2]},
+    "policy_kwargs.net_arch": {"choices": ["8x8", "16x16"]},
+}
+
+
+def test_search_two_trials_then_resumes_to_three(tmp_path: Path) -> None:
+    cfg = _write(tmp_path, "ppo.yaml", PPO_SMALL)
+    out = tmp_path / "search"
+    res = search(
+        "ppo", cfg, ENV, out, trials=2, timesteps_per_trial=128, evaluations=2, space=SPACE
+    )
+    assert res.n_complete == 2 and res.best_number is not None
+    rows = _rows(out / "trials.csv")
+    assert [r["number"] for r in rows] == ["0", "1"] and all(r["state"] == "COMPLETE" for r in rows)
+    values = [float(r["value"]) for r in rows]
+    assert res.best_value == max(values)
+    # every trial: a run scored on validation evaluations, reported to the pruner
+    study = optuna.load_study(study_name=f"ppo|{ENV}", storage=f"sqlite:///{out / 'study.db'}")
+    for t in study.trials:
+        assert sorted(t.intermediate_values) == [64, 128]
+        evals = _rows(out / f"trial_{t.number:03d}" / "run" / "evaluations.csv")
+        assert float(evals[-1]["mean_reward"]) == pytest.approx(t.value)
+        assert not (out / f"trial_{t.number:03d}" / "run" / "checkpoints").exists()
+    best = load_algo_config("ppo", out / "best.yaml", ENV)
+    p = study.best_trial.params
+    assert best.learning_rate.linear and best.learning_rate.start == pytest.approx(
+        p["learning_rate"]
+    )
+    assert best.n_epochs == p["n_epochs"]
+    assert best.policy_kwargs.net_arch == tuple(
+        int(x) for x in p["policy_kwargs.net_arch"].split("x")
+    )
+    assert best.n_timesteps == 256 and best.eval_freq == 64  # the base file's, not the trial's
+
+    # the command line resumes the stored study: one more trial, the first two untouched
+    space = tmp_path / "space.yaml"
+    space.write_text(yaml.safe_dump(SPACE))
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")]),
+    }
+    cmd = [sys.executable, "train/search.py", "--algo", "ppo", "--config", str(cfg)]
+    cmd += ["--env-id", ENV, "--trials", "3", "--timesteps-per-trial", "128"]
+    cmd += ["--evaluations", "2", "--space", str(space), "--out", str(out)]
+    cmd += ["--storage", f"sqlite:///{out / 'study.db'}", "--budget-minutes", "10"]
+    proc = subprocess.run(cmd, cwd=REPO, env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "3 complete" in proc.stdout
+    rows3 = _rows(out / "trials.csv")
+    assert len(rows3) == 3 and rows3[:2] == rows
+
+
+def test_search_space_errors(tmp_path: Path) -> None:
+    cfg = _write(tmp_path, "ppo.yaml", PPO_SMALL)
+    with pytest.raises(ConfigError, match="need low < high"):
+        search(
+            "ppo",
+            cfg,
+            ENV,
+            tmp_path / "s",
+            space={"ent_coef": {"low": 0.0, "high": 0.1, "log": True}},
+        )
+    with pytest.raises(ConfigError, match="choices must be a non-empty list"):
+        search("ppo", cfg, ENV, tmp_path / "s", space={"n_epochs": {"choices": []}})
+    with pytest.raises(ConfigError, match="no entry for env id"):
+        search("ppo", cfg, MIX, tmp_path / "s", space=SPACE)
+    shutil.rmtree(tmp_path / "s", ignore_errors=True)
+
+
+def test_sweep_trains_each_algorithm_from_a_folder_of_configs(tmp_path: Path) -> None:
+    from rover_env.training.sweep import sweep
+
+    folder = tmp_path / "agents"
+    folder.mkdir()
+    for algo in ("sac", "td3"):
+        (folder / f"{algo}.yaml").write_text(yaml.safe_dump({ENV: {**OFF, "n_timesteps": 64}}))
+    rows = sweep(folder, [0], tmp_path / "sweep", algos=["sac", "td3"], progress=False)
+    assert [(r["algo"], r["num_timesteps"]) for r in rows] == [("sac", 64), ("td3", 64)]
+    for algo in ("sac", "td3"):
+        cmd = yaml.safe_load((tmp_path / "sweep" / f"{algo}_s0" / "command.txt").read_text())[0]
+        assert cmd["algo"] == algo and cmd["argv"].split()[1] == f"train/{algo}.py"
+        assert cmd["config"] == str(folder.resolve() / f"{algo}.yaml")
+
+
+def test_search_retries_a_trial_a_killed_search_left_running(tmp_path: Path) -> None:
+    from rover_env.training.search import _suggest
+
+    cfg = _write(tmp_path, "ppo.yaml", PPO_SMALL)
+    out = tmp_path / "search"
+    out.mkdir()
+    storage = f"sqlite:///{out / 'study.db'}"
+    study = optuna.create_study(storage=storage, study_name=f"ppo|{ENV}", direction="maximize")
+    orphan = study.ask()  # as a search killed mid-trial leaves it: RUNNING
+    params = {k: _suggest(orphan, k, s) for k, s in SPACE.items()}
+    res = search("ppo", cfg, ENV, out, trials=1, timesteps_per_trial=64, evaluations=1, space=SPACE)
+    trials = optuna.load_study(study_name=f"ppo|{ENV}", storage=storage).trials
+    assert [t.state.name for t in trials] == ["FAIL", "COMPLETE"]
+    assert trials[1].params == params and trials[1].user_attrs["retry_of"] == 0
+    assert res.best_number == 1 and res.n_complete == 1
