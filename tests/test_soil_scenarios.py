@@ -137,3 +137,22 @@ def test_sliding_back_is_not_progress() -> None:
     assert back["success"] == 0.0 and back["time_stuck"] == pytest.approx(5.0)
     assert legacy == forward
     assert back["energy_per_metre"] == forward["energy_per_metre"]  # over the path travelled
+
+
+def test_open_loop_gain_scales_every_target() -> None:
+    """``open-loop@gain=K``: the no-learning reference of the soil agents, targets x K, clipped
+    at the motor limit like the plain feed-forward."""
+    from rover_env.control.open_loop import OpenLoop
+    from rover_env.policies.specs import controller_settings, parse_specs
+
+    inp = _input(np.zeros(4), 0.0, v=0.15, w=0.2)
+    base, fast = OpenLoop(ROVER).act(inp), OpenLoop(ROVER, gain=1.4).act(inp)
+    np.testing.assert_allclose(fast, 1.4 * base, rtol=1e-12)
+    top = OpenLoop(ROVER, gain=1e3).act(inp)
+    assert np.all(np.abs(top) == ROVER.motor.max_wheel_speed)
+    assert parse_specs("open-loop@gain=1.4") == ["open-loop@gain=1.4"]
+    assert controller_settings("open-loop@gain=1.4")["gain"] == 1.4
+    assert controller_settings("open-loop") == {"kind": "open-loop", "variant": ""}
+    for bad in ("open-loop@kp=1", "open-loop@gain=0", "open-loop@gain=-1"):
+        with pytest.raises(ValueError, match="open-loop"):
+            parse_specs(bad)

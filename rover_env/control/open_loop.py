@@ -42,11 +42,23 @@ class OpenLoop(Controller):
     ``rolling_radius`` defaults to the slip estimator's (d minus the static deflection with
     the weight on six wheels), so the feed-forward and the estimator agree on what "no slip"
     means. Targets are clipped to the motor's ``max_wheel_speed``.
+
+    ``gain`` (default 1) multiplies every target: a fixed over-speed, the simplest answer to
+    slip on loose soil (a wheel needs 20-60 % of slip to pull there) and the no-learning
+    reference beside agents that act on the wheels (spec ``open-loop@gain=K``).
     """
 
     name = "open-loop"
 
-    def __init__(self, rover_cfg: RoverConfig, rolling_radius: npt.ArrayLike | None = None):
+    def __init__(
+        self,
+        rover_cfg: RoverConfig,
+        rolling_radius: npt.ArrayLike | None = None,
+        gain: float = 1.0,
+    ):
+        if not (np.isfinite(gain) and gain > 0):
+            raise ValueError(f"open-loop gain must be a finite number > 0, got {gain!r}")
+        self.gain = float(gain)
         self.rover_cfg = rover_cfg
         r = static_rolling_radius(rover_cfg) if rolling_radius is None else rolling_radius
         self.rolling_radius = np.broadcast_to(np.asarray(r, dtype=np.float64), (4,)).copy()
@@ -64,4 +76,6 @@ class OpenLoop(Controller):
 
     def act(self, obs: ControllerInput) -> Array:
         ff = self.feedforward(obs.speed_command, obs.yaw_rate_command)
+        if self.gain != 1.0:
+            ff = self.gain * ff
         return np.clip(ff, -self.max_wheel_speed, self.max_wheel_speed)

@@ -14,7 +14,8 @@ Gymnasium environment for each of them. A controller here turns the env's state 
 
 Classical specs (:func:`make_classical`): ``open-loop``, ``open-loop:axle_load``
 (feed-forward with per-axle loaded radii, for comparison: what calibrating the radii alone
-buys), ``slip-pi`` (gains from ``configs/control/slip_pi.yaml``), ``slip-pi:PATH.yaml``
+buys), either with ``@gain=K`` (every target x K: a fixed over-speed for loose soil),
+``slip-pi`` (gains from ``configs/control/slip_pi.yaml``), ``slip-pi:PATH.yaml``
 (other gains); any slip-pi spec may end in ``@field=value`` settings overrides
 (``slip-pi@stuck_retry_scale=2@axle_fight_scale=0.25``), the fixed settings of the ablations
 (:mod:`rover_env.benchmark.ablation`). Every spec, ``ppo:PATH`` included, is built by
@@ -135,12 +136,20 @@ def make_classical(spec: str) -> ClassicalController:
     """A classical controller from its spec (module docstring)."""
     head, overrides = split_overrides(spec)
     kind, _, arg = head.partition(":")
-    if overrides and kind != "slip-pi":
-        raise ValueError(f"controller {spec!r}: only slip-pi takes @field=value overrides")
+    if overrides and kind == "open-loop":
+        if set(overrides) != {"gain"}:
+            raise ValueError(f"controller {spec!r}: open-loop takes only @gain=K")
+        if not overrides["gain"] > 0:
+            raise ValueError(f"controller {spec!r}: gain must be > 0")
+    elif overrides and kind != "slip-pi":
+        raise ValueError(f"controller {spec!r}: only slip-pi and open-loop take @ overrides")
+    gain = overrides.get("gain", 1.0) if kind == "open-loop" else 1.0
     if kind == "open-loop" and not arg:
-        return ClassicalController(spec, lambda cfg, dt: OpenLoop(cfg))
+        return ClassicalController(spec, lambda cfg, dt: OpenLoop(cfg, gain=gain))
     if kind == "open-loop" and arg == "axle_load":
-        return ClassicalController(spec, lambda cfg, dt: OpenLoop(cfg, axle_load_radii(cfg)[:4]))
+        return ClassicalController(
+            spec, lambda cfg, dt: OpenLoop(cfg, axle_load_radii(cfg)[:4], gain=gain)
+        )
     if kind == "slip-pi":
         gains = _slip_pi_config(spec)
         return ClassicalController(spec, lambda cfg, dt: SlipPI(cfg, gains, dt=dt))
@@ -157,4 +166,7 @@ def classical_settings(spec: str) -> dict[str, Any]:
     make_classical(spec)  # validates
     if kind == "slip-pi":
         return {"kind": kind, "settings": to_dict(_slip_pi_config(spec))}
+    gain = split_overrides(spec)[1].get("gain", 1.0)
+    if gain != 1.0:
+        return {"kind": kind, "variant": arg, "gain": gain}
     return {"kind": kind, "variant": arg}

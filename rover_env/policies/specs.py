@@ -1,6 +1,6 @@
 """Every controller spec of the command line, built: classical ones and learned agents.
 
-Specs: ``open-loop``, ``open-loop:axle_load``, ``slip-pi[:GAINS.yaml][@field=value...]``
+Specs: ``open-loop[@gain=K]``, ``open-loop:axle_load``, ``slip-pi[:GAINS.yaml][@field=value...]``
 (:mod:`rover_env.policies.controllers`) and ``ppo:PATH``, ``sac:PATH``, ``td3:PATH`` (a run
 folder or a ``.zip``, :mod:`rover_env.policies.ppo`, imported only when asked so that torch
 loads only then).
@@ -20,7 +20,7 @@ from rover_env.policies.controllers import (
 
 __all__ = ["controller_settings", "is_learned", "make_controller", "parse_specs"]
 
-_USE = "open-loop[:axle_load], slip-pi[:GAINS], ppo:PATH, sac:PATH or td3:PATH"
+_USE = "open-loop[:axle_load][@gain=K], slip-pi[:GAINS], ppo:PATH, sac:PATH or td3:PATH"
 
 
 def is_learned(spec: str) -> bool:
@@ -36,7 +36,7 @@ def make_controller(spec: str) -> EnvController:
         from rover_env.policies.ppo import SB3Controller  # lazy: torch only when asked
 
         return SB3Controller(arg, name=spec, algo=kind)
-    if kind in ("open-loop", "slip-pi") or kind.startswith("slip-pi@"):
+    if kind in ("open-loop", "slip-pi") or kind.startswith(("slip-pi@", "open-loop@")):
         return make_classical(spec)
     raise ValueError(f"unknown controller {spec!r}; use {_USE}")
 
