@@ -64,8 +64,6 @@ _GL_X, _GL_W = np.polynomial.legendre.leggauss(NODES)
 # the truncation error is below 1e-16); the compiled plugin runs the same Horner steps.
 _COS = tuple((-1) ** k / math.factorial(2 * k) for k in range(12))
 _SIN = tuple((-1) ** k / math.factorial(2 * k + 1) for k in range(12))
-_LATERAL_DIRECT = 300.0
-"""Bound of g * half below which the lateral exponentials are factored (no overflow)."""
 _SHORT_HALF = 0.6
 """Half-width (rad) up to which 8 Taylor terms suffice (omitted term < 1e-17 at |x| <= 0.58)."""
 _NEWTON_STEPS = 2
@@ -192,6 +190,70 @@ def _sincos_nodes(mid: FloatArray, half: FloatArray) -> tuple[FloatArray, FloatA
     return sm * c + cm * sa, cm * c - sm * sa
 
 
+# The node arithmetic's exponential and logarithm are our own (the C twin vectorises them; a
+# library call per node cannot be): only +, -, *, /, comparisons and integer bit operations,
+# so numpy and the C lanes round identically. e^x: Cody–Waite reduction x = k ln2 + r,
+# |r| <= ln2/2, then the Taylor polynomial to r^13 (omitted term < 5e-18); log: fdlibm's.
+_EXP_C = tuple(1.0 / math.factorial(k) for k in range(14))
+_EXP_SHIFT = 6755399441055744.0  # 0x1.8p52: x + it rounds x to an integer (k in the low bits)
+_EXP_SHIFT_BITS = np.uint64(0x4338000000000000)
+_INV_LN2 = 1.4426950408889634
+_LN2_HI = float.fromhex("0x1.62e42fee00000p-1")  # fdlibm's ln2_hi: k * _LN2_HI is exact
+_LN2_LO = float.fromhex("0x1.a39ef35793c76p-33")
+_LG = (  # fdlibm e_log.c, Lg1 .. Lg7
+    6.666666666666735130e-01,
+    3.999999999940941908e-01,
+    2.857142874366239149e-01,
+    2.222219843214978396e-01,
+    1.818357216161805012e-01,
+    1.531383769920937332e-01,
+    1.479819860511658591e-01,
+)
+_LOG_OFF = np.uint64(0x3FE6A09E667F3BCD)  # bits of sqrt(1/2)
+_TOP12 = np.uint64(0xFFF0000000000000)
+_TWO52_BITS = np.uint64(0x4330000000000000)
+_MIN_NORMAL = 2.0**-1022
+
+
+def _exp(x: FloatArray) -> FloatArray:
+    """e^x (relative error ~2e-16), 0 below −708 and inf above 709; the C twin's vexp_n."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        kd = x * _INV_LN2 + _EXP_SHIFT
+        k = kd - _EXP_SHIFT
+        r = (x - k * _LN2_HI) - k * _LN2_LO
+        p = np.full_like(r, _EXP_C[13])
+        for c in _EXP_C[12::-1]:
+            p = p * r + c
+        scale = ((kd.view(np.uint64) - _EXP_SHIFT_BITS + np.uint64(1023)) << np.uint64(52)).view(
+            np.float64
+        )
+        y = p * scale
+    return np.where(x > 709.0, np.inf, np.where(x < -708.0, 0.0, y))
+
+
+def _log(x: FloatArray) -> FloatArray:
+    """Natural log of normal x > 0 (garbage elsewhere): fdlibm's, x = 2^k z, z in [√½, √2)."""
+    with np.errstate(all="ignore"):
+        ix = x.view(np.uint64)
+        tmp = ix - _LOG_OFF
+        ku = (tmp + np.uint64(1 << 62)) >> np.uint64(52)  # k + 1024
+        kd = (ku | _TWO52_BITS).view(np.float64) - (4503599627370496.0 + 1024.0)
+        f = (ix - (tmp & _TOP12)).view(np.float64) - 1.0
+        s = f / (2.0 + f)
+        z = s * s
+        w = z * z
+        t1 = w * (_LG[1] + w * (_LG[3] + w * _LG[5]))
+        t2 = z * (_LG[0] + w * (_LG[2] + w * (_LG[4] + w * _LG[6])))
+        rr = t2 + t1
+        hfsq = 0.5 * f * f
+        return kd * _LN2_HI - ((hfsq - (s * (hfsq + rr) + kd * _LN2_LO)) - f)
+
+
+def _pow_pos(b: FloatArray, n: FloatArray) -> FloatArray:
+    """b^n for b >= 0 as e^(n log b); 0 where b is not a normal positive number."""
+    return np.where(b >= _MIN_NORMAL, _exp(n * _log(b)), 0.0)
+
+
 def _lateral_sign(tb: FloatArray, one_s: FloatArray) -> FloatArray:
     """sign(j_y) at every node: j_y = r (1 - s)(θ_c - θ) tan β, and θ_c - θ > 0 inside arcs."""
     return np.sign(tb)[..., None, None] * (one_s > 0.0)
@@ -201,28 +263,13 @@ def _lateral_decay(
     tb: FloatArray,
     one_s: FloatArray,
     th_c: FloatArray,
-    mid: FloatArray,
-    half: FloatArray,
+    th: FloatArray,
     r: float,
     k_y: float,
 ) -> FloatArray:
-    """exp(-|j_y| / k_y) at the nodes, (..., arcs, NODES).
-
-    |j_y| / k_y = g (θ_c - θ) is affine in the node, so the exponential is exp(-g (θ_c - mid))
-    times exp(g half x_k) or divided by it for the mirrored node: five calls per arc instead
-    of eight (the C twin does the same). Where g half > _LATERAL_DIRECT the factors could
-    overflow, and the nodes get their own exponentials.
-    """
+    """exp(-|j_y| / k_y) at the nodes th, (..., arcs, NODES): |j_y| / k_y = g (θ_c − θ)."""
     g = np.abs(r * one_s * tb[..., None, None]) / k_y
-    gh = g * half[..., None]
-    xp = _GL_X[NODES // 2 :]
-    with np.errstate(over="ignore", invalid="ignore"):
-        e_mid = np.exp(-g * (th_c - mid[..., None]))
-        fac = np.exp(gh * xp)
-        paired = np.concatenate([e_mid / fac[..., ::-1], e_mid * fac], axis=-1)
-    th = mid[..., None] + half[..., None] * _GL_X
-    direct = np.exp(-(g * (th_c - th)))
-    return np.where(gh > _LATERAL_DIRECT, direct, paired)
+    return _exp(-(g * (th_c - th)))
 
 
 def _kink_points(
@@ -344,18 +391,17 @@ def stress_integrals(
     cos_eq = _sincos_nodes(th_f[..., None] - (mid - th_r[..., None]) * slope, -(half * slope))[1]
     rear = (hi <= th_m[..., None])[..., None]
     base = np.maximum(r * (np.where(rear, cos_eq, cos_t) - cos_f[..., None, None]), 0.0)
-    sigma = ks * base ** n[..., None, None]
+    n = n[..., None, None]
+    # pow(x, 1) == x exactly, and the C twin takes no logarithm there
+    sigma = ks * (base if np.all(n == 1.0) else np.where(n == 1.0, base, _pow_pos(base, n)))
     one_s = one_s[..., None, None]
     th_c = th_c[..., None, None]
     j_x = r * ((th_c - th) - one_s * (sin_c[..., None, None] - sin_t))
     tau_max = p.c + sigma * tan_phi
-    # 1 - exp rather than -expm1: the same to 1e-16 of tau_max, and exp is the cheaper call
-    # in the compiled twin (numpy's exp equals the C library's bit for bit here; tested).
-    tau_x = tau_max * np.sign(j_x) * (1.0 - np.exp(-np.abs(j_x) / p.k_x))
+    # 1 - exp rather than -expm1: the same to 1e-16 of tau_max, and cheaper
+    tau_x = tau_max * np.sign(j_x) * (1.0 - _exp(-np.abs(j_x) / p.k_x))
     tau_y = (
-        tau_max
-        * _lateral_sign(tb, one_s)
-        * (1.0 - _lateral_decay(tb, one_s, th_c, mid, half, r, p.k_y))
+        tau_max * _lateral_sign(tb, one_s) * (1.0 - _lateral_decay(tb, one_s, th_c, th, r, p.k_y))
     )
     w = half[..., None] * _GL_W
     i_x = np.sum(w * (tau_x * cos_t - sigma * sin_t), axis=-1)

@@ -102,14 +102,6 @@ enum { T_VX = 0, T_VY = 1, T_VW = 2, T_FX = 3, T_FY = 4, T_FZ = 5, T_DELTA = 6,
 enum { S_C, S_PHI, S_KC, S_KPHI, S_N0, S_N1, S_KX, S_KY, S_A0, S_A1, S_LAM, S_DAMP, S_KDIG,
        S_CELL };
 
-// Gauss-Legendre nodes and weights (numpy.polynomial.legendre.leggauss(8), repr)
-static const double GL_X[SOIL_NODES] = {
-  -0.9602898564975362, -0.7966664774136267, -0.525532409916329, -0.18343464249564978,
-  0.18343464249564978, 0.525532409916329, 0.7966664774136267, 0.9602898564975362};
-static const double GL_W[SOIL_NODES] = {
-  0.10122853629037706, 0.22238103445337443, 0.3137066458778869, 0.36268378337836166,
-  0.36268378337836166, 0.3137066458778869, 0.22238103445337443, 0.10122853629037706};
-
 static const char* kAttributes[] = {
   "wheels", "joints", "motors", "radius", "tire", "max_angle_error", "terrain", "effects",
   "rut_cells", "width"
@@ -409,6 +401,107 @@ static int rut_cell_of(const TerrainView* t, double x, double y) {
 
 //---------------------------------------------------------------- soil (rover_env.soil)
 
+//------------------------------------------------ soil: four nodes at a time (soil._exp, ...)
+// The node loop runs on GCC/Clang vector extensions (4 doubles; SSE2 pairs on baseline
+// x86-64, NEON on arm64): only +, -, *, /, comparisons and integer bit operations, no libm
+// call, so every lane rounds exactly as the scalar numpy code does. The exponential and
+// logarithm are therefore our own (soil._exp, soil._log): Cody-Waite reduction with a
+// Taylor polynomial, and fdlibm's log, bit for bit the same as their numpy twins.
+#ifndef SOIL_VL
+#define SOIL_VL 2  // lanes per vector
+#endif
+#define VL SOIL_VL
+#define NQ (SOIL_NODES/VL)  // vectors per arc: the upper nodes 4..7, then the lower ones
+typedef double vd __attribute__((vector_size(8*VL)));
+typedef int64_t vm __attribute__((vector_size(8*VL)));   // comparison masks (0 or -1)
+typedef uint64_t vu __attribute__((vector_size(8*VL)));
+
+static inline vd vsplat(double x) {
+  vd v;
+  for (int i = 0; i < VL; i++) v[i] = x;
+  return v;
+}
+#define VSPLAT(x) vsplat(x)
+
+static inline vd vsel(vm m, vd a, vd b) {
+  return (vd)(((vu)m & (vu)a) | (~(vu)m & (vu)b));
+}
+
+// np.maximum(a, 0.0) (a NaN stays NaN)
+static inline vd vmax0(vd a) { return vsel((a >= 0.0) | (a != a), a, VSPLAT(0.0)); }
+
+// np.abs
+static inline vd vabs(vd a) { return (vd)((vu)a & 0x7fffffffffffffffULL); }
+
+// np.sign
+static inline vd vsign(vd a) {
+  vd one = VSPLAT(1.0);
+  return vsel(a > 0.0, one, vsel(a < 0.0, -one, vsel(a == 0.0, VSPLAT(0.0), a)));
+}
+
+// soil._EXP: 1/k!, k = 0..13
+static const double EXP_C[14] = {
+  1.0, 1.0, 0.5, 0.16666666666666666, 0.041666666666666664, 0.008333333333333333,
+  0.001388888888888889, 0.0001984126984126984, 2.48015873015873e-05, 2.7557319223985893e-06,
+  2.755731922398589e-07, 2.505210838544172e-08, 2.08767569878681e-09, 1.6059043836821613e-10};
+#define EXP_SHIFT 6755399441055744.0         // 0x1.8p52: x + it rounds x to an integer
+#define EXP_SHIFT_BITS 0x4338000000000000ULL
+#define INV_LN2 1.4426950408889634
+#define LN2_HI 0.6931471803691238            // fdlibm's ln2_hi (k LN2_HI is exact)
+#define LN2_LO 1.9082149292705877e-10
+
+// soil._exp: e^x in place for m vectors, relative error ~2e-16; 0 below -708, inf above 709.
+// Processed side by side (the loops over i innermost): the polynomials' dependency chains
+// are long, and independent ones interleave.
+#define MAXV (3*NQ)
+static inline __attribute__((always_inline)) void vexp_n(vd* x, int m) {
+  vd kd[MAXV], r[MAXV], p[MAXV];
+  _Pragma("GCC unroll 12") for (int i = 0; i < m; i++) {
+    kd[i] = x[i]*INV_LN2 + EXP_SHIFT;
+    vd k = kd[i] - EXP_SHIFT;
+    r[i] = (x[i] - k*LN2_HI) - k*LN2_LO;  // |r| <= ln2/2
+    p[i] = VSPLAT(EXP_C[13]);
+  }
+  _Pragma("GCC unroll 16") for (int j = 12; j >= 0; j--) {
+    _Pragma("GCC unroll 12") for (int i = 0; i < m; i++) p[i] = p[i]*r[i] + EXP_C[j];
+  }
+  _Pragma("GCC unroll 12") for (int i = 0; i < m; i++) {
+    vu e = ((vu)kd[i] - EXP_SHIFT_BITS + 1023) << 52;  // 2^k
+    vd y = vsel(x[i] < -708.0, VSPLAT(0.0), p[i]*(vd)e);
+    x[i] = vsel(x[i] > 709.0, VSPLAT(INFINITY), y);
+  }
+}
+
+// fdlibm's log polynomial (e_log.c, Lg1..Lg7)
+#define LG1 6.666666666666735130e-01
+#define LG2 3.999999999940941908e-01
+#define LG3 2.857142874366239149e-01
+#define LG4 2.222219843214978396e-01
+#define LG5 1.818357216161805012e-01
+#define LG6 1.531383769920937332e-01
+#define LG7 1.479819860511658591e-01
+#define LOG_OFF 0x3fe6a09e667f3bcdULL  // bits of sqrt(1/2)
+#define TOP12 0xfff0000000000000ULL
+#define TWO52_BITS 0x4330000000000000ULL
+
+// soil._log: natural log of a normal x > 0 (fdlibm's e_log.c without its special cases):
+// x = 2^k z, z in [sqrt(1/2), sqrt(2)), log z from s = (z - 1)/(z + 1)
+static inline vd vlog(vd x) {
+  vu ix = (vu)x;
+  vu tmp = ix - LOG_OFF;
+  vu ku = (tmp + (1024ULL << 52)) >> 52;  // k + 1024
+  vd kd = (vd)(ku | TWO52_BITS) - (4503599627370496.0 + 1024.0);
+  vd f = (vd)(ix - (tmp & TOP12)) - 1.0;
+  vd s = f/(2.0 + f);
+  vd z = s*s;
+  vd w = z*z;
+  vd t1 = w*(LG2 + w*(LG4 + w*LG6));
+  vd t2 = z*(LG1 + w*(LG3 + w*(LG5 + w*LG7)));
+  vd rr = t2 + t1;
+  vd hfsq = 0.5*f*f;
+  return kd*LN2_HI - ((hfsq - (s*(hfsq + rr) + kd*LN2_LO)) - f);
+}
+
 // soil._COS and soil._SIN: Taylor coefficients of cos and sin/x in x^2
 static const double SC_COS[12] = {
   1.0, -0.5, 0.041666666666666664, -0.001388888888888889, 2.48015873015873e-05,
@@ -421,27 +514,53 @@ static const double SC_SIN[12] = {
   -7.647163731819816e-13, 2.8114572543455206e-15, -8.22063524662433e-18,
   1.9572941063391263e-20, -3.868170170630684e-23};
 
-// soil._sincos_nodes: sin and cos at mid + half*x_k; the nodes are symmetric (x_{7-k} = -x_k),
-// so four polynomial pairs serve all eight (the sign flips are exact)
-static void sincos_nodes(double mid, double half, double* sn, double* cs) {
+// Gauss-Legendre nodes and weights of the upper half (x_4..x_7; x_{7-k} = -x_k),
+// numpy.polynomial.legendre.leggauss(8)
+static const double GL_XU[SOIL_NODES/2] = {
+  0.18343464249564978, 0.525532409916329, 0.7966664774136267, 0.9602898564975362};
+static const double GL_WU[SOIL_NODES/2] = {
+  0.36268378337836166, 0.3137066458778869, 0.22238103445337443, 0.10122853629037706};
+
+// An arc's 8 nodes in NQ vectors: vector q < NQ/2 holds the upper nodes 4 + q VL + lane,
+// vector NQ/2 + q their mirrors 3 - q VL - lane (x_{7-k} = -x_k: the sign flips are exact).
+static inline vd upper(const double* a, int q) {
+  vd v;
+  for (int i = 0; i < VL; i++) v[i] = a[q*VL + i];
+  return v;
+}
+
+// soil._sincos_nodes: sin and cos at mid + half*x_k; one polynomial pair serves a node and
+// its mirror
+static void sincos_nodes(double mid, double half, vd sn[NQ], vd cs[NQ]) {
   double sm, cm;
   sincos(mid, &sm, &cm);
   int terms = fabs(half) <= 0.6 ? 8 : 12;  // soil._SHORT_HALF
-  for (int k = SOIL_NODES/2; k < SOIL_NODES; k++) {
-    double a = half*GL_X[k];
-    double a2 = a*a;
-    double c = SC_COS[terms - 1], s = SC_SIN[terms - 1];
+  for (int q = 0; q < NQ/2; q++) {
+    vd a = half*upper(GL_XU, q);
+    vd a2 = a*a;
+    vd c = VSPLAT(SC_COS[terms - 1]), s = VSPLAT(SC_SIN[terms - 1]);
     for (int j = terms - 2; j >= 0; j--) {
       c = c*a2 + SC_COS[j];
       s = s*a2 + SC_SIN[j];
     }
-    double sa = a*s;
-    sn[k] = sm*c + cm*sa;
-    cs[k] = cm*c - sm*sa;
-    int m = SOIL_NODES - 1 - k;
-    sn[m] = sm*c - cm*sa;
-    cs[m] = cm*c + sm*sa;
+    vd sa = a*s;
+    sn[q] = sm*c + cm*sa;
+    cs[q] = cm*c - sm*sa;
+    sn[NQ/2 + q] = sm*c - cm*sa;
+    cs[NQ/2 + q] = cm*c + sm*sa;
   }
+}
+
+// numpy's pairwise sum of an arc's 8 node values: ((n0 + n1) + (n2 + n3)) + ((n4 + n5) + (n6 + n7))
+static inline double node_sum(const vd v[NQ]) {
+  double n[SOIL_NODES];
+  for (int q = 0; q < NQ/2; q++) {
+    for (int i = 0; i < VL; i++) {
+      n[SOIL_NODES/2 + q*VL + i] = v[q][i];
+      n[SOIL_NODES/2 - 1 - q*VL - i] = v[NQ/2 + q][i];
+    }
+  }
+  return ((n[0] + n[1]) + (n[2] + n[3])) + ((n[4] + n[5]) + (n[6] + n[7]));
 }
 
 // soil._kink_points for one wheel with s < 0 and q cos(th_c) < 1 (the caller's cheap test):
@@ -519,48 +638,48 @@ static void stress_integrals(double s, double tb, double d, double h, double hc,
   double span = th_m > th_r ? th_m - th_r : 1.0;
   double slope = (th_f - th_m)/span;
   double sums[4] = {0.0, 0.0, 0.0, 0.0};
-  double g = fabs(r*one_s*tb)/sp[S_KY];  // soil._lateral_decay
+  double g = fabs(r*one_s*tb)/sp[S_KY];  // |j_y|/k_y = g (th_c - th)
   double sgn_y = np_sign(tb)*(one_s > 0.0 ? 1.0 : 0.0);  // soil._lateral_sign
+  int n_one = n == 1.0;  // pow(x, 1) == x exactly: no logarithm
+  double c = sp[S_C], k_x = sp[S_KX];
   for (int arc = 0; arc < 4; arc++) {
     double mid = 0.5*(hi[arc] + lo[arc]);
     double half = 0.5*(hi[arc] - lo[arc]);
     if (half == 0.0) continue;
     int rear = hi[arc] <= th_m;
-    double sin_t[SOIL_NODES], cos_t[SOIL_NODES], sin_eq[SOIL_NODES], cos_eq[SOIL_NODES];
+    vd sin_t[NQ], cos_t[NQ], sin_eq[NQ], cos_eq[NQ];
     sincos_nodes(mid, half, sin_t, cos_t);
     if (rear) sincos_nodes(th_f - (mid - th_r)*slope, -(half*slope), sin_eq, cos_eq);
-    // soil._lateral_decay: exp(-|j_y|/k_y) at the nodes, factored where it cannot overflow
-    double ey[SOIL_NODES];
-    double gh = g*half;
-    if (gh > 300.0) {  // soil._LATERAL_DIRECT
-      for (int k = 0; k < SOIL_NODES; k++) ey[k] = exp(-(g*(th_c - (mid + half*GL_X[k]))));
-    } else {
-      double e_mid = exp(-g*(th_c - mid));
-      for (int k = SOIL_NODES/2; k < SOIL_NODES; k++) {
-        double fac = exp(gh*GL_X[k]);
-        ey[k] = e_mid*fac;
-        ey[SOIL_NODES - 1 - k] = e_mid/fac;
-      }
+    // the exponentials' arguments: shear -|j_x|/k_x, lateral -|j_y|/k_y, then n log(base)
+    vd th[NQ], base[NQ], j_x[NQ], ex[MAXV];
+    _Pragma("GCC unroll 4") for (int q = 0; q < NQ; q++) {
+      vd a = half*upper(GL_XU, q % (NQ/2));
+      th[q] = q >= NQ/2 ? mid - a : mid + a;  // mid + half x_k (x_{7-k} = -x_k exactly)
+      base[q] = vmax0(r*((rear ? cos_eq[q] : cos_t[q]) - cos_f));
+      vd ahead = th_c - th[q];
+      j_x[q] = r*(ahead - one_s*(sin_c - sin_t[q]));
+      ex[q] = -vabs(j_x[q])/k_x;
+      ex[NQ + q] = -(g*ahead);
+      if (!n_one) ex[2*NQ + q] = n*vlog(base[q]);
     }
-    double ax[SOIL_NODES], ay[SOIL_NODES], az[SOIL_NODES], at[SOIL_NODES];
-    for (int k = 0; k < SOIL_NODES; k++) {
-      double th = mid + half*GL_X[k];
-      double base = np_max(r*((rear ? cos_eq[k] : cos_t[k]) - cos_f), 0.0);
-      double sigma = ks*(n == 1.0 ? base : pow(base, n));  // pow(x, 1) == x exactly
-      double j_x = r*((th_c - th) - one_s*(sin_c - sin_t[k]));
-      double tau_max = sp[S_C] + sigma*tan_phi;
-      double tau_x = tau_max*np_sign(j_x)*(1.0 - exp(-fabs(j_x)/sp[S_KX]));
-      double tau_y = tau_max*sgn_y*(1.0 - ey[k]);
-      double w = half*GL_W[k];
-      ax[k] = w*(tau_x*cos_t[k] - sigma*sin_t[k]);
-      ay[k] = w*tau_y;
-      az[k] = w*(tau_x*sin_t[k] + sigma*cos_t[k]);
-      at[k] = w*tau_x;
+    if (n_one) vexp_n(ex, 2*NQ); else vexp_n(ex, 3*NQ);  // constant counts: unrolled
+    vd ax[NQ], ay[NQ], az[NQ], at[NQ];
+    _Pragma("GCC unroll 4") for (int q = 0; q < NQ; q++) {
+      vd w = half*upper(GL_WU, q % (NQ/2));
+      // soil._pow_pos: 0 where base is not a normal positive number (pow(x, 1) == x exactly)
+      vd sigma = ks*(n_one ? base[q] : vsel(base[q] >= 0x1p-1022, ex[2*NQ + q], VSPLAT(0.0)));
+      vd tau_max = c + sigma*tan_phi;
+      vd tau_x = tau_max*vsign(j_x[q])*(1.0 - ex[q]);
+      vd tau_y = tau_max*sgn_y*(1.0 - ex[NQ + q]);
+      ax[q] = w*(tau_x*cos_t[q] - sigma*sin_t[q]);
+      ay[q] = w*tau_y;
+      az[q] = w*(tau_x*sin_t[q] + sigma*cos_t[q]);
+      at[q] = w*tau_x;
     }
-    sums[0] += pairwise_sum(ax, SOIL_NODES);
-    sums[1] += pairwise_sum(ay, SOIL_NODES);
-    sums[2] += pairwise_sum(az, SOIL_NODES);
-    sums[3] += pairwise_sum(at, SOIL_NODES);
+    sums[0] += node_sum(ax);
+    sums[1] += node_sum(ay);
+    sums[2] += node_sum(az);
+    sums[3] += node_sum(at);
   }
   double rb = r*b;
   out[0] = d*rb*sums[0];
