@@ -102,6 +102,16 @@ enum { T_VX = 0, T_VY = 1, T_VW = 2, T_FX = 3, T_FY = 4, T_FZ = 5, T_DELTA = 6,
 enum { S_C, S_PHI, S_KC, S_KPHI, S_N0, S_N1, S_KX, S_KY, S_A0, S_A1, S_LAM, S_DAMP, S_KDIG,
        S_CELL };
 
+// What the arcs of one wheel share (soil.stress_integrals' per-wheel quantities)
+typedef struct {
+  double r, th_r, th_m, th_f, th_c, cos_f, sin_c, slope, one_s, n, ks, tan_phi, c, k_x, g, sgn_y;
+} ArcShared;
+
+// sums[4] += the four node sums (x, y, z stresses and the shear for the torque) of each
+// arc [lo[a], hi[a]] of nonzero width
+typedef void (*ArcsFn)(const ArcShared* A, const double lo[4], const double hi[4],
+                       double sums[4]);
+
 static const char* kAttributes[] = {
   "wheels", "joints", "motors", "radius", "tire", "max_angle_error", "terrain", "effects",
   "rut_cells", "width"
@@ -117,6 +127,7 @@ typedef struct {
   double combined_on, load_fall, load_fz0, load_span;  // model extensions (config 'effects')
   // per-model constants of the hot path, each computed exactly as the numpy code does per call
   double three_over_cs, three_over_calpha, three_sy_over_calpha;
+  ArcsFn arcs;  // the soil arcs' vector width for this CPU (choose_arcs)
   int terrain;  // numeric id
   int capw;     // wave capacity the scratch is sized for
   // scratch of the MjData this configuration belongs to (one per thread in mujoco.batch)
@@ -401,45 +412,16 @@ static int rut_cell_of(const TerrainView* t, double x, double y) {
 
 //---------------------------------------------------------------- soil (rover_env.soil)
 
-//------------------------------------------------ soil: four nodes at a time (soil._exp, ...)
-// The node loop runs on GCC/Clang vector extensions (4 doubles; SSE2 pairs on baseline
-// x86-64, NEON on arm64): only +, -, *, /, comparisons and integer bit operations, no libm
-// call, so every lane rounds exactly as the scalar numpy code does. The exponential and
-// logarithm are therefore our own (soil._exp, soil._log): Cody-Waite reduction with a
-// Taylor polynomial, and fdlibm's log, bit for bit the same as their numpy twins.
-#ifndef SOIL_VL
-#define SOIL_VL 2  // lanes per vector
-#endif
-#define VL SOIL_VL
-#define NQ (SOIL_NODES/VL)  // vectors per arc: the upper nodes 4..7, then the lower ones
-typedef double vd __attribute__((vector_size(8*VL)));
-typedef int64_t vm __attribute__((vector_size(8*VL)));   // comparison masks (0 or -1)
-typedef uint64_t vu __attribute__((vector_size(8*VL)));
+//---------------------------------------------------------------- soil: the arcs' nodes
+// The node loop (soil_nodes.h) runs on GCC/Clang vector extensions: only +, -, *, /,
+// comparisons and integer bit operations, no libm call, so every lane rounds exactly as the
+// numpy code does. Its exponential and logarithm are therefore our own (soil._exp,
+// soil._log): Cody-Waite reduction with a Taylor polynomial, and fdlibm's log, bit for bit
+// the same as their numpy twins. soil_nodes.h is compiled twice: 2 lanes (SSE2, the x86-64
+// baseline; NEON on arm64) and, on x86-64, 4 lanes for CPUs with AVX2 (chosen at run time;
+// AVX2 without FMA, so the roundings are the same). The constants are shared.
 
-static inline vd vsplat(double x) {
-  vd v;
-  for (int i = 0; i < VL; i++) v[i] = x;
-  return v;
-}
-#define VSPLAT(x) vsplat(x)
-
-static inline vd vsel(vm m, vd a, vd b) {
-  return (vd)(((vu)m & (vu)a) | (~(vu)m & (vu)b));
-}
-
-// np.maximum(a, 0.0) (a NaN stays NaN)
-static inline vd vmax0(vd a) { return vsel((a >= 0.0) | (a != a), a, VSPLAT(0.0)); }
-
-// np.abs
-static inline vd vabs(vd a) { return (vd)((vu)a & 0x7fffffffffffffffULL); }
-
-// np.sign
-static inline vd vsign(vd a) {
-  vd one = VSPLAT(1.0);
-  return vsel(a > 0.0, one, vsel(a < 0.0, -one, vsel(a == 0.0, VSPLAT(0.0), a)));
-}
-
-// soil._EXP: 1/k!, k = 0..13
+// soil._EXP_C: 1/k!, k = 0..13
 static const double EXP_C[14] = {
   1.0, 1.0, 0.5, 0.16666666666666666, 0.041666666666666664, 0.008333333333333333,
   0.001388888888888889, 0.0001984126984126984, 2.48015873015873e-05, 2.7557319223985893e-06,
@@ -449,28 +431,6 @@ static const double EXP_C[14] = {
 #define INV_LN2 1.4426950408889634
 #define LN2_HI 0.6931471803691238            // fdlibm's ln2_hi (k LN2_HI is exact)
 #define LN2_LO 1.9082149292705877e-10
-
-// soil._exp: e^x in place for m vectors, relative error ~2e-16; 0 below -708, inf above 709.
-// Processed side by side (the loops over i innermost): the polynomials' dependency chains
-// are long, and independent ones interleave.
-#define MAXV (3*NQ)
-static inline __attribute__((always_inline)) void vexp_n(vd* x, int m) {
-  vd kd[MAXV], r[MAXV], p[MAXV];
-  _Pragma("GCC unroll 12") for (int i = 0; i < m; i++) {
-    kd[i] = x[i]*INV_LN2 + EXP_SHIFT;
-    vd k = kd[i] - EXP_SHIFT;
-    r[i] = (x[i] - k*LN2_HI) - k*LN2_LO;  // |r| <= ln2/2
-    p[i] = VSPLAT(EXP_C[13]);
-  }
-  _Pragma("GCC unroll 16") for (int j = 12; j >= 0; j--) {
-    _Pragma("GCC unroll 12") for (int i = 0; i < m; i++) p[i] = p[i]*r[i] + EXP_C[j];
-  }
-  _Pragma("GCC unroll 12") for (int i = 0; i < m; i++) {
-    vu e = ((vu)kd[i] - EXP_SHIFT_BITS + 1023) << 52;  // 2^k
-    vd y = vsel(x[i] < -708.0, VSPLAT(0.0), p[i]*(vd)e);
-    x[i] = vsel(x[i] > 709.0, VSPLAT(INFINITY), y);
-  }
-}
 
 // fdlibm's log polynomial (e_log.c, Lg1..Lg7)
 #define LG1 6.666666666666735130e-01
@@ -483,24 +443,6 @@ static inline __attribute__((always_inline)) void vexp_n(vd* x, int m) {
 #define LOG_OFF 0x3fe6a09e667f3bcdULL  // bits of sqrt(1/2)
 #define TOP12 0xfff0000000000000ULL
 #define TWO52_BITS 0x4330000000000000ULL
-
-// soil._log: natural log of a normal x > 0 (fdlibm's e_log.c without its special cases):
-// x = 2^k z, z in [sqrt(1/2), sqrt(2)), log z from s = (z - 1)/(z + 1)
-static inline vd vlog(vd x) {
-  vu ix = (vu)x;
-  vu tmp = ix - LOG_OFF;
-  vu ku = (tmp + (1024ULL << 52)) >> 52;  // k + 1024
-  vd kd = (vd)(ku | TWO52_BITS) - (4503599627370496.0 + 1024.0);
-  vd f = (vd)(ix - (tmp & TOP12)) - 1.0;
-  vd s = f/(2.0 + f);
-  vd z = s*s;
-  vd w = z*z;
-  vd t1 = w*(LG2 + w*(LG4 + w*LG6));
-  vd t2 = z*(LG1 + w*(LG3 + w*(LG5 + w*LG7)));
-  vd rr = t2 + t1;
-  vd hfsq = 0.5*f*f;
-  return kd*LN2_HI - ((hfsq - (s*(hfsq + rr) + kd*LN2_LO)) - f);
-}
 
 // soil._COS and soil._SIN: Taylor coefficients of cos and sin/x in x^2
 static const double SC_COS[12] = {
@@ -521,46 +463,41 @@ static const double GL_XU[SOIL_NODES/2] = {
 static const double GL_WU[SOIL_NODES/2] = {
   0.36268378337836166, 0.3137066458778869, 0.22238103445337443, 0.10122853629037706};
 
-// An arc's 8 nodes in NQ vectors: vector q < NQ/2 holds the upper nodes 4 + q VL + lane,
-// vector NQ/2 + q their mirrors 3 - q VL - lane (x_{7-k} = -x_k: the sign flips are exact).
-static inline vd upper(const double* a, int q) {
-  vd v;
-  for (int i = 0; i < VL; i++) v[i] = a[q*VL + i];
-  return v;
-}
+#define SOIL_VL 2
+#define SOIL_SUFFIX _v2
+#include "soil_nodes.h"
+#undef SOIL_VL
+#undef SOIL_SUFFIX
 
-// soil._sincos_nodes: sin and cos at mid + half*x_k; one polynomial pair serves a node and
-// its mirror
-static void sincos_nodes(double mid, double half, vd sn[NQ], vd cs[NQ]) {
-  double sm, cm;
-  sincos(mid, &sm, &cm);
-  int terms = fabs(half) <= 0.6 ? 8 : 12;  // soil._SHORT_HALF
-  for (int q = 0; q < NQ/2; q++) {
-    vd a = half*upper(GL_XU, q);
-    vd a2 = a*a;
-    vd c = VSPLAT(SC_COS[terms - 1]), s = VSPLAT(SC_SIN[terms - 1]);
-    for (int j = terms - 2; j >= 0; j--) {
-      c = c*a2 + SC_COS[j];
-      s = s*a2 + SC_SIN[j];
-    }
-    vd sa = a*s;
-    sn[q] = sm*c + cm*sa;
-    cs[q] = cm*c - sm*sa;
-    sn[NQ/2 + q] = sm*c - cm*sa;
-    cs[NQ/2 + q] = cm*c + sm*sa;
-  }
-}
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define SOIL_HAVE_V4 1
+#if defined(__clang__)
+#pragma clang attribute push(__attribute__((target("avx2"))), apply_to = function)
+#else
+#pragma GCC push_options
+#pragma GCC target("avx2")
+#endif
+#define SOIL_VL 4
+#define SOIL_SUFFIX _v4
+#include "soil_nodes.h"
+#undef SOIL_VL
+#undef SOIL_SUFFIX
+#if defined(__clang__)
+#pragma clang attribute pop
+#else
+#pragma GCC pop_options
+#endif
+#endif
 
-// numpy's pairwise sum of an arc's 8 node values: ((n0 + n1) + (n2 + n3)) + ((n4 + n5) + (n6 + n7))
-static inline double node_sum(const vd v[NQ]) {
-  double n[SOIL_NODES];
-  for (int q = 0; q < NQ/2; q++) {
-    for (int i = 0; i < VL; i++) {
-      n[SOIL_NODES/2 + q*VL + i] = v[q][i];
-      n[SOIL_NODES/2 - 1 - q*VL - i] = v[NQ/2 + q][i];
-    }
-  }
-  return ((n[0] + n[1]) + (n[2] + n[3])) + ((n[4] + n[5]) + (n[6] + n[7]));
+// The arcs' implementation for this CPU: 4 lanes where AVX2 runs, unless the environment
+// variable ROVER_ENV_SOIL_LANES=2 asks for the baseline (tests run both; same results)
+static ArcsFn choose_arcs(void) {
+#ifdef SOIL_HAVE_V4
+  const char* lanes = getenv("ROVER_ENV_SOIL_LANES");
+  __builtin_cpu_init();
+  if (!(lanes && strcmp(lanes, "2") == 0) && __builtin_cpu_supports("avx2")) return arcs_v4;
+#endif
+  return arcs_v2;
 }
 
 // soil._kink_points for one wheel with s < 0 and q cos(th_c) < 1 (the caller's cheap test):
@@ -609,9 +546,9 @@ static void kink_points(double s, double one_s, double th_r, double th_c, double
 // soil.stress_integrals for one wheel: out = F_x, F_y, F_z, T. The four arcs lie between
 // th_r, the sorted break points (th_m and the sign changes of j_x) and th_c; numpy gives a
 // zero-width arc exactly zero terms, here it is skipped (a wheel with s >= 0 has two).
-static void stress_integrals(double s, double tb, double d, double h, double hc, double r,
-                             double tan_phi,
-                             double b, const double* sp, double out[4]) {
+static void stress_integrals(ArcsFn arcs, double s, double tb, double d, double h, double hc,
+                             double r, double tan_phi, double b, const double* sp,
+                             double out[4]) {
   double hh = np_min(np_max(h, 0.0), r);
   hc = np_min(np_max(np_min(hc, hh), 0.0), r);
   if (!(hc > 0.0)) {
@@ -638,49 +575,13 @@ static void stress_integrals(double s, double tb, double d, double h, double hc,
   double span = th_m > th_r ? th_m - th_r : 1.0;
   double slope = (th_f - th_m)/span;
   double sums[4] = {0.0, 0.0, 0.0, 0.0};
-  double g = fabs(r*one_s*tb)/sp[S_KY];  // |j_y|/k_y = g (th_c - th)
-  double sgn_y = np_sign(tb)*(one_s > 0.0 ? 1.0 : 0.0);  // soil._lateral_sign
-  int n_one = n == 1.0;  // pow(x, 1) == x exactly: no logarithm
-  double c = sp[S_C], k_x = sp[S_KX];
-  for (int arc = 0; arc < 4; arc++) {
-    double mid = 0.5*(hi[arc] + lo[arc]);
-    double half = 0.5*(hi[arc] - lo[arc]);
-    if (half == 0.0) continue;
-    int rear = hi[arc] <= th_m;
-    vd sin_t[NQ], cos_t[NQ], sin_eq[NQ], cos_eq[NQ];
-    sincos_nodes(mid, half, sin_t, cos_t);
-    if (rear) sincos_nodes(th_f - (mid - th_r)*slope, -(half*slope), sin_eq, cos_eq);
-    // the exponentials' arguments: shear -|j_x|/k_x, lateral -|j_y|/k_y, then n log(base)
-    vd th[NQ], base[NQ], j_x[NQ], ex[MAXV];
-    _Pragma("GCC unroll 4") for (int q = 0; q < NQ; q++) {
-      vd a = half*upper(GL_XU, q % (NQ/2));
-      th[q] = q >= NQ/2 ? mid - a : mid + a;  // mid + half x_k (x_{7-k} = -x_k exactly)
-      base[q] = vmax0(r*((rear ? cos_eq[q] : cos_t[q]) - cos_f));
-      vd ahead = th_c - th[q];
-      j_x[q] = r*(ahead - one_s*(sin_c - sin_t[q]));
-      ex[q] = -vabs(j_x[q])/k_x;
-      ex[NQ + q] = -(g*ahead);
-      if (!n_one) ex[2*NQ + q] = n*vlog(base[q]);
-    }
-    if (n_one) vexp_n(ex, 2*NQ); else vexp_n(ex, 3*NQ);  // constant counts: unrolled
-    vd ax[NQ], ay[NQ], az[NQ], at[NQ];
-    _Pragma("GCC unroll 4") for (int q = 0; q < NQ; q++) {
-      vd w = half*upper(GL_WU, q % (NQ/2));
-      // soil._pow_pos: 0 where base is not a normal positive number (pow(x, 1) == x exactly)
-      vd sigma = ks*(n_one ? base[q] : vsel(base[q] >= 0x1p-1022, ex[2*NQ + q], VSPLAT(0.0)));
-      vd tau_max = c + sigma*tan_phi;
-      vd tau_x = tau_max*vsign(j_x[q])*(1.0 - ex[q]);
-      vd tau_y = tau_max*sgn_y*(1.0 - ex[NQ + q]);
-      ax[q] = w*(tau_x*cos_t[q] - sigma*sin_t[q]);
-      ay[q] = w*tau_y;
-      az[q] = w*(tau_x*sin_t[q] + sigma*cos_t[q]);
-      at[q] = w*tau_x;
-    }
-    sums[0] += node_sum(ax);
-    sums[1] += node_sum(ay);
-    sums[2] += node_sum(az);
-    sums[3] += node_sum(at);
-  }
+  const ArcShared A = {
+    .r = r, .th_r = th_r, .th_m = th_m, .th_f = th_f, .th_c = th_c, .cos_f = cos_f,
+    .sin_c = sin_c, .slope = slope, .one_s = one_s, .n = n, .ks = ks, .tan_phi = tan_phi,
+    .c = sp[S_C], .k_x = sp[S_KX],
+    .g = fabs(r*one_s*tb)/sp[S_KY],  // |j_y|/k_y = g (th_c - th)
+    .sgn_y = np_sign(tb)*(one_s > 0.0 ? 1.0 : 0.0)};  // soil._lateral_sign
+  arcs(&A, lo, hi, sums);
   double rb = r*b;
   out[0] = d*rb*sums[0];
   out[1] = -rb*sums[1];
@@ -869,6 +770,7 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
   c->three_over_cs = 3.0/c->tire[C_S];
   c->three_over_calpha = 3.0/c->tire[C_ALPHA];
   c->three_sy_over_calpha = 3.0*c->tire[SIGMA_Y]/c->tire[C_ALPHA];
+  c->arcs = choose_arcs();
   if (m->opt.integrator == mjINT_RK4) {
     return fail(c, "the RK4 integrator is not supported (it evaluates forces at"
                 " intermediate stages); use Euler, implicit or implicitfast", NULL);
@@ -1070,8 +972,12 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       double w = 0.5 + z*(0.75 - 0.25*z*z);
       double f[4] = {0, 0, 0, 0}, g[4] = {0, 0, 0, 0};
       double tan_phi = tan(sp[S_PHI]*DEG_TO_RAD);  // math.tan(math.radians(phi_deg))
-      if (w != 0.0) stress_integrals(s_fwd, tan_b, 1.0, h, h_c, r, tan_phi, c->width, sp, f);
-      if (w != 1.0) stress_integrals(-s_fwd, tan_b, -1.0, h, h_c, r, tan_phi, c->width, sp, g);
+      if (w != 0.0) {
+        stress_integrals(c->arcs, s_fwd, tan_b, 1.0, h, h_c, r, tan_phi, c->width, sp, f);
+      }
+      if (w != 1.0) {
+        stress_integrals(c->arcs, -s_fwd, tan_b, -1.0, h, h_c, r, tan_phi, c->width, sp, g);
+      }
       F_x = w*f[0] + (1.0 - w)*g[0];
       F_y = w*f[1] + (1.0 - w)*g[1];
       F_z = w*f[2] + (1.0 - w)*g[2];
