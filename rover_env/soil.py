@@ -171,17 +171,9 @@ def _sincos_nodes(mid: FloatArray, half: FloatArray) -> tuple[FloatArray, FloatA
     a = half[..., None] * _GL_X
     a2 = a * a
 
-    def horner(terms: int) -> tuple[FloatArray, FloatArray]:
-        c = np.full_like(a, _COS[terms - 1])
-        sn = np.full_like(a, _SIN[terms - 1])
-        for k in range(terms - 2, -1, -1):
-            c = c * a2 + _COS[k]
-            sn = sn * a2 + _SIN[k]
-        return c, sn
-
     # Short arcs (|half| <= _SHORT_HALF, nearly all) need 8 terms for 1e-17; the rest all 12.
-    c8, s8 = horner(8)
-    c12, s12 = horner(len(_COS))
+    c8, s8 = _estrin(a2, _COS[:8]), _estrin(a2, _SIN[:8])
+    c12, s12 = _estrin(a2, _COS), _estrin(a2, _SIN)
     short = (np.abs(half) <= _SHORT_HALF)[..., None]
     c = np.where(short, c8, c12)
     sa = a * np.where(short, s8, s12)
@@ -215,15 +207,24 @@ _TWO52_BITS = np.uint64(0x4330000000000000)
 _MIN_NORMAL = 2.0**-1022
 
 
+def _estrin(y: FloatArray, coef: tuple[float, ...]) -> FloatArray:
+    """Σ coef[k] y^k (an even number of them) by Estrin's scheme, as the C twin: the pairs
+    coef[2k] + coef[2k+1] y, then pairs of those with y², y⁴, … (short dependency chains)."""
+    t = [coef[2 * k] + coef[2 * k + 1] * y for k in range(len(coef) // 2)]
+    yy = y
+    while len(t) > 1:
+        yy = yy * yy
+        t = [t[2 * k] + t[2 * k + 1] * yy for k in range(len(t) // 2)] + t[len(t) - len(t) % 2 :]
+    return t[0]
+
+
 def _exp(x: FloatArray) -> FloatArray:
     """e^x (relative error ~2e-16), 0 below −708 and inf above 709; the C twin's vexp_n."""
     with np.errstate(invalid="ignore", over="ignore"):
         kd = x * _INV_LN2 + _EXP_SHIFT
         k = kd - _EXP_SHIFT
         r = (x - k * _LN2_HI) - k * _LN2_LO
-        p = np.full_like(r, _EXP_C[13])
-        for c in _EXP_C[12::-1]:
-            p = p * r + c
+        p = _estrin(r, _EXP_C)
         scale = ((kd.view(np.uint64) - _EXP_SHIFT_BITS + np.uint64(1023)) << np.uint64(52)).view(
             np.float64
         )

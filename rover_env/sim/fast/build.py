@@ -108,9 +108,7 @@ def _compile(source_name: str, stem: str) -> Path:
     source = package.joinpath(source_name).read_bytes()
     headers = {h: package.joinpath(h).read_bytes() for h in HEADERS.get(source_name, ())}
     key = hashlib.sha256(
-        b"\0".join(
-            [source, *headers.values(), MUJOCO_VERSION.encode(), " ".join(CFLAGS).encode()]
-        )
+        b"\0".join([source, *headers.values(), MUJOCO_VERSION.encode(), " ".join(CFLAGS).encode()])
     ).hexdigest()[:16]
     out_dir = cache_dir()
     target = out_dir / f"{stem}-mujoco{MUJOCO_VERSION}-{key}.so"

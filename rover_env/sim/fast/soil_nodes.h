@@ -54,23 +54,34 @@ static inline __attribute__((always_inline)) vd SN(upper)(const double* a, int q
   return v;
 }
 
+// soil._estrin: sum_k C[k] y^k over n = 8, 12 or 14 coefficients by Estrin's scheme: the
+// pairs C[2k] + C[2k+1] y, then pairs of those with y^2, y^4, y^8 (an odd one out carried
+// up): a short dependency chain. Written out per n so that it unrolls.
+static inline __attribute__((always_inline)) vd SN(estrin)(vd y, const double* C, int n) {
+  vd y2 = y*y;
+  vd y4 = y2*y2;
+  vd p0 = C[0] + C[1]*y, p1 = C[2] + C[3]*y, p2 = C[4] + C[5]*y, p3 = C[6] + C[7]*y;
+  vd q0 = p0 + p1*y2, q1 = p2 + p3*y2;
+  if (n == 8) return q0 + q1*y4;
+  vd y8 = y4*y4;
+  vd p4 = C[8] + C[9]*y, p5 = C[10] + C[11]*y;
+  vd q2 = p4 + p5*y2;
+  if (n == 12) return (q0 + q1*y4) + q2*y8;
+  vd p6 = C[12] + C[13]*y;  // n == 14: q3 = p6
+  return (q0 + q1*y4) + (q2 + p6*y4)*y8;
+}
+
 // soil._exp: e^x in place for m vectors, relative error ~2e-16; 0 below -708, inf above 709.
 // The vectors go side by side (loops over i innermost): a polynomial's dependency chain is
 // long, independent ones interleave.
 static inline __attribute__((always_inline)) void SN(exp_n)(vd* x, int m) {
-  vd kd[MAXV], r[MAXV], p[MAXV];
   _Pragma("GCC unroll 12") for (int i = 0; i < m; i++) {
-    kd[i] = x[i]*INV_LN2 + EXP_SHIFT;
-    vd k = kd[i] - EXP_SHIFT;
-    r[i] = (x[i] - k*LN2_HI) - k*LN2_LO;  // |r| <= ln2/2
-    p[i] = SN(splat)(EXP_C[13]);
-  }
-  _Pragma("GCC unroll 16") for (int j = 12; j >= 0; j--) {
-    _Pragma("GCC unroll 12") for (int i = 0; i < m; i++) p[i] = p[i]*r[i] + EXP_C[j];
-  }
-  _Pragma("GCC unroll 12") for (int i = 0; i < m; i++) {
-    vu e = ((vu)kd[i] - EXP_SHIFT_BITS + 1023) << 52;  // 2^k
-    vd y = SN(sel)(x[i] < -708.0, SN(splat)(0.0), p[i]*(vd)e);
+    vd kd = x[i]*INV_LN2 + EXP_SHIFT;
+    vd k = kd - EXP_SHIFT;
+    vd r = (x[i] - k*LN2_HI) - k*LN2_LO;  // |r| <= ln2/2
+    vd p = SN(estrin)(r, EXP_C, 14);
+    vu e = ((vu)kd - EXP_SHIFT_BITS + 1023) << 52;  // 2^k
+    vd y = SN(sel)(x[i] < -708.0, SN(splat)(0.0), p*(vd)e);
     x[i] = SN(sel)(x[i] > 709.0, SN(splat)(INFINITY), y);
   }
 }
@@ -102,10 +113,13 @@ static inline __attribute__((always_inline)) void SN(sincos_nodes)(double mid, d
   _Pragma("GCC unroll 2") for (int q = 0; q < NQ/2; q++) {
     vd a = half*SN(upper)(GL_XU, q);
     vd a2 = a*a;
-    vd c = SN(splat)(SC_COS[terms - 1]), s = SN(splat)(SC_SIN[terms - 1]);
-    for (int j = terms - 2; j >= 0; j--) {
-      c = c*a2 + SC_COS[j];
-      s = s*a2 + SC_SIN[j];  // cos(mid + a) needs sin a too
+    vd c, s;  // cos(mid + a) needs sin a too
+    if (terms == 8) {
+      c = SN(estrin)(a2, SC_COS, 8);
+      s = SN(estrin)(a2, SC_SIN, 8);
+    } else {
+      c = SN(estrin)(a2, SC_COS, 12);
+      s = SN(estrin)(a2, SC_SIN, 12);
     }
     vd sa = a*s;
     cs[q] = cm*c - sm*sa;

@@ -128,6 +128,7 @@ typedef struct {
   // per-model constants of the hot path, each computed exactly as the numpy code does per call
   double three_over_cs, three_over_calpha, three_sy_over_calpha;
   ArcsFn arcs;  // the soil arcs' vector width for this CPU (choose_arcs)
+  double last_phi, last_tan_phi;  // soil_tan_phi's memory
   int terrain;  // numeric id
   int capw;     // wave capacity the scratch is sized for
   // scratch of the MjData this configuration belongs to (one per thread in mujoco.batch)
@@ -589,6 +590,16 @@ static void stress_integrals(ArcsFn arcs, double s, double tb, double d, double 
   out[3] = d*r*rb*sums[3];
 }
 
+// math.tan(math.radians(phi_deg)) of a soil, remembered from the last call (one soil is the
+// common case; the same number either way)
+static inline double soil_tan_phi(Config* c, double phi_deg) {
+  if (phi_deg != c->last_phi) {
+    c->last_tan_phi = tan(phi_deg*DEG_TO_RAD);
+    c->last_phi = phi_deg;
+  }
+  return c->last_tan_phi;
+}
+
 //---------------------------------------------------------------- tire (rover_env.tire)
 
 // _gim_magnitude: returns |F|, sets the bound mu F_z; three_over_k = 3.0 / stiffness
@@ -771,6 +782,7 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
   c->three_over_calpha = 3.0/c->tire[C_ALPHA];
   c->three_sy_over_calpha = 3.0*c->tire[SIGMA_Y]/c->tire[C_ALPHA];
   c->arcs = choose_arcs();
+  c->last_phi = NAN;  // no tangent remembered yet
   if (m->opt.integrator == mjINT_RK4) {
     return fail(c, "the RK4 integrator is not supported (it evaluates forces at"
                 " intermediate stages); use Euler, implicit or implicitfast", NULL);
@@ -824,7 +836,7 @@ static void tire_reset(const mjModel* m, mjtNum* plugin_state, void* plugin_data
 
 static void tire_compute(const mjModel* m, mjData* d, int instance, int capability_bit) {
   (void)capability_bit;
-  const Config* c = (const Config*)d->plugin_data[instance];
+  Config* c = (Config*)d->plugin_data[instance];  // this MjData's own (soil_tan_phi writes)
   if (!c) return;
   const int nw = c->nw, nd = c->nd, nv = m->nv;
   const Layout L = layout_of(nw, nd, c->rut_cells);
@@ -971,7 +983,7 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       double z = np_min(np_max(lead/SOIL_V_BLEND, -1.0), 1.0);  // soil.V_BLEND smoothstep
       double w = 0.5 + z*(0.75 - 0.25*z*z);
       double f[4] = {0, 0, 0, 0}, g[4] = {0, 0, 0, 0};
-      double tan_phi = tan(sp[S_PHI]*DEG_TO_RAD);  // math.tan(math.radians(phi_deg))
+      double tan_phi = soil_tan_phi(c, sp[S_PHI]);
       if (w != 0.0) {
         stress_integrals(c->arcs, s_fwd, tan_b, 1.0, h, h_c, r, tan_phi, c->width, sp, f);
       }
