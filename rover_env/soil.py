@@ -20,8 +20,10 @@ Newton steps, :func:`_kink_points`). A wheel with s ≥ 0 has the two arcs eithe
 and pays nothing for the split. tests/test_soil_against_reference.py checks the result
 against adaptive quadrature over random parameters, speeds and sinkages, deep and braking
 wheels included: within 2e-3 of F_z (issue 15), braking ones within 5e-4 (1.7e-4 measured
-over 5000). The compiled plugin (sim/fast/tire_plugin.c) is the C twin of
-:func:`stress_integrals`, operation by operation.
+over 5000). The compiled plugin (sim/fast/tire_plugin.c, its node loop in soil_nodes.h) is the
+C twin of :func:`stress_integrals`, operation by operation; the node arithmetic has no library
+call (own e^x and log, :func:`_exp`, :func:`_log`), so that the twin can run it on vector lanes
+and still round exactly as numpy does.
 
 Frame and signs (SOIL.md): x along the wheel's heading, y left, z the ground normal; forces
 are those of the soil on the wheel, ``T`` the resistive torque about the axle (the torque
@@ -61,7 +63,7 @@ NODES = 8
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(NODES)
 # Taylor coefficients of cos and sin/x in x^2 (to x^22): with the angle-addition rule they give
 # the nodes' sines and cosines from one sin/cos of the arc's middle (|x| <= pi/2 here, where
-# the truncation error is below 1e-16); the compiled plugin runs the same Horner steps.
+# the truncation error is below 1e-16); the compiled plugin runs the same steps (_estrin).
 _COS = tuple((-1) ** k / math.factorial(2 * k) for k in range(12))
 _SIN = tuple((-1) ** k / math.factorial(2 * k + 1) for k in range(12))
 _SHORT_HALF = 0.6
@@ -219,7 +221,7 @@ def _estrin(y: FloatArray, coef: tuple[float, ...]) -> FloatArray:
 
 
 def _exp(x: FloatArray) -> FloatArray:
-    """e^x (relative error ~2e-16), 0 below −708 and inf above 709; the C twin's vexp_n."""
+    """e^x (relative error ~2e-16), 0 below −708 and inf above 709; soil_nodes.h's exp_n."""
     with np.errstate(invalid="ignore", over="ignore"):
         kd = x * _INV_LN2 + _EXP_SHIFT
         k = kd - _EXP_SHIFT
