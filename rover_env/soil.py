@@ -174,11 +174,12 @@ def _sincos_nodes(mid: FloatArray, half: FloatArray) -> tuple[FloatArray, FloatA
     a2 = a * a
 
     # Short arcs (|half| <= _SHORT_HALF, nearly all) need 8 terms for 1e-17; the rest all 12.
-    c8, s8 = _estrin(a2, _COS[:8]), _estrin(a2, _SIN[:8])
-    c12, s12 = _estrin(a2, _COS), _estrin(a2, _SIN)
+    c, sn = _estrin(a2, _COS[:8]), _estrin(a2, _SIN[:8])
     short = (np.abs(half) <= _SHORT_HALF)[..., None]
-    c = np.where(short, c8, c12)
-    sa = a * np.where(short, s8, s12)
+    if not np.all(short):
+        c = np.where(short, c, _estrin(a2, _COS))
+        sn = np.where(short, sn, _estrin(a2, _SIN))
+    sa = a * sn
     sm = np.sin(mid)[..., None]
     cm = np.cos(mid)[..., None]
     return sm * c + cm * sa, cm * c - sm * sa
@@ -252,27 +253,9 @@ def _log(x: FloatArray) -> FloatArray:
         return kd * _LN2_HI - ((hfsq - (s * (hfsq + rr) + kd * _LN2_LO)) - f)
 
 
-def _pow_pos(b: FloatArray, n: FloatArray) -> FloatArray:
-    """b^n for b >= 0 as e^(n log b); 0 where b is not a normal positive number."""
-    return np.where(b >= _MIN_NORMAL, _exp(n * _log(b)), 0.0)
-
-
 def _lateral_sign(tb: FloatArray, one_s: FloatArray) -> FloatArray:
     """sign(j_y) at every node: j_y = r (1 - s)(θ_c - θ) tan β, and θ_c - θ > 0 inside arcs."""
     return np.sign(tb)[..., None, None] * (one_s > 0.0)
-
-
-def _lateral_decay(
-    tb: FloatArray,
-    one_s: FloatArray,
-    th_c: FloatArray,
-    th: FloatArray,
-    r: float,
-    k_y: float,
-) -> FloatArray:
-    """exp(-|j_y| / k_y) at the nodes th, (..., arcs, NODES): |j_y| / k_y = g (θ_c − θ)."""
-    g = np.abs(r * one_s * tb[..., None, None]) / k_y
-    return _exp(-(g * (th_c - th)))
 
 
 def _kink_points(
@@ -395,17 +378,25 @@ def stress_integrals(
     rear = (hi <= th_m[..., None])[..., None]
     base = np.maximum(r * (np.where(rear, cos_eq, cos_t) - cos_f[..., None, None]), 0.0)
     n = n[..., None, None]
-    # pow(x, 1) == x exactly, and the C twin takes no logarithm there
-    sigma = ks * (base if np.all(n == 1.0) else np.where(n == 1.0, base, _pow_pos(base, n)))
     one_s = one_s[..., None, None]
     th_c = th_c[..., None, None]
     j_x = r * ((th_c - th) - one_s * (sin_c[..., None, None] - sin_t))
+    g = np.abs(r * one_s * tb[..., None, None]) / p.k_y  # |j_y| / k_y = g (θ_c − θ)
+    # The exponentials, in one call: Janosi–Hanamoto's in x and y (1 - exp rather than -expm1:
+    # the same to 1e-16 of tau_max) and, where n != 1, Bekker's base^n = e^(n log base).
+    # pow(x, 1) == x exactly, and the C twin takes no logarithm there.
+    powered = not np.all(n == 1.0)
+    args = [-np.abs(j_x) / p.k_x, -(g * (th_c - th))]
+    if powered:
+        args.append(n * _log(base))
+    e = _exp(np.stack(np.broadcast_arrays(*args)))
+    if powered:
+        sigma = ks * np.where(n == 1.0, base, np.where(base >= _MIN_NORMAL, e[2], 0.0))
+    else:
+        sigma = ks * base
     tau_max = p.c + sigma * tan_phi
-    # 1 - exp rather than -expm1: the same to 1e-16 of tau_max, and cheaper
-    tau_x = tau_max * np.sign(j_x) * (1.0 - _exp(-np.abs(j_x) / p.k_x))
-    tau_y = (
-        tau_max * _lateral_sign(tb, one_s) * (1.0 - _lateral_decay(tb, one_s, th_c, th, r, p.k_y))
-    )
+    tau_x = tau_max * np.sign(j_x) * (1.0 - e[0])
+    tau_y = tau_max * _lateral_sign(tb, one_s) * (1.0 - e[1])
     w = half[..., None] * _GL_W
     i_x = np.sum(w * (tau_x * cos_t - sigma * sin_t), axis=-1)
     i_y = np.sum(w * tau_y, axis=-1)
