@@ -153,13 +153,17 @@ static inline __attribute__((always_inline)) void SN(arc)(const ArcShared* A, do
   vd sin_t[NQ], cos_t[NQ], cos_eq[NQ];
   SN(sincos_nodes)(mid, half, sin_t, cos_t);
   // behind th_m the normal stress is that at th_eq (its cosine)
-  if (rear) SN(sincos_nodes)(A->th_f - (mid - A->th_r)*A->slope, -(half*A->slope), NULL, cos_eq);
+  if (rear) {
+    SN(sincos_nodes)(A->th_f - (mid - A->th_r)*A->slope, -(half*A->slope), NULL, cos_eq);
+  } else {
+    for (int q = 0; q < NQ; q++) cos_eq[q] = cos_t[q];  // ahead of th_m: at the node itself
+  }
   // the exponentials' arguments: shear -|j_x|/k_x, lateral -|j_y|/k_y, then n log(base)
   vd base[NQ], j_x[NQ], ex[MAXV];
   _Pragma("GCC unroll 4") for (int q = 0; q < NQ; q++) {
     vd a = half*SN(upper)(GL_XU, q % (NQ/2));
     vd th = q >= NQ/2 ? mid - a : mid + a;  // mid + half x_k (x_{7-k} = -x_k exactly)
-    base[q] = SN(max0)(r*((rear ? cos_eq[q] : cos_t[q]) - A->cos_f));
+    base[q] = SN(max0)(r*(cos_eq[q] - A->cos_f));
     vd ahead = A->th_c - th;
     j_x[q] = r*(ahead - A->one_s*(A->sin_c - sin_t[q]));
     ex[q] = -SN(abs)(j_x[q])/A->k_x;
