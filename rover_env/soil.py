@@ -20,8 +20,10 @@ Newton steps, :func:`_kink_points`). A wheel with s ≥ 0 has the two arcs eithe
 and pays nothing for the split. tests/test_soil_against_reference.py checks the result
 against adaptive quadrature over random parameters, speeds and sinkages, deep and braking
 wheels included: within 2e-3 of F_z (issue 15), braking ones within 5e-4 (1.7e-4 measured
-over 5000). The compiled plugin (sim/fast/tire_plugin.c) is the C twin of
-:func:`stress_integrals`, operation by operation.
+over 5000). The compiled plugin (sim/fast/tire_plugin.c, its node loop in soil_nodes.h) is the
+C twin of :func:`stress_integrals`, operation by operation; the node arithmetic has no library
+call (own e^x and log, :func:`_exp`, :func:`_log`), so that the twin can run it on vector lanes
+and still round exactly as numpy does.
 
 Frame and signs (SOIL.md): x along the wheel's heading, y left, z the ground normal; forces
 are those of the soil on the wheel, ``T`` the resistive torque about the axle (the torque
@@ -61,11 +63,9 @@ NODES = 8
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(NODES)
 # Taylor coefficients of cos and sin/x in x^2 (to x^22): with the angle-addition rule they give
 # the nodes' sines and cosines from one sin/cos of the arc's middle (|x| <= pi/2 here, where
-# the truncation error is below 1e-16); the compiled plugin runs the same Horner steps.
+# the truncation error is below 1e-16); the compiled plugin runs the same steps (_estrin).
 _COS = tuple((-1) ** k / math.factorial(2 * k) for k in range(12))
 _SIN = tuple((-1) ** k / math.factorial(2 * k + 1) for k in range(12))
-_LATERAL_DIRECT = 300.0
-"""Bound of g * half below which the lateral exponentials are factored (no overflow)."""
 _SHORT_HALF = 0.6
 """Half-width (rad) up to which 8 Taylor terms suffice (omitted term < 1e-17 at |x| <= 0.58)."""
 _NEWTON_STEPS = 2
@@ -173,56 +173,89 @@ def _sincos_nodes(mid: FloatArray, half: FloatArray) -> tuple[FloatArray, FloatA
     a = half[..., None] * _GL_X
     a2 = a * a
 
-    def horner(terms: int) -> tuple[FloatArray, FloatArray]:
-        c = np.full_like(a, _COS[terms - 1])
-        sn = np.full_like(a, _SIN[terms - 1])
-        for k in range(terms - 2, -1, -1):
-            c = c * a2 + _COS[k]
-            sn = sn * a2 + _SIN[k]
-        return c, sn
-
     # Short arcs (|half| <= _SHORT_HALF, nearly all) need 8 terms for 1e-17; the rest all 12.
-    c8, s8 = horner(8)
-    c12, s12 = horner(len(_COS))
+    c, sn = _estrin(a2, _COS[:8]), _estrin(a2, _SIN[:8])
     short = (np.abs(half) <= _SHORT_HALF)[..., None]
-    c = np.where(short, c8, c12)
-    sa = a * np.where(short, s8, s12)
+    if not np.all(short):
+        c = np.where(short, c, _estrin(a2, _COS))
+        sn = np.where(short, sn, _estrin(a2, _SIN))
+    sa = a * sn
     sm = np.sin(mid)[..., None]
     cm = np.cos(mid)[..., None]
     return sm * c + cm * sa, cm * c - sm * sa
 
 
+# The node arithmetic's exponential and logarithm are our own (the C twin vectorises them; a
+# library call per node cannot be): only +, -, *, /, comparisons and integer bit operations,
+# so numpy and the C lanes round identically. e^x: Cody–Waite reduction x = k ln2 + r,
+# |r| <= ln2/2, then the Taylor polynomial to r^13 (omitted term < 5e-18); log: fdlibm's.
+_EXP_C = tuple(1.0 / math.factorial(k) for k in range(14))
+_EXP_SHIFT = 6755399441055744.0  # 0x1.8p52: x + it rounds x to an integer (k in the low bits)
+_EXP_SHIFT_BITS = np.uint64(0x4338000000000000)
+_INV_LN2 = 1.4426950408889634
+_LN2_HI = float.fromhex("0x1.62e42fee00000p-1")  # fdlibm's ln2_hi: k * _LN2_HI is exact
+_LN2_LO = float.fromhex("0x1.a39ef35793c76p-33")
+_LG = (  # fdlibm e_log.c, Lg1 .. Lg7
+    6.666666666666735130e-01,
+    3.999999999940941908e-01,
+    2.857142874366239149e-01,
+    2.222219843214978396e-01,
+    1.818357216161805012e-01,
+    1.531383769920937332e-01,
+    1.479819860511658591e-01,
+)
+_LOG_OFF = np.uint64(0x3FE6A09E667F3BCD)  # bits of sqrt(1/2)
+_TOP12 = np.uint64(0xFFF0000000000000)
+_TWO52_BITS = np.uint64(0x4330000000000000)
+_MIN_NORMAL = 2.0**-1022
+
+
+def _estrin(y: FloatArray, coef: tuple[float, ...]) -> FloatArray:
+    """Σ coef[k] y^k (an even number of them) by Estrin's scheme, as the C twin: the pairs
+    coef[2k] + coef[2k+1] y, then pairs of those with y², y⁴, … (short dependency chains)."""
+    t = [coef[2 * k] + coef[2 * k + 1] * y for k in range(len(coef) // 2)]
+    yy = y
+    while len(t) > 1:
+        yy = yy * yy
+        t = [t[2 * k] + t[2 * k + 1] * yy for k in range(len(t) // 2)] + t[len(t) - len(t) % 2 :]
+    return t[0]
+
+
+def _exp(x: FloatArray) -> FloatArray:
+    """e^x (relative error ~2e-16), 0 below −708 and inf above 709; soil_nodes.h's exp_n."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        kd = x * _INV_LN2 + _EXP_SHIFT
+        k = kd - _EXP_SHIFT
+        r = (x - k * _LN2_HI) - k * _LN2_LO
+        p = _estrin(r, _EXP_C)
+        scale = ((kd.view(np.uint64) - _EXP_SHIFT_BITS + np.uint64(1023)) << np.uint64(52)).view(
+            np.float64
+        )
+        y = p * scale
+    return np.where(x > 709.0, np.inf, np.where(x < -708.0, 0.0, y))
+
+
+def _log(x: FloatArray) -> FloatArray:
+    """Natural log of normal x > 0 (garbage elsewhere): fdlibm's, x = 2^k z, z in [√½, √2)."""
+    with np.errstate(all="ignore"):
+        ix = x.view(np.uint64)
+        tmp = ix - _LOG_OFF
+        ku = (tmp + np.uint64(1 << 62)) >> np.uint64(52)  # k + 1024
+        kd = (ku | _TWO52_BITS).view(np.float64) - (4503599627370496.0 + 1024.0)
+        f = (ix - (tmp & _TOP12)).view(np.float64) - 1.0
+        s = f / (2.0 + f)
+        z = s * s
+        w = z * z
+        t1 = w * (_LG[1] + w * (_LG[3] + w * _LG[5]))
+        t2 = z * (_LG[0] + w * (_LG[2] + w * (_LG[4] + w * _LG[6])))
+        rr = t2 + t1
+        hfsq = 0.5 * f * f
+        return kd * _LN2_HI - ((hfsq - (s * (hfsq + rr) + kd * _LN2_LO)) - f)
+
+
 def _lateral_sign(tb: FloatArray, one_s: FloatArray) -> FloatArray:
     """sign(j_y) at every node: j_y = r (1 - s)(θ_c - θ) tan β, and θ_c - θ > 0 inside arcs."""
     return np.sign(tb)[..., None, None] * (one_s > 0.0)
-
-
-def _lateral_decay(
-    tb: FloatArray,
-    one_s: FloatArray,
-    th_c: FloatArray,
-    mid: FloatArray,
-    half: FloatArray,
-    r: float,
-    k_y: float,
-) -> FloatArray:
-    """exp(-|j_y| / k_y) at the nodes, (..., arcs, NODES).
-
-    |j_y| / k_y = g (θ_c - θ) is affine in the node, so the exponential is exp(-g (θ_c - mid))
-    times exp(g half x_k) or divided by it for the mirrored node: five calls per arc instead
-    of eight (the C twin does the same). Where g half > _LATERAL_DIRECT the factors could
-    overflow, and the nodes get their own exponentials.
-    """
-    g = np.abs(r * one_s * tb[..., None, None]) / k_y
-    gh = g * half[..., None]
-    xp = _GL_X[NODES // 2 :]
-    with np.errstate(over="ignore", invalid="ignore"):
-        e_mid = np.exp(-g * (th_c - mid[..., None]))
-        fac = np.exp(gh * xp)
-        paired = np.concatenate([e_mid / fac[..., ::-1], e_mid * fac], axis=-1)
-    th = mid[..., None] + half[..., None] * _GL_X
-    direct = np.exp(-(g * (th_c - th)))
-    return np.where(gh > _LATERAL_DIRECT, direct, paired)
 
 
 def _kink_points(
@@ -344,19 +377,26 @@ def stress_integrals(
     cos_eq = _sincos_nodes(th_f[..., None] - (mid - th_r[..., None]) * slope, -(half * slope))[1]
     rear = (hi <= th_m[..., None])[..., None]
     base = np.maximum(r * (np.where(rear, cos_eq, cos_t) - cos_f[..., None, None]), 0.0)
-    sigma = ks * base ** n[..., None, None]
+    n = n[..., None, None]
     one_s = one_s[..., None, None]
     th_c = th_c[..., None, None]
     j_x = r * ((th_c - th) - one_s * (sin_c[..., None, None] - sin_t))
+    g = np.abs(r * one_s * tb[..., None, None]) / p.k_y  # |j_y| / k_y = g (θ_c − θ)
+    # The exponentials, in one call: Janosi–Hanamoto's in x and y (1 - exp rather than -expm1:
+    # the same to 1e-16 of tau_max) and, where n != 1, Bekker's base^n = e^(n log base).
+    # pow(x, 1) == x exactly, and the C twin takes no logarithm there.
+    powered = not np.all(n == 1.0)
+    args = [-np.abs(j_x) / p.k_x, -(g * (th_c - th))]
+    if powered:
+        args.append(n * _log(base))
+    e = _exp(np.stack(np.broadcast_arrays(*args)))
+    if powered:
+        sigma = ks * np.where(n == 1.0, base, np.where(base >= _MIN_NORMAL, e[2], 0.0))
+    else:
+        sigma = ks * base
     tau_max = p.c + sigma * tan_phi
-    # 1 - exp rather than -expm1: the same to 1e-16 of tau_max, and exp is the cheaper call
-    # in the compiled twin (numpy's exp equals the C library's bit for bit here; tested).
-    tau_x = tau_max * np.sign(j_x) * (1.0 - np.exp(-np.abs(j_x) / p.k_x))
-    tau_y = (
-        tau_max
-        * _lateral_sign(tb, one_s)
-        * (1.0 - _lateral_decay(tb, one_s, th_c, mid, half, r, p.k_y))
-    )
+    tau_x = tau_max * np.sign(j_x) * (1.0 - e[0])
+    tau_y = tau_max * _lateral_sign(tb, one_s) * (1.0 - e[1])
     w = half[..., None] * _GL_W
     i_x = np.sum(w * (tau_x * cos_t - sigma * sin_t), axis=-1)
     i_y = np.sum(w * tau_y, axis=-1)

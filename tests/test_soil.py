@@ -161,3 +161,54 @@ def test_backends_agree_braking_on_soil() -> None:
         j_x = (th_f - th) - (1.0 - s_i) * (np.sin(th_f) - np.sin(th))
         kinked += bool((j_x < 0.0).any())
     assert kinked >= 2  # the case this test is for did occur
+
+
+POW_TERRAIN = {
+    "name": "dune-and-mars",
+    "size": [12.0, 6.0],
+    "slope_deg": [3.0, 1.0],
+    "soil": "dune-sand",
+    "patches": [{"name": "mars", "center": [1.0, 0.0], "size": [2.0, 4.0], "soil": "mars-sand"}],
+}
+
+
+def test_backends_agree_where_the_exponent_is_not_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Soils with n != 1 (n = n0 + n1 |s|: the node stress takes e^(n log base)), numpy against
+    the plugin at both of its vector widths (4 lanes where the CPU has AVX2, 2 forced by
+    ROVER_ENV_SOIL_LANES): the same arithmetic lane by lane, so the same rover to the bit."""
+    t = from_dict(TerrainConfig, POW_TERRAIN)
+    a = RoverSim(terrain=t, backend="numpy")
+    b = RoverSim(terrain=t, backend="plugin")
+    monkeypatch.setenv("ROVER_ENV_SOIL_LANES", "2")
+    c = RoverSim(terrain=t, backend="plugin")
+    soils: set[int] = set()
+    for targets in ([3.0, 2.0, 3.0, 2.0], [-2.0] * 4):
+        for sim in (a, b, c):
+            sim.set_speed_targets(targets)
+            sim.step(250)
+        soils |= set(b.wheel_truth().soil.tolist())
+    np.testing.assert_allclose(a.data.qpos, b.data.qpos, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a.data.qvel, b.data.qvel, rtol=0, atol=1e-10)
+    np.testing.assert_array_equal(b.data.qpos, c.data.qpos)
+    np.testing.assert_array_equal(b.data.qvel, c.data.qvel)
+    assert soils == {1, 2}  # dune sand (n0 1.1) and the Mars-sand patch (n0 0.92)
+    assert b.wheel_truth().sinkage.min() > 0.003
+
+
+def test_exp_and_log_twins_are_accurate() -> None:
+    """soil._exp and soil._log (the node arithmetic shared with the C plugin) against numpy's
+    exp and log: within 2 ulp over the ranges the nodes use and beyond; their edges."""
+    from rover_env import soil
+
+    rng = np.random.default_rng(7)
+    x = np.concatenate([rng.uniform(-700.0, 700.0, 20000), rng.uniform(-40.0, 1.0, 20000)])
+    x = np.concatenate([x, [0.0, -0.0, 1e-300, -1e-20, 709.0, -708.0]])
+    np.testing.assert_allclose(soil._exp(x), np.exp(x), rtol=4.5e-16, atol=0)
+    edge = soil._exp(np.array([-708.5, -1e6, -np.inf, 709.5, np.inf, np.nan]))
+    assert (edge[:3] == 0.0).all() and np.isinf(edge[3:5]).all() and np.isnan(edge[5])
+    b = np.concatenate([10.0 ** rng.uniform(-307.0, 300.0, 20000), rng.uniform(0.0, 0.2, 20000)])
+    b = np.concatenate([b[b > 0.0], [2.0**-1022, 1.0, 0.5**0.5, 2.0**0.5, 1.7e308]])
+    np.testing.assert_allclose(soil._log(b), np.log(b), rtol=2.5e-16, atol=1e-300)
+    base = rng.uniform(1e-6, 0.085, 2000)  # Bekker's base^n as the nodes take it
+    for n in (0.6, 0.92, 1.1, 1.9):
+        np.testing.assert_allclose(soil._exp(n * soil._log(base)), base**n, rtol=3e-15)

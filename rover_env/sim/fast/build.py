@@ -38,6 +38,8 @@ MUJOCO_VERSION = "4.0.0"
 
 PLUGIN_NAME = "rover_env.tire"
 SOURCE = "tire_plugin.c"
+HEADERS = {"tire_plugin.c": ("soil_nodes.h",)}
+"""Headers each source includes from its own directory (copied beside it for the build)."""
 CORE_SOURCE = "env_core.c"
 # -ffp-contract=off: a fused multiply-add would round differently from numpy's reference.
 CFLAGS = ("-O2", "-std=c11", "-fPIC", "-shared", "-ffp-contract=off", "-fno-math-errno")
@@ -102,9 +104,11 @@ def compile_core() -> Path:
 
 def _compile(source_name: str, stem: str) -> Path:
     include, lib = _mujoco_paths()
-    source = resources.files("rover_env.sim.fast").joinpath(source_name).read_bytes()
+    package = resources.files("rover_env.sim.fast")
+    source = package.joinpath(source_name).read_bytes()
+    headers = {h: package.joinpath(h).read_bytes() for h in HEADERS.get(source_name, ())}
     key = hashlib.sha256(
-        b"\0".join([source, MUJOCO_VERSION.encode(), " ".join(CFLAGS).encode()])
+        b"\0".join([source, *headers.values(), MUJOCO_VERSION.encode(), " ".join(CFLAGS).encode()])
     ).hexdigest()[:16]
     out_dir = cache_dir()
     target = out_dir / f"{stem}-mujoco{MUJOCO_VERSION}-{key}.so"
@@ -120,6 +124,8 @@ def _compile(source_name: str, stem: str) -> Path:
     with tempfile.TemporaryDirectory(dir=out_dir, prefix=".build-") as tmp:
         src = Path(tmp) / source_name
         src.write_bytes(source)
+        for name, text in headers.items():
+            (Path(tmp) / name).write_bytes(text)
         obj = Path(tmp) / target.name
         cmd = [
             cc,

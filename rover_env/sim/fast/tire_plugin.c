@@ -6,7 +6,8 @@
 // the reference, and this file follows it operation by operation (same formulas,
 // same order of floating-point operations, numpy's pairwise summation for sums),
 // so that results agree to the last bit or few. Compile with -ffp-contract=off:
-// a fused multiply-add would change the rounding.
+// a fused multiply-add would change the rounding. The soil arcs' node loop lives in
+// soil_nodes.h (vectorised; built for 2 and, on x86-64, 4 lanes: see there).
 //
 // It also integrates the driven wheels' dcmotor position setpoints (the speed
 // loop's I-term) so that no Python runs per physics substep.
@@ -102,13 +103,15 @@ enum { T_VX = 0, T_VY = 1, T_VW = 2, T_FX = 3, T_FY = 4, T_FZ = 5, T_DELTA = 6,
 enum { S_C, S_PHI, S_KC, S_KPHI, S_N0, S_N1, S_KX, S_KY, S_A0, S_A1, S_LAM, S_DAMP, S_KDIG,
        S_CELL };
 
-// Gauss-Legendre nodes and weights (numpy.polynomial.legendre.leggauss(8), repr)
-static const double GL_X[SOIL_NODES] = {
-  -0.9602898564975362, -0.7966664774136267, -0.525532409916329, -0.18343464249564978,
-  0.18343464249564978, 0.525532409916329, 0.7966664774136267, 0.9602898564975362};
-static const double GL_W[SOIL_NODES] = {
-  0.10122853629037706, 0.22238103445337443, 0.3137066458778869, 0.36268378337836166,
-  0.36268378337836166, 0.3137066458778869, 0.22238103445337443, 0.10122853629037706};
+// What the arcs of one wheel share (soil.stress_integrals' per-wheel quantities)
+typedef struct {
+  double r, th_r, th_m, th_f, th_c, cos_f, sin_c, slope, one_s, n, ks, tan_phi, c, k_x, g, sgn_y;
+} ArcShared;
+
+// sums[4] += the four node sums (x, y, z stresses and the shear for the torque) of each
+// arc [lo[a], hi[a]] of nonzero width
+typedef void (*ArcsFn)(const ArcShared* A, const double lo[4], const double hi[4],
+                       double sums[4]);
 
 static const char* kAttributes[] = {
   "wheels", "joints", "motors", "radius", "tire", "max_angle_error", "terrain", "effects",
@@ -125,6 +128,8 @@ typedef struct {
   double combined_on, load_fall, load_fz0, load_span;  // model extensions (config 'effects')
   // per-model constants of the hot path, each computed exactly as the numpy code does per call
   double three_over_cs, three_over_calpha, three_sy_over_calpha;
+  ArcsFn arcs;  // the soil arcs' vector width for this CPU (choose_arcs)
+  double last_phi, last_tan_phi;  // soil_tan_phi's memory
   int terrain;  // numeric id
   int capw;     // wave capacity the scratch is sized for
   // scratch of the MjData this configuration belongs to (one per thread in mujoco.batch)
@@ -409,6 +414,38 @@ static int rut_cell_of(const TerrainView* t, double x, double y) {
 
 //---------------------------------------------------------------- soil (rover_env.soil)
 
+//---------------------------------------------------------------- soil: the arcs' nodes
+// The node loop (soil_nodes.h) runs on GCC/Clang vector extensions: only +, -, *, /,
+// comparisons and integer bit operations, no libm call, so every lane rounds exactly as the
+// numpy code does. Its exponential and logarithm are therefore our own (soil._exp,
+// soil._log): Cody-Waite reduction with a Taylor polynomial, and fdlibm's log, bit for bit
+// the same as their numpy twins. soil_nodes.h is compiled twice: 2 lanes (SSE2, the x86-64
+// baseline; NEON on arm64) and, on x86-64, 4 lanes for CPUs with AVX2 (chosen at run time;
+// AVX2 without FMA, so the roundings are the same). The constants are shared.
+
+// soil._EXP_C: 1/k!, k = 0..13
+static const double EXP_C[14] = {
+  1.0, 1.0, 0.5, 0.16666666666666666, 0.041666666666666664, 0.008333333333333333,
+  0.001388888888888889, 0.0001984126984126984, 2.48015873015873e-05, 2.7557319223985893e-06,
+  2.755731922398589e-07, 2.505210838544172e-08, 2.08767569878681e-09, 1.6059043836821613e-10};
+#define EXP_SHIFT 6755399441055744.0         // 0x1.8p52: x + it rounds x to an integer
+#define EXP_SHIFT_BITS 0x4338000000000000ULL
+#define INV_LN2 1.4426950408889634
+#define LN2_HI 0.6931471803691238            // fdlibm's ln2_hi (k LN2_HI is exact)
+#define LN2_LO 1.9082149292705877e-10
+
+// fdlibm's log polynomial (e_log.c, Lg1..Lg7)
+#define LG1 6.666666666666735130e-01
+#define LG2 3.999999999940941908e-01
+#define LG3 2.857142874366239149e-01
+#define LG4 2.222219843214978396e-01
+#define LG5 1.818357216161805012e-01
+#define LG6 1.531383769920937332e-01
+#define LG7 1.479819860511658591e-01
+#define LOG_OFF 0x3fe6a09e667f3bcdULL  // bits of sqrt(1/2)
+#define TOP12 0xfff0000000000000ULL
+#define TWO52_BITS 0x4330000000000000ULL
+
 // soil._COS and soil._SIN: Taylor coefficients of cos and sin/x in x^2
 static const double SC_COS[12] = {
   1.0, -0.5, 0.041666666666666664, -0.001388888888888889, 2.48015873015873e-05,
@@ -421,27 +458,48 @@ static const double SC_SIN[12] = {
   -7.647163731819816e-13, 2.8114572543455206e-15, -8.22063524662433e-18,
   1.9572941063391263e-20, -3.868170170630684e-23};
 
-// soil._sincos_nodes: sin and cos at mid + half*x_k; the nodes are symmetric (x_{7-k} = -x_k),
-// so four polynomial pairs serve all eight (the sign flips are exact)
-static void sincos_nodes(double mid, double half, double* sn, double* cs) {
-  double sm, cm;
-  sincos(mid, &sm, &cm);
-  int terms = fabs(half) <= 0.6 ? 8 : 12;  // soil._SHORT_HALF
-  for (int k = SOIL_NODES/2; k < SOIL_NODES; k++) {
-    double a = half*GL_X[k];
-    double a2 = a*a;
-    double c = SC_COS[terms - 1], s = SC_SIN[terms - 1];
-    for (int j = terms - 2; j >= 0; j--) {
-      c = c*a2 + SC_COS[j];
-      s = s*a2 + SC_SIN[j];
-    }
-    double sa = a*s;
-    sn[k] = sm*c + cm*sa;
-    cs[k] = cm*c - sm*sa;
-    int m = SOIL_NODES - 1 - k;
-    sn[m] = sm*c - cm*sa;
-    cs[m] = cm*c + sm*sa;
-  }
+// Gauss-Legendre nodes and weights of the upper half (x_4..x_7; x_{7-k} = -x_k),
+// numpy.polynomial.legendre.leggauss(8)
+static const double GL_XU[SOIL_NODES/2] = {
+  0.18343464249564978, 0.525532409916329, 0.7966664774136267, 0.9602898564975362};
+static const double GL_WU[SOIL_NODES/2] = {
+  0.36268378337836166, 0.3137066458778869, 0.22238103445337443, 0.10122853629037706};
+
+#define SOIL_VL 2
+#define SOIL_SUFFIX _v2
+#include "soil_nodes.h"
+#undef SOIL_VL
+#undef SOIL_SUFFIX
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define SOIL_HAVE_V4 1
+#if defined(__clang__)
+#pragma clang attribute push(__attribute__((target("avx2"))), apply_to = function)
+#else
+#pragma GCC push_options
+#pragma GCC target("avx2")
+#endif
+#define SOIL_VL 4
+#define SOIL_SUFFIX _v4
+#include "soil_nodes.h"
+#undef SOIL_VL
+#undef SOIL_SUFFIX
+#if defined(__clang__)
+#pragma clang attribute pop
+#else
+#pragma GCC pop_options
+#endif
+#endif
+
+// The arcs' implementation for this CPU: 4 lanes where AVX2 runs, unless the environment
+// variable ROVER_ENV_SOIL_LANES=2 asks for the baseline (tests run both; same results)
+static ArcsFn choose_arcs(void) {
+#ifdef SOIL_HAVE_V4
+  const char* lanes = getenv("ROVER_ENV_SOIL_LANES");
+  __builtin_cpu_init();
+  if (!(lanes && strcmp(lanes, "2") == 0) && __builtin_cpu_supports("avx2")) return arcs_v4;
+#endif
+  return arcs_v2;
 }
 
 // soil._kink_points for one wheel with s < 0 and q cos(th_c) < 1 (the caller's cheap test):
@@ -490,9 +548,9 @@ static void kink_points(double s, double one_s, double th_r, double th_c, double
 // soil.stress_integrals for one wheel: out = F_x, F_y, F_z, T. The four arcs lie between
 // th_r, the sorted break points (th_m and the sign changes of j_x) and th_c; numpy gives a
 // zero-width arc exactly zero terms, here it is skipped (a wheel with s >= 0 has two).
-static void stress_integrals(double s, double tb, double d, double h, double hc, double r,
-                             double tan_phi,
-                             double b, const double* sp, double out[4]) {
+static void stress_integrals(ArcsFn arcs, double s, double tb, double d, double h, double hc,
+                             double r, double tan_phi, double b, const double* sp,
+                             double out[4]) {
   double hh = np_min(np_max(h, 0.0), r);
   hc = np_min(np_max(np_min(hc, hh), 0.0), r);
   if (!(hc > 0.0)) {
@@ -519,54 +577,28 @@ static void stress_integrals(double s, double tb, double d, double h, double hc,
   double span = th_m > th_r ? th_m - th_r : 1.0;
   double slope = (th_f - th_m)/span;
   double sums[4] = {0.0, 0.0, 0.0, 0.0};
-  double g = fabs(r*one_s*tb)/sp[S_KY];  // soil._lateral_decay
-  double sgn_y = np_sign(tb)*(one_s > 0.0 ? 1.0 : 0.0);  // soil._lateral_sign
-  for (int arc = 0; arc < 4; arc++) {
-    double mid = 0.5*(hi[arc] + lo[arc]);
-    double half = 0.5*(hi[arc] - lo[arc]);
-    if (half == 0.0) continue;
-    int rear = hi[arc] <= th_m;
-    double sin_t[SOIL_NODES], cos_t[SOIL_NODES], sin_eq[SOIL_NODES], cos_eq[SOIL_NODES];
-    sincos_nodes(mid, half, sin_t, cos_t);
-    if (rear) sincos_nodes(th_f - (mid - th_r)*slope, -(half*slope), sin_eq, cos_eq);
-    // soil._lateral_decay: exp(-|j_y|/k_y) at the nodes, factored where it cannot overflow
-    double ey[SOIL_NODES];
-    double gh = g*half;
-    if (gh > 300.0) {  // soil._LATERAL_DIRECT
-      for (int k = 0; k < SOIL_NODES; k++) ey[k] = exp(-(g*(th_c - (mid + half*GL_X[k]))));
-    } else {
-      double e_mid = exp(-g*(th_c - mid));
-      for (int k = SOIL_NODES/2; k < SOIL_NODES; k++) {
-        double fac = exp(gh*GL_X[k]);
-        ey[k] = e_mid*fac;
-        ey[SOIL_NODES - 1 - k] = e_mid/fac;
-      }
-    }
-    double ax[SOIL_NODES], ay[SOIL_NODES], az[SOIL_NODES], at[SOIL_NODES];
-    for (int k = 0; k < SOIL_NODES; k++) {
-      double th = mid + half*GL_X[k];
-      double base = np_max(r*((rear ? cos_eq[k] : cos_t[k]) - cos_f), 0.0);
-      double sigma = ks*(n == 1.0 ? base : pow(base, n));  // pow(x, 1) == x exactly
-      double j_x = r*((th_c - th) - one_s*(sin_c - sin_t[k]));
-      double tau_max = sp[S_C] + sigma*tan_phi;
-      double tau_x = tau_max*np_sign(j_x)*(1.0 - exp(-fabs(j_x)/sp[S_KX]));
-      double tau_y = tau_max*sgn_y*(1.0 - ey[k]);
-      double w = half*GL_W[k];
-      ax[k] = w*(tau_x*cos_t[k] - sigma*sin_t[k]);
-      ay[k] = w*tau_y;
-      az[k] = w*(tau_x*sin_t[k] + sigma*cos_t[k]);
-      at[k] = w*tau_x;
-    }
-    sums[0] += pairwise_sum(ax, SOIL_NODES);
-    sums[1] += pairwise_sum(ay, SOIL_NODES);
-    sums[2] += pairwise_sum(az, SOIL_NODES);
-    sums[3] += pairwise_sum(at, SOIL_NODES);
-  }
+  const ArcShared A = {
+    .r = r, .th_r = th_r, .th_m = th_m, .th_f = th_f, .th_c = th_c, .cos_f = cos_f,
+    .sin_c = sin_c, .slope = slope, .one_s = one_s, .n = n, .ks = ks, .tan_phi = tan_phi,
+    .c = sp[S_C], .k_x = sp[S_KX],
+    .g = fabs(r*one_s*tb)/sp[S_KY],  // |j_y|/k_y = g (th_c - th)
+    .sgn_y = np_sign(tb)*(one_s > 0.0 ? 1.0 : 0.0)};  // soil._lateral_sign
+  arcs(&A, lo, hi, sums);
   double rb = r*b;
   out[0] = d*rb*sums[0];
   out[1] = -rb*sums[1];
   out[2] = rb*sums[2];
   out[3] = d*r*rb*sums[3];
+}
+
+// math.tan(math.radians(phi_deg)) of a soil, remembered from the last call (one soil is the
+// common case; the same number either way)
+static inline double soil_tan_phi(Config* c, double phi_deg) {
+  if (phi_deg != c->last_phi) {
+    c->last_tan_phi = tan(phi_deg*DEG_TO_RAD);
+    c->last_phi = phi_deg;
+  }
+  return c->last_tan_phi;
 }
 
 //---------------------------------------------------------------- tire (rover_env.tire)
@@ -750,6 +782,8 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
   c->three_over_cs = 3.0/c->tire[C_S];
   c->three_over_calpha = 3.0/c->tire[C_ALPHA];
   c->three_sy_over_calpha = 3.0*c->tire[SIGMA_Y]/c->tire[C_ALPHA];
+  c->arcs = choose_arcs();
+  c->last_phi = NAN;  // no tangent remembered yet
   if (m->opt.integrator == mjINT_RK4) {
     return fail(c, "the RK4 integrator is not supported (it evaluates forces at"
                 " intermediate stages); use Euler, implicit or implicitfast", NULL);
@@ -803,7 +837,7 @@ static void tire_reset(const mjModel* m, mjtNum* plugin_state, void* plugin_data
 
 static void tire_compute(const mjModel* m, mjData* d, int instance, int capability_bit) {
   (void)capability_bit;
-  const Config* c = (const Config*)d->plugin_data[instance];
+  Config* c = (Config*)d->plugin_data[instance];  // this MjData's own (soil_tan_phi writes)
   if (!c) return;
   const int nw = c->nw, nd = c->nd, nv = m->nv;
   const Layout L = layout_of(nw, nd, c->rut_cells);
@@ -950,9 +984,13 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       double z = np_min(np_max(lead/SOIL_V_BLEND, -1.0), 1.0);  // soil.V_BLEND smoothstep
       double w = 0.5 + z*(0.75 - 0.25*z*z);
       double f[4] = {0, 0, 0, 0}, g[4] = {0, 0, 0, 0};
-      double tan_phi = tan(sp[S_PHI]*DEG_TO_RAD);  // math.tan(math.radians(phi_deg))
-      if (w != 0.0) stress_integrals(s_fwd, tan_b, 1.0, h, h_c, r, tan_phi, c->width, sp, f);
-      if (w != 1.0) stress_integrals(-s_fwd, tan_b, -1.0, h, h_c, r, tan_phi, c->width, sp, g);
+      double tan_phi = soil_tan_phi(c, sp[S_PHI]);
+      if (w != 0.0) {
+        stress_integrals(c->arcs, s_fwd, tan_b, 1.0, h, h_c, r, tan_phi, c->width, sp, f);
+      }
+      if (w != 1.0) {
+        stress_integrals(c->arcs, -s_fwd, tan_b, -1.0, h, h_c, r, tan_phi, c->width, sp, g);
+      }
       F_x = w*f[0] + (1.0 - w)*g[0];
       F_y = w*f[1] + (1.0 - w)*g[1];
       F_z = w*f[2] + (1.0 - w)*g[2];
