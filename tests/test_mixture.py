@@ -173,6 +173,13 @@ def _is_residual(ctrl: Any) -> bool:
     return isinstance(ctrl.residual, Residual) and ctrl.residual.scale == 0.5
 
 
+def _is_wheel_residual(ctrl: Any) -> bool:
+    from rover_env.policies.residual import Residual
+
+    r = ctrl.residual
+    return isinstance(r, Residual) and r.scale == 0.5 and r.base.name == "open-loop"
+
+
 def _is_schedule(ctrl: Any) -> bool:
     from rover_env.policies.residual import Schedule
 
@@ -194,6 +201,7 @@ def _is_axle_schedule(ctrl: Any) -> bool:
         ("scenario-mix", "split-mu", _is_residual),  # a residual on the slip PI
         ("slip-schedule", "ice-patch", _is_schedule),  # a gain schedule of the slip PI
         ("axle-schedule", "stuck-wheel", _is_axle_schedule),  # its stuck-wheel retries
+        ("soil-ppo", "sand-slope", _is_wheel_residual),  # the wheels, no slip PI (issue 18)
     ],
 )
 def test_shipped_agent_loads_and_drives(name: str, scenario: str, mapping: Any) -> None:
