@@ -161,12 +161,12 @@ def make_classical(spec: str) -> ClassicalController:
 
 def classical_settings(spec: str) -> dict[str, Any]:
     """What decides a classical controller's actions: its kind and resolved settings."""
-    head, _ = split_overrides(spec)
+    head, overrides = split_overrides(spec)
     kind, _, arg = head.partition(":")
     make_classical(spec)  # validates
     if kind == "slip-pi":
         return {"kind": kind, "settings": to_dict(_slip_pi_config(spec))}
-    gain = split_overrides(spec)[1].get("gain", 1.0)
-    if gain != 1.0:
+    gain = overrides.get("gain", 1.0)
+    if gain != 1.0:  # the plain open loop keeps its former settings (and ledger hash)
         return {"kind": kind, "variant": arg, "gain": gain}
     return {"kind": kind, "variant": arg}

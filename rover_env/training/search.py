@@ -57,6 +57,17 @@ __all__ = ["SPACES", "SearchResult", "load_space", "search"]
 
 _ARCHS = ["64x64", "128x128", "256x256"]
 _GAMMAS = [0.95, 0.97, 0.98, 0.99]
+_OFF_POLICY: dict[str, dict[str, Any]] = {
+    "learning_rate": {"low": 1e-5, "high": 1e-3, "log": True},
+    "batch_size": {"choices": [64, 128, 256, 512]},
+    "buffer_size": {"choices": [100_000, 300_000, 1_000_000]},
+    "learning_starts": {"choices": [1000, 5000, 10000]},
+    "train_freq": {"choices": [1, 4, 8]},
+    "tau": {"choices": [0.005, 0.01, 0.02]},
+    "gamma": {"choices": _GAMMAS},
+}
+"""What the SAC and TD3 spaces share (SB3's off-policy settings)."""
+
 SPACES: dict[str, dict[str, dict[str, Any]]] = {
     "ppo": {
         "learning_rate": {"low": 1e-5, "high": 1e-3, "log": True},
@@ -71,24 +82,12 @@ SPACES: dict[str, dict[str, dict[str, Any]]] = {
         "policy_kwargs.net_arch": {"choices": _ARCHS},
     },
     "sac": {
-        "learning_rate": {"low": 1e-5, "high": 1e-3, "log": True},
-        "batch_size": {"choices": [64, 128, 256, 512]},
-        "buffer_size": {"choices": [100_000, 300_000, 1_000_000]},
-        "learning_starts": {"choices": [1000, 5000, 10000]},
-        "train_freq": {"choices": [1, 4, 8]},
-        "tau": {"choices": [0.005, 0.01, 0.02]},
-        "gamma": {"choices": _GAMMAS},
+        **_OFF_POLICY,
         "ent_coef": {"choices": ["auto", "auto_0.1", "auto_0.01"]},
         "policy_kwargs.net_arch": {"choices": _ARCHS},
     },
     "td3": {
-        "learning_rate": {"low": 1e-5, "high": 1e-3, "log": True},
-        "batch_size": {"choices": [64, 128, 256, 512]},
-        "buffer_size": {"choices": [100_000, 300_000, 1_000_000]},
-        "learning_starts": {"choices": [1000, 5000, 10000]},
-        "train_freq": {"choices": [1, 4, 8]},
-        "tau": {"choices": [0.005, 0.01, 0.02]},
-        "gamma": {"choices": _GAMMAS},
+        **_OFF_POLICY,
         "policy_delay": {"choices": [1, 2, 3]},
         "target_policy_noise": {"choices": [0.1, 0.2]},
         "action_noise.sigma": {"low": 0.02, "high": 0.3, "log": True},
