@@ -34,6 +34,11 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=8, help="first N tuning seeds")
     ap.add_argument("--setpoints", default="-0.2,-0.4,-0.5,-0.6,-0.7,-0.8")
     ap.add_argument("--allowances", default="0.05,0.1")
+    ap.add_argument(
+        "--max-corrections",
+        default="",
+        help="also grid the PI's max_correction (comma list; empty: the shipped 0.5 only)",
+    )
     ap.add_argument("--scenarios", default=",".join(SCENARIOS))
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", type=Path, default=Path("docs/benchmark-soil/tuning.csv"))
@@ -43,13 +48,20 @@ def main() -> None:
     base = yaml.safe_load((configs_dir() / "control" / "slip_pi.yaml").read_text())
     tmp = Path(tempfile.mkdtemp(prefix="setpoint-"))
     specs = {"open-loop": "open-loop", "slip-pi": "slip-pi"}
-    for s0, a in itertools.product(
+    caps = [float(x) for x in args.max_corrections.split(",") if x.strip()] or [None]
+    for s0, a, cap in itertools.product(
         [float(x) for x in args.setpoints.split(",")],
         [float(x) for x in args.allowances.split(",")],
+        caps,
     ):
-        p = tmp / f"sp{s0:+.2f}_a{a:.2f}.yaml"
-        p.write_text(yaml.safe_dump({**base, "slip_setpoint": s0, "traction_allowance": a}))
-        specs[f"setpoint {s0:+.2f} band {a:.2f}"] = f"slip-pi:{p}"
+        cfg = {**base, "slip_setpoint": s0, "traction_allowance": a}
+        label = f"setpoint {s0:+.2f} band {a:.2f}"
+        if cap is not None:
+            cfg["max_correction"] = cap
+            label += f" max {cap:.2f}"
+        p = tmp / f"sp{s0:+.2f}_a{a:.2f}_m{cap}.yaml"
+        p.write_text(yaml.safe_dump(cfg))
+        specs[label] = f"slip-pi:{p}"
     jobs = [Job(spec, sc, s) for spec in specs.values() for sc in scenarios for s in seeds]
     t0 = time.perf_counter()
     rows = run_jobs(jobs, workers=args.workers)
@@ -95,7 +107,7 @@ def main() -> None:
     print(f"{len(jobs)} episodes in {time.perf_counter() - t0:.0f} s; seeds {seeds[0]}-{seeds[-1]}")
     for r in out:
         print(
-            f"{r['candidate']:26s} success {r['success']:.3f}  "
+            f"{r['candidate']:36s} success {r['success']:.3f}  "
             f"E/m vs open loop {r['energy_vs_open_loop']:.3f}  "
             + "  ".join(f"{sc} {r[f'{sc}:success']:.2f}" for sc in scenarios)
         )
