@@ -15,36 +15,15 @@ from __future__ import annotations
 
 import argparse
 import csv
-import math
 from collections import defaultdict
 from pathlib import Path
 
 from scipy import stats
 
+from rover_env.benchmark.report import holm, paired_p, t_interval
+
 SCENARIOS = ("sand-slope", "soft-patch")
 METRICS = ("success", "mean_sinkage", "energy_per_metre")
-
-
-def holm(p: list[float]) -> list[float]:
-    """Holm-adjusted p-values, in the input order."""
-    order = sorted(range(len(p)), key=lambda i: p[i])
-    out, run = [0.0] * len(p), 0.0
-    for rank, i in enumerate(order):
-        run = max(run, min(1.0, (len(p) - rank) * p[i]))
-        out[i] = run
-    return out
-
-
-def paired_t(d: list[float]) -> tuple[float, float, float, float]:
-    """Mean, 95 % interval and two-sided p of paired differences."""
-    n = len(d)
-    mu = sum(d) / n
-    sd = math.sqrt(sum((x - mu) ** 2 for x in d) / (n - 1)) if n > 1 else 0.0
-    if sd == 0.0:
-        return mu, mu, mu, (0.0 if mu != 0.0 else 1.0)
-    se = sd / math.sqrt(n)
-    half = float(stats.t.ppf(0.975, n - 1)) * se
-    return mu, mu - half, mu + half, float(2 * stats.t.sf(abs(mu / se), n - 1))
 
 
 def mcnemar_exact(won: int, lost: int) -> float:
@@ -76,7 +55,7 @@ def main() -> None:
         for m in METRICS:
             d = [float(v[args.controller][m]) - float(v[args.baseline][m]) for v in pairs]
             base = sum(float(v[args.baseline][m]) for v in pairs) / len(pairs)
-            rows.append((sc, m, len(pairs), base, *paired_t(d)))
+            rows.append((sc, m, len(pairs), base, *t_interval(d), paired_p(d)))
         won = sum(
             float(v[args.controller]["success"]) > float(v[args.baseline]["success"]) for v in pairs
         )
