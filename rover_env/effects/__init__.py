@@ -221,7 +221,10 @@ class RollingResistance(HingeEffect):
     moment c_rr * F_z * (d - delta) is set every substep from that wheel's actual load F_z
     and deflection delta: the tire force acts at the contact point, d - delta below the
     hub, so at steady rolling the ground's resisting force is c_rr * F_z exactly (rig test).
-    Free wheels slow down; driven wheels need more torque and slip more. Until issue 16 the
+    Free wheels slow down; driven wheels need more torque and slip more. The moment is the
+    ground's (the normal force's forward offset), not the bearing's: ``RoverSim`` gives the
+    wheel's carrier back its share of the hinge's friction torque, so segment 3's pitch reads
+    it as another implementation of this definition does (rig test). Until issue 16 the
     moment was c_rr * F_z0 * r_e with the static load F_z0 and the rolling radius r_e as
     lever, which made the resisting force about 1.3 c_rr F_z0 whatever the wheel carried.
     """
