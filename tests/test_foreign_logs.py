@@ -73,3 +73,19 @@ def test_foreign_rolling_resistance_slows_the_free_wheels(tmp_path: Path) -> Non
     free_a = np.abs(read_log(a[0]).phi[-1, 4:]).mean()
     free_b = np.abs(read_log(b[0]).phi[-1, 4:]).mean()
     assert free_b < free_a * 0.99
+
+
+def test_foreign_lateral_slip_is_eq_11() -> None:
+    """The second implementation's lateral slip is the SPEC's eq. (11), written apart from
+    rover_env.tire: same-sign wheel and ground speeds, skidding and spinning alike."""
+    from rover_env.calibration.foreign_logs import lateral_slip
+    from rover_env.tire import lateral_slip as eq11
+    from rover_env.tire import slip_ratio
+
+    rng = np.random.default_rng(11)
+    v_x = rng.uniform(0.06, 0.5, 400) * rng.choice([-1, 1], 400)
+    v_w = np.abs(v_x) * rng.uniform(0.2, 3.0, 400) * np.sign(v_x)
+    v_y = rng.uniform(-0.2, 0.2, 400)
+    S = slip_ratio(v_x, v_w, 1e-3)
+    assert np.sum(S < 0) > 100 and np.sum(S > 0) > 100  # both regimes are tested
+    np.testing.assert_allclose(lateral_slip(v_x, v_y, v_w), eq11(v_x, v_y, v_w, S, 1e-3), rtol=1e-9)

@@ -8,7 +8,7 @@ naming the nominal rover, with the truth in ``truth.yaml``, exactly as ``make-lo
 
 What differs from the project's simulator (``rover_env.sim``), on purpose:
 
-* tire: steady-state Gim (eqs. 13-16, no relaxation: forces follow the slip instantly),
+* tire: steady-state Gim (eqs. 10-16, no relaxation: forces follow the slip instantly),
   slip regularised below ``V_EPS`` = 5 cm/s instead of the transient-slip states; the
   wheel spin is advanced semi-implicitly through the longitudinal force (a per-wheel
   scalar solve), which steady-state slip needs to stay stable on a light free wheel;
@@ -65,6 +65,15 @@ POT_TRAVEL = math.radians(300.0)
 POT_NOISE = 6e-4
 POSE_NOISE_M = 0.003
 POSE_NOISE_YAW = 0.003
+
+
+def lateral_slip(v_x: Array, v_y: Array, v_w: Array) -> Array:
+    """Eq. (11), written here: |tan alpha| when the wheel skids, (1 - |S|) |tan alpha| =
+    |v_y| / |v_w| when it spins; so |v_y| over the larger of |v_x| and |v_w|, regularised
+    below ``V_EPS``. (Until stop 23 this used |v_x| alone, which is not eq. (11) when a
+    wheel spins: diagnose then read friction +6 % as 0 or less on these logs.)"""
+    den = np.maximum(np.maximum(np.abs(v_x), np.abs(v_w)), V_EPS)
+    return np.asarray(np.abs(v_y) / den, dtype=np.float64)
 
 
 def _quantise(x: Array, lsb: float) -> Array:
@@ -255,7 +264,7 @@ class ForeignRover:
             hi_f, g_hi = np.where(neg, hi_f, mid), np.where(neg, g_hi, g_mid)
         den = g_hi - g_lo
         F_x = np.where(den > 0, lo_f - g_lo * (hi_f - lo_f) / np.where(den > 0, den, 1.0), lo_f)
-        s_a = np.abs(v_y) / np.maximum(abs_vx, V_EPS)
+        s_a = lateral_slip(v_x, v_y, r_e * omega)
         s_ac = 3.0 * mu_y * np.maximum(F_z, 1e-9) / tp.C_alpha
         ln_y = np.maximum(1.0 - s_a / s_ac, 0.0)
         F_y = -np.sign(v_y) * mu_y * F_z * (1.0 - ln_y**3)
