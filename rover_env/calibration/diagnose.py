@@ -50,6 +50,7 @@ from rover_env.calibration.candidates import (
     separating_plan,
 )
 from rover_env.calibration.fit import Evaluator, Fit, fit, information_criteria, noise_threshold
+from rover_env.calibration.model_form import fit_relaxation, with_sigma
 from rover_env.calibration.replay import (
     SIGNALS,
     PreparedLog,
@@ -89,6 +90,8 @@ class Options:
     ray_address: str | None = None
     evidence: int = 2
     """Candidates for which a deciding drive is proposed and simulated, at most."""
+    model_form: bool = True
+    """Fit the tire's relaxation length first (:mod:`.model_form`)."""
 
 
 @dataclass
@@ -182,9 +185,20 @@ def diagnose(
     sets: dict[str, list[Window]] = {"train": train_w, "train_sub": sub_w, "held": held_w}
     say(f"{len(logs)} log(s), {split}; windows {len(train_w)} training, {len(held_w)} held out")
 
-    ev = Evaluator(base, st, prepared, sets)
-    # 2. baseline replay, noise, localisation
+    # 2. the model's own form (the tire's relaxation length), then baseline replay, noise
     sensor_noise = rs.noise_floor(prepared)
+    relax = None
+    if opts.model_form:
+        relax = fit_relaxation(base, prepared, train_w, st, sensor_noise)
+        say(
+            f"model form: tire relaxation length {relax.sigma * 1e3:.3g} mm"
+            f" (nominal {relax.nominal * 1e3:.3g} mm; training windows"
+            f" {better_worse(relax.gain)}, p {relax.p:.2g}):"
+            f" {'adopted' if relax.adopted else 'kept nominal'}"
+        )
+        if relax.adopted:
+            base = with_sigma(base, relax.sigma)
+    ev = Evaluator(base, st, prepared, sets)
     # Replay floor: what a perfect model leaves, from the model's own twin of each drive.
     noise = replay_floor(base, prepared, all_w, sensor_noise, st)
     say(
@@ -421,6 +435,17 @@ def diagnose(
         "config": str(cfg_path),
         "unexplained": _unexplained(table_held_after, final_floor),
         "evidence": evidence,
+        "model_form": None
+        if relax is None
+        else {
+            "relaxation_length_m": relax.sigma if relax.adopted else relax.nominal,
+            "fitted_m": relax.sigma,
+            "nominal_m": relax.nominal,
+            "adopted": relax.adopted,
+            "training_gain": relax.gain,
+            "p": relax.p,
+            "ladder": {f"{k:.6g}": v for k, v in relax.ladder.items()},
+        },
     }
     (out / "result.json").write_text(json.dumps(strict_json(result), indent=2, allow_nan=False))
     from rover_env.calibration.report import write_report
@@ -754,6 +779,7 @@ def _cli(args: argparse.Namespace) -> int:
         workers=args.workers,
         executor=args.executor,
         ray_address=args.ray_address,
+        model_form=not args.no_model_form,
     )
     try:
         diagnose(args.logs, args.out, opts)
@@ -771,7 +797,17 @@ def add_cli(sub: Any) -> None:
     p.add_argument("logs", nargs="+", help="SPEC §6 log CSVs (YAML beside each)")
     p.add_argument("--out", required=True, help="output folder (report.md, rover.yaml, PNGs)")
     p.add_argument("--window", type=float, default=3.0, help="shooting window (s)")
-    p.add_argument("--burn-in", type=float, default=0.4, help="unscored start of each window (s)")
+    p.add_argument(
+        "--burn-in",
+        type=float,
+        default=ReplaySettings.burn_in,
+        help="unscored start of each window (s)",
+    )
+    p.add_argument(
+        "--no-model-form",
+        action="store_true",
+        help="keep the configuration's tire relaxation length (no model-form stage)",
+    )
     p.add_argument("--candidates", default=None, help="comma-separated subset of the catalogue")
     p.add_argument("--quiet", action="store_true")
     p.add_argument(

@@ -211,6 +211,7 @@ def write_report(
         f" setpoints from the logged commands), first {st.burn_in:g} s of each not scored; residuals every"
         f" {st.stride:g} s: wheel-angle increments, joint angles, and pose increments where the log has pose."
         " Open-loop replay of a whole drive was rejected: one early heading error dominates everything after it.",
+        _model_form_line(result.get("model_form")),
         '- Fit, blind to magnitude: one parameter is searched over its whole physical range ("off" and a'
         " log-spaced ladder of 5 values per sign from 1.2 % to 100 % of the range, then a bounded Brent search"
         " between the best value's neighbours); several parameters start from the best ladder point or the"
@@ -321,3 +322,19 @@ def write_report(
     path = out / "report.md"
     path.write_text("\n".join(L) + "\n")
     return path
+
+
+def _model_form_line(mf: dict[str, Any] | None) -> str:
+    """The model-form stage (rover_env.calibration.model_form) in one bullet."""
+    if mf is None:
+        return "- Model form: not fitted (the configuration's tire relaxation length kept)."
+    verdict = "adopted" if mf["adopted"] else "kept the nominal value"
+    change = 100 * mf["training_gain"]
+    words = f"{change:.1f} % better" if change >= 0 else f"{-change:.1f} % worse"
+    return (
+        f"- Model form, fitted before any effect: the tire's relaxation length (not part of the"
+        f" SPEC's steady-state tire) {1e3 * mf['fitted_m']:.3g} mm against the nominal"
+        f" {1e3 * mf['nominal_m']:.3g} mm, training windows {words} (Wilcoxon p {mf['p']:.2g}):"
+        f" {verdict}. It is the model's form, not an effect, and is written into the updated"
+        " configuration."
+    )
