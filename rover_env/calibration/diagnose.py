@@ -208,13 +208,7 @@ def diagnose(
     base_train = ev.run({}, "train")
     base_held = ev.run({}, "held")
     say(f"baseline replay done ({ev.seconds:.1f}s, backend {base_backend(base)})")
-    st_train = rs.stack(base_train, prepared)
-    scale = {}
-    for j, sg in enumerate(SIGNALS):
-        col = st_train.resid[:, j]
-        col = col[np.isfinite(col)]
-        rms = float(np.sqrt(np.mean(col**2))) if col.size else 0.0
-        scale[sg] = max(rms, noise[sg])
+    scale = rs.signal_scale(rs.stack(base_train, prepared), noise)
     ev.scale = scale
     all_results = base_train + base_held
     table_before = rs.table(rs.stack(all_results, prepared), noise)
@@ -605,14 +599,7 @@ def replay_floor(
         else p
         for i, p in enumerate(prepared)
     ]
-    tw = rs.stack(Replayer(cfg, st).run(twins, windows), twins)
-    out = {}
-    for j, sname in enumerate(SIGNALS):
-        col = tw.resid[:, j]
-        col = col[np.isfinite(col)]
-        floor = float(np.sqrt(np.mean(col**2))) if col.size else 0.0
-        out[sname] = max(floor, sensor_noise[sname])
-    return out
+    return rs.signal_scale(rs.stack(Replayer(cfg, st).run(twins, windows), twins), sensor_noise)
 
 
 def _noise_test(ref_left: list[str], new_left: list[str]) -> list[str]:

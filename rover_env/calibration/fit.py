@@ -182,7 +182,7 @@ def _diff_step(c: Candidate, x0: Array) -> list[float]:
     return out
 
 
-def _parabola_min(x: Array, y: Array, j: int) -> float:
+def parabola_min(x: Array, y: Array, j: int) -> float:
     """Vertex of the parabola through points j-1, j, j+1 (x sorted), kept inside them."""
     if j <= 0 or j >= len(x) - 1:
         return float(x[j])
@@ -211,13 +211,13 @@ def bootstrap_interval(
     x, L = np.asarray(xs, dtype=float)[order], np.asarray(losses, dtype=float)[order]
     total = L.sum(axis=1)
     j = int(np.argmin(total))
-    est = _parabola_min(x, total, j)
+    est = parabola_min(x, total, j)
     rng = np.random.default_rng(seed)
     nw = L.shape[1]
     w = rng.multinomial(nw, np.full(nw, 1.0 / nw), size=n_boot).astype(float)
     tb = w @ L.T  # (n_boot, n_points)
     jb = np.argmin(tb, axis=1)
-    xb = np.array([_parabola_min(x, tb[b], int(jb[b])) for b in range(n_boot)])
+    xb = np.array([parabola_min(x, tb[b], int(jb[b])) for b in range(n_boot)])
     span = hi - lo
     # Resolution of the search: the estimate cannot be placed finer than this.
     res = max(0.02 * abs(est - off), 0.002 * span)

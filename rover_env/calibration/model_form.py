@@ -28,7 +28,8 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from rover_env.calibration import residuals as rs
-from rover_env.calibration.replay import SIGNALS, PreparedLog, Replayer, ReplaySettings, Window
+from rover_env.calibration.fit import parabola_min
+from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window
 from rover_env.config import RoverConfig
 
 Array = NDArray[np.float64]
@@ -78,13 +79,7 @@ def fit_relaxation(
     """Fit the tire's relaxation length on ``windows`` (training) of ``prepared`` logs."""
     nominal = float(cfg.tire.sigma_x)
     base = Replayer(cfg, settings).run(prepared, windows)
-    st = rs.stack(base, prepared)
-    scale = {}
-    for j, name in enumerate(SIGNALS):
-        col = st.resid[:, j]
-        col = col[np.isfinite(col)]
-        rms = float(np.sqrt(np.mean(col**2))) if col.size else 0.0
-        scale[name] = max(rms, sensor_noise[name])
+    scale = rs.signal_scale(rs.stack(base, prepared), sensor_noise)
     l0 = rs.window_losses(base, scale)
     eps = 1e-12 * max(float(np.mean(l0)), 1e-300)
 
@@ -104,13 +99,9 @@ def fit_relaxation(
     j = int(np.argmin(y))
     best = sigmas[j]
     if 0 < j < len(sigmas) - 1:
-        x0, x1, x2 = x[j - 1], x[j], x[j + 1]
-        y0, y1, y2 = y[j - 1], y[j], y[j + 1]
-        den = (x0 - x1) * (x0 - x2) * (x1 - x2)
-        a = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / den
-        b = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / den
-        if a > 0:
-            s_hat = float(np.exp(np.clip(-b / (2 * a), x0, x2)))
+        x_hat = parabola_min(x, y, j)
+        if x_hat != x[j]:  # a vertex between the neighbours (not a flat or concave ladder)
+            s_hat = float(np.exp(x_hat))
             if s_hat not in losses:
                 losses[s_hat] = _window_losses(
                     with_sigma(cfg, s_hat), prepared, windows, settings, scale

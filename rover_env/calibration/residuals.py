@@ -163,6 +163,17 @@ def stack(results: list[WindowResult], logs: list[PreparedLog]) -> Stacked:
     )
 
 
+def signal_scale(st: Stacked, floor: dict[str, float]) -> dict[str, float]:
+    """Per-signal scale: the larger of the signal's RMS residual in ``st`` and its floor."""
+    scale = {}
+    for j, name in enumerate(SIGNALS):
+        col = st.resid[:, j]
+        col = col[np.isfinite(col)]
+        rms = float(np.sqrt(np.mean(col**2))) if col.size else 0.0
+        scale[name] = max(rms, floor[name])
+    return scale
+
+
 def residual_vector(results: list[WindowResult], scale: dict[str, float]) -> Array:
     """All residuals divided by their signal's scale, as one vector (for least squares)."""
     sw = np.array([scale[s] for s in SIGNALS[:11]])
