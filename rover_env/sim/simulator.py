@@ -45,9 +45,10 @@ Array = NDArray[np.float64]
 
 
 HINGE_EVERY = 10
-FRICTION_DOF = int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF)
 """Substeps between updates of the hinge effects' friction from the tire loads (10 ms at the
 default step: far faster than the loads change, ~3 Hz tire bounce; per substep it cost ~3x)."""
+FRICTION_DOF = int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF)
+"""Constraint type of a dof's dry friction (``frictionloss``) rows in ``efc_*``."""
 
 
 class SimulationError(RuntimeError):
