@@ -14,6 +14,7 @@ from gymnasium.utils.env_checker import check_env
 import rover_env
 from rover_env.config import FrictionPatch, TerrainConfig
 from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv, RewardWeights
+from rover_env.tasks import Task
 
 gym.register_envs(rover_env)
 ID = "rover_env/ProtoExplorer-v0"
@@ -141,6 +142,44 @@ def test_info_has_every_reward_term_and_privileged_truth_only_there() -> None:
         assert key in info
     assert obs.shape == (len(OBS_NAMES),)
     assert not any("true" in n or "F_z" in n or "mu" in n for n in OBS_NAMES)
+
+
+def test_mobility_reward_pays_for_the_path_along_the_command_and_charges_sinkage() -> None:
+    """The mobility terms: progress is the step's path speed, signed by the command's
+    direction; sinkage is the six wheels' mean in mm; the reward is the sum of the terms."""
+    w = {"tracking": 0.0, "yaw_tracking": 1.0, "progress": 4.0, "sinkage": 0.02}
+    env = ProtoExplorerEnv(terrain="sand", reward_weights=w, sensor_noise="none")
+    env.reset(seed=0, options={"yaw": 0.0})
+    env.set_task(_Fixed(0.15))
+    for sign in (1.0, -1.0):
+        env.reset(seed=0, options={"yaw": 0.0})
+        for _ in range(15):
+            _, reward, _, _, info = env.step(np.full(4, 0.6, dtype=np.float32))
+        terms = sorted(k for k in info if k.startswith("reward_"))
+        assert terms == [
+            "reward_energy",
+            "reward_progress",
+            "reward_sinkage",
+            "reward_slip",
+            "reward_tracking",
+        ]
+        assert reward == pytest.approx(sum(info[k] for k in terms))
+        assert info["wheel_sinkage"].mean() > 1e-3  # on sand the wheels sit in the soil
+        assert info["reward_sinkage"] == pytest.approx(-0.02 * 1000 * info["wheel_sinkage"].mean())
+        v = sign * info["distance"] / 0.1
+        assert info["reward_progress"] == pytest.approx(4.0 * v)
+        assert sign * info["reward_progress"] > 0.1  # forward: paid; against the command: charged
+        env.set_task(_Fixed(-0.15))
+
+
+class _Fixed(Task):
+    """A constant command (speed m/s, no yaw rate), never renewed."""
+
+    def __init__(self, v: float) -> None:
+        self.v = v
+
+    def command(self, rng: np.random.Generator, t: float) -> tuple[float, float, float]:
+        return self.v, 0.0, float("inf")
 
 
 def test_flip_terminates() -> None:

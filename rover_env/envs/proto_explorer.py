@@ -605,15 +605,24 @@ class RoverEpisode:
             slip_mean if self.slip_source == "true" else float(np.mean(np.abs(est.slip_ratio)))
         )
         w = self.reward_weights
-        r_track = (
-            w.tracking
-            * 0.5
-            * (math.exp(-((e_v / w.sigma_speed) ** 2)) + math.exp(-((e_w / w.sigma_yaw_rate) ** 2)))
-        )
+        k_w = math.exp(-((e_w / w.sigma_yaw_rate) ** 2))
+        r_track = w.tracking * 0.5 * (math.exp(-((e_v / w.sigma_speed) ** 2)) + k_w)
+        if w.yaw_tracking:
+            r_track += w.yaw_tracking * k_w
         r_slip = -w.slip * w.slip_penalty(mean_abs_slip)
         energy = float(sums.energy[row])
         r_energy = -w.energy * energy / self.control_dt
+        path = float(np.linalg.norm(pos[:2] - pos0[:2]))
         reward = r_track + r_slip + r_energy
+        extra: dict[str, float] = {}
+        if w.progress:
+            # The benchmark's progress: a step moving against the command counts negative.
+            against = speed * float(self._command[0]) < 0
+            extra["reward_progress"] = w.progress * (-path if against else path) / self.control_dt
+            reward += extra["reward_progress"]
+        if w.sinkage:
+            extra["reward_sinkage"] = -w.sinkage * 1000.0 * float(np.mean(wheel_sinkage))
+            reward += extra["reward_sinkage"]
         self._prev_action = a4
         out = bool(abs(pos[0]) > self._arena_half[0] or abs(pos[1]) > self._arena_half[1])
         if t >= self._next_command_t:
@@ -629,9 +638,10 @@ class RoverEpisode:
             slip_true_mean_abs=slip_mean,
             slip_abs_step=slip_abs_step,
             energy=energy,
-            distance=float(np.linalg.norm(pos[:2] - pos0[:2])),
+            distance=path,
             flipped=flipped,
             out_of_arena=out,
+            **extra,
         )
         return float(reward), bool(flipped or out), info
 
@@ -740,7 +750,11 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
     or the estimate with ``slip_source="estimate"``; with ``slip_scale`` s > 0 the penalty is
     ``-w_slip * s * ln(1 + mean |S| / s)``, linear below s and logarithmic above) and
     ``reward_energy = -w_energy * P``
-    with P the motors' electrical power (W). e_v, e_w: RMS over the step of commanded minus
+    with P the motors' electrical power (W). With non-zero ``progress``, ``yaw_tracking`` or
+    ``sinkage`` weights (the *mobility* reward, :class:`rover_env.tasks.RewardWeights`) the
+    reward adds ``w_yaw * exp(-(e_w/0.1)^2)``, ``reward_progress = w_progress * p`` (p the
+    step's path speed, m/s, negative against the command) and ``reward_sinkage = -w_sink *``
+    mean sinkage (mm); these two terms are then in ``info``. e_v, e_w: RMS over the step of commanded minus
     actual forward speed (m/s) and yaw rate (rad/s) of the middle segment. Weights:
     ``reward_weights`` (``RewardWeights``, default 1, 1, 0.02; slip_scale 0: linear).
 

@@ -11,8 +11,18 @@ __all__ = ["RewardWeights"]
 @dataclasses.dataclass(frozen=True)
 class RewardWeights:
     """reward = tracking * (exp(-(e_v/sigma_v)^2) + exp(-(e_w/sigma_w)^2)) / 2
-    - slip * g(mean |S|) - energy * electrical power [W], with g(m) = m, or
-    g(m) = slip_scale * ln(1 + m / slip_scale) when ``slip_scale`` > 0."""
+    + yaw_tracking * exp(-(e_w/sigma_w)^2) + progress * p
+    - slip * g(mean |S|) - energy * electrical power [W] - sinkage * mean sinkage [mm],
+    with g(m) = m, or g(m) = slip_scale * ln(1 + m / slip_scale) when ``slip_scale`` > 0,
+    and p the step's path speed (m/s), negative when the rover moves against the command.
+
+    The defaults are the tracking reward of every env so far. ``progress``, ``yaw_tracking``
+    and ``sinkage`` (default 0) give the *mobility* reward: go along the commanded direction,
+    at the commanded yaw rate, at no imposed pace, paying energy, slip and sinkage. With
+    progress weight P and energy weight E, a metre is worth P/E joules: the policy speeds up
+    while a metre costs less than that. This is what the soil acceptance measures (success,
+    energy per metre, sinkage, |S| at a yaw-rate error), and what a slip controller allowed
+    to speed a wheel up does."""
 
     tracking: float = 1.0
     slip: float = 1.0
@@ -20,6 +30,12 @@ class RewardWeights:
     sigma_speed: float = 0.05
     sigma_yaw_rate: float = 0.1
     slip_scale: float = 0.0
+    progress: float = 0.0
+    """Per m/s of path speed along the commanded direction (0: the pace is the command's)."""
+    yaw_tracking: float = 0.0
+    """Weight of the yaw-rate term alone (with ``tracking`` 0: turn as told, at any pace)."""
+    sinkage: float = 0.0
+    """Per mm of the six wheels' mean sinkage into loose soil (0 on hard ground)."""
     """0: the slip penalty is linear in mean |S|. > 0: linear below this slip, logarithmic
     above, so that a wheel spinning at S = -1 (a stuck rover) does not outweigh by a factor of
     hundreds the few 1e-3 of slip that separate controllers on ordinary ground; training
