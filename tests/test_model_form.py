@@ -1,6 +1,8 @@
-"""The model-form stage of diagnose (rover_env.calibration.model_form): the tire's
-relaxation length, fitted before any effect, finds the truth's value on this project's logs
-and a much shorter one on the second implementation's, whose tire is steady state."""
+"""The model-form stage of diagnose (rover_env.calibration.model_form), fitted before any
+effect: the tire's relaxation length finds the truth's value on this project's logs and a
+much shorter one on the second implementation's, whose tire is steady state; the speed
+loop's anti-windup bound keeps the configuration's on this project's logs and takes a
+much smaller one on the second implementation's, whose PI integrates conditionally."""
 
 from __future__ import annotations
 
@@ -11,7 +13,17 @@ import pytest
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.foreign_logs import make_foreign_logs
 from rover_env.calibration.make_logs import make_logs
-from rover_env.calibration.model_form import LADDER, RelaxationFit, fit_relaxation, with_sigma
+from rover_env.calibration.model_form import (
+    LADDER,
+    WINDUP_LADDER,
+    FormFit,
+    RelaxationFit,
+    fit_relaxation,
+    fit_windup,
+    with_form,
+    with_sigma,
+    with_windup,
+)
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
 from rover_env.config import RoverConfig
 from rover_env.logs import read_log
@@ -20,20 +32,33 @@ CFG = RoverConfig()
 ST = ReplaySettings()
 
 
-def _fit(paths: list[Path]) -> RelaxationFit:
+def _fit(paths: list[Path]) -> tuple[RelaxationFit, FormFit]:
     prepared = [prepare(read_log(p), CFG, p.name, ST) for p in paths]
     windows = make_windows(prepared, ST)
-    return fit_relaxation(CFG, prepared, windows, ST, rs.noise_floor(prepared))
+    noise = rs.noise_floor(prepared)
+    relax = fit_relaxation(CFG, prepared, windows, ST, noise)
+    cfg = with_form(CFG, relax) if relax.adopted else CFG  # diagnose's order: sigma first
+    return relax, fit_windup(cfg, prepared, windows, ST, noise)
 
 
 @pytest.fixture(scope="module")
-def fits(tmp_path_factory: pytest.TempPathFactory) -> dict[str, RelaxationFit]:
+def both(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[RelaxationFit, FormFit]]:
     root = tmp_path_factory.mktemp("model_form")
     own = make_logs(root / "own", {}, drives=1, seed=7, duration=30.0, progress=False)
     foreign = make_foreign_logs(
         root / "foreign", {}, drives=1, seed=7, duration=30.0, progress=False
     )
     return {"own": _fit(own), "foreign": _fit(foreign)}
+
+
+@pytest.fixture(scope="module")
+def fits(both: dict[str, tuple[RelaxationFit, FormFit]]) -> dict[str, RelaxationFit]:
+    return {k: v[0] for k, v in both.items()}
+
+
+@pytest.fixture(scope="module")
+def windups(both: dict[str, tuple[RelaxationFit, FormFit]]) -> dict[str, FormFit]:
+    return {k: v[1] for k, v in both.items()}
 
 
 def test_relaxation_length_is_the_truths_on_this_projects_logs(
@@ -55,3 +80,28 @@ def test_with_sigma_sets_both_directions() -> None:
     t = with_sigma(CFG, 0.005).tire
     assert (t.sigma_x, t.sigma_y) == (0.005, 0.005)
     assert with_sigma(CFG, 0.005).motor == CFG.motor
+
+
+def test_windup_bound_is_the_configurations_on_this_projects_logs(
+    windups: dict[str, FormFit],
+) -> None:
+    f = windups["own"]
+    assert set(WINDUP_LADDER) <= set(f.ladder)  # the whole ladder was tried
+    assert f.nominal == CFG.motor.max_angle_error
+    assert not f.adopted and f.d_bic > 0  # no bound pays for its parameter
+    # Bounds well below the nominal starve the integral: every one of them fits worse.
+    assert all(v > 0 for x, v in f.ladder.items() if x <= f.nominal / 8)
+
+
+def test_windup_bound_is_small_on_a_conditionally_integrating_loop(
+    windups: dict[str, FormFit],
+) -> None:
+    f = windups["foreign"]
+    assert f.adopted and f.value <= f.nominal / 4
+    assert f.ladder[f.value] < 0 < f.gain
+
+
+def test_with_windup_sets_the_bound_only() -> None:
+    c = with_windup(CFG, 0.03)
+    assert c.motor.max_angle_error == 0.03
+    assert c.tire == CFG.tire and c.motor.torque_limit == CFG.motor.torque_limit

@@ -111,6 +111,19 @@ def test_soil_agent_configs() -> None:
         assert kw["residual_base"] == "open-loop" and kw["action_residual"] > 0
 
 
+def test_mobility_agent_configs() -> None:
+    """configs/agents_mobility/{algo}.yaml: one ground, action and reward for the three
+    algorithms; the reward is the mobility one (no pace tracking, progress paid) and the
+    base the open loop x 2.2, a classical controller (no slip PI in the policy's loop)."""
+    kws = [load_algo_config(a, "agents_mobility", MIX).env_kwargs for a in ("ppo", "sac", "td3")]
+    for kw in kws:
+        assert kw == kws[0]
+        assert {"sand-slope", "soft-patch", "sand-turns", "flat-turns"} <= set(kw["scenarios"])
+        assert kw["residual_base"] == "open-loop@gain=2.2" and kw["action_residual"] > 0
+        w = kw["reward_weights"]
+        assert w["tracking"] == 0 and w["progress"] > 0 and w["yaw_tracking"] > 0
+
+
 @pytest.mark.parametrize(
     ("algo", "over", "match"),
     [

@@ -50,7 +50,13 @@ from rover_env.calibration.candidates import (
     separating_plan,
 )
 from rover_env.calibration.fit import Evaluator, Fit, fit, information_criteria, noise_threshold
-from rover_env.calibration.model_form import fit_relaxation, with_sigma
+from rover_env.calibration.model_form import (
+    FormFit,
+    fit_relaxation,
+    fit_windup,
+    reprepare,
+    with_form,
+)
 from rover_env.calibration.replay import (
     SIGNALS,
     PreparedLog,
@@ -91,7 +97,8 @@ class Options:
     evidence: int = 2
     """Candidates for which a deciding drive is proposed and simulated, at most."""
     model_form: bool = True
-    """Fit the tire's relaxation length first (:mod:`.model_form`)."""
+    """Fit the model's own form first: the tire's relaxation length, then the speed loop's
+    anti-windup bound (:mod:`.model_form`)."""
 
 
 @dataclass
@@ -185,19 +192,22 @@ def diagnose(
     sets: dict[str, list[Window]] = {"train": train_w, "train_sub": sub_w, "held": held_w}
     say(f"{len(logs)} log(s), {split}; windows {len(train_w)} training, {len(held_w)} held out")
 
-    # 2. the model's own form (the tire's relaxation length), then baseline replay, noise
+    # 2. the model's own form (tire relaxation, speed-loop windup), then baseline replay, noise
     sensor_noise = rs.noise_floor(prepared)
-    relax = None
+    forms: list[FormFit] = []
     if opts.model_form:
-        relax = fit_relaxation(base, prepared, train_w, st, sensor_noise)
-        say(
-            f"model form: tire relaxation length {relax.sigma * 1e3:.3g} mm"
-            f" (nominal {relax.nominal * 1e3:.3g} mm; training windows"
-            f" {better_worse(relax.gain)}, p {relax.p:.2g}):"
-            f" {'adopted' if relax.adopted else 'kept nominal'}"
-        )
-        if relax.adopted:
-            base = with_sigma(base, relax.sigma)
+        for fit_form in (fit_relaxation, fit_windup):
+            form = fit_form(base, prepared, train_w, st, sensor_noise)
+            forms.append(form)
+            say(
+                f"model form: {form.name} {form.value:.3g} {form.unit} (nominal"
+                f" {form.nominal:.3g} {form.unit}; training windows {better_worse(form.gain)},"
+                f" p {form.p:.2g}, dBIC {form.d_bic:+.1f}):"
+                f" {'adopted' if form.adopted else 'kept nominal'}"
+            )
+            if form.adopted:
+                base = with_form(base, form)
+                prepared = reprepare(prepared, base, st)
     ev = Evaluator(base, st, prepared, sets)
     # Replay floor: what a perfect model leaves, from the model's own twin of each drive.
     noise = replay_floor(base, prepared, all_w, sensor_noise, st)
@@ -429,17 +439,7 @@ def diagnose(
         "config": str(cfg_path),
         "unexplained": _unexplained(table_held_after, final_floor),
         "evidence": evidence,
-        "model_form": None
-        if relax is None
-        else {
-            "relaxation_length_m": relax.sigma if relax.adopted else relax.nominal,
-            "fitted_m": relax.sigma,
-            "nominal_m": relax.nominal,
-            "adopted": relax.adopted,
-            "training_gain": relax.gain,
-            "p": relax.p,
-            "ladder": {f"{k:.6g}": v for k, v in relax.ladder.items()},
-        },
+        "model_form": None if not opts.model_form else {f.name: f.as_json() for f in forms},
     }
     (out / "result.json").write_text(json.dumps(strict_json(result), indent=2, allow_nan=False))
     from rover_env.calibration.report import write_report
@@ -793,7 +793,7 @@ def add_cli(sub: Any) -> None:
     p.add_argument(
         "--no-model-form",
         action="store_true",
-        help="keep the configuration's tire relaxation length (no model-form stage)",
+        help="keep the configuration's tire relaxation length and speed-loop windup (no model-form stage)",
     )
     p.add_argument("--candidates", default=None, help="comma-separated subset of the catalogue")
     p.add_argument("--quiet", action="store_true")

@@ -327,14 +327,33 @@ def write_report(
 def _model_form_line(mf: dict[str, Any] | None) -> str:
     """The model-form stage (rover_env.calibration.model_form) in one bullet."""
     if mf is None:
-        return "- Model form: not fitted (the configuration's tire relaxation length kept)."
-    verdict = "adopted" if mf["adopted"] else "kept the nominal value"
-    change = 100 * mf["training_gain"]
-    words = f"{change:.1f} % better" if change >= 0 else f"{-change:.1f} % worse"
+        return (
+            "- Model form: not fitted (the configuration's tire relaxation length and speed-loop"
+            " windup kept)."
+        )
+    what = {
+        "relaxation_length": (
+            "the tire's relaxation length (the SPEC's tire is steady state)",
+            1e3,
+            "mm",
+        ),
+        "max_angle_error": ("the speed loop's anti-windup bound", 1e3, "mrad"),
+    }
+    parts = []
+    for name, f in mf.items():
+        label, k, unit = what.get(name, (name, 1.0, f.get("unit", "")))
+        change = 100 * f["training_gain"]
+        words = f"{change:.1f} % better" if change >= 0 else f"{-change:.1f} % worse"
+        verdict = "adopted" if f["adopted"] else "kept the nominal value"
+        parts.append(
+            f"{label} {k * f['fitted']:.3g} {unit} against the nominal {k * f['nominal']:.3g}"
+            f" {unit}, training windows {words} (Wilcoxon p {f['p']:.2g}, dBIC"
+            f" {f.get('d_bic', float('nan')):+.1f}): {verdict}"
+        )
     return (
-        f"- Model form, fitted before any effect: the tire's relaxation length (not part of the"
-        f" SPEC's steady-state tire) {1e3 * mf['fitted_m']:.3g} mm against the nominal"
-        f" {1e3 * mf['nominal_m']:.3g} mm, training windows {words} (Wilcoxon p {mf['p']:.2g}):"
-        f" {verdict}. It is the model's form, not an effect, and is written into the updated"
+        "- Model form, fitted before any effect (the implementation's choices, not the rover's"
+        " definition): "
+        + "; ".join(parts)
+        + ". These are not effects; the adopted values are written into the updated"
         " configuration."
     )
