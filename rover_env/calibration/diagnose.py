@@ -482,7 +482,8 @@ def missing_evidence(
 
     A candidate qualifies when it is not named, lowers the training BIC, moves some training
     signal by at least one replay floor, and on the held-out drive either moves no signal
-    by a floor (not excited) or only the 1 Hz pose (a sparse signal). For each (at most
+    by a floor (not excited), or only the 1 Hz pose (a sparse signal), or improves it by the
+    window test's margin at a p the held-out windows cannot bring under alpha (leaning). For each (at most
     ``opts.evidence``, best training BIC first) the drive that would decide is proposed and
     simulated (:func:`rover_env.calibration.evidence.propose`).
     """
@@ -505,13 +506,20 @@ def missing_evidence(
         held = signal_change(ev, s.fit.ext, {}, "held", noise)
         strong = [k for k, v in held.items() if v >= 1.0]
         sparse = bool(strong) and all(k.startswith("pose_") for k in strong)
-        if strong and not sparse:
+        # The held-out drive leans towards it (better by the window test's margin) but its
+        # few windows cannot confirm it at alpha: more of the drive that excites it decides.
+        leaning = s.gain >= opts.min_gain and s.p >= opts.alpha
+        if strong and not sparse and not leaning:
             continue  # the held-out drive could judge it, and did
-        why = (
-            "only the 1 Hz pose carries it on the held-out drive"
-            if sparse
-            else "the held-out drive does not excite it"
-        )
+        if sparse:
+            why = "only the 1 Hz pose carries it on the held-out drive"
+        elif strong:
+            why = (
+                f"the held-out drive leans towards it ({100 * s.gain:.0f} % better) but cannot"
+                f" confirm it (p {s.p:.2g} against {opts.alpha:g})"
+            )
+        else:
+            why = "the held-out drive does not excite it"
         p = propose(base, name, s.fit.ext, noise, held)
         p["reason"] = why
         out.append(p)
