@@ -8,7 +8,7 @@ range of over-speed gains and for the set-point slip PI at a range of ``max_corr
 (how far it may speed a wheel up), so that a learned policy's point can be read against it:
 below the curve is a better allocation, on it is another gain.
 
-    python benchmarks/turn_frontier.py --seeds 10 --workers 2 --out docs/benchmark-agents-soil/frontier
+    python benchmarks/turn_frontier.py --seeds 10 --workers 2 --out docs/benchmark-agents-mobility/frontier
     python benchmarks/turn_frontier.py --extra ppo:agents/mobility-ppo ...  # an agent's point
 """
 
@@ -82,7 +82,7 @@ def main() -> None:
         help="more controller specs to place on the plot, comma-separated (e.g. a learned agent)",
     )
     ap.add_argument("--workers", type=int, default=1)
-    ap.add_argument("--out", type=Path, default=Path("docs/benchmark-agents-soil/frontier"))
+    ap.add_argument("--out", type=Path, default=Path("docs/benchmark-agents-mobility/frontier"))
     args = ap.parse_args()
     seeds = split_seeds("tuning", args.seeds)
     scenarios = args.scenarios.split(",")
