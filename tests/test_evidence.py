@@ -38,3 +38,48 @@ def test_a_measured_straight_separates_a_rolling_radius_the_pose_sees() -> None:
     assert p["plan"] == "straight" and p["separates"]
     assert p["separation"]["pose_x"] >= 3.0
     assert max(p["separation"][s] for s in SIGNALS[6:11]) < 1.0
+
+
+def test_a_leaning_held_out_drive_asks_for_the_deciding_drive(monkeypatch) -> None:
+    """A candidate the held-out drive improves by the window test's margin, at a p its few
+    windows cannot bring under alpha, gets the drive that decides proposed; one the
+    held-out drive moved but did not improve by that margin does not (it was judged)."""
+    import numpy as np
+
+    from rover_env.calibration import evidence, fit
+    from rover_env.calibration.candidates import catalogue
+    from rover_env.calibration.diagnose import Options, Scored, missing_evidence
+    from rover_env.config import RoverConfig
+
+    cand = {c.name: c for c in catalogue()}
+    moved = {"wheel_2R": 5.0, "theta_1": 0.1}  # the held-out drive excites both (>= 1 floor)
+    monkeypatch.setattr(fit, "signal_change", lambda *a, **k: dict(moved))
+    monkeypatch.setattr(
+        evidence,
+        "propose",
+        lambda base, name, ext, noise, held: {
+            "effect": name,
+            "plan": "x",
+            "best_signal": "wheel_2R",
+            "best_per_window": 9.0,
+            "best_floor_units": 30.0,
+            "held_out_best_signal": "wheel_2R",
+            "held_out_floor_units": 5.0,
+        },
+    )
+
+    def scored(name: str, gain: float, p: float) -> Scored:
+        f = fit.Fit(
+            [cand[name]], np.array([-0.14]), np.array([-0.2]), np.array([-0.1]),
+            np.array([0.02]), 1.0, 3, {name: {}}, 0.0, "train",
+        )  # fmt: skip
+        return Scored(f, 1.0, np.ones(16), gain, p, -6.0, -6.0, 32)
+
+    opts = Options(progress=False)
+    ranked = [scored("torque_limit", 0.41, 0.018), scored("command_lag", 0.05, 0.3)]
+    out = missing_evidence(None, ranked, [], {}, RoverConfig(), opts, lambda m: None)  # type: ignore[arg-type]
+    assert [e["effect"] for e in out] == ["torque_limit"]
+    assert "leans towards it (41 % better)" in out[0]["reason"]
+    # Confirmed at alpha: the held-out drive judged it, nothing to ask.
+    ranked = [scored("torque_limit", 0.41, 0.001)]
+    assert missing_evidence(None, ranked, [], {}, RoverConfig(), opts, lambda m: None) == []  # type: ignore[arg-type]
