@@ -17,7 +17,6 @@ from rover_env.calibration.model_form import (
     LADDER,
     WINDUP_LADDER,
     FormFit,
-    RelaxationFit,
     fit_relaxation,
     fit_windup,
     with_form,
@@ -32,7 +31,7 @@ CFG = RoverConfig()
 ST = ReplaySettings()
 
 
-def _fit(paths: list[Path]) -> tuple[RelaxationFit, FormFit]:
+def _fit(paths: list[Path]) -> tuple[FormFit, FormFit]:
     prepared = [prepare(read_log(p), CFG, p.name, ST) for p in paths]
     windows = make_windows(prepared, ST)
     noise = rs.noise_floor(prepared)
@@ -42,7 +41,7 @@ def _fit(paths: list[Path]) -> tuple[RelaxationFit, FormFit]:
 
 
 @pytest.fixture(scope="module")
-def both(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[RelaxationFit, FormFit]]:
+def both(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[FormFit, FormFit]]:
     root = tmp_path_factory.mktemp("model_form")
     own = make_logs(root / "own", {}, drives=1, seed=7, duration=30.0, progress=False)
     foreign = make_foreign_logs(
@@ -52,28 +51,28 @@ def both(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Relaxation
 
 
 @pytest.fixture(scope="module")
-def fits(both: dict[str, tuple[RelaxationFit, FormFit]]) -> dict[str, RelaxationFit]:
+def fits(both: dict[str, tuple[FormFit, FormFit]]) -> dict[str, FormFit]:
     return {k: v[0] for k, v in both.items()}
 
 
 @pytest.fixture(scope="module")
-def windups(both: dict[str, tuple[RelaxationFit, FormFit]]) -> dict[str, FormFit]:
+def windups(both: dict[str, tuple[FormFit, FormFit]]) -> dict[str, FormFit]:
     return {k: v[1] for k, v in both.items()}
 
 
 def test_relaxation_length_is_the_truths_on_this_projects_logs(
-    fits: dict[str, RelaxationFit],
+    fits: dict[str, FormFit],
 ) -> None:
     f = fits["own"]
     assert f.nominal == CFG.tire.sigma_x
     assert set(LADDER) <= set(f.ladder)  # the whole ladder was tried: nothing starts at 2 cm
-    assert f.nominal / 1.5 <= f.sigma <= f.nominal * 1.5
+    assert f.nominal / 1.5 <= f.value <= f.nominal * 1.5
 
 
-def test_relaxation_length_is_short_on_a_steady_state_tire(fits: dict[str, RelaxationFit]) -> None:
+def test_relaxation_length_is_short_on_a_steady_state_tire(fits: dict[str, FormFit]) -> None:
     f = fits["foreign"]
-    assert f.adopted and f.sigma <= f.nominal / 2
-    assert f.ladder[f.sigma] < 0 < f.gain  # the training windows fit better there
+    assert f.adopted and f.value <= f.nominal / 2
+    assert f.ladder[f.value] < 0 < f.gain  # the training windows fit better there
 
 
 def test_with_sigma_sets_both_directions() -> None:

@@ -201,7 +201,7 @@ def diagnose(
     sensor_noise = rs.noise_floor(prepared)
     forms: list[FormFit] = []
     if opts.model_form:
-        for fit_form in (fit_relaxation, fit_windup)[: 2 if opts.fit_windup else 1]:
+        for fit_form in [fit_relaxation, *([fit_windup] if opts.fit_windup else [])]:
             form = fit_form(base, prepared, train_w, st, sensor_noise)
             forms.append(form)
             say(
@@ -488,9 +488,9 @@ def missing_evidence(
     A candidate qualifies when it is not named, lowers the training BIC, moves some training
     signal by at least one replay floor, and on the held-out drive either moves no signal
     by a floor (not excited), or only the 1 Hz pose (a sparse signal), or improves it by the
-    window test's margin at a p the held-out windows cannot bring under alpha (leaning). For each (at most
-    ``opts.evidence``, best training BIC first) the drive that would decide is proposed and
-    simulated (:func:`rover_env.calibration.evidence.propose`).
+    window test's margin at a p the held-out windows cannot bring under alpha (leaning).
+    For each (at most ``opts.evidence``, best training BIC first) the drive that would
+    decide is proposed and simulated (:func:`rover_env.calibration.evidence.propose`).
     """
     from rover_env.calibration.evidence import propose
     from rover_env.calibration.fit import signal_change

@@ -18,21 +18,25 @@ differently:
   20 x worse.
 
 A catalogue effect (friction, a lag, a torque limit) would otherwise absorb these
-differences and be named for them. Diagnose fits sigma always and the bound only on request
-(``Options.fit_windup``, ``--fit-windup``). Measured in stop 24: on the second generator the
-bound comes out at 15.6 mrad, where the integral can hold only 0.6 N m. A steady load then
-shows as droop of the driven wheels, which the second generator's conditionally integrating
-PI does not have. Those wheels' residual scale falls 5-7 x, so they dominate the fit and
-pull rolling resistance to 30 % of the truth (case 2083: 0.0028 [0, 0.0057] for 0.0095;
-with sigma alone 0.0099 [0.0087, 0.0110]). So a clamp bound is the wrong stand-in for that
-loop; conditional integration is the form to add. So diagnose fits each, in turn, on the training windows
+differences and be named for them. So diagnose fits each, in turn, on the training windows
 only: a ladder a factor 2 apart, refined by a parabola in log x, each signal in units of
 its own residual under the nominal model, every window alike (mean log loss ratio). The
 best value is adopted when it pays for itself by the criterion every catalogue effect must
 pass, the BIC with windows as observations (one parameter: the sum of log loss ratios must
 fall by more than ln n); the Wilcoxon p of the improvement is reported beside it. They
 are the model's form, never named as effects, and the adopted values are written into
-``rover.yaml``. (History, disclosed: stop 23 first adopted sigma only at Wilcoxon
+``rover.yaml``.
+
+Diagnose fits sigma always and the bound only on request (``Options.fit_windup``,
+``--fit-windup``). Measured in stop 24: on the second generator the bound comes out at
+15.6 mrad, where the integral can hold only 0.6 N m. A steady load then shows as droop of
+the driven wheels, which the second generator's conditionally integrating PI does not
+have. Those wheels' residual scale falls 5-7 x, so they dominate the fit and pull rolling
+resistance to 30 % of the truth (case 2083: 0.0028 [0, 0.0057] for 0.0095; with sigma
+alone 0.0099 [0.0087, 0.0110]). So a clamp bound is the wrong stand-in for that loop;
+conditional integration is the form to add.
+
+(History, disclosed: stop 23 first adopted sigma only at Wilcoxon
 p < 0.01, which kept 2 cm on the second generator's first clean case at p 0.015 and a 15 %
 better fit at 5 mm; the test was dropped and the best value always taken. Stop 24 found
 that rule adopting a bound of 0.125 rad on this project's own clean drive, 3 % better and
@@ -86,11 +90,6 @@ class FormFit:
     adopted: bool
     """Whether diagnose uses ``value``: it differs from the nominal one and ``d_bic`` < 0."""
 
-    @property
-    def sigma(self) -> float:
-        """The relaxation fit's value under its old name."""
-        return self.value
-
     def as_json(self) -> dict[str, object]:
         return {
             "value": self.value if self.adopted else self.nominal,
@@ -103,10 +102,6 @@ class FormFit:
             "d_bic": self.d_bic,
             "ladder": {f"{k:.6g}": v for k, v in self.ladder.items()},
         }
-
-
-RelaxationFit = FormFit
-"""The stop-23 name of a relaxation-length fit."""
 
 
 def with_sigma(cfg: RoverConfig, sigma: float) -> RoverConfig:
@@ -251,7 +246,6 @@ __all__ = [
     "LADDER",
     "WINDUP_LADDER",
     "FormFit",
-    "RelaxationFit",
     "fit_relaxation",
     "fit_windup",
     "reprepare",

@@ -348,7 +348,7 @@ def _model_form_line(mf: dict[str, Any] | None) -> str:
         parts.append(
             f"{label} {k * f['fitted']:.3g} {unit} against the nominal {k * f['nominal']:.3g}"
             f" {unit}, training windows {words} (Wilcoxon p {f['p']:.2g}, dBIC"
-            f" {f.get('d_bic', float('nan')):+.1f}): {verdict}"
+            f" {f['d_bic']:+.1f}): {verdict}"
         )
     return (
         "- Model form, fitted before any effect (the implementation's choices, not the rover's"

@@ -754,8 +754,8 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
     ``sinkage`` weights (the *mobility* reward, :class:`rover_env.tasks.RewardWeights`) the
     reward adds ``w_yaw * exp(-(e_w/0.1)^2)``, ``reward_progress = w_progress * p`` (p the
     step's path speed, m/s, negative against the command) and ``reward_sinkage = -w_sink *``
-    mean sinkage (mm); these two terms are then in ``info``. e_v, e_w: RMS over the step of commanded minus
-    actual forward speed (m/s) and yaw rate (rad/s) of the middle segment. Weights:
+    mean sinkage (mm); these two terms are then in ``info``. e_v, e_w: RMS over the step of
+    commanded minus actual forward speed (m/s) and yaw rate (rad/s) of the middle segment. Weights:
     ``reward_weights`` (``RewardWeights``, default 1, 1, 0.02; slip_scale 0: linear).
 
     ## Starting state

@@ -30,16 +30,16 @@ class RewardWeights:
     sigma_speed: float = 0.05
     sigma_yaw_rate: float = 0.1
     slip_scale: float = 0.0
+    """0: the slip penalty is linear in mean |S|. > 0: linear below this slip, logarithmic
+    above, so that a wheel spinning at S = -1 (a stuck rover) does not outweigh by a factor of
+    hundreds the few 1e-3 of slip that separate controllers on ordinary ground; training
+    signals from both then have comparable size."""
     progress: float = 0.0
     """Per m/s of path speed along the commanded direction (0: the pace is the command's)."""
     yaw_tracking: float = 0.0
     """Weight of the yaw-rate term alone (with ``tracking`` 0: turn as told, at any pace)."""
     sinkage: float = 0.0
     """Per mm of the six wheels' mean sinkage into loose soil (0 on hard ground)."""
-    """0: the slip penalty is linear in mean |S|. > 0: linear below this slip, logarithmic
-    above, so that a wheel spinning at S = -1 (a stuck rover) does not outweigh by a factor of
-    hundreds the few 1e-3 of slip that separate controllers on ordinary ground; training
-    signals from both then have comparable size."""
 
     def slip_penalty(self, mean_abs_slip: float) -> float:
         """g(mean |S|) (see the class docstring), before the weight."""
