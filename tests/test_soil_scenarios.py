@@ -156,3 +156,26 @@ def test_open_loop_gain_scales_every_target() -> None:
     for bad in ("open-loop@kp=1", "open-loop@gain=0", "open-loop@gain=-1"):
         with pytest.raises(ValueError, match="open-loop"):
             parse_specs(bad)
+
+
+def test_open_loop_ramp_grows_the_over_speed_from_one_over_its_time() -> None:
+    """``open-loop@gain=K@ramp=T``: the soft start. At the drive's start the targets are the
+    feed-forward's, half-way through the ramp the over-speed is half grown, after it K."""
+    from rover_env.control.open_loop import OpenLoop
+    from rover_env.policies.specs import controller_settings, parse_specs
+
+    ff = OpenLoop(ROVER).act(_input(np.zeros(4), 0.0, v=0.1, w=0.1))
+    soft = OpenLoop(ROVER, gain=2.0, ramp=4.0)
+    for t, g in ((0.0, 1.0), (2.0, 1.5), (4.0, 2.0), (30.0, 2.0)):
+        inp = _input(np.zeros(4), t, v=0.1, w=0.1)
+        np.testing.assert_allclose(soft.act(inp), g * ff, rtol=1e-12, err_msg=f"t={t}")
+    assert parse_specs("open-loop@gain=2.2@ramp=3") == ["open-loop@gain=2.2@ramp=3"]
+    assert controller_settings("open-loop@gain=2.2@ramp=3") == {
+        "kind": "open-loop",
+        "variant": "",
+        "gain": 2.2,
+        "ramp": 3.0,
+    }
+    for bad in ("open-loop@ramp=-1", "open-loop@gain=2@lag=1"):
+        with pytest.raises(ValueError, match="open-loop"):
+            parse_specs(bad)

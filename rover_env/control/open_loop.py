@@ -46,6 +46,13 @@ class OpenLoop(Controller):
     ``gain`` (default 1) multiplies every target: a fixed over-speed, the simplest answer to
     slip on loose soil (a wheel needs 20-60 % of slip to pull there) and the no-learning
     reference beside agents that act on the wheels (spec ``open-loop@gain=K``).
+
+    ``ramp`` (s, default 0: none) is a soft start: the over-speed grows linearly from 1 at
+    the drive's start (``ControllerInput.t`` = 0) to ``gain`` at ``t = ramp``. Why: on the
+    8 degree sand climb every fixed over-speed and the slip PI saturate the motor after
+    ~3 s, so the whole difference between them is the start, where the PI's integrator
+    happens to ramp its wheels up from the feed-forward over ~3 s and digs in less
+    (``docs/benchmark-agents-mobility``); spec ``open-loop@gain=K@ramp=T``.
     """
 
     name = "open-loop"
@@ -55,10 +62,14 @@ class OpenLoop(Controller):
         rover_cfg: RoverConfig,
         rolling_radius: npt.ArrayLike | None = None,
         gain: float = 1.0,
+        ramp: float = 0.0,
     ):
         if not (np.isfinite(gain) and gain > 0):
             raise ValueError(f"open-loop gain must be a finite number > 0, got {gain!r}")
+        if not (np.isfinite(ramp) and ramp >= 0):
+            raise ValueError(f"open-loop ramp must be a finite time >= 0 (s), got {ramp!r}")
         self.gain = float(gain)
+        self.ramp = float(ramp)
         self.rover_cfg = rover_cfg
         r = static_rolling_radius(rover_cfg) if rolling_radius is None else rolling_radius
         self.rolling_radius = np.broadcast_to(np.asarray(r, dtype=np.float64), (4,)).copy()
@@ -76,6 +87,9 @@ class OpenLoop(Controller):
 
     def act(self, obs: ControllerInput) -> Array:
         ff = self.feedforward(obs.speed_command, obs.yaw_rate_command)
-        if self.gain != 1.0:
-            ff = self.gain * ff
+        gain = self.gain
+        if self.ramp > 0.0:
+            gain = 1.0 + (gain - 1.0) * min(max(obs.t, 0.0) / self.ramp, 1.0)
+        if gain != 1.0:
+            ff = gain * ff
         return np.clip(ff, -self.max_wheel_speed, self.max_wheel_speed)

@@ -14,7 +14,8 @@ Gymnasium environment for each of them. A controller here turns the env's state 
 
 Classical specs (:func:`make_classical`): ``open-loop``, ``open-loop:axle_load``
 (feed-forward with per-axle loaded radii, for comparison: what calibrating the radii alone
-buys), either with ``@gain=K`` (every target x K: a fixed over-speed for loose soil),
+buys), either with ``@gain=K`` (every target x K: a fixed over-speed for loose soil) and
+``@ramp=T`` (that over-speed grown from 1 over the first T s: a soft start),
 ``slip-pi`` (gains from ``configs/control/slip_pi.yaml``), ``slip-pi:PATH.yaml``
 (other gains); any slip-pi spec may end in ``@field=value`` settings overrides
 (``slip-pi@stuck_retry_scale=2@axle_fight_scale=0.25``), the fixed settings of the ablations
@@ -137,18 +138,21 @@ def make_classical(spec: str) -> ClassicalController:
     head, overrides = split_overrides(spec)
     kind, _, arg = head.partition(":")
     if overrides and kind == "open-loop":
-        if set(overrides) != {"gain"}:
-            raise ValueError(f"controller {spec!r}: open-loop takes only @gain=K")
-        if not overrides["gain"] > 0:
+        if not set(overrides) <= {"gain", "ramp"}:
+            raise ValueError(f"controller {spec!r}: open-loop takes only @gain=K and @ramp=T")
+        if not overrides.get("gain", 1.0) > 0:
             raise ValueError(f"controller {spec!r}: gain must be > 0")
+        if not overrides.get("ramp", 0.0) >= 0:
+            raise ValueError(f"controller {spec!r}: ramp must be >= 0 (s)")
     elif overrides and kind != "slip-pi":
         raise ValueError(f"controller {spec!r}: only slip-pi and open-loop take @ overrides")
     gain = overrides.get("gain", 1.0) if kind == "open-loop" else 1.0
+    ramp = overrides.get("ramp", 0.0) if kind == "open-loop" else 0.0
     if kind == "open-loop" and not arg:
-        return ClassicalController(spec, lambda cfg, dt: OpenLoop(cfg, gain=gain))
+        return ClassicalController(spec, lambda cfg, dt: OpenLoop(cfg, gain=gain, ramp=ramp))
     if kind == "open-loop" and arg == "axle_load":
         return ClassicalController(
-            spec, lambda cfg, dt: OpenLoop(cfg, axle_load_radii(cfg)[:4], gain=gain)
+            spec, lambda cfg, dt: OpenLoop(cfg, axle_load_radii(cfg)[:4], gain=gain, ramp=ramp)
         )
     if kind == "slip-pi":
         gains = _slip_pi_config(spec)
@@ -166,7 +170,10 @@ def classical_settings(spec: str) -> dict[str, Any]:
     make_classical(spec)  # validates
     if kind == "slip-pi":
         return {"kind": kind, "settings": to_dict(_slip_pi_config(spec))}
-    gain = overrides.get("gain", 1.0)
+    gain, ramp = overrides.get("gain", 1.0), overrides.get("ramp", 0.0)
+    out: dict[str, Any] = {"kind": kind, "variant": arg}
     if gain != 1.0:  # the plain open loop keeps its former settings (and ledger hash)
-        return {"kind": kind, "variant": arg, "gain": gain}
-    return {"kind": kind, "variant": arg}
+        out["gain"] = gain
+    if ramp != 0.0:
+        out["ramp"] = ramp
+    return out
