@@ -289,3 +289,24 @@ def test_result_json_is_strict_json(rr_case: tuple[Path, dict]) -> None:
 
     data = json.loads(text, parse_constant=refuse)
     assert data["final"]["rolling_resistance"]["interval_method"] == "bootstrap"
+
+
+@pytest.mark.parametrize(
+    "name, values", [("command_lag", {"tau": 0.05}), ("command_delay", {"delay": 0.007})]
+)
+def test_command_effect_block_is_n_steps(name: str, values: dict[str, float]) -> None:
+    """The replay's fast path (``CommandEffect.block``) gives exactly what ``step`` gives,
+    substep by substep, across commands that change between blocks."""
+    from rover_env.effects import CommandEffect, effect_class
+
+    a, b = effect_class(name)(values), effect_class(name)(values)
+    assert isinstance(a, CommandEffect) and isinstance(b, CommandEffect)
+    a.reset(np.zeros(4))
+    b.reset(np.zeros(4))
+    rng = np.random.default_rng(3)
+    for n in (1, 4, 10, 3, 20):
+        u = rng.uniform(-3, 3, 4)
+        stepped = np.array([np.array(a.step(u, 0.001)) for _ in range(n)])
+        blocked = CommandEffect.block(b, u, 0.001, n) if n == 3 else b.block(u, 0.001, n)
+        np.testing.assert_array_equal(blocked, stepped, err_msg=f"{name}, block of {n}")
+    assert np.any(stepped != u)  # the effect did act (not a pass-through that agrees trivially)

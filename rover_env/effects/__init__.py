@@ -141,6 +141,13 @@ class CommandEffect(Effect):
         """Advance one substep with ``targets`` commanded; return what the motors get."""
         raise NotImplementedError
 
+    def block(self, targets: Array, dt: float, n: int) -> Array:
+        """``n`` substeps with ``targets`` held: (n, 4), row j what :meth:`step` returns on
+        the j-th. The same numbers as n calls of ``step``; an effect may compute them at once
+        (a replay holds each logged command for a whole sample, 10-20 substeps)."""
+        u = np.asarray(targets, dtype=np.float64)
+        return np.array([self.step(u, dt) for _ in range(n)]).reshape(n, -1)
+
     def prime(self, t: Array, cmd: Array, t_now: float, dt: float) -> None:
         """Set the internal state as if commands ``cmd[k]`` (held from ``t[k]``) had run.
 
@@ -353,6 +360,18 @@ class CommandLag(CommandEffect):
             self.x = targets + (self.x - targets) * math.exp(-dt / tau)
         return self.x
 
+    def block(self, targets: Array, dt: float, n: int) -> Array:
+        u = np.asarray(targets, dtype=np.float64)
+        out = np.empty((n, len(u)))
+        x = self.x
+        tau = self["tau"]
+        a = math.exp(-dt / tau) if tau > 0.0 else 0.0
+        for j in range(n):  # the recursion of step(), row by row (bit-identical)
+            x = u + (x - u) * a if tau > 0.0 else u.copy()
+            out[j] = x
+        self.x = np.array(x, dtype=np.float64)
+        return out
+
     def prime(self, t: Array, cmd: Array, t_now: float, dt: float) -> None:
         tau = self["tau"]
         x = np.zeros(4)
@@ -389,6 +408,17 @@ class CommandDelay(CommandEffect):
         if len(self._hist) > n:
             return self._hist.popleft()
         return self._fill
+
+    def block(self, targets: Array, dt: float, n: int) -> Array:
+        u = np.array(targets, dtype=np.float64)
+        lag = round(self["delay"] / dt)
+        if lag == 0:
+            return np.tile(u, (n, 1))
+        out = np.empty((n, len(u)))
+        for j in range(n):  # step()'s delay line; the held row is shared, never written
+            self._hist.append(u)
+            out[j] = self._hist.popleft() if len(self._hist) > lag else self._fill
+        return out
 
     def prime(self, t: Array, cmd: Array, t_now: float, dt: float) -> None:
         n = round(self["delay"] / dt)

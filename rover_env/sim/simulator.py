@@ -433,6 +433,16 @@ class RoverSim:
         tire loads every ``HINGE_EVERY`` substeps (identically on both backends; with hinge
         effects only, the plugin runs the substeps in between in one call)."""
         m, d = self.model, self.data
+        if self._plugin is not None and len(self._cmd_effects) == 1 and not self._hinge_effects:
+            # One command effect on the plugin: its n outputs at once (the targets are held
+            # over the call), then only the motors' input changes between substeps.
+            rows = self._cmd_effects[0].block(self.speed_targets.copy(), self.dt, n)
+            for row in rows:
+                d.ctrl[self._ctrl_vel] = row
+                mujoco.mj_step(m, d, 1)
+            self._substep += n
+            self._check()
+            return
         dt = self.dt
         err = self.phys_cfg.motor.max_angle_error
         k = HINGE_EVERY
