@@ -88,6 +88,21 @@ def test_equal_targets_drive_straight() -> None:
     assert abs(p[1] - p0[1]) < 0.01 * (p[0] - p0[0])
 
 
+def test_flat_drive_is_the_same_without_mujoco_contacts() -> None:
+    """The calibration replay runs with ``contacts=False``: on flat ground MuJoCo's own
+    contacts (chassis on ground, wheel on wheel) must never fire, so a drive with turns is
+    identical to the bit; a rover that bottomed out or a wheel hitting a wheel would differ."""
+    runs = []
+    for contacts in (True, False):
+        sim = RoverSim(backend="auto", contacts=contacts)
+        for targets in ([3.0, 3.0, 3.0, 3.0], [-2.0, 4.0, -2.0, 4.0], [4.0, 1.0, 4.0, 1.0]):
+            sim.set_speed_targets(targets)
+            sim.step(1500)
+        runs.append(np.concatenate([sim.data.qpos, sim.data.qvel]))
+        assert sim.data.ncon == 0
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
 def test_turn_outer_wheels_spin_inner_wheels_skid() -> None:
     sim = RoverSim()
     sim.set_speed_targets([1.0, 3.0, 1.0, 3.0])  # right side faster: a left turn
