@@ -214,12 +214,19 @@ class WindowResult:
 class Replayer:
     """Replays windows of prepared logs in one simulator built from a configuration."""
 
-    def __init__(self, cfg: RoverConfig, settings: ReplaySettings, backend: str = "auto") -> None:
+    def __init__(
+        self,
+        cfg: RoverConfig,
+        settings: ReplaySettings,
+        backend: str = "auto",
+        contacts: bool = False,
+    ) -> None:
         self.cfg = cfg
         self.settings = settings
         # Flat ground: the chassis never touches it and the tire layer is the wheels' contact,
-        # so MuJoCo's collision pass is skipped (the replay is the same to the bit, ~15 % faster).
-        self.sim = RoverSim(cfg, "flat", backend=backend, contacts=False)
+        # so MuJoCo's collision pass is skipped (the same replay to the bit, ~15 % faster;
+        # benchmarks/bench_replay.py).
+        self.sim = RoverSim(cfg, "flat", backend=backend, contacts=contacts)
         self.backend = self.sim.backend
         s = self.sim
         m = s.model

@@ -1,0 +1,88 @@
+"""Speed of the calibration replay (issue 16, item 8), as ratios measured in this run.
+
+Run: python benchmarks/bench_replay.py [--windows 12] [--rounds 5]
+
+One seeded own-generator drive (50 s) is cut into the replay's windows; the same windows are
+replayed in interleaved rounds (the machine is shared: medians of the rounds) by:
+
+* ``contacts``: the replay with MuJoCo's own collisions on (the reference) and off (what
+  ``diagnose`` runs; flat ground, the same numbers to the bit, checked here);
+* ``command_lag``: a replay with a command effect (the Python-side path that feeds the
+  motors substep by substep) over the plain plugin replay: what one command-effect
+  candidate costs against the others.
+
+Prints seconds per replay and the ratios; nothing is timed in the tests.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from rover_env.calibration.make_logs import make_logs
+from rover_env.calibration.replay import (
+    Replayer,
+    ReplaySettings,
+    make_windows,
+    prepare,
+    replay_arrays,
+)
+from rover_env.config import RoverConfig
+from rover_env.logs import read_log
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--windows", type=int, default=12)
+    ap.add_argument("--rounds", type=int, default=5)
+    args = ap.parse_args()
+    st = ReplaySettings()
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = make_logs(Path(tmp), {}, drives=1, seed=11, progress=False)
+        log = read_log(paths[0])
+    base = RoverConfig()
+    p = prepare(log, base, "drive", st)
+    windows = make_windows([p], st)[: args.windows]
+    lag = replace(base, extensions={"command_lag": {"tau": 0.15}})
+    variants = {
+        "contacts on (reference)": (base, True),
+        "contacts off (diagnose)": (base, False),
+        "command_lag, contacts off": (lag, False),
+    }
+    times: dict[str, list[float]] = {k: [] for k in variants}
+    outputs: dict[str, dict[str, np.ndarray]] = {}
+    for _ in range(args.rounds):
+        for name, (cfg, contacts) in variants.items():
+            t0 = time.perf_counter()
+            res = Replayer(cfg, st, contacts=contacts).run([p], windows)
+            times[name].append(time.perf_counter() - t0)
+            outputs[name] = replay_arrays(res)
+    same = all(
+        np.array_equal(outputs["contacts on (reference)"][k], outputs["contacts off (diagnose)"][k])
+        for k in outputs["contacts on (reference)"]
+    )
+    med = {k: statistics.median(v) for k, v in times.items()}
+    sim_s = len(windows) * st.window
+    print(
+        f"{len(windows)} windows of {st.window:g} s ({sim_s:g} s simulated), {args.rounds} rounds"
+    )
+    for k, v in med.items():
+        print(f"  {k:28s} {v:6.3f} s per replay  ({sim_s / v:5.0f} x real time)")
+    print(
+        f"contacts off / on: {med['contacts off (diagnose)'] / med['contacts on (reference)']:.2f}"
+        f" of the time, identical to the bit: {same}"
+    )
+    print(
+        "command_lag / plain (contacts off): "
+        f"{med['command_lag, contacts off'] / med['contacts off (diagnose)']:.2f}"
+    )
+
+
+if __name__ == "__main__":
+    main()
