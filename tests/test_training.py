@@ -315,3 +315,48 @@ def test_best_model_is_paired_with_the_statistics_it_was_selected_with(tmp_path:
     )
     (tmp_path / "best_vecnormalize.pkl").unlink()
     assert resolve_model_path(tmp_path)[1] == tmp_path / "vecnormalize.pkl"
+
+
+class _FirstWeights(BaseCallback):
+    """The policy's weights and observation count when learning starts."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.weights: dict[str, Any] = {}
+        self.obs_count = 0.0
+
+    def _on_training_start(self) -> None:
+        self.weights = {k: v.clone() for k, v in self.model.policy.state_dict().items()}
+        vn = self.model.get_vec_normalize_env()
+        assert vn is not None
+        self.obs_count = float(vn.obs_rms.count)
+
+    def _on_step(self) -> bool:
+        return True
+
+
+def test_init_from_starts_a_new_run_from_a_trained_agent(tmp_path: Path) -> None:
+    """``--init-from`` (rl-zoo's --trained-agent): the new run's first weights and statistics
+    are the agent's, not a fresh network's; a network of another shape is refused, named."""
+    cfg = _config(tmp_path, n_timesteps=64, eval_freq=0)
+    src = train(ENV, cfg, 0, tmp_path / "src", progress=False)
+    agent = PPO.load(str(src.run_dir / "model.zip"), device="cpu")
+    with (src.run_dir / "vecnormalize.pkl").open("rb") as fh:
+        stats = pickle.load(fh)
+    seen, fresh = _FirstWeights(), _FirstWeights()
+    train(ENV, cfg, 1, tmp_path / "tuned", progress=False, callbacks=[seen], init_from=src.run_dir)
+    train(ENV, cfg, 1, tmp_path / "fresh", progress=False, callbacks=[fresh])
+    for k, v in agent.policy.state_dict().items():
+        assert np.array_equal(seen.weights[k].numpy(), v.numpy()), k
+    assert any(
+        not np.array_equal(fresh.weights[k].numpy(), v.numpy())
+        for k, v in agent.policy.state_dict().items()
+    )
+    # The statistics carry on from the agent's (plus the first reset of the 2 envs).
+    assert seen.obs_count == pytest.approx(float(stats.obs_rms.count) + 2)
+    assert fresh.obs_count < 3
+    cmd = yaml.safe_load((tmp_path / "tuned" / "command.txt").read_text())
+    assert str(src.run_dir) in str(cmd)
+    wide = _config(tmp_path, n_timesteps=64, eval_freq=0, policy_kwargs={"net_arch": [8]})
+    with pytest.raises(ConfigError, match="init_from"):
+        train(ENV, wide, 1, tmp_path / "wide", progress=False, init_from=src.run_dir)

@@ -122,6 +122,15 @@ def test_mobility_agent_configs() -> None:
         assert kw["residual_base"] == "open-loop@gain=2.2" and kw["action_residual"] > 0
         w = kw["reward_weights"]
         assert w["tracking"] == 0 and w["progress"] > 0 and w["yaw_tracking"] > 0
+    # The PPO variants (yaw weight, soft-start base, its fine-tune) change what their header
+    # says and keep the ground, the residual's size and an open-loop base (no PI in the loop).
+    for name in ("ppo_yaw04", "ppo_soft", "ppo_soft_ft"):
+        path = REPO / "configs" / "agents_mobility" / f"{name}.yaml"
+        kw = load_algo_config("ppo", path, MIX).env_kwargs
+        assert kw["scenarios"] == kws[0]["scenarios"], name
+        assert kw["action_residual"] == kws[0]["action_residual"], name
+        assert kw["residual_base"].startswith("open-loop@gain=2.2"), name
+        assert kw["reward_weights"]["tracking"] == 0, name
 
 
 @pytest.mark.parametrize(

@@ -50,6 +50,13 @@ def train_main(argv: Sequence[str] | None = None, algo: str | None = None) -> in
     ap.add_argument(
         "--total-timesteps", type=int, help="total env steps of the run (overrides n_timesteps)"
     )
+    ap.add_argument(
+        "--init-from",
+        default=None,
+        metavar="AGENT",
+        help="a new run starts from this trained agent's weights and observation statistics "
+        "(rl-zoo's --trained-agent): a fine-tune",
+    )
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     ap.add_argument("-v", "--verbose", action="count", default=0, help="print SB3's log table")
     args = ap.parse_args(argv)
@@ -79,6 +86,7 @@ def train_main(argv: Sequence[str] | None = None, algo: str | None = None) -> in
             progress=not args.no_progress,
             verbose=args.verbose,
             algo=chosen,
+            init_from=args.init_from,
         )
     except ConfigError as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -80,6 +80,23 @@ class TrainResult:
     algo: str = "ppo"
 
 
+def _start_from(model: BaseAlgorithm, vn: VecNormalize, path: str | Path, algo_cls: Any) -> None:
+    """A new run's weights (and optimiser state) and observation statistics from the agent
+    at ``path`` (a run folder, an ``agents/`` folder or a .zip)."""
+    from rover_env.policies.ppo import resolve_model_path
+
+    model_p, stats_p = resolve_model_path(path)
+    src = algo_cls.load(str(model_p), device="cpu")
+    try:
+        model.set_parameters(src.get_parameters(), exact_match=True, device="cpu")
+    except (ValueError, RuntimeError, KeyError) as exc:
+        raise ConfigError(f"init_from {path}: its network does not fit this run's: {exc}") from None
+    if stats_p is not None:
+        with stats_p.open("rb") as fh:
+            old = pickle.load(fh)
+        vn.obs_rms, vn.ret_rms = old.obs_rms, old.ret_rms
+
+
 def _normalized(venv: VecEnv, cfg: AlgoConfig, training: bool) -> VecNormalize:
     """Always wrapped (pass-through when disabled) so every run dir has ``vecnormalize.pkl``."""
     n = cfg.normalize
@@ -155,6 +172,7 @@ def train(
     verbose: int = 0,
     algo: str | None = None,
     after_eval: BaseCallback | None = None,
+    init_from: str | Path | None = None,
 ) -> TrainResult:
     """Train ``algo`` (ppo, sac, td3; default ppo, or the run dir's when resuming) on
     ``env_id`` with the file's entry for it; write a run dir at ``out_dir``.
@@ -166,13 +184,18 @@ def train(
     newest checkpoint. ``callbacks`` are added to the run's own (e.g. to stop early);
     ``after_eval`` runs after every validation evaluation (its ``parent`` is the evaluation
     callback: ``parent.last_mean_reward``), and stops training by returning False.
-    ``config_path`` may also be a folder of ``{algo}.yaml`` files.
+    ``config_path`` may also be a folder of ``{algo}.yaml`` files. ``init_from`` (a new run
+    only; rl-zoo's ``--trained-agent``) starts from a trained agent's network weights and
+    observation statistics instead of a fresh network: a fine-tune, e.g. of a residual policy
+    on another base (the network's shape must match the config's).
     """
     run_dir = Path(out_dir)
     torch.set_num_threads(1)
     os.environ.setdefault("OMP_NUM_THREADS", "1")  # inherited by the env subprocesses
 
     start_step: int | None = None
+    if resume and init_from is not None:
+        raise ConfigError("init_from starts a new run; a resumed run continues its own weights")
     if resume:
         found = run_algo(run_dir)
         if algo is not None and check_algo(algo) != found:
@@ -213,6 +236,7 @@ def train(
             "config": str(config_path if not resume else run_dir / "config.yaml"),
             "total_timesteps": cfg.n_timesteps,
             "resumed_from_step": start_step,
+            "init_from": None if init_from is None else str(init_from),
             "training_env_seeds": list(train_seeds),
         },
     )
@@ -255,6 +279,8 @@ def train(
             set_random_seed(seed)
             vn = _normalized(venv, cfg, training=True)
             model = build_model(cfg, vn)
+            if init_from is not None:
+                _start_from(model, vn, init_from, algo_cls)
             model.action_space.seed(seed)  # off-policy warm-up actions are its samples
             model.seed = seed
         model.set_logger(_logger(run_dir, start_step, verbose))
