@@ -165,6 +165,35 @@ def test_parallel_candidate_fits_give_the_same_diagnosis(rr_case: tuple[Path, di
     assert again["main_reduction"] == result["main_reduction"]
 
 
+def test_replays_split_over_processes_are_the_same_to_the_bit(
+    rr_case: tuple[Path, dict],
+) -> None:
+    """``parallel_replays``: each window starts from a full reset, so the windows a worker
+    replays give the numbers they give in order in one process (a hinge effect's update
+    phase and a command effect's memory included)."""
+    from rover_env.calibration.replay import (
+        Replayer,
+        make_windows,
+        parallel_replays,
+        prepare,
+        replay_arrays,
+    )
+
+    root, _ = rr_case
+    st = ReplaySettings()
+    logs = [read_log(p) for p in sorted((root / "logs").glob("drive_*.csv"))]
+    prepared = [prepare(lg, RoverConfig(), f"d{i}", st) for i, lg in enumerate(logs)]
+    windows = make_windows(prepared, st)[::2]
+    ext = {"rolling_resistance": {"c_rr": 0.02}, "command_lag": {"tau": 0.1}}
+    cfg = RoverConfig(extensions=ext)
+    serial = replay_arrays(Replayer(cfg, st).run(prepared, windows))
+    with parallel_replays(2):
+        split = replay_arrays(Replayer(cfg, st).run(prepared, windows))
+    assert serial["resid"].shape[0] > 50
+    for k in serial:
+        np.testing.assert_array_equal(split[k], serial[k], err_msg=k)
+
+
 def test_make_logs_writes_readable_logs_and_hidden_truth(rr_case: tuple[Path, dict]) -> None:
     root, _ = rr_case
     truth = yaml.safe_load((root / "logs" / "truth.yaml").read_text())

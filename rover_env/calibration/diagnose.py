@@ -65,8 +65,10 @@ from rover_env.calibration.replay import (
     Window,
     WindowResult,
     make_windows,
+    parallel_replays,
     prepare,
     replay_config,
+    serial_replays,
 )
 from rover_env.config import RoverConfig, load_rover, to_dict
 from rover_env.executor import add_executor_args, make_executor
@@ -162,7 +164,16 @@ def _rover_of(log: DriveLog) -> RoverConfig:
 def diagnose(
     paths: list[str | Path], out: str | Path, opts: Options | None = None
 ) -> dict[str, Any]:
+    """Name the effects the logs show (module docstring); writes ``out``, returns the result.
+
+    With ``opts.workers`` > 1 on the local executor the candidate fits run side by side, and
+    every other stage's replays split their windows over as many processes."""
     opts = opts or Options()
+    with parallel_replays(opts.workers if opts.executor == "local" else 1):
+        return _diagnose(paths, out, opts)
+
+
+def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[str, Any]:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
@@ -644,6 +655,7 @@ def _unexplained(table: dict[str, dict[str, rs.Cell]], noise: dict[str, float]) 
 def _pool_task(
     shared: dict[str, Any], i: int
 ) -> tuple[Scored, int, float, dict[tuple[str, str], list[WindowResult]]]:
+    serial_replays()  # a forked fit worker: its replays stay in it
     ev: Evaluator = shared["ev"]
     n0, s0, keys0 = ev.replays, ev.seconds, set(ev.cache)
     s = shared["task"](i)

@@ -26,7 +26,13 @@ increments between logged pose samples inside the window (in the frame of the fi
 
 from __future__ import annotations
 
+import itertools
+import json
 import math
+import multiprocessing as mp
+from collections.abc import Iterator
+from concurrent.futures import Executor, ProcessPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -34,7 +40,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from rover_env.config import JOINTS, WHEELS, RoverConfig
+from rover_env.config import JOINTS, WHEELS, RoverConfig, to_dict
 from rover_env.logs import DriveLog
 from rover_env.sim.simulator import RoverSim
 
@@ -223,6 +229,7 @@ class Replayer:
     ) -> None:
         self.cfg = cfg
         self.settings = settings
+        self.contacts = contacts
         # Flat ground: the chassis never touches it and the tire layer is the wheels' contact,
         # so MuJoCo's collision pass is skipped (the same replay to the bit, ~15 % faster;
         # benchmarks/bench_replay.py).
@@ -320,7 +327,81 @@ class Replayer:
         return WindowResult(w, scored, resid, simv, pose_idx, pose_res, pose_sim)
 
     def run(self, logs: list[PreparedLog], windows: list[Window]) -> list[WindowResult]:
-        return [self.run_window(logs[w.log_index], w) for w in windows]
+        """Replay ``windows`` in order; inside :func:`parallel_replays` split over processes.
+
+        Every window starts from a full reset (:meth:`RoverSim.reset`), so where it runs
+        does not change its numbers (tested)."""
+        pool, n = _PARALLEL
+        if pool is None or len(windows) < 2 * n:
+            return [self.run_window(logs[w.log_index], w) for w in windows]
+        bounds = np.linspace(0, len(windows), n + 1).round().astype(int)
+        chunks = [windows[a:b] for a, b in itertools.pairwise(bounds)]
+        key = json.dumps(to_dict(self.cfg), sort_keys=True, default=str)
+        futures = [
+            pool.submit(
+                _replay_chunk,
+                key,
+                self.cfg,
+                self.settings,
+                self.backend,
+                self.contacts,
+                {i: logs[i] for i in {w.log_index for w in c}},
+                c,
+            )
+            for c in chunks[1:]
+        ]
+        out = [self.run_window(logs[w.log_index], w) for w in chunks[0]]
+        for f in futures:
+            out.extend(f.result())
+        return out
+
+
+_PARALLEL: tuple[Executor | None, int] = (None, 1)
+_WORKER_REPLAYERS: dict[str, Replayer] = {}
+
+
+def _replay_chunk(
+    key: str,
+    cfg: RoverConfig,
+    settings: ReplaySettings,
+    backend: str,
+    contacts: bool,
+    logs: dict[int, PreparedLog],
+    windows: list[Window],
+) -> list[WindowResult]:
+    """A worker's share of :meth:`Replayer.run` (its simulator kept per configuration)."""
+    rp = _WORKER_REPLAYERS.get(key)
+    if rp is None or rp.settings != settings:
+        if len(_WORKER_REPLAYERS) >= 4:
+            _WORKER_REPLAYERS.clear()
+        rp = _WORKER_REPLAYERS[key] = Replayer(cfg, settings, backend, contacts)
+    return [rp.run_window(logs[w.log_index], w) for w in windows]
+
+
+@contextmanager
+def parallel_replays(workers: int) -> Iterator[None]:
+    """Within: every :meth:`Replayer.run` of this process splits its windows over
+    ``workers`` processes (this one and ``workers - 1`` forked ones). For the serial stages
+    of ``diagnose`` (model form, replay floors, bias, evidence); no-op for ``workers <= 1``
+    or where fork is unavailable."""
+    global _PARALLEL
+    if workers <= 1 or "fork" not in mp.get_all_start_methods() or _PARALLEL[0] is not None:
+        yield
+        return
+    pool = ProcessPoolExecutor(workers - 1, mp_context=mp.get_context("fork"))
+    _PARALLEL = (pool, workers)
+    try:
+        yield
+    finally:
+        _PARALLEL = (None, 1)
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def serial_replays() -> None:
+    """In a forked child (a candidate-fit worker): replay here, never through the parent's
+    pool (its processes belong to the parent)."""
+    global _PARALLEL
+    _PARALLEL = (None, 1)
 
 
 def replay_arrays(results: list[WindowResult]) -> dict[str, Array]:
