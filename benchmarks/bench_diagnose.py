@@ -126,10 +126,11 @@ TRUTH_ROVERS = {
 }
 
 
-def cases(quick: bool = False) -> list[dict[str, Any]]:
-    """Every planned case (generator "own" = make-logs, "foreign" = the second generator)."""
+def cases(quick: bool = False, seed0: int = SEED0) -> list[dict[str, Any]]:
+    """Every planned case (generator "own" = make-logs, "foreign" = the second generator),
+    seeds counted from ``seed0`` (another ``seed0``: a fresh set of draws and drives)."""
     out: list[dict[str, Any]] = []
-    seed = SEED0
+    seed = seed0
     for gen, per_effect, n_clean, n_pairs, outside in (
         ("own", 7, 10, 6, OUTSIDE),
         ("foreign", 2, 3, 2, OUTSIDE[:2]),
@@ -182,13 +183,13 @@ def cases(quick: bool = False) -> list[dict[str, Any]]:
     return out
 
 
-def planned(quick: bool) -> list[dict[str, Any]]:
+def planned(quick: bool, seed0: int = SEED0) -> list[dict[str, Any]]:
     """The cases to run: the quick subset first, then (full matrix) the rest by priority."""
-    first = cases(True)
+    first = cases(True, seed0)
     if quick:
         return first
     key = {json.dumps(c, sort_keys=True) for c in first}
-    rest = [c for c in cases(False) if json.dumps(c, sort_keys=True) not in key]
+    rest = [c for c in cases(False, seed0) if json.dumps(c, sort_keys=True) not in key]
     order = {"clean": 0, "single": 1, "pair": 2, "outside": 3, "weak": 4}
     rest.sort(key=lambda c: (order[c["kind"]], c["gen"] != "own", c["seed"]))
     return first + rest
@@ -469,6 +470,13 @@ def main() -> int:
         " OUT/matrix_shard_K.json; --merge then writes matrix.md from all shards",
     )
     ap.add_argument("--merge", action="store_true", help="combine OUT/matrix_shard_*.json")
+    ap.add_argument(
+        "--seed0",
+        type=int,
+        default=SEED0,
+        help=f"first case seed (default {SEED0}); another value draws a fresh set of cases,"
+        " e.g. for a generator whose earlier cases were looked at while building diagnose",
+    )
     ap.add_argument("--workers", type=int, default=1, help="diagnose's worker processes per case")
     ap.add_argument(
         "--case-workers",
@@ -479,7 +487,7 @@ def main() -> int:
     add_executor_args(ap)
     args = ap.parse_args()
     if args.merge:
-        return merge(Path(args.out), args.quick)
+        return merge(Path(args.out), args.quick, args.seed0)
     shard_k, shard_n = 0, 1
     if args.shard:
         try:
@@ -495,7 +503,7 @@ def main() -> int:
         rows = json.loads((Path(args.out) / json_name).read_text())
     t_prev = sum(r["make_logs_s"] + r["diagnose_s"] + r["followup_s"] for r in rows)
     t0 = time.perf_counter() - t_prev
-    todo = planned(args.quick)
+    todo = planned(args.quick, args.seed0)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     mine = [
@@ -537,14 +545,14 @@ def main() -> int:
     return 0
 
 
-def merge(out: Path, quick: bool) -> int:
+def merge(out: Path, quick: bool, seed0: int = SEED0) -> int:
     """matrix.json and matrix.md from the shards' rows, in the planned order."""
     rows: list[dict[str, Any]] = []
     for f in sorted(out.glob("matrix_shard_*.json")):
         rows.extend(json.loads(f.read_text()))
     if not rows:
         raise SystemExit(f"--merge: no matrix_shard_*.json in {out}")
-    todo = planned(quick)
+    todo = planned(quick, seed0)
 
     def rank(r: dict[str, Any]) -> int:
         return next((i for i, c in enumerate(todo) if _same_case(r, c)), len(todo))
