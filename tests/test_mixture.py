@@ -103,6 +103,26 @@ def test_zero_residual_on_slip_pi_drives_exactly_like_slip_pi() -> None:
         Residual("ppo:x", 0.5)
 
 
+def test_residual_ramp_grows_the_policys_authority_from_zero() -> None:
+    """With ``residual_ramp`` T a full residual adds nothing at t = 0, its share t / T of the
+    scale before T and the whole scale after: the soft-start base cannot be undone early."""
+    from rover_env.policies.residual import Residual
+
+    base = Residual("open-loop@gain=2.2@ramp=2", 0.5)
+    ramped = Residual("open-loop@gain=2.2@ramp=2", 0.5, ramp=2.0)
+    plain, env = _drive(base, lambda env, obs: base(np.zeros(4), env, obs), "flat-turns")
+    full, _ = _drive(ramped, lambda env, obs: ramped(-np.ones(4), env, obs), "flat-turns")
+    t = np.arange(len(plain)) * env.control_dt  # the estimator's time at each action
+    share = np.minimum(t / 2.0, 1.0)[:, None]
+    np.testing.assert_allclose(full, np.clip(plain - 0.5 * share, -1, 1), atol=1e-6)
+    assert full[0].tolist() == plain[0].tolist()  # no authority at the start
+    assert np.all(full[-1] < plain[-1] - 0.49)  # the whole residual after 2 s (3 s drive)
+    assert ramped.authority(1.0) == pytest.approx(0.25) and ramped.authority(5.0) == 0.5
+    for bad in (-1.0, float("nan"), 61.0):
+        with pytest.raises(ValueError, match="residual_ramp"):
+            Residual("open-loop", 0.5, ramp=bad)
+
+
 def test_zero_schedule_is_slip_pi_and_the_schedule_changes_its_gains() -> None:
     from rover_env.policies.residual import Schedule
     from rover_env.policies.specs import make_controller

@@ -54,6 +54,8 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
             a residual on the base controller (fraction of the maximum wheel speed).
         residual_base: the base controller's spec, "open-loop" or "slip-pi"
             (:mod:`rover_env.policies.residual`).
+        residual_ramp: seconds over which the residual's authority grows from 0 to
+            ``action_residual`` at each episode's start (0: from the first step).
         action_schedule: None, or ``{knob: octaves}`` over ``SCHEDULE_KNOBS`` (or
             ``[deadband_octaves, gain_octaves]``): the action is then a gain schedule of the
             ``residual_base`` slip PI (:class:`Schedule`), one value per knob.
@@ -70,6 +72,7 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         scenarios: dict[str, float] | Sequence[str] | None = None,
         action_residual: float | None = None,
         residual_base: str = "open-loop",
+        residual_ramp: float = 0.0,
         action_schedule: Sequence[float] | Mapping[str, float] | None = None,
         speed_scale: tuple[float, float] = (0.6, 1.3),
         yaw_scale: tuple[float, float] = (0.5, 1.5),
@@ -82,7 +85,7 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         self.mix = ScenarioMix(scenarios, speed_scale, yaw_scale)
         self.residual: Residual | Schedule | None = None
         if action_residual is not None:
-            self.residual = Residual(residual_base, action_residual)
+            self.residual = Residual(residual_base, action_residual, residual_ramp)
         elif action_schedule is not None:
             self.residual = Schedule(residual_base, action_schedule)
         if self.residual is not None and env_kwargs.get("action_layout", "wheels") != "wheels":

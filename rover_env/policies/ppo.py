@@ -107,7 +107,8 @@ class SB3Controller:
             kw = entry.get("env_kwargs") or {}
             if kw.get("action_residual") is not None:
                 base = str(kw.get("residual_base", "open-loop"))
-                self.residual = Residual(base, float(kw["action_residual"]))
+                ramp = float(kw.get("residual_ramp", 0.0))
+                self.residual = Residual(base, float(kw["action_residual"]), ramp)
             elif kw.get("action_schedule") is not None:
                 base = str(kw.get("residual_base", "slip-pi"))
                 self.residual = Schedule(base, kw["action_schedule"])

@@ -70,15 +70,31 @@ def residual_action(action: npt.ArrayLike, obs: Obs, rover_cfg: RoverConfig, sca
 
 
 class Residual:
-    """Env action = base controller's env action + scale * policy action, clipped to [-1, 1]."""
+    """Env action = base controller's env action + scale * policy action, clipped to [-1, 1].
 
-    def __init__(self, base: str, scale: float) -> None:
+    ``ramp`` (s, default 0: none) grows the residual's authority linearly from 0 at the
+    drive's start to ``scale`` at ``t = ramp``: during a soft-start base
+    (``open-loop@gain=K@ramp=T``) the policy then cannot undo the soft start. Why: on the
+    sand climb the start decides the sinkage and energy, and a policy paid for progress from
+    the first step speeds the wheels up there (``docs/benchmark-agents-mobility``).
+    """
+
+    def __init__(self, base: str, scale: float, ramp: float = 0.0) -> None:
         if base.split(":")[0] in LEARNED_KINDS:
             raise ValueError(f"residual_base must be a classical controller, got {base!r}")
         if not 0 < scale <= 2:
             raise ValueError(f"action_residual must be in (0, 2], got {scale}")
+        if isinstance(ramp, bool) or not (np.isfinite(ramp) and 0 <= ramp <= 60):
+            raise ValueError(f"residual_ramp must be a time in [0, 60] s, got {ramp!r}")
         self.base = make_classical(base)
         self.scale = float(scale)
+        self.ramp = float(ramp)
+
+    def authority(self, t: float) -> float:
+        """The residual's scale at drive time ``t`` (s)."""
+        if self.ramp <= 0.0:
+            return self.scale
+        return self.scale * min(max(t, 0.0) / self.ramp, 1.0)
 
     def reset(self, env: ProtoExplorerEnv) -> None:
         self.base.reset(env)
@@ -88,7 +104,8 @@ class Residual:
         if a.shape != (4,) or not np.all(np.isfinite(a)):
             raise ValueError(f"residual action must be 4 finite entries (1L 1R 2L 2R), got {a}")
         base = np.asarray(self.base.action(env, obs), dtype=np.float64)
-        return np.clip(base + self.scale * np.clip(a, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
+        scale = self.authority(env.controller_input(obs).t) if self.ramp > 0 else self.scale
+        return np.clip(base + scale * np.clip(a, -1.0, 1.0), -1.0, 1.0).astype(np.float32)
 
 
 SCHEDULE_KNOBS: dict[str, tuple[str, ...]] = {

@@ -34,6 +34,7 @@ _REWARD_ONLY = {
     "yaw_scale",
     "action_residual",
     "residual_base",
+    "residual_ramp",
     "action_schedule",
 }
 
