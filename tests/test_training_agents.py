@@ -124,13 +124,20 @@ def test_mobility_agent_configs() -> None:
         assert w["tracking"] == 0 and w["progress"] > 0 and w["yaw_tracking"] > 0
     # The PPO variants (yaw weight, soft-start base, its fine-tune) change what their header
     # says and keep the ground, the residual's size and an open-loop base (no PI in the loop).
-    for name in ("ppo_yaw04", "ppo_soft", "ppo_soft_ft"):
+    for name in ("ppo_yaw04", "ppo_soft", "ppo_soft_ft", "ppo_rr_ft", "ppo_rr_ft_patch"):
         path = REPO / "configs" / "agents_mobility" / f"{name}.yaml"
         kw = load_algo_config("ppo", path, MIX).env_kwargs
-        assert kw["scenarios"] == kws[0]["scenarios"], name
+        assert set(kw["scenarios"]) == set(kws[0]["scenarios"]), name  # weights may differ
         assert kw["action_residual"] == kws[0]["action_residual"], name
         assert kw["residual_base"].startswith("open-loop@gain=2.2"), name
         assert kw["reward_weights"]["tracking"] == 0, name
+        # The stop-26 fine-tunes give the residual the base's own soft start.
+        assert kw.get("residual_ramp", 0.0) == (2.0 if name.startswith("ppo_rr") else 0.0), name
+    # SAC and TD3 on the stop-26 ground: the fine-tune's env_kwargs exactly.
+    rr = load_algo_config("ppo", REPO / "configs" / "agents_mobility" / "ppo_rr_ft.yaml", MIX)
+    for algo in ("sac", "td3"):
+        path = REPO / "configs" / "agents_mobility" / f"{algo}_rr.yaml"
+        assert load_algo_config(algo, path, MIX).env_kwargs == rr.env_kwargs, algo
 
 
 @pytest.mark.parametrize(
