@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from rover_env.training.rundir import read_commands
+from rover_env.training.rundir import run_algo
 
 
 def _read(path: Path) -> dict[str, np.ndarray]:
@@ -68,9 +68,7 @@ def plot_learning_curve(run_dir: str | Path, out: str | Path | None = None) -> P
         ax.grid(alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=8)
-    commands = read_commands(run_dir)
-    algo = str(commands[0].get("algo") or "ppo") if commands else "ppo"
-    ax_r.set_title(f"{algo.upper()} learning curve: {run_dir.name}")
+    ax_r.set_title(f"{run_algo(run_dir).upper()} learning curve: {run_dir.name}")
     fig.tight_layout()
     fig.savefig(out, dpi=120)
     plt.close(fig)

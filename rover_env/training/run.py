@@ -46,7 +46,6 @@ from rover_env.training.callbacks import (
     EpisodeLog,
     RolloutCheckpoint,
     ValidationEval,
-    checkpoint_algo,
     checkpoint_paths,
     latest_checkpoint,
     replay_buffer_path,
@@ -62,7 +61,7 @@ from rover_env.training.envs import (
     validation_seeds,
 )
 from rover_env.training.plots import plot_learning_curve
-from rover_env.training.rundir import ResumedCSV, read_commands, record_command
+from rover_env.training.rundir import ResumedCSV, read_commands, record_command, run_algo
 
 RUN_FILES = ("config.yaml", "command.txt", "model.zip", "checkpoints")
 
@@ -120,15 +119,6 @@ def _logger(run_dir: Path, keep_until: int | None, verbose: int) -> Logger:
     if verbose:
         formats.insert(0, HumanOutputFormat(sys.stdout))
     return Logger(str(run_dir), formats)
-
-
-def run_algo(run_dir: Path) -> str:
-    """The algorithm of a run dir: command.txt's ``algo`` (runs before SAC/TD3: ppo), else
-    the checkpoints' names."""
-    commands = read_commands(run_dir)
-    if commands and commands[0].get("algo"):
-        return str(commands[0]["algo"])
-    return checkpoint_algo(run_dir / "checkpoints") or "ppo"
 
 
 def _resolve_resume(

@@ -15,6 +15,7 @@ import yaml
 from stable_baselines3.common.logger import CSVOutputFormat
 
 import rover_env
+from rover_env.training.callbacks import checkpoint_algo
 
 
 def git_commit() -> str | None:
@@ -94,3 +95,12 @@ class ResumedCSV(CSVOutputFormat):
         self.file.write("\n".join(kept) + "\n")
         self.file.flush()
         self.keys = header
+
+
+def run_algo(run_dir: Path) -> str:
+    """The algorithm of a run dir: command.txt's ``algo`` (runs before SAC/TD3: ppo), else
+    the checkpoints' names."""
+    commands = read_commands(run_dir)
+    if commands and commands[0].get("algo"):
+        return str(commands[0]["algo"])
+    return checkpoint_algo(run_dir / "checkpoints") or "ppo"
