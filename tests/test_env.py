@@ -181,6 +181,27 @@ class _Fixed(Task):
         return self.v, 0.0, float("inf")
 
 
+def test_stall_energy_charges_the_power_not_turned_into_progress() -> None:
+    """A rover held still pays its whole power; one at the commanded pace pays none; a
+    command without speed is never charged."""
+    w = {"tracking": 0.0, "progress": 4.0, "stall_energy": 0.05}
+    env = ProtoExplorerEnv(terrain="sand", reward_weights=w, sensor_noise="none")
+    charged = []
+    for v, action in ((0.15, 0.6), (0.15, 0.0), (0.0, 0.6)):
+        env.set_task(_Fixed(v))
+        env.reset(seed=0, options={"yaw": 0.0})
+        for _ in range(15):
+            _, reward, _, _, info = env.step(np.full(4, action, dtype=np.float32))
+        assert reward == pytest.approx(sum(info[k] for k in info if k.startswith("reward_")))
+        p = info["distance"] / 0.1
+        idle = min(max(1.0 - p / v, 0.0), 1.0) if v else 0.0
+        power = info["energy"] / 0.1
+        assert info["reward_stall_energy"] == pytest.approx(-0.05 * idle * power)
+        charged.append((idle, info["reward_stall_energy"]))
+    assert charged[0][0] < 0.9  # driving: most of the power moves the rover
+    assert charged[2][1] == 0.0  # no commanded speed: nothing to stall against
+
+
 def test_flip_terminates() -> None:
     env = ProtoExplorerEnv()
     env.reset(seed=0)

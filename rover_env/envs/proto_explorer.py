@@ -615,11 +615,17 @@ class RoverEpisode:
         path = float(np.linalg.norm(pos[:2] - pos0[:2]))
         reward = r_track + r_slip + r_energy
         extra: dict[str, float] = {}
+        against = speed * float(self._command[0]) < 0
         if w.progress:
             # The benchmark's progress: a step moving against the command counts negative.
-            against = speed * float(self._command[0]) < 0
             extra["reward_progress"] = w.progress * (-path if against else path) / self.control_dt
             reward += extra["reward_progress"]
+        if w.stall_energy:
+            v_cmd = abs(float(self._command[0]))
+            p = (-path if against else path) / self.control_dt
+            idle = min(max(1.0 - p / v_cmd, 0.0), 1.0) if v_cmd > 1e-6 else 0.0
+            extra["reward_stall_energy"] = -w.stall_energy * idle * energy / self.control_dt
+            reward += extra["reward_stall_energy"]
         if w.sinkage:
             extra["reward_sinkage"] = -w.sinkage * 1000.0 * float(np.mean(wheel_sinkage))
             reward += extra["reward_sinkage"]
@@ -754,7 +760,9 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
     ``sinkage`` weights (the *mobility* reward, :class:`rover_env.tasks.RewardWeights`) the
     reward adds ``w_yaw * exp(-(e_w/0.1)^2)``, ``reward_progress = w_progress * p`` (p the
     step's path speed, m/s, negative against the command) and ``reward_sinkage = -w_sink *``
-    mean sinkage (mm); these two terms are then in ``info``. e_v, e_w: RMS over the step of
+    mean sinkage (mm); these two terms are then in ``info``. ``stall_energy`` adds
+    ``reward_stall_energy = -w_stall * P * clip(1 - p / |v_cmd|, 0, 1)``: the power not
+    turned into progress at the commanded pace (zero for a command without speed). e_v, e_w: RMS over the step of
     commanded minus actual forward speed (m/s) and yaw rate (rad/s) of the middle segment. Weights:
     ``reward_weights`` (``RewardWeights``, default 1, 1, 0.02; slip_scale 0: linear).
 

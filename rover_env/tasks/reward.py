@@ -12,7 +12,8 @@ __all__ = ["RewardWeights"]
 class RewardWeights:
     """reward = tracking * (exp(-(e_v/sigma_v)^2) + exp(-(e_w/sigma_w)^2)) / 2
     + yaw_tracking * exp(-(e_w/sigma_w)^2) + progress * p
-    - slip * g(mean |S|) - energy * electrical power [W] - sinkage * mean sinkage [mm],
+    - slip * g(mean |S|) - energy * electrical power [W] - sinkage * mean sinkage [mm]
+    - stall_energy * P * clip(1 - p / |v_cmd|, 0, 1),
     with g(m) = m, or g(m) = slip_scale * ln(1 + m / slip_scale) when ``slip_scale`` > 0,
     and p the step's path speed (m/s), negative when the rover moves against the command.
 
@@ -40,6 +41,11 @@ class RewardWeights:
     """Weight of the yaw-rate term alone (with ``tracking`` 0: turn as told, at any pace)."""
     sinkage: float = 0.0
     """Per mm of the six wheels' mean sinkage into loose soil (0 on hard ground)."""
+    stall_energy: float = 0.0
+    """Per W of the electrical power not turned into progress: P * (1 - p / |v_cmd|) clipped
+    to [0, 1] (p the path speed along the command; no charge when the command has no speed).
+    Why: the benchmark divides energy by distance, so a wheel kept spinning in a stall costs
+    it far more than the second-by-second ``energy`` term charges (issue 18, soft-patch)."""
 
     def slip_penalty(self, mean_abs_slip: float) -> float:
         """g(mean |S|) (see the class docstring), before the weight."""
