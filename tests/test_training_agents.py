@@ -301,6 +301,24 @@ def test_search_two_trials_then_resumes_to_three(tmp_path: Path) -> None:
     assert len(rows3) == 3 and rows3[:2] == rows
 
 
+def test_search_fine_tunes_a_trained_agent_in_every_trial(tmp_path: Path) -> None:
+    """``init_from``: each trial starts from the agent (its run records it); network keys
+    cannot be searched then; a stored study refuses to resume from another agent."""
+    cfg = _write(tmp_path, "ppo.yaml", PPO_SMALL)
+    src = train(ENV, cfg, 0, tmp_path / "src", total_timesteps=64, progress=False)
+    out = tmp_path / "search"
+    space = {"learning_rate": SPACE["learning_rate"], "n_epochs": SPACE["n_epochs"]}
+    kw: dict[str, Any] = {"trials": 1, "timesteps_per_trial": 64, "evaluations": 1}
+    res = search("ppo", cfg, ENV, out, space=space, init_from=src.run_dir, **kw)
+    assert res.n_complete == 1
+    cmd = (out / "trial_000" / "run" / "command.txt").read_text()
+    assert str(src.run_dir) in cmd
+    with pytest.raises(ConfigError, match="net_arch"):
+        search("ppo", cfg, ENV, tmp_path / "s2", space=SPACE, init_from=src.run_dir, **kw)
+    with pytest.raises(ConfigError, match="fine-tunes"):
+        search("ppo", cfg, ENV, out, space=space, **{**kw, "trials": 2})
+
+
 def test_search_space_errors(tmp_path: Path) -> None:
     cfg = _write(tmp_path, "ppo.yaml", PPO_SMALL)
     with pytest.raises(ConfigError, match="need low < high"):

@@ -246,6 +246,11 @@ def search_main(argv: Sequence[str] | None = None) -> int:
     )
     ap.add_argument("--space", default=None, help="search-space YAML replacing the default")
     ap.add_argument(
+        "--init-from",
+        default=None,
+        help="trained agent folder: every trial fine-tunes it (network keys not searchable)",
+    )
+    ap.add_argument(
         "--startup-trials", type=int, default=5, help="random trials before TPE models (5)"
     )
     ap.add_argument(
@@ -272,6 +277,7 @@ def search_main(argv: Sequence[str] | None = None) -> int:
             space=None if args.space is None else load_space(args.space),
             startup_trials=args.startup_trials,
             pruner_startup=args.pruner_startup,
+            init_from=args.init_from,
         )
     except ConfigError as exc:
         print(f"error: {exc}", file=sys.stderr)

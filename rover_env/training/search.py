@@ -22,6 +22,12 @@ validation return, steps, wall time, parameters) and ``best.yaml``, the best tri
 ``{env_id: entry}`` with the base file's ``n_timesteps``, ``eval_freq`` and
 ``checkpoint_freq``, usable as ``--config``.
 
+``init_from`` (a trained agent's folder) makes every trial a fine-tune of that agent (its
+weights and observation statistics, :func:`rover_env.training.run.train`): a study of the
+fine-tune's settings, where a short trial already ranks them because it starts from a policy
+that drives. Keys that set the network's shape cannot be searched then. The study records
+the agent (``init_from`` user attribute) and refuses to resume from another.
+
 The search space (:data:`SPACES`, replaceable by a YAML file) maps config keys (dotted for
 nested ones: ``policy_kwargs.net_arch``, ``action_noise.sigma``) to ``{choices: [...]}`` or
 ``{low, high, log, int}``; ``net_arch`` choices are strings such as ``"128x128"``.
@@ -258,6 +264,7 @@ def search(
     startup_trials: int = 5,
     pruner_startup: int = 3,
     keep_checkpoints: bool = False,
+    init_from: str | Path | None = None,
 ) -> SearchResult:
     """Run (or resume) the study; see the module docstring."""
     algo = check_algo(algo)
@@ -284,6 +291,21 @@ def search(
     sampler = optuna.samplers.TPESampler(seed=seed + n_before, n_startup_trials=startup_trials)
     pruner = optuna.pruners.MedianPruner(n_startup_trials=pruner_startup, n_warmup_steps=0)
     study = optuna.load_study(study_name=name, storage=storage, sampler=sampler, pruner=pruner)
+
+    origin = "" if init_from is None else str(Path(init_from).resolve())
+    if origin:
+        shaped = sorted(k for k in space if k.startswith("policy_kwargs."))
+        if shaped:
+            raise ConfigError(f"init_from {init_from}: cannot search {shaped} in a fine-tune")
+        if not Path(origin).is_dir():
+            raise ConfigError(f"init_from {init_from}: no such agent folder")
+    seen = study.user_attrs.get("init_from")
+    if seen is None:
+        study.set_user_attr("init_from", origin)
+    elif seen != origin:
+        raise ConfigError(
+            f"{storage}: the study {name!r} fine-tunes {seen or 'nothing'}, not {origin or 'nothing'}"
+        )
 
     base_entry = base.to_dict()
     eval_freq = max(timesteps_per_trial // evaluations, base.n_envs)
@@ -317,6 +339,7 @@ def search(
             progress=False,
             algo=algo,
             after_eval=report,
+            init_from=init_from,
         )
         trial.set_user_attr("seconds", round(time.perf_counter() - t0, 1))
         trial.set_user_attr("num_timesteps", res.num_timesteps)
