@@ -4,6 +4,7 @@ benchmark, a 2-trial search that resumes (CPU, tiny step counts, seconds each)."
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import os
 import pickle
@@ -34,7 +35,7 @@ from rover_env.training import SACConfig, TD3Config, load_algo_config, train
 from rover_env.training.callbacks import latest_checkpoint, replay_buffer_path
 from rover_env.training.config import parse_algo_config
 from rover_env.training.evaluate import agent_spec
-from rover_env.training.search import apply_params, search
+from rover_env.training.search import apply_params, load_space, search
 
 ENV = "rover_env/ProtoExplorer-v0"
 MIX = "rover_env/ProtoExplorerScenarioMix-v0"
@@ -138,6 +139,21 @@ def test_mobility_agent_configs() -> None:
     for algo in ("sac", "td3"):
         path = REPO / "configs" / "agents_mobility" / f"{algo}_rr.yaml"
         assert load_algo_config(algo, path, MIX).env_kwargs == rr.env_kwargs, algo
+    # Stop 27: the patch fine-tune plus the stall-energy charge (and, in one, gamma 0.99).
+    patch = load_algo_config(
+        "ppo", REPO / "configs" / "agents_mobility" / "ppo_rr_ft_patch.yaml", MIX
+    )
+    for name, gamma in (("ppo_rr_stall", 0.97), ("ppo_rr_stall_g99", 0.99)):
+        c = load_algo_config("ppo", REPO / "configs" / "agents_mobility" / f"{name}.yaml", MIX)
+        w = dict(c.env_kwargs["reward_weights"])
+        assert w.pop("stall_energy") == 0.05, name
+        assert {**c.env_kwargs, "reward_weights": w} == patch.env_kwargs, name
+        assert (
+            c.gamma == gamma
+            and dataclasses.replace(c, gamma=patch.gamma, env_kwargs=patch.env_kwargs) == patch
+        ), name
+    space = load_space(REPO / "configs" / "agents_mobility" / "search_ft_space.yaml")
+    assert not any(k.startswith("policy_kwargs") for k in space)  # a fine-tune keeps the net
 
 
 @pytest.mark.parametrize(
