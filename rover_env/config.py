@@ -14,7 +14,7 @@ import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, Literal, TypeVar
 
 import yaml
 
@@ -26,6 +26,11 @@ DRIVEN_WHEELS: tuple[str, ...] = ("1L", "1R", "2L", "2R")
 FREE_WHEELS: tuple[str, ...] = ("3L", "3R")
 JOINTS: tuple[str, ...] = ("theta_1", "theta_2", "theta_3", "theta_4", "theta_5")
 SEGMENTS: tuple[str, ...] = ("seg1", "seg2", "seg3")
+
+
+AntiWindup = Literal["clamp", "conditional"]
+ANTI_WINDUP_FORMS: tuple[AntiWindup, ...] = ("clamp", "conditional")
+"""The speed loop's anti-windup forms (``MotorSpec.anti_windup``)."""
 
 
 class ConfigError(ValueError):
@@ -154,10 +159,24 @@ class MotorSpec:
     """Anti-windup: the integrated angle setpoint stays within this of the wheel (rad)."""
     max_wheel_speed: float = 4.0
     """Largest speed target accepted (rad/s): actions and controllers are scaled to it."""
+    anti_windup: AntiWindup = "clamp"
+    """The speed loop's anti-windup form. ``"clamp"``: the integral (setpoint minus wheel
+    angle) is only bounded by ``max_angle_error``, so it can hold ``integral_gain`` x bound
+    (20 N m), far beyond the torque the motor can give. ``"conditional"``: conditional
+    integration, the textbook's: the integral is also frozen while the motor's output
+    saturates outward (the torque limit or the DC motor's voltage/back-EMF line, and the
+    error drives it further out), i.e. the setpoint then advances by the wheel's own motion
+    instead of the target (``max_angle_error`` stays an outer bound)."""
 
     def __post_init__(self) -> None:
+        if self.anti_windup not in ANTI_WINDUP_FORMS:
+            raise ConfigError(
+                f"motor.anti_windup must be one of {', '.join(map(repr, ANTI_WINDUP_FORMS))},"
+                f" got {self.anti_windup!r}"
+            )
         for f in dataclasses.fields(self):
-            _positive(f"motor.{f.name}", getattr(self, f.name))
+            if f.name != "anti_windup":
+                _positive(f"motor.{f.name}", getattr(self, f.name))
         if self.max_wheel_speed > self.no_load_speed:
             raise ConfigError("motor.max_wheel_speed exceeds the motor's no_load_speed")
 

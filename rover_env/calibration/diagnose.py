@@ -52,6 +52,7 @@ from rover_env.calibration.candidates import (
 from rover_env.calibration.fit import Evaluator, Fit, fit, information_criteria, noise_threshold
 from rover_env.calibration.model_form import (
     FormFit,
+    fit_anti_windup,
     fit_relaxation,
     fit_windup,
     reprepare,
@@ -99,7 +100,12 @@ class Options:
     evidence: int = 2
     """Candidates for which a deciding drive is proposed and simulated, at most."""
     model_form: bool = True
-    """Fit the model's own form first: the tire's relaxation length (:mod:`.model_form`)."""
+    """Fit the model's own form first: the tire's relaxation length and the speed loop's
+    anti-windup form (:mod:`.model_form`)."""
+    fit_anti_windup: bool = True
+    """Choose the speed loop's anti-windup form (clamp or conditional integration) as model
+    form, after sigma (:func:`.model_form.fit_anti_windup`; issue 16: with the clamp, a
+    lowered torque limit on a conditionally integrating loop was named a command lag)."""
     fit_windup: bool = False
     """Also fit the speed loop's anti-windup bound (after sigma). Off by default: measured
     in stop 24, the bound that fits the second generator's loop (15.6 mrad) caps the
@@ -212,12 +218,17 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
     sensor_noise = rs.noise_floor(prepared)
     forms: list[FormFit] = []
     if opts.model_form:
-        for fit_form in [fit_relaxation, *([fit_windup] if opts.fit_windup else [])]:
+        stages = [
+            fit_relaxation,
+            *([fit_anti_windup] if opts.fit_anti_windup else []),
+            *([fit_windup] if opts.fit_windup else []),
+        ]
+        for fit_form in stages:
             form = fit_form(base, prepared, train_w, st, sensor_noise)
             forms.append(form)
             say(
-                f"model form: {form.name} {form.value:.3g} {form.unit} (nominal"
-                f" {form.nominal:.3g} {form.unit}; training windows {better_worse(form.gain)},"
+                f"model form: {form.name} {form.text(form.value)} (nominal"
+                f" {form.text(form.nominal)}; training windows {better_worse(form.gain)},"
                 f" p {form.p:.2g}, dBIC {form.d_bic:+.1f}):"
                 f" {'adopted' if form.adopted else 'kept nominal'}"
             )
@@ -792,6 +803,7 @@ def _cli(args: argparse.Namespace) -> int:
         executor=args.executor,
         ray_address=args.ray_address,
         model_form=not args.no_model_form,
+        fit_anti_windup=not args.no_fit_anti_windup,
         fit_windup=args.fit_windup,
     )
     try:
@@ -819,13 +831,21 @@ def add_cli(sub: Any) -> None:
     p.add_argument(
         "--no-model-form",
         action="store_true",
-        help="keep the configuration's tire relaxation length (no model-form stage)",
+        help="keep the configuration's tire relaxation length and speed-loop anti-windup"
+        " (no model-form stage)",
+    )
+    p.add_argument(
+        "--no-fit-anti-windup",
+        action="store_true",
+        help="keep the configuration's speed-loop anti-windup form (clamp or conditional"
+        " integration) instead of choosing it as model form",
     )
     p.add_argument(
         "--fit-windup",
         action="store_true",
-        help="also fit the speed loop's anti-windup bound as model form (experimental: it"
-        " biases rolling resistance low on a conditionally integrating loop)",
+        help="also fit the speed loop's anti-windup bound as model form (experimental: with"
+        " the clamp form it biases rolling resistance low on a conditionally integrating"
+        " loop)",
     )
     p.add_argument("--candidates", default=None, help="comma-separated subset of the catalogue")
     p.add_argument("--quiet", action="store_true")

@@ -27,7 +27,18 @@ fall by more than ln n); the Wilcoxon p of the improvement is reported beside it
 are the model's form, never named as effects, and the adopted values are written into
 ``rover.yaml``.
 
-Diagnose fits sigma always and the bound only on request (``Options.fit_windup``,
+**The loop's anti-windup form** (``motor.anti_windup``, issue 16), a choice rather than a
+number: the clamp alone, or conditional integration (the integral frozen while the motor's
+output saturates outward; the clamp stays as an outer bound). Measured before it was added:
+a 3 rad/s step of the wheel speed under a torque limit of 0.354 x (fraction -0.6458)
+overshoots by 58 % in this project's simulator with the clamp, by 2.7 % in the second
+generator, by 3.4 % here with conditional integration. With the clamp a lowered limit makes
+the replay of that generator's logs worse, not better: diagnose named a command lag for a
+torque limit and fitted the limit at the top of its range. Diagnose chooses the form
+on the training windows by the same rule (the alternative form replayed with the logs'
+setpoints recomputed for it; BIC with one parameter), before the bound, after sigma.
+
+Diagnose fits sigma and the form always and the bound only on request (``Options.fit_windup``,
 ``--fit-windup``). Measured in stop 24: on the second generator the bound comes out at
 15.6 mrad, where the integral can hold only 0.6 N m. A steady load then shows as droop of
 the driven wheels, which the second generator's conditionally integrating PI does not
@@ -56,7 +67,7 @@ from scipy import stats
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.fit import information_criteria, parabola_min
 from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window, prepare
-from rover_env.config import RoverConfig
+from rover_env.config import ANTI_WINDUP_FORMS, AntiWindup, RoverConfig
 
 Array = NDArray[np.float64]
 
@@ -89,19 +100,34 @@ class FormFit:
     criterion every catalogue effect must also pass (``fit.information_criteria``)."""
     adopted: bool
     """Whether diagnose uses ``value``: it differs from the nominal one and ``d_bic`` < 0."""
+    labels: tuple[str, ...] = ()
+    """A choice's names (``value`` and ``nominal`` index them), empty for a number."""
+
+    def text(self, x: float) -> str:
+        """``x`` in words: a choice's name, or the number with its unit."""
+        return self.labels[int(x)] if self.labels else f"{x:.3g} {self.unit}"
+
+    def _key(self, x: float) -> object:
+        return self.labels[int(x)] if self.labels else x
 
     def as_json(self) -> dict[str, object]:
-        return {
-            "value": self.value if self.adopted else self.nominal,
-            "fitted": self.value,
-            "nominal": self.nominal,
+        out = {
+            "value": self._key(self.value if self.adopted else self.nominal),
+            "fitted": self._key(self.value),
+            "nominal": self._key(self.nominal),
             "unit": self.unit,
             "adopted": self.adopted,
             "training_gain": self.gain,
             "p": self.p,
             "d_bic": self.d_bic,
-            "ladder": {f"{k:.6g}": v for k, v in self.ladder.items()},
+            "ladder": {
+                (self.labels[int(k)] if self.labels else f"{k:.6g}"): v
+                for k, v in self.ladder.items()
+            },
         }
+        if self.labels:
+            out["choices"] = list(self.labels)
+        return out
 
 
 def with_sigma(cfg: RoverConfig, sigma: float) -> RoverConfig:
@@ -114,8 +140,15 @@ def with_windup(cfg: RoverConfig, bound: float) -> RoverConfig:
     return replace(cfg, motor=replace(cfg.motor, max_angle_error=bound))
 
 
+def with_anti_windup(cfg: RoverConfig, form: AntiWindup) -> RoverConfig:
+    """The configuration with the speed loop's anti-windup form ``form``."""
+    return replace(cfg, motor=replace(cfg.motor, anti_windup=form))
+
+
 def with_form(cfg: RoverConfig, fit: FormFit) -> RoverConfig:
     """The configuration with a form fit's value."""
+    if fit.name == "anti_windup":
+        return with_anti_windup(cfg, ANTI_WINDUP_FORMS[int(fit.value)])
     setters = {"relaxation_length": with_sigma, "max_angle_error": with_windup}
     return setters[fit.name](cfg, fit.value)
 
@@ -242,13 +275,60 @@ def fit_windup(
     )
 
 
+def fit_anti_windup(
+    cfg: RoverConfig,
+    prepared: list[PreparedLog],
+    windows: list[Window],
+    settings: ReplaySettings,
+    sensor_noise: dict[str, float],
+) -> FormFit:
+    """Choose the speed loop's anti-windup form on ``windows`` (training): each other form
+    of :data:`ANTI_WINDUP_FORMS` replays logs prepared again for it (the setpoint recursion
+    that starts every window is the loop's own); adopted by the same BIC rule as the
+    numbers (one parameter), so a tie keeps the configuration's form."""
+    forms = list(ANTI_WINDUP_FORMS)
+    nominal = float(forms.index(cfg.motor.anti_windup))
+    base = Replayer(cfg, settings).run(prepared, windows)
+    scale = rs.signal_scale(rs.stack(base, prepared), sensor_noise)
+    l0 = rs.window_losses(base, scale)
+    eps = 1e-12 * max(float(np.mean(l0)), 1e-300)
+    losses = {nominal: l0}
+    for i, form in enumerate(forms):
+        if float(i) != nominal:
+            c = with_anti_windup(cfg, form)
+            p = reprepare(prepared, c, settings)
+            losses[float(i)] = rs.window_losses(Replayer(c, settings).run(p, windows), scale)
+    tried = {x: float(np.mean(np.log((v + eps) / (l0 + eps)))) for x, v in losses.items()}
+    best = min(tried, key=lambda x: (tried[x], x != nominal))
+    d = np.log((l0 + eps) / (losses[best] + eps))
+    if best == nominal or np.allclose(d, 0.0):
+        p_value = 1.0
+    else:
+        p_value = float(stats.wilcoxon(d, alternative="greater", zero_method="zsplit").pvalue)
+    _, d_bic = information_criteria(-float(np.sum(d)), len(d), 1)
+    return FormFit(
+        name="anti_windup",
+        unit="",
+        nominal=nominal,
+        value=best,
+        ladder=dict(sorted(tried.items())),
+        gain=1.0 - float(np.exp(-np.mean(d))),
+        p=p_value,
+        d_bic=d_bic,
+        adopted=bool(best != nominal and d_bic < 0),
+        labels=tuple(forms),
+    )
+
+
 __all__ = [
     "LADDER",
     "WINDUP_LADDER",
     "FormFit",
+    "fit_anti_windup",
     "fit_relaxation",
     "fit_windup",
     "reprepare",
+    "with_anti_windup",
     "with_form",
     "with_sigma",
     "with_windup",

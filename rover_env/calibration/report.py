@@ -338,6 +338,7 @@ def _model_form_line(mf: dict[str, Any] | None) -> str:
             "mm",
         ),
         "max_angle_error": ("the speed loop's anti-windup bound", 1e3, "mrad"),
+        "anti_windup": ("the speed loop's anti-windup form", 1.0, ""),
     }
     parts = []
     for name, f in mf.items():
@@ -345,9 +346,14 @@ def _model_form_line(mf: dict[str, Any] | None) -> str:
         change = 100 * f["training_gain"]
         words = f"{change:.1f} % better" if change >= 0 else f"{-change:.1f} % worse"
         verdict = "adopted" if f["adopted"] else "kept the nominal value"
+        if f.get("choices"):  # a choice (the anti-windup form): names, no unit
+            fitted, nominal = f"{f['fitted']}", f"{f['nominal']}"
+        else:
+            fitted = f"{k * f['fitted']:.3g} {unit}"
+            nominal = f"{k * f['nominal']:.3g} {unit}"
         parts.append(
-            f"{label} {k * f['fitted']:.3g} {unit} against the nominal {k * f['nominal']:.3g}"
-            f" {unit}, training windows {words} (Wilcoxon p {f['p']:.2g}, dBIC"
+            f"{label} {fitted} against the nominal {nominal}"
+            f", training windows {words} (Wilcoxon p {f['p']:.2g}, dBIC"
             f" {f['d_bic']:+.1f}): {verdict}"
         )
     return (

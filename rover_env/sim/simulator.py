@@ -24,6 +24,7 @@ from rover_env.config import (
     DRIVEN_WHEELS,
     JOINTS,
     WHEELS,
+    MotorSpec,
     RoverConfig,
     TerrainConfig,
     load_rover,
@@ -107,6 +108,38 @@ class SensorReadings:
     """(3, 4) attitude of each segment (w, x, y, z)."""
     imu_gyro: Array
     imu_accel: Array
+
+
+def advance_setpoints(
+    sp: Array, q: Array, dq: Array, w: Array, u: Array, dt: float, motor: MotorSpec
+) -> Array:
+    """The speed loop's integrated angle setpoints of the driven wheels after one step.
+
+    ``sp``: the setpoints before; ``q``, ``w``: the wheel angles and rates now; ``dq``: the
+    wheels' motion over the step (``w dt`` in the simulator, whose semi-implicit integrator
+    moves ``q`` by exactly that; the logged increment in the replay's recursion); ``u``: the
+    speed targets over the step; ``motor``: the physical motor (after the model extensions,
+    so its ``torque_limit`` is the one the ``<dcmotor>`` applies).
+
+    ``"clamp"``: ``sp + u dt`` clipped to ``max_angle_error`` of ``q``. ``"conditional"``: the
+    same, then, if the motor's raw PI torque ``integral_gain (sp - q) + speed_gain (u - w)``
+    lies outside what the ``<dcmotor>`` delivers (its ``saturation`` torque and its voltage
+    line ``stall_torque (1 -+ w / no_load_speed)``: MuJoCo's dcmotor drives the voltage
+    ``(R/K) tau + K w`` clamped to +-``voltage``) and the integrand ``u - w`` has the raw
+    torque's sign, the integral ``sp - q`` is frozen: ``sp + dq`` (clipped the same way).
+    The C plugin (``tire_plugin.c``, ``speed_loop``) does the same operations in order.
+    """
+    err = motor.max_angle_error
+    nxt = np.clip(sp + u * dt, q - err, q + err)
+    if motor.anti_windup == "clamp":
+        return np.asarray(nxt, dtype=np.float64)
+    raw = motor.integral_gain * (nxt - q) + motor.speed_gain * (u - w)
+    hi = np.minimum(motor.torque_limit, motor.stall_torque * (1.0 - w / motor.no_load_speed))
+    lo = np.maximum(-motor.torque_limit, -motor.stall_torque * (1.0 + w / motor.no_load_speed))
+    tau = np.clip(raw, lo, hi)
+    frozen = (tau != raw) & (np.sign(u - w) == np.sign(raw))
+    held = np.clip(sp + dq, q - err, q + err)
+    return np.asarray(np.where(frozen, held, nxt), dtype=np.float64)
 
 
 def resolve_auto_backend(cfg: RoverConfig) -> str:
@@ -384,18 +417,28 @@ class RoverSim:
             mujoco.mj_step(m, d, n)
             self._check()
             return
-        dt = self.dt
-        err = self.cfg.motor.max_angle_error
         for _ in range(n):
             # Speed loop: integrate the angle setpoint (the controller's I-term), with anti-windup.
-            q = d.qpos[self._driven_qpos]
-            sp = d.ctrl[self._ctrl_pos] + self.speed_targets * dt
-            d.ctrl[self._ctrl_pos] = np.clip(sp, q - err, q + err)
+            self._advance_setpoints(self.speed_targets)
             d.ctrl[self._ctrl_vel] = self.speed_targets
             mujoco.mj_step1(m, d)
             self.tires.apply(d)
             mujoco.mj_step2(m, d)
         self._check()
+
+    def _advance_setpoints(self, u: Array) -> None:
+        """One substep of the speed loop's setpoints (:func:`advance_setpoints`)."""
+        d = self.data
+        w = d.qvel[self._driven_dof]
+        d.ctrl[self._ctrl_pos] = advance_setpoints(
+            d.ctrl[self._ctrl_pos],
+            d.qpos[self._driven_qpos],
+            w * self.dt,
+            w,
+            u,
+            self.dt,
+            self.phys_cfg.motor,
+        )
 
     def _command(self) -> Array:
         """Speed targets after the command effects (lag, delay), advanced one substep."""
@@ -452,8 +495,6 @@ class RoverSim:
             self._substep += n
             self._check()
             return
-        dt = self.dt
-        err = self.phys_cfg.motor.max_angle_error
         k = HINGE_EVERY
         left = n
         while left > 0:
@@ -479,9 +520,7 @@ class RoverSim:
                     self._react_on_ground(self._ground_share())
                     self._set_hinges(*self._load_view)
                 continue
-            q = d.qpos[self._driven_qpos]
-            sp = d.ctrl[self._ctrl_pos] + u * dt
-            d.ctrl[self._ctrl_pos] = np.clip(sp, q - err, q + err)
+            self._advance_setpoints(u)
             d.ctrl[self._ctrl_vel] = u
             mujoco.mj_step1(m, d)
             self.tires.apply(d)

@@ -146,6 +146,19 @@ def inject_plugin(
         "rut_cells": str(terrain.rut_grid.ncell),
         "width": _num(cfg.geometry.wheel_width),
     }
+    mo = cfg.motor
+    if mo.anti_windup != "clamp":  # the clamp needs no more (and a clamp model stays as it was)
+        config["anti_windup"] = mo.anti_windup
+        config["speed_loop"] = " ".join(
+            _num(v)
+            for v in (
+                mo.integral_gain,
+                mo.speed_gain,
+                mo.torque_limit,
+                mo.stall_torque,
+                mo.no_load_speed,
+            )
+        )
     lines = [
         "  <extension>",
         f'    <plugin plugin="{PLUGIN_NAME}">',

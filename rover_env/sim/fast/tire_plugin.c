@@ -47,6 +47,15 @@
 //   radius           nominal wheel radius (m)
 //   tire             11 numbers in TireParams field order
 //   max_angle_error  anti-windup bound of the setpoint around the wheel angle (rad)
+//   anti_windup      optional, "clamp" (the default) or "conditional": the speed loop's
+//                    anti-windup form (MotorSpec.anti_windup, simulator.advance_setpoints);
+//                    conditional freezes the integral (setpoint minus wheel angle: the
+//                    setpoint advances by w dt instead of the target's) while the dcmotor's
+//                    raw PI torque is outside what it delivers and the error drives it further
+//   speed_loop       5 numbers, needed by "conditional": integral_gain, speed_gain,
+//                    torque_limit, stall_torque, no_load_speed (the physical motor's, as
+//                    the <dcmotor> is built: saturation, and the voltage line
+//                    stall_torque (1 -+ w / no_load_speed))
 //   rut_cells        size of the rut map in plugin_state (cells; 0 without soil); the
 //                    terrain's grid (nx ny) must fit in it
 //   width            wheel width b (m), for the soil stresses and the rut width
@@ -115,14 +124,16 @@ typedef void (*ArcsFn)(const ArcShared* A, const double lo[4], const double hi[4
 
 static const char* kAttributes[] = {
   "wheels", "joints", "motors", "radius", "tire", "max_angle_error", "terrain", "effects",
-  "rut_cells", "width"
+  "rut_cells", "width", "anti_windup", "speed_loop"
 };
 
 typedef struct {
   int nw, nd;
   int *body, *jnt, *dof, *carrier, *root;
-  int *ctrl_pos, *ctrl_vel, *driven_qpos;
+  int *ctrl_pos, *ctrl_vel, *driven_qpos, *driven_dof;
   double radius, max_err, width;
+  int conditional;                        // anti_windup "conditional" (1) or "clamp" (0)
+  double ki, kd, tau_max, stall, w0;      // speed_loop (conditional only)
   int rut_cells;
   double tire[NTIRE];
   double combined_on, load_fall, load_fz0, load_span;  // model extensions (config 'effects')
@@ -165,6 +176,8 @@ static Layout layout_of(int nw, int nd, int rut_cells) {
 // np.maximum / np.minimum on finite values (NaN propagates as in numpy)
 static inline double np_max(double a, double b) { return (a >= b || isnan(a)) ? a : b; }
 static inline double np_min(double a, double b) { return (a <= b || isnan(a)) ? a : b; }
+// np.sign on finite values
+static inline int sign_of(double x) { return (x > 0) - (x < 0); }
 static inline double np_sign(double a) {
   return a > 0.0 ? 1.0 : (a < 0.0 ? -1.0 : (a == 0.0 ? 0.0 : a));
 }
@@ -668,6 +681,7 @@ static void free_config(Config* c) {
   free(c->ctrl_pos);
   free(c->ctrl_vel);
   free(c->driven_qpos);
+  free(c->driven_dof);
   free(c->qfrc);
   free(c->buf);
   free(c);
@@ -703,8 +717,9 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
   c->ctrl_pos = calloc(nd + 1, sizeof(int));
   c->ctrl_vel = calloc(nd + 1, sizeof(int));
   c->driven_qpos = calloc(nd + 1, sizeof(int));
+  c->driven_dof = calloc(nd + 1, sizeof(int));
   if (!c->body || !c->jnt || !c->dof || !c->carrier || !c->root || !c->ctrl_pos
-      || !c->ctrl_vel || !c->driven_qpos) {
+      || !c->ctrl_vel || !c->driven_qpos || !c->driven_dof) {
     return fail(c, "out of memory", NULL);
   }
   char name[NAME_LEN];
@@ -739,6 +754,7 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
     c->ctrl_pos[i] = m->actuator_ctrladr[a];
     c->ctrl_vel[i] = m->actuator_ctrladr[a] + 1;
     c->driven_qpos[i] = m->jnt_qposadr[m->actuator_trnid[2*a]];
+    c->driven_dof[i] = m->jnt_dofadr[m->actuator_trnid[2*a]];
   }
   if (!parse_numbers(config(m, instance, "radius"), &c->radius, 1) || c->radius <= 0) {
     return fail(c, "config 'radius' must be one positive number", NULL);
@@ -746,6 +762,25 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
   if (!parse_numbers(config(m, instance, "max_angle_error"), &c->max_err, 1)
       || c->max_err <= 0) {
     return fail(c, "config 'max_angle_error' must be one positive number", NULL);
+  }
+  const char* aw = config(m, instance, "anti_windup");
+  if (!aw[0] || !strcmp(aw, "clamp")) {
+    c->conditional = 0;
+  } else if (!strcmp(aw, "conditional")) {
+    c->conditional = 1;
+    double sl[5];
+    if (!parse_numbers(config(m, instance, "speed_loop"), sl, 5) || sl[0] <= 0 || sl[1] <= 0
+        || sl[2] <= 0 || sl[3] <= 0 || sl[4] <= 0) {
+      return fail(c, "config 'speed_loop' must hold 5 positive numbers: integral_gain,"
+                  " speed_gain, torque_limit, stall_torque, no_load_speed", NULL);
+    }
+    c->ki = sl[0];
+    c->kd = sl[1];
+    c->tau_max = sl[2];
+    c->stall = sl[3];
+    c->w0 = sl[4];
+  } else {
+    return fail(c, "config 'anti_windup' must be \"clamp\" or \"conditional\", got: ", aw);
   }
   if (!parse_numbers(config(m, instance, "tire"), c->tire, NTIRE)) {
     return fail(c, "config 'tire' must hold the 11 TireParams numbers", NULL);
@@ -845,11 +880,23 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
   const double dt = m->opt.timestep;
   const double* tp = c->tire;
 
-  // speed loop: integrate the angle setpoints with anti-windup (RoverSim.step)
+  // speed loop: integrate the angle setpoints with anti-windup (RoverSim.step,
+  // simulator.advance_setpoints, operation by operation)
   for (int k = 0; k < nd; k++) {
     double q = d->qpos[c->driven_qpos[k]];
-    double sp = st[L.sp + k] + d->ctrl[c->ctrl_vel[k]]*dt;
+    double u = d->ctrl[c->ctrl_vel[k]];
+    double sp = st[L.sp + k] + u*dt;
     double v = np_min(np_max(sp, q - c->max_err), q + c->max_err);
+    if (c->conditional) {
+      double w = d->qvel[c->driven_dof[k]];
+      double raw = c->ki*(v - q) + c->kd*(u - w);
+      double hi = np_min(c->tau_max, c->stall*(1.0 - w/c->w0));
+      double lo = np_max(-c->tau_max, -c->stall*(1.0 + w/c->w0));
+      double tau = np_min(np_max(raw, lo), hi);
+      if (tau != raw && sign_of(u - w) == sign_of(raw)) {  // saturated outward: frozen
+        v = np_min(np_max(st[L.sp + k] + w*dt, q - c->max_err), q + c->max_err);
+      }
+    }
     d->ctrl[c->ctrl_pos[k]] = v;
     st[L.psp + k] = v;
   }
