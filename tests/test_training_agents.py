@@ -382,3 +382,36 @@ def test_search_retries_a_trial_a_killed_search_left_running(tmp_path: Path) -> 
     assert [t.state.name for t in trials] == ["FAIL", "COMPLETE"]
     assert trials[1].params == params and trials[1].user_attrs["retry_of"] == 0
     assert res.best_number == 1 and res.n_complete == 1
+
+
+def test_widen_residual_keeps_the_agents_actions_and_noise(tmp_path: Path) -> None:
+    """The widened copy acts as the agent wherever the agent's mean was inside its bounds,
+    with the same exploration noise in rad/s; beyond them it reaches further."""
+    from stable_baselines3 import PPO
+
+    from rover_env.training.widen import widen_residual
+
+    src = REPO / "agents" / "mobility-ppo-rr-ft-patch"
+    out = widen_residual(src, 1.0, tmp_path / "wide")
+    old = PPO.load(str(src / "model.zip"), device="cpu")
+    new = PPO.load(str(out / "model.zip"), device="cpu")
+    kw_old = load_algo_config("ppo", src / "config.yaml", MIX).env_kwargs
+    kw_new = load_algo_config("ppo", out / "config.yaml", MIX).env_kwargs
+    assert kw_old["action_residual"] == 0.5 and kw_new["action_residual"] == 1.0
+    assert {**kw_new, "action_residual": 0.5} == kw_old
+    obs = np.random.default_rng(0).normal(size=(256, old.observation_space.shape[0]))
+    obs = obs.astype(np.float32)
+    mean_old = old.policy.get_distribution(old.policy.obs_to_tensor(obs)[0]).distribution.mean
+    mean_new = new.policy.get_distribution(new.policy.obs_to_tensor(obs)[0]).distribution.mean
+    m_old, m_new = mean_old.detach().numpy(), mean_new.detach().numpy()
+    inside = np.abs(m_old) < 1.0
+    assert inside.mean() > 0.2 and (~inside).any()
+    np.testing.assert_allclose(1.0 * m_new[inside], 0.5 * m_old[inside], rtol=1e-5, atol=1e-6)
+    assert np.all(np.abs(m_new[~inside]) >= 0.5 - 1e-6)  # beyond the old clip: further
+    std_old = old.policy.log_std.exp().detach().numpy()
+    std_new = new.policy.log_std.exp().detach().numpy()
+    np.testing.assert_allclose(1.0 * std_new, 0.5 * std_old, rtol=1e-6)
+    with pytest.raises(ConfigError, match="already exists"):
+        widen_residual(src, 1.0, out)
+    with pytest.raises(ConfigError, match="new_scale"):
+        widen_residual(src, 3.0, tmp_path / "w3")

@@ -1,0 +1,92 @@
+"""Widen a residual PPO agent's authority without changing what it does.
+
+A residual agent's env action is ``base + scale * clip(a, -1, 1)`` (``env_kwargs.action_residual``,
+:class:`rover_env.policies.residual.Residual`). With ``scale`` 0.5 of the 4 rad/s range the
+policy can take at most 2 rad/s off the base's targets: on soft-patch, where the base drives
+the wheels at about 3.5 rad/s, a rover stalled on a ripple's face cannot stop its wheels, and
+keeps digging (issue 18, stop 27); the slip PI ramps them to 0 and retries.
+
+:func:`widen_residual` writes a copy of the agent whose scale is ``new_scale`` and whose
+Gaussian policy is rescaled by ``k = old / new``: the mean's output layer (``action_net``)
+times k and ``log_std`` plus ln k. Its env actions are then the old agent's wherever the old
+mean lay inside [-1, 1], and the exploration noise in rad/s is unchanged; only where the old
+mean was clipped does the new one reach further. A fine-tune (``--init-from``) of the copy
+starts from the same driving with the wider range open.
+
+PPO only: SAC and TD3 squash their actions with tanh, which no linear rescaling preserves.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+from pathlib import Path
+from typing import Any
+
+import torch
+import yaml
+from stable_baselines3 import PPO
+
+from rover_env.config import ConfigError
+
+__all__ = ["widen_residual"]
+
+
+def widen_residual(agent: str | Path, new_scale: float, out: str | Path) -> Path:
+    """Copy ``agent`` (an agent or run folder: model, observation statistics, ``config.yaml``) to
+    ``out`` with its residual scale ``new_scale`` (module docstring); returns ``out``."""
+    src, dst = Path(agent), Path(out)
+    cfg_file = src / "config.yaml"
+    try:
+        data = yaml.safe_load(cfg_file.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f"{cfg_file}: cannot read the agent's config: {exc}") from None
+    if not isinstance(data, dict) or len(data) != 1:
+        raise ConfigError(f"{cfg_file}: expected one env id entry")
+    ((env_id, entry),) = data.items()
+    kw: dict[str, Any] = dict(entry.get("env_kwargs") or {})
+    old = kw.get("action_residual")
+    if old is None:
+        raise ConfigError(f"{cfg_file}: {env_id}.env_kwargs.action_residual is not set")
+    if not (isinstance(new_scale, int | float) and 0 < new_scale <= 2):
+        raise ConfigError(f"new_scale must be in (0, 2], got {new_scale!r}")
+    if (src / "command.txt").is_file() and "algo: ppo" not in (src / "command.txt").read_text():
+        raise ConfigError(f"{src}: only a PPO agent can be widened (tanh-squashed SAC/TD3 cannot)")
+    if dst.exists():
+        raise ConfigError(f"{dst} already exists")
+    k = float(old) / float(new_scale)
+
+    from rover_env.policies.ppo import resolve_model_path
+
+    model_p, stats_p = resolve_model_path(src)
+    if stats_p is None:
+        raise ConfigError(f"{src}: no observation statistics beside {model_p.name}")
+    model = PPO.load(str(model_p), device="cpu")
+    sd = model.policy.state_dict()
+    with torch.no_grad():
+        sd["action_net.weight"] = sd["action_net.weight"] * k
+        sd["action_net.bias"] = sd["action_net.bias"] * k
+        sd["log_std"] = sd["log_std"] + math.log(k)
+    model.policy.load_state_dict(sd)
+
+    dst.mkdir(parents=True)
+    model.save(str(dst / "model.zip"))
+    shutil.copy2(stats_p, dst / "vecnormalize.pkl")
+    kw["action_residual"] = float(new_scale)
+    entry = {**entry, "env_kwargs": kw}
+    head = (
+        f"# {src} with its residual widened from {old} to {new_scale} of the wheel-speed range\n"
+        f"# (rover_env.training.widen: action_net and log_std rescaled by {k:g})\n"
+    )
+    (dst / "config.yaml").write_text(head + yaml.safe_dump({env_id: entry}, sort_keys=False))
+    (dst / "widened_from.yaml").write_text(
+        yaml.safe_dump(
+            {
+                "agent": str(src),
+                "model": model_p.name,
+                "old_scale": float(old),
+                "new_scale": float(new_scale),
+            }
+        )
+    )
+    return dst
