@@ -152,6 +152,19 @@ def test_mobility_agent_configs() -> None:
             c.gamma == gamma
             and dataclasses.replace(c, gamma=patch.gamma, env_kwargs=patch.env_kwargs) == patch
         ), name
+    # ... and on the widened agent: the residual 1.0 of the range, the stall charge 0.05 or 0.15.
+    stall = load_algo_config("ppo", REPO / "configs" / "agents_mobility" / "ppo_rr_stall.yaml", MIX)
+    for name, w_stall in (("ppo_rr_wide_stall", 0.05), ("ppo_rr_wide_stall15", 0.15)):
+        c = load_algo_config("ppo", REPO / "configs" / "agents_mobility" / f"{name}.yaml", MIX)
+        kw = dict(c.env_kwargs)
+        assert kw.pop("action_residual") == 1.0, name
+        w = dict(kw.pop("reward_weights"))
+        assert w.pop("stall_energy") == w_stall, name
+        ref = dict(stall.env_kwargs)
+        ref.pop("action_residual")
+        w_ref = dict(ref.pop("reward_weights"))
+        w_ref.pop("stall_energy")
+        assert kw == ref and w == w_ref, name
     space = load_space(REPO / "configs" / "agents_mobility" / "search_ft_space.yaml")
     assert not any(k.startswith("policy_kwargs") for k in space)  # a fine-tune keeps the net
 
