@@ -163,6 +163,20 @@ def reprepare(
 Variant = Callable[[RoverConfig, float], tuple[RoverConfig, list[PreparedLog]]]
 
 
+def _baseline(
+    cfg: RoverConfig,
+    prepared: list[PreparedLog],
+    windows: list[Window],
+    settings: ReplaySettings,
+    sensor_noise: dict[str, float],
+) -> tuple[dict[str, float], Array, float]:
+    """The nominal model's per-signal scale, per-window losses and a loss floor."""
+    base = Replayer(cfg, settings).run(prepared, windows)
+    scale = rs.signal_scale(rs.stack(base, prepared), sensor_noise)
+    l0 = rs.window_losses(base, scale)
+    return scale, l0, 1e-12 * max(float(np.mean(l0)), 1e-300)
+
+
 def _fit_ladder(
     name: str,
     unit: str,
@@ -175,10 +189,7 @@ def _fit_ladder(
     settings: ReplaySettings,
     sensor_noise: dict[str, float],
 ) -> FormFit:
-    base = Replayer(cfg, settings).run(prepared, windows)
-    scale = rs.signal_scale(rs.stack(base, prepared), sensor_noise)
-    l0 = rs.window_losses(base, scale)
-    eps = 1e-12 * max(float(np.mean(l0)), 1e-300)
+    scale, l0, eps = _baseline(cfg, prepared, windows, settings, sensor_noise)
 
     def losses_at(x: float) -> Array:
         c, p = variant(cfg, x)
@@ -205,7 +216,23 @@ def _fit_ladder(
                 best = v
     if tried[best] >= tried[nominal]:
         best = nominal  # a tie (a bound the drives never reach) keeps the configuration's
-    d = np.log((l0 + eps) / (losses[best] + eps))
+    return _judged(name, unit, nominal, best, tried, l0, losses[best], eps)
+
+
+def _judged(
+    name: str,
+    unit: str,
+    nominal: float,
+    best: float,
+    tried: dict[float, float],
+    l0: Array,
+    l_best: Array,
+    eps: float,
+    labels: tuple[str, ...] = (),
+) -> FormFit:
+    """The form fit of ``best`` against ``nominal`` by the effects' rule: per-window log loss
+    ratios, their Wilcoxon p (reported) and the BIC with one parameter (decides)."""
+    d = np.log((l0 + eps) / (l_best + eps))
     if best == nominal or np.allclose(d, 0.0):
         p = 1.0
     else:
@@ -221,6 +248,7 @@ def _fit_ladder(
         p=p,
         d_bic=d_bic,
         adopted=bool(best != nominal and d_bic < 0),
+        labels=labels,
     )
 
 
@@ -288,10 +316,7 @@ def fit_anti_windup(
     numbers (one parameter), so a tie keeps the configuration's form."""
     forms = list(ANTI_WINDUP_FORMS)
     nominal = float(forms.index(cfg.motor.anti_windup))
-    base = Replayer(cfg, settings).run(prepared, windows)
-    scale = rs.signal_scale(rs.stack(base, prepared), sensor_noise)
-    l0 = rs.window_losses(base, scale)
-    eps = 1e-12 * max(float(np.mean(l0)), 1e-300)
+    scale, l0, eps = _baseline(cfg, prepared, windows, settings, sensor_noise)
     losses = {nominal: l0}
     for i, form in enumerate(forms):
         if float(i) != nominal:
@@ -300,24 +325,7 @@ def fit_anti_windup(
             losses[float(i)] = rs.window_losses(Replayer(c, settings).run(p, windows), scale)
     tried = {x: float(np.mean(np.log((v + eps) / (l0 + eps)))) for x, v in losses.items()}
     best = min(tried, key=lambda x: (tried[x], x != nominal))
-    d = np.log((l0 + eps) / (losses[best] + eps))
-    if best == nominal or np.allclose(d, 0.0):
-        p_value = 1.0
-    else:
-        p_value = float(stats.wilcoxon(d, alternative="greater", zero_method="zsplit").pvalue)
-    _, d_bic = information_criteria(-float(np.sum(d)), len(d), 1)
-    return FormFit(
-        name="anti_windup",
-        unit="",
-        nominal=nominal,
-        value=best,
-        ladder=dict(sorted(tried.items())),
-        gain=1.0 - float(np.exp(-np.mean(d))),
-        p=p_value,
-        d_bic=d_bic,
-        adopted=bool(best != nominal and d_bic < 0),
-        labels=tuple(forms),
-    )
+    return _judged("anti_windup", "", nominal, best, tried, l0, losses[best], eps, tuple(forms))
 
 
 __all__ = [
