@@ -38,8 +38,11 @@ torque limit and fitted the limit at the top of its range. Diagnose chooses the 
 on the training windows by the same rule (the alternative form replayed with the logs'
 setpoints recomputed for it; BIC with one parameter), before the bound, after sigma.
 
-Diagnose fits sigma and the form always and the bound only on request (``Options.fit_windup``,
-``--fit-windup``). Measured in stop 24: on the second generator the bound comes out at
+Diagnose fits sigma always, and the form (``Options.fit_anti_windup``, ``--fit-anti-windup``)
+and the bound (``Options.fit_windup``, ``--fit-windup``) only on request: on the second
+generator's fresh cases the form named a torque limit that the clamp misnamed, but lost a
+rolling radius and narrowed the lag and delay intervals past their truths (stop 27,
+docs/calibration). Measured in stop 24: on the second generator the bound comes out at
 15.6 mrad, where the integral can hold only 0.6 N m. A steady load then shows as droop of
 the driven wheels, which the second generator's conditionally integrating PI does not
 have. Those wheels' residual scale falls 5-7 x, so they dominate the fit and pull rolling
