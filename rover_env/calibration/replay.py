@@ -44,9 +44,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rover_env.config import JOINTS, WHEELS, MotorSpec, RoverConfig, to_dict
-from rover_env.effects import build_effects
 from rover_env.logs import DriveLog
-from rover_env.sim.simulator import RoverSim, advance_setpoints
+from rover_env.sim.simulator import RoverSim, advance_setpoints, physical_config
 
 Array = NDArray[np.float64]
 
@@ -93,11 +92,7 @@ class PreparedLog:
 def loop_motor(cfg: RoverConfig) -> MotorSpec:
     """The motor as the simulator builds it from ``cfg``: after the model extensions (a
     torque limit effect changes ``torque_limit``), as :class:`RoverSim`'s ``phys_cfg``."""
-    phys = cfg
-    for e in build_effects(cfg.extensions):
-        if not e.is_off:
-            phys = e.apply_config(phys)
-    return phys.motor
+    return physical_config(cfg).motor
 
 
 def loop_key(cfg: RoverConfig) -> tuple[object, ...]:

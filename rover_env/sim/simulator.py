@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,6 +33,7 @@ from rover_env.config import (
 )
 from rover_env.effects import (
     CommandEffect,
+    Effect,
     HingeEffect,
     TireEffect,
     build_effects,
@@ -142,6 +144,18 @@ def advance_setpoints(
     return np.asarray(np.where(frozen, held, nxt), dtype=np.float64)
 
 
+def physical_config(cfg: RoverConfig, effects: Sequence[Effect] | None = None) -> RoverConfig:
+    """``cfg`` as the simulator builds it: the model extensions' configuration changes
+    applied (a torque limit effect changes ``motor.torque_limit``), the extensions cleared.
+    ``effects``: those of ``cfg.extensions`` that are on, if already built."""
+    if effects is None:
+        effects = [e for e in build_effects(cfg.extensions) if not e.is_off]
+    phys = cfg
+    for e in effects:
+        phys = e.apply_config(phys)
+    return dataclasses.replace(phys, extensions={}) if cfg.extensions else phys
+
+
 def resolve_auto_backend(cfg: RoverConfig) -> str:
     """``backend="auto"``: the compiled plugin where it can run this model, else numpy."""
     if plugin_refusals(cfg.extensions):
@@ -203,12 +217,7 @@ class RoverSim:
         self.backend = backend
         # --- model extensions (rover_env.effects) ---
         self.effects = [e for e in build_effects(self.cfg.extensions) if not e.is_off]
-        phys = self.cfg
-        for e in self.effects:
-            phys = e.apply_config(phys)
-        if self.cfg.extensions:
-            phys = dataclasses.replace(phys, extensions={})
-        self.phys_cfg = phys
+        self.phys_cfg = physical_config(self.cfg, self.effects)
         self._cmd_effects = [e for e in self.effects if isinstance(e, CommandEffect)]
         self._hinge_effects = [e for e in self.effects if isinstance(e, HingeEffect)]
         # --- end of model extensions ---
