@@ -12,7 +12,14 @@ import pytest
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue, magnitude_ladder
-from rover_env.calibration.diagnose import better_worse, interval_text, strict_json
+from rover_env.calibration.diagnose import (
+    Scored,
+    better_worse,
+    first_confident,
+    interval_reaches_off,
+    interval_text,
+    strict_json,
+)
 from rover_env.calibration.fit import Evaluator, Fit, bootstrap_interval, fit
 from rover_env.calibration.make_logs import make_logs
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
@@ -138,3 +145,45 @@ def test_result_json_is_strict_and_log_lines_say_better_or_worse() -> None:
         json.dumps(obj, allow_nan=False)
     assert better_worse(0.285) == "28.5 % better"
     assert better_worse(-0.285) == "28.5 % worse"
+
+
+def _fit_of(name: str, x: float, lo: float, hi: float, sided: str = "") -> Fit:
+    (c,) = catalogue([name])
+    return Fit(
+        [c],
+        np.array([x]),
+        np.array([lo]),
+        np.array([hi]),
+        np.array([(hi - lo) / 3.92]),
+        0.0,
+        0,
+        c.to_ext(np.array([x])),
+        0.0,
+        "train",
+        sided=(sided,),
+    )
+
+
+def _scored(f: Fit) -> Scored:
+    return Scored(f, 0.0, np.zeros(3), 0.2, 0.001, -5.0, -5.0, 10, significant=True)
+
+
+def test_an_effect_whose_interval_reaches_off_is_not_named() -> None:
+    # Stop 27's cases: a delay "< 3.3 ms" on clean logs, a torque limit spanning zero.
+    delay = _fit_of("command_delay", 0.0016, 0.0, 0.0033, "upper")
+    limit = _fit_of("torque_limit", -0.068, -0.184, 0.048)
+    lag = _fit_of("command_lag", 0.09, 0.077, 0.103)
+    assert interval_reaches_off(delay) == ["command_delay.delay"]
+    assert interval_reaches_off(limit) == ["torque_limit.fraction"]
+    assert interval_reaches_off(lag) == []
+    assert interval_reaches_off(limit, {"command_lag"}) == []  # only the judged effects
+    corrected: list[str] = []
+    cands = [_scored(delay), _scored(limit), _scored(lag)]
+    chosen = first_confident(
+        cands, lambda s: corrected.append(s.fit.name), lambda s: None, lambda m: None
+    )
+    assert chosen is cands[2]
+    assert corrected == ["command_delay", "torque_limit", "command_lag"]
+    assert not cands[0].significant and "reaches off" in cands[0].test
+    assert not cands[1].significant and cands[2].significant
+    assert first_confident(cands[:2], lambda s: None, lambda s: None, lambda m: None) is None

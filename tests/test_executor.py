@@ -107,6 +107,56 @@ def test_local_executor_gives_up_on_a_task_that_always_kills_its_worker() -> Non
         ex.map(_always_die, [0, 1])
 
 
+_ORPHAN_PARENT = """
+import os, sys, time
+from pathlib import Path
+from rover_env.executor import LocalExecutor
+from tests.test_executor import _sleep_and_say
+LocalExecutor(2).map(_sleep_and_say, [0, 1], shared=sys.argv[1])
+"""
+
+
+def _sleep_and_say(marker_dir: str, i: int) -> int:
+    """Writes its pid, then works for a minute (unless its process is ended)."""
+    (Path(marker_dir) / f"pid_{i}").write_text(str(os.getpid()))
+    time.sleep(60)
+    return i
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    status = Path(f"/proc/{pid}/stat")
+    return not (status.is_file() and status.read_text().split()[2] == "Z")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+def test_killing_a_study_ends_its_workers(tmp_path: Path) -> None:
+    # Stop 27: a killed bench_diagnose left two spawned workers computing for 35 minutes.
+    parent = subprocess.Popen(
+        [sys.executable, "-c", _ORPHAN_PARENT, str(tmp_path)], cwd=REPO, env=_env()
+    )
+    pids: list[int] = []
+    deadline = time.monotonic() + 60
+    while len(pids) < 2 and time.monotonic() < deadline:
+        pids = [int(p.read_text()) for p in tmp_path.glob("pid_*") if p.read_text()]
+        time.sleep(0.1)
+    assert len(pids) == 2, "the workers never started"
+    assert all(_alive(p) for p in pids)
+    parent.send_signal(signal.SIGKILL)  # no finally, no atexit: only the kernel can help
+    parent.wait()
+    deadline = time.monotonic() + 10
+    while any(_alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(_alive(p) for p in pids), "workers outlived the killed study"
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": str(REPO)}
+
+
 def test_unknown_executor_is_one_clear_error() -> None:
     with pytest.raises(ValueError, match="--executor 'dask': expected one of local, ray"):
         make_executor("dask")

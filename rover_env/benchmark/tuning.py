@@ -40,6 +40,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import multiprocessing as mp
+import os
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -55,6 +56,7 @@ from rover_env.config import to_dict
 from rover_env.control.open_loop import OpenLoop
 from rover_env.control.slip_pi import SlipPI, SlipPIConfig
 from rover_env.estimation.estimator import EstimatorConfig
+from rover_env.executor import die_with_parent
 from rover_env.policies.controllers import ClassicalController
 from rover_env.seeds import split_of
 from rover_env.tasks.scenarios import Episode
@@ -158,7 +160,12 @@ def tune(
     t0 = time.perf_counter()
     say = log or (lambda _m: None)
     pool = (
-        ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+        ProcessPoolExecutor(
+            max_workers=workers,
+            mp_context=mp.get_context("spawn"),
+            initializer=die_with_parent,
+            initargs=(os.getpid(),),
+        )
         if workers > 1
         else None
     )

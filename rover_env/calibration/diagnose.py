@@ -32,6 +32,7 @@ import json
 import multiprocessing as mp
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -72,6 +73,7 @@ from rover_env.calibration.replay import (
     serial_replays,
 )
 from rover_env.config import RoverConfig, load_rover, to_dict
+from rover_env.effects import CATALOGUE
 from rover_env.executor import add_executor_args, make_executor
 from rover_env.logs import DriveLog, LogError, read_log
 
@@ -315,9 +317,17 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
         for s in ranked:
             noise_test(s, base_left, noise)
 
-    # 4. decision
+    # 4. decision: the best significant candidate whose interval, the replay's bias in it,
+    # keeps clear of "off" (one that reaches it is not named with confidence).
+    winner = first_confident(
+        [s for s in ranked if s.significant],
+        lambda s: bias_correct(ev, s, sensor_noise, st),
+        lambda s: None,
+        say,
+    )
     sig = [s for s in ranked if s.significant]
-    winner = sig[0] if sig else None
+    if winner is not None:
+        sig = [winner, *(s for s in sig if s is not winner)]
     tie: dict[str, Any] | None = None
     if winner is not None and len(sig) >= 2:
         ru = sig[1]
@@ -342,9 +352,6 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
     left: list[str] = []
     w_floor = noise
     if winner is not None:
-        # Bias of the fitted values through the replay (parametric bootstrap on twins).
-        bias_correct(ev, winner, sensor_noise, st)
-        say(f"{winner.fit.name} with the replay's bias in its interval: {_fmt_phys(winner.fit)}")
         # Against the floor of the winner's own model (a tilted or slower model replays
         # its own twin less exactly than the nominal one).
         w_floor = replay_floor(ev.config(winner.fit.ext), prepared, held_w, sensor_noise, st)
@@ -394,14 +401,15 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
         if not any(s.significant for s in tried):
             for s2 in sorted(tried, key=lambda s: -s.gain):
                 noise_test(s2, left, w_floor)
-        best2 = sorted([s for s in tried if s.significant], key=lambda s: -s.gain)
-        if best2:
-            second = best2[0]
+        w_names = {c.name for c in w_cands}
+        second = first_confident(
+            sorted([s for s in tried if s.significant], key=lambda s: -s.gain),
+            lambda s: bias_correct(ev, s, sensor_noise, st),
+            lambda s: {c.name for c in s.fit.candidates} - w_names,
+            say,
+        )
+        if second is not None:
             chosen = [second]
-
-    if second is not None:
-        bias_correct(ev, second, sensor_noise, st)
-        say(f"{second.fit.name} with the replay's bias in its interval: {_fmt_phys(second.fit)}")
 
     # 5b. evidence the drives lack (see rover_env.calibration.evidence)
     evidence = missing_evidence(ev, ranked, chosen, noise, base, opts, say)
@@ -560,6 +568,52 @@ def missing_evidence(
             f" {p['held_out_best_signal']} {p['held_out_floor_units']:.1f}x per window)"
         )
     return out
+
+
+def interval_reaches_off(f: Fit, effects: set[str] | None = None) -> list[str]:
+    """``effect.parameter`` for each effect of ``f`` (or of ``effects``) whose magnitude's
+    95 % interval reaches its "off" value: the drives do not exclude its absence.
+
+    The magnitude is the effect's first parameter (a switch has none to judge). Why (issue
+    16, stop 27): on clean logs of the second generator a delay "< 3.3 ms" was named, and on
+    two cases a second torque limit of -0.068 [-0.184, 0.048]; naming an effect says it is
+    there, which such an interval does not.
+    """
+    out = []
+    for eff, params in f.physical().items():
+        if effects is not None and eff not in effects:
+            continue
+        p = CATALOGUE[eff].params[0]
+        if p.discrete or p.name not in params:
+            continue
+        _, lo, hi = params[p.name]
+        if np.isfinite(lo) and np.isfinite(hi) and lo <= p.off <= hi:
+            out.append(f"{eff}.{p.name}")
+    return out
+
+
+def first_confident(
+    candidates: list[Scored],
+    correct: Callable[[Scored], None],
+    judged: Callable[[Scored], set[str] | None],
+    say: Callable[[str], None],
+) -> Scored | None:
+    """The first of ``candidates`` (best first) whose interval keeps clear of "off".
+
+    Each is first widened by ``correct`` (the replay's bias); ``judged`` picks the effects
+    whose interval counts (a pair's new partner, not the winner it was fitted beside). One
+    that reaches "off" loses its significance and says why in ``test``.
+    """
+    for s in candidates:
+        correct(s)
+        say(f"{s.fit.name} with the replay's bias in its interval: {_fmt_phys(s.fit)}")
+        off = interval_reaches_off(s.fit, judged(s))
+        if not off:
+            return s
+        s.significant = False
+        s.test = f"not named: the 95 % interval of {', '.join(off)} reaches off"
+        say(f"{s.fit.name}: {s.test}")
+    return None
 
 
 def bias_correct(

@@ -33,6 +33,7 @@ import itertools
 import json
 import math
 import multiprocessing as mp
+import os
 from collections.abc import Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import contextmanager
@@ -44,6 +45,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rover_env.config import JOINTS, WHEELS, MotorSpec, RoverConfig, to_dict
+from rover_env.executor import die_with_parent
 from rover_env.logs import DriveLog
 from rover_env.sim.simulator import RoverSim, advance_setpoints, physical_config
 
@@ -451,7 +453,12 @@ def parallel_replays(workers: int) -> Iterator[None]:
     if workers <= 1 or "fork" not in mp.get_all_start_methods() or _PARALLEL[0] is not None:
         yield
         return
-    pool = ProcessPoolExecutor(workers - 1, mp_context=mp.get_context("fork"))
+    pool = ProcessPoolExecutor(
+        workers - 1,
+        mp_context=mp.get_context("fork"),
+        initializer=die_with_parent,
+        initargs=(os.getpid(),),
+    )
     _PARALLEL = (pool, workers)
     try:
         yield
