@@ -34,7 +34,12 @@ class WheelContact(NamedTuple):
 class Terrain:
     """Ground surface h(x, y), its normal, and per-point friction."""
 
-    def __init__(self, cfg: TerrainConfig, tire: TireParams | None = None) -> None:
+    def __init__(
+        self,
+        cfg: TerrainConfig,
+        tire: TireParams | None = None,
+        ground_soil: SoilParams | None = None,
+    ) -> None:
         tire = tire or TireParams()
         self.cfg = cfg
         self.flat = cfg.is_flat
@@ -86,8 +91,12 @@ class Terrain:
         # Loose soil: distinct presets numbered from 1 (0 = hard ground, the Gim layer).
         names = [n for n in (cfg.soil, *(q.soil for q in p)) if n]
         unique = list(dict.fromkeys(names))
-        self.soils: tuple[SoilParams, ...] = tuple(load_soil(n) for n in unique)
+        soils = [load_soil(n) for n in unique]
         self.ground_soil = unique.index(cfg.soil) + 1 if cfg.soil else 0
+        if ground_soil is not None:  # a model extension's soil over the ground (loose_soil)
+            soils.append(ground_soil)
+            self.ground_soil = len(soils)
+        self.soils: tuple[SoilParams, ...] = tuple(soils)
         self._patch_soil = np.array(
             [unique.index(q.soil) + 1 if q.soil else 0 for q in p], dtype=np.int64
         )

@@ -48,6 +48,7 @@ PIVOT = (-3.0, 3.0, -3.0, 3.0)
         ({"friction": {"fraction": -0.3}}, TURN, 2.0, "free_diff", +1),  # skid steer turns easier
         ({"combined_slip": {"on": 1.0}}, TURN, 1.0, "free_diff", +1),
         ({"load_dependent_friction": {"fall": 0.3}}, PIVOT, 1.0, "free_diff", 0),
+        ({"loose_soil": {"k_phi": 1.5e6}}, STRAIGHT, 2.0, "torque", +1),  # compaction resists
     ],
 )
 def test_effects_act_in_the_expected_direction(

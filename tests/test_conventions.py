@@ -3,14 +3,16 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
-from rover_env.config import RoverConfig
+from rover_env.config import RoverConfig, TerrainConfig, from_dict
 from rover_env.effects import (
     CATALOGUE,
+    LOOSE_SOIL_BASE,
     CombinedSlip,
     Friction,
     LoadDependentFriction,
@@ -20,6 +22,7 @@ from rover_env.effects import (
 from rover_env.sim.model import static_deflection
 from rover_env.sim.rig import measure_fx
 from rover_env.sim.simulator import RoverSim
+from rover_env.soil import load_soil, static_sinkage
 
 G = 9.81
 CFG = RoverConfig()
@@ -38,6 +41,7 @@ def test_every_catalogue_effect_has_a_rig_test() -> None:
         "friction",
         "combined_slip",
         "load_dependent_friction",
+        "loose_soil",
     }
     assert set(CATALOGUE) == tested
 
@@ -228,3 +232,51 @@ def test_hinge_and_command_effects_together_agree_across_backends() -> None:
             sim.step(7)  # steps that do not line up with the 10-substep hinge updates
         runs[backend] = sim.sensors().phi
     np.testing.assert_allclose(runs["plugin"], runs["numpy"], atol=1e-9)
+
+
+def _settled_on(ext: dict[str, dict[str, float]], terrain: object = "flat") -> RoverSim:
+    sim = RoverSim(RoverConfig(extensions=ext), terrain, backend="plugin")  # type: ignore[arg-type]
+    sim.step(2000)  # 2 s at rest: the wheels sink to where the soil carries them
+    return sim
+
+
+def test_loose_soil_k_phi_is_bekkers_modulus() -> None:
+    """Static sinkage of each wheel follows Bekker's law p = (k_c / b + k_phi) z^n: for a rigid
+    wheel z is proportional to (k_c / b + k_phi)^(-2 / (2 n + 1)) (Wong, Theory of Ground
+    Vehicles, ch. 2), and it is the sinkage at which the soil model carries the wheel's load."""
+    base = load_soil(LOOSE_SOIL_BASE)
+    width = CFG.geometry.wheel_width
+    z = {}
+    for k_phi in (5e5, 8e6):
+        sim = _settled_on({"loose_soil": {"k_phi": k_phi}})
+        w = sim.wheel_truth()
+        assert np.all(w.soil == 1)
+        soil = dataclasses.replace(base, k_phi=k_phi)
+        ref = [static_sinkage(f, CFG.geometry.wheel_radius, width, soil) for f in w.F_z]
+        np.testing.assert_allclose(w.sinkage, ref, rtol=0.02)
+        z[k_phi] = w.sinkage
+    k_s = {k: base.k_c / width + k for k in z}
+    bekker = (k_s[8e6] / k_s[5e5]) ** (2.0 / (2.0 * base.n0 + 1.0))
+    np.testing.assert_allclose(z[5e5] / z[8e6], bekker, rtol=0.02)
+
+
+def test_loose_soil_on_hard_ground_is_the_soil_of_its_base_preset() -> None:
+    """At a preset's k_phi, phi and n0 the effect drives exactly as that soil over the ground;
+    off (k_phi 0) it is hard ground, and a soil patch keeps its own soil."""
+    base = load_soil(LOOSE_SOIL_BASE)
+    ext = {"loose_soil": {"k_phi": base.k_phi, "phi_deg": base.phi_deg, "n0": base.n0}}
+    a = RoverSim(RoverConfig(extensions=ext), "flat", backend="plugin")
+    t = from_dict(TerrainConfig, {"name": "flat", "soil": LOOSE_SOIL_BASE})
+    b = RoverSim(RoverConfig(), t, backend="plugin")
+    for sim in (a, b):
+        sim.set_speed_targets([2.0] * 4)
+        sim.step(1500)
+    assert np.array_equal(a.data.qpos, b.data.qpos)
+    assert a.wheel_truth().sinkage.min() > 0.005
+    off = _settled_on({"loose_soil": {"k_phi": 0.0}})
+    assert np.all(off.wheel_truth().soil == 0)
+    # "Softer than modelled": on a terrain with loose soil the effect replaces its k_phi.
+    dune = from_dict(TerrainConfig, {"name": "flat", "soil": "dune-sand"})
+    softer = _settled_on({"loose_soil": {"k_phi": 3e5, "phi_deg": 28.0, "n0": 1.1}}, dune)
+    plain = _settled_on({}, dune)
+    assert np.all(softer.wheel_truth().sinkage > 1.3 * plain.wheel_truth().sinkage)

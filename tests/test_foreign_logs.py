@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import yaml
 
-from rover_env.calibration.foreign_logs import ForeignRover, make_foreign_logs
+from rover_env.calibration.foreign_logs import FOREIGN_EFFECTS, ForeignRover, make_foreign_logs
 from rover_env.calibration.make_logs import make_logs
 from rover_env.config import RoverConfig
 from rover_env.logs import read_log
@@ -89,3 +89,13 @@ def test_foreign_lateral_slip_is_eq_11() -> None:
     S = slip_ratio(v_x, v_w, 1e-3)
     assert np.sum(S < 0) > 100 and np.sum(S > 0) > 100  # both regimes are tested
     np.testing.assert_allclose(lateral_slip(v_x, v_y, v_w), eq11(v_x, v_y, v_w, S, 1e-3), rtol=1e-9)
+
+
+def test_foreign_generator_refuses_an_effect_it_does_not_implement(tmp_path: Path) -> None:
+    from rover_env.config import ConfigError
+    from rover_env.effects import CATALOGUE
+
+    with pytest.raises(ConfigError, match="loose_soil: the second generator does not"):
+        make_foreign_logs(tmp_path, {"loose_soil": {"k_phi": 1e6}}, drives=1, progress=False)
+    assert not list(tmp_path.iterdir())  # nothing written
+    assert FOREIGN_EFFECTS == set(CATALOGUE) - {"loose_soil"}

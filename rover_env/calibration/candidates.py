@@ -35,6 +35,10 @@ class Candidate:
     to_ext: Callable[[Array], Extensions]
     discrete: bool = False
     plugin_ok: bool = True
+    shown: Callable[[float, float, float, str], tuple[str, float, float, float, str]] | None = None
+    """For a one-variable candidate fitted in another variable than its effect's parameter:
+    (x, 95 % low, 95 % high, side) -> (parameter, value, low, high, side) in the effect's
+    terms (``loose_soil``: fitted as 1/k_phi, shown as k_phi). None: x is the parameter."""
 
     @property
     def k(self) -> int:
@@ -104,13 +108,53 @@ def _slope() -> Candidate:
     )
 
 
+INV_K_PHI_MAX = 10.0
+"""Softest soil a ``loose_soil`` fit tries: 1/k_phi 10 m^(n+2)/MN, k_phi 1e5 N/m^(n+2)
+(looser than any sand of configs/soil: dune sand 1.5e6, regolith 8.1e5)."""
+
+
+def _loose_soil() -> Candidate:
+    """Fitted as u = 1e6 / k_phi (MN^-1 m^(n+2)): u = 0 is infinitely stiff soil, next to
+    hard ground ("off"), so the ladder (10/81 .. 10: k_phi 8.1e6 .. 1e5) and the local search
+    move continuously away from "off". k_phi itself would put "off" (0, hard ground) beside
+    the softest soils."""
+    k_hi = CATALOGUE["loose_soil"].params[0].hi
+
+    def to_ext(x: Array) -> Extensions:
+        u = float(x[0])
+        return {"loose_soil": {"k_phi": 0.0 if u <= 0.0 else min(1e6 / u, k_hi)}}
+
+    def shown(x: float, lo: float, hi: float, side: str) -> tuple[str, float, float, float, str]:
+        def k(u: float) -> float:
+            return math.inf if u <= 0.0 else 1e6 / u
+
+        flip = {"upper": "lower", "lower": "upper"}.get(side, side)
+        return "k_phi", k(x), k(hi), k(lo), flip
+
+    return Candidate(
+        "loose_soil",
+        ("inv_k_phi",),
+        (0.0,),
+        (INV_K_PHI_MAX,),
+        (0.0,),
+        tuple((v,) for v in magnitude_ladder(0.0, INV_K_PHI_MAX, 0.0)),
+        to_ext,
+        shown=shown,
+    )
+
+
 def catalogue(names: list[str] | None = None) -> list[Candidate]:
     """Candidates for all catalogue effects (or the named ones), in catalogue order."""
     out = []
     for n in CATALOGUE:
         if names is not None and n not in names:
             continue
-        out.append(_slope() if n == "slope" else _simple(n))
+        if n == "slope":
+            out.append(_slope())
+        elif n == "loose_soil":
+            out.append(_loose_soil())
+        else:
+            out.append(_simple(n))
     return out
 
 

@@ -580,15 +580,21 @@ def interval_reaches_off(f: Fit, effects: set[str] | None = None) -> list[str]:
     there, which such an interval does not.
     """
     out = []
-    for eff, params in f.physical().items():
-        if effects is not None and eff not in effects:
-            continue
-        p = CATALOGUE[eff].params[0]
-        if p.discrete or p.name not in params:
-            continue
-        _, lo, hi = params[p.name]
-        if np.isfinite(lo) and np.isfinite(hi) and lo <= p.off <= hi:
-            out.append(f"{eff}.{p.name}")
+    shown = f.physical()
+    i = 0
+    for c in f.candidates:
+        n = len(c.labels)
+        judged = effects is None or c.name in effects
+        if judged and not c.discrete and n:
+            p = CATALOGUE[c.name].params[0]
+            if c.name == "slope":  # the tilt's size, not its components
+                _, lo, hi = shown[c.name][p.name]
+                off = p.off
+            else:  # the fitted variable (loose_soil's 1/k_phi: "off" at 0, not at k_phi 0)
+                lo, hi, off = float(f.ci_lo[i]), float(f.ci_hi[i]), c.off[0]
+            if np.isfinite(lo) and np.isfinite(hi) and lo <= off <= hi:
+                out.append(f"{c.name}.{p.name}")
+        i += n
     return out
 
 

@@ -139,6 +139,9 @@ class Fit:
                     "deg": (deg, max(0.0, low), deg + self.tq * s),
                     "heading_deg": (head, math.nan, math.nan),
                 }
+            elif c.shown is not None:
+                k, v, a, b, _ = c.shown(float(x[0]), float(lo[0]), float(hi[0]), "")
+                out[c.name] = {k: (v, a, b)}
             else:
                 out[c.name] = {c.labels[0]: (float(x[0]), float(lo[0]), float(hi[0]))}
             i += n
@@ -156,6 +159,9 @@ class Fit:
                 deg = math.hypot(self.x[i], self.x[i + 1])
                 at0 = deg - self.tq * float(np.max(se)) <= 0.0
                 out[c.name] = {"deg": "upper" if at0 else "", "heading_deg": ""}
+            elif n and c.shown is not None:
+                k, _, _, _, side = c.shown(self.x[i], self.ci_lo[i], self.ci_hi[i], sd[0])
+                out[c.name] = {k: side}
             elif n:
                 out[c.name] = {c.labels[0]: sd[0]}
             i += n

@@ -46,7 +46,7 @@ import yaml
 from numpy.typing import NDArray
 
 from rover_env.calibration.drives import drive_schedule
-from rover_env.config import JOINTS, WHEELS, RoverConfig, load_rover, to_dict
+from rover_env.config import JOINTS, WHEELS, ConfigError, RoverConfig, load_rover, to_dict
 from rover_env.effects import build_effects
 from rover_env.logs import DriveLog, LogMeta, write_log
 from rover_env.sim.model import scene_xml
@@ -327,6 +327,23 @@ def _relative_pose(pos: Array, quat: Array) -> Array:
     return out
 
 
+FOREIGN_EFFECTS = frozenset(
+    {
+        "rolling_resistance",
+        "slope",
+        "rolling_radius",
+        "torque_limit",
+        "command_lag",
+        "command_delay",
+        "friction",
+        "combined_slip",
+        "load_dependent_friction",
+    }
+)
+"""The catalogue effects :class:`ForeignRover` implements in its own code (no loose soil:
+it has no terramechanics contact)."""
+
+
 def make_foreign_logs(
     out: str | Path,
     effects: dict[str, dict[str, float]],
@@ -345,6 +362,12 @@ def make_foreign_logs(
     nominal = load_rover(rover)
     base = truth_rover if truth_rover is not None else nominal
     RoverConfig(extensions=effects)  # validate the effects by the catalogue's rules
+    missing = sorted(set(effects) - FOREIGN_EFFECTS)
+    if missing:
+        raise ConfigError(
+            f"effects {', '.join(missing)}: the second generator does not implement them"
+            f" (it has: {', '.join(sorted(FOREIGN_EFFECTS))})"
+        )
     rate = 50.0
     per_sample = round(1.0 / (rate * DT))
     enc = 2 * math.pi / ENCODER_COUNTS

@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 
 if TYPE_CHECKING:  # pragma: no cover
     from rover_env.config import RoverConfig
+    from rover_env.soil import SoilParams
 
 Array = NDArray[np.float64]
 GRAVITY = 9.81
@@ -125,6 +126,11 @@ class Effect:
 
     def apply_model(self, model: Any, cfg: RoverConfig) -> None:
         """Change compiled-model arrays after compilation (default: nothing)."""
+
+    def ground_soil(self, soil: SoilParams | None) -> SoilParams | None:
+        """The loose soil over the whole ground, given the terrain's own (None: hard ground).
+        Soil patches keep theirs. Default: unchanged."""
+        return soil
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.values})"
@@ -505,6 +511,63 @@ class LoadDependentFriction(TireEffect):
             return mu_x, mu_y
         k = 1.0 - a * np.clip((F_z - self.fz0) / self.span, -0.5, 0.5)
         return mu_x * k, mu_y * k
+
+
+LOOSE_SOIL_BASE = "mars-sand"
+"""The soil preset whose other constants (c, k_c, n1, K, lambda, ...) a ``loose_soil`` effect
+on hard ground takes: the sand of the soil scenarios (configs/soil/mars-sand.yaml)."""
+
+
+@register
+class LooseSoil(Effect):
+    """The ground is loose soil, or softer than modelled: Bekker's k_phi (and phi, n0).
+
+    ``k_phi`` is the frictional modulus of Bekker's pressure-sinkage law p = (k_c / b +
+    k_phi) z^n (N/m^(n+2); Wong, *Theory of Ground Vehicles*), ``phi_deg`` the soil's
+    internal friction angle of Mohr-Coulomb's shear strength c + p tan(phi) and ``n0`` the
+    sinkage exponent at zero slip (n = n0 + n1 |s|). ``k_phi`` 0 is off: hard ground, the Gim
+    tire. On hard ground the other soil constants are ``mars-sand``'s (LOOSE_SOIL_BASE); on
+    a terrain that already has loose soil over the ground, its constants, with these three
+    replaced ("softer than modelled"). Soil patches keep their own soil.
+
+    Only ``k_phi`` is fitted by ``diagnose`` (a log-spaced ladder over its range, as every
+    magnitude); ``phi_deg`` and ``n0`` are make-logs' and a rover file's to set. Why k_phi:
+    at the rover's wheel it decides the static sinkage, which the rolling resistance of
+    compaction and the slip the drive needs follow (the rig test checks Bekker's law).
+    """
+
+    name = "loose_soil"
+    params = (
+        Param(
+            "k_phi",
+            "N/m^(n+2)",
+            0.0,
+            1.0e9,
+            0.0,
+            "Bekker's frictional modulus; 0: hard ground",
+            moderate=2.2591e6,
+        ),
+        Param("phi_deg", "deg", 15.0, 45.0, 35.0, "internal friction angle"),
+        Param("n0", "-", 0.5, 1.5, 0.92, "sinkage exponent at zero slip"),
+    )
+
+    @property
+    def is_off(self) -> bool:
+        return self["k_phi"] == 0.0
+
+    def ground_soil(self, soil: SoilParams | None) -> SoilParams | None:
+        from rover_env.soil import load_soil
+
+        if self.is_off:
+            return soil
+        base = soil if soil is not None else load_soil(LOOSE_SOIL_BASE)
+        return dataclasses.replace(
+            base,
+            name=f"{base.name} (loose_soil)",
+            k_phi=self["k_phi"],
+            phi_deg=self["phi_deg"],
+            n0=self["n0"],
+        )
 
 
 # --------------------------------------------------------------------------- helpers

@@ -42,6 +42,7 @@ from rover_env.effects import (
 from rover_env.sim.fast import FastBackendError, PluginView, inject_plugin, load_plugin
 from rover_env.sim.model import fill_hfield, hfield_data, scene_xml, static_deflection
 from rover_env.sim.tire_layer import TireLayer, TireState
+from rover_env.soil import load_soil
 from rover_env.terrain import Terrain
 
 Array = NDArray[np.float64]
@@ -221,7 +222,13 @@ class RoverSim:
         self._cmd_effects = [e for e in self.effects if isinstance(e, CommandEffect)]
         self._hinge_effects = [e for e in self.effects if isinstance(e, HingeEffect)]
         # --- end of model extensions ---
-        self.terrain = Terrain(self.terrain_cfg, self.phys_cfg.tire)
+        own = load_soil(self.terrain_cfg.soil) if self.terrain_cfg.soil else None
+        ground = own
+        for e in self.effects:
+            ground = e.ground_soil(ground)
+        self.terrain = Terrain(
+            self.terrain_cfg, self.phys_cfg.tire, ground_soil=None if ground is own else ground
+        )
         xml = scene_xml(self.phys_cfg, self.terrain_cfg)
         if backend == "plugin":
             slots: dict[str, float] = {}
