@@ -187,3 +187,20 @@ def test_an_effect_whose_interval_reaches_off_is_not_named() -> None:
     assert not cands[0].significant and "reaches off" in cands[0].test
     assert not cands[1].significant and cands[2].significant
     assert first_confident(cands[:2], lambda s: None, lambda s: None, lambda m: None) is None
+
+
+def test_loose_soil_is_fitted_as_inverse_modulus_and_shown_as_k_phi() -> None:
+    (c,) = catalogue(["loose_soil"])
+    # The ladder runs from "off" (u = 0: stiffer than any soil, next to hard ground) outwards.
+    ks = [c.to_ext(np.array(u))["loose_soil"]["k_phi"] for u in c.ladder or ()]
+    assert ks == sorted(ks, reverse=True) and 1e5 <= min(ks) and max(ks) < 1e7
+    assert c.to_ext(np.array([0.0])) == {"loose_soil": {"k_phi": 0.0}}  # off: hard ground
+    f = _fit_of("loose_soil", 0.5, 0.4, 0.8)
+    v, lo, hi = f.physical()["loose_soil"]["k_phi"]
+    assert (v, lo, hi) == pytest.approx((2e6, 1.25e6, 2.5e6))
+    assert interval_reaches_off(f) == []
+    # At u's lower bound only a lower bound on k_phi is known: "k_phi > ...", reaching off.
+    stiff = _fit_of("loose_soil", 0.0, 0.0, 0.05, "upper")
+    assert stiff.sides()["loose_soil"] == {"k_phi": "lower"}
+    assert stiff.physical()["loose_soil"]["k_phi"][1] == pytest.approx(2e7)
+    assert interval_reaches_off(stiff) == ["loose_soil.k_phi"]

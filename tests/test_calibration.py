@@ -148,6 +148,33 @@ def rr_case(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     return root, result
 
 
+def test_drives_on_loose_soil_name_it_against_rolling_resistance(
+    tmp_path: Path,
+) -> None:
+    """Issue 16, item 7: drives logged on sand, diagnosed against the hard-ground model, name
+    the soil (not the rolling resistance its compaction also looks like) and fit Bekker's
+    k_phi with an interval that covers it. The truth (1.5e6) is no rung of the fit's ladder
+    (k_phi 8.1e6, 2.7e6, 9e5, 3e5, 1e5)."""
+    paths = make_logs(
+        tmp_path / "logs",
+        {"loose_soil": {"k_phi": 1.5e6}},
+        drives=2,
+        seed=15,
+        duration=24.0,
+        progress=False,
+    )
+    opts = Options(candidates=["rolling_resistance", "loose_soil"], progress=False, max_nfev=3)
+    result = diagnose([str(p) for p in paths], tmp_path / "out", opts)
+    assert result["named"] == ["loose_soil"]
+    k, lo, hi = result["final"]["loose_soil"]["params"]["loose_soil"]["k_phi"]
+    assert lo < 1.5e6 < hi, (k, lo, hi)
+    assert hi < 1e7  # not "any soil stiffer than lo"
+    assert (
+        result["fits"]["loose_soil"]["held_gain"]
+        > result["fits"]["rolling_resistance"]["held_gain"]
+    )
+
+
 def test_parallel_candidate_fits_give_the_same_diagnosis(rr_case: tuple[Path, dict]) -> None:
     root, result = rr_case
     paths = sorted((root / "logs").glob("drive_*.csv"))

@@ -201,6 +201,12 @@ SEPARATING_PLANS: dict[frozenset[str], tuple[str, str]] = {
         "hard accelerations in turns move load between wheels: only load-dependent friction"
         " responds to that",
     ),
+    frozenset({"rolling_resistance", "loose_soil"}): (
+        "turn-accel",
+        "hard accelerations and turns: on loose soil the slip that traction needs digs the"
+        " wheels in (slip-sinkage) and tilts the bogies; rolling resistance is the same at"
+        " every traction demand",
+    ),
 }
 
 
