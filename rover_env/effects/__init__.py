@@ -37,7 +37,6 @@ from numpy.typing import NDArray
 
 if TYPE_CHECKING:  # pragma: no cover
     from rover_env.config import RoverConfig
-    from rover_env.soil import SoilParams
 
 Array = NDArray[np.float64]
 GRAVITY = 9.81
@@ -127,10 +126,11 @@ class Effect:
     def apply_model(self, model: Any, cfg: RoverConfig) -> None:
         """Change compiled-model arrays after compilation (default: nothing)."""
 
-    def ground_soil(self, soil: SoilParams | None) -> SoilParams | None:
-        """The loose soil over the whole ground, given the terrain's own (None: hard ground).
-        Soil patches keep theirs. Default: unchanged."""
-        return soil
+    def soil_changes(self) -> dict[str, float]:
+        """Soil constants (``rover_env.soil.SoilParams`` fields) this effect sets on the loose
+        soil over the whole ground; the simulator applies them (to the terrain's own ground
+        soil, or to LOOSE_SOIL_BASE's on hard ground). Default: none."""
+        return {}
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.values})"
@@ -555,19 +555,10 @@ class LooseSoil(Effect):
     def is_off(self) -> bool:
         return self["k_phi"] == 0.0
 
-    def ground_soil(self, soil: SoilParams | None) -> SoilParams | None:
-        from rover_env.soil import load_soil
-
+    def soil_changes(self) -> dict[str, float]:
         if self.is_off:
-            return soil
-        base = soil if soil is not None else load_soil(LOOSE_SOIL_BASE)
-        return dataclasses.replace(
-            base,
-            name=f"{base.name} (loose_soil)",
-            k_phi=self["k_phi"],
-            phi_deg=self["phi_deg"],
-            n0=self["n0"],
-        )
+            return {}
+        return {k: self[k] for k in ("k_phi", "phi_deg", "n0")}
 
 
 # --------------------------------------------------------------------------- helpers

@@ -32,6 +32,7 @@ from rover_env.config import (
     load_terrain,
 )
 from rover_env.effects import (
+    LOOSE_SOIL_BASE,
     CommandEffect,
     Effect,
     HingeEffect,
@@ -42,7 +43,7 @@ from rover_env.effects import (
 from rover_env.sim.fast import FastBackendError, PluginView, inject_plugin, load_plugin
 from rover_env.sim.model import fill_hfield, hfield_data, scene_xml, static_deflection
 from rover_env.sim.tire_layer import TireLayer, TireState
-from rover_env.soil import load_soil
+from rover_env.soil import SoilParams, load_soil
 from rover_env.terrain import Terrain
 
 Array = NDArray[np.float64]
@@ -157,6 +158,19 @@ def physical_config(cfg: RoverConfig, effects: Sequence[Effect] | None = None) -
     return dataclasses.replace(phys, extensions={}) if cfg.extensions else phys
 
 
+def effect_soil(terrain: TerrainConfig, effects: Sequence[Effect]) -> SoilParams | None:
+    """The loose soil the model extensions put over the whole ground (``loose_soil``): the
+    terrain's own ground soil, or ``LOOSE_SOIL_BASE`` on hard ground, with their changes;
+    None when no extension changes the soil."""
+    changes: dict[str, float] = {}
+    for e in effects:
+        changes.update(e.soil_changes())
+    if not changes:
+        return None
+    base = load_soil(terrain.soil if terrain.soil else LOOSE_SOIL_BASE)
+    return dataclasses.replace(base, name=f"{base.name} (loose_soil)", **changes)
+
+
 def resolve_auto_backend(cfg: RoverConfig) -> str:
     """``backend="auto"``: the compiled plugin where it can run this model, else numpy."""
     if plugin_refusals(cfg.extensions):
@@ -222,12 +236,10 @@ class RoverSim:
         self._cmd_effects = [e for e in self.effects if isinstance(e, CommandEffect)]
         self._hinge_effects = [e for e in self.effects if isinstance(e, HingeEffect)]
         # --- end of model extensions ---
-        own = load_soil(self.terrain_cfg.soil) if self.terrain_cfg.soil else None
-        ground = own
-        for e in self.effects:
-            ground = e.ground_soil(ground)
         self.terrain = Terrain(
-            self.terrain_cfg, self.phys_cfg.tire, ground_soil=None if ground is own else ground
+            self.terrain_cfg,
+            self.phys_cfg.tire,
+            ground_soil=effect_soil(self.terrain_cfg, self.effects),
         )
         xml = scene_xml(self.phys_cfg, self.terrain_cfg)
         if backend == "plugin":
