@@ -344,6 +344,7 @@ def test_search_fine_tunes_a_trained_agent_in_every_trial(tmp_path: Path) -> Non
     assert str(src.run_dir) in cmd
     with pytest.raises(ConfigError, match="net_arch"):
         search("ppo", cfg, ENV, tmp_path / "s2", space=SPACE, init_from=src.run_dir, **kw)
+    assert not (tmp_path / "s2").exists()  # refused before any study folder or storage
     with pytest.raises(ConfigError, match="fine-tunes"):
         search("ppo", cfg, ENV, out, space=space, **{**kw, "trials": 2})
 

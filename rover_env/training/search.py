@@ -275,6 +275,14 @@ def search(
     cfg_path = resolve_config_path(config_for(config, algo)).resolve()
     base = load_algo_config(algo, cfg_path, env_id)  # a bad file or env id fails here
     space = check_space(space if space is not None else SPACES[algo], f"{algo} search space")
+    # Checked before the study folder and storage exist: a refused search leaves nothing.
+    origin = "" if init_from is None else str(Path(init_from).resolve())
+    if origin:
+        shaped = sorted(k for k in space if k.startswith("policy_kwargs."))
+        if shaped:
+            raise ConfigError(f"init_from {init_from}: cannot search {shaped} in a fine-tune")
+        if not Path(origin).is_dir():
+            raise ConfigError(f"init_from {init_from}: no such agent folder")
     root = Path(out)
     root.mkdir(parents=True, exist_ok=True)
     storage = storage or f"sqlite:///{(root / 'study.db').resolve()}"
@@ -292,13 +300,6 @@ def search(
     pruner = optuna.pruners.MedianPruner(n_startup_trials=pruner_startup, n_warmup_steps=0)
     study = optuna.load_study(study_name=name, storage=storage, sampler=sampler, pruner=pruner)
 
-    origin = "" if init_from is None else str(Path(init_from).resolve())
-    if origin:
-        shaped = sorted(k for k in space if k.startswith("policy_kwargs."))
-        if shaped:
-            raise ConfigError(f"init_from {init_from}: cannot search {shaped} in a fine-tune")
-        if not Path(origin).is_dir():
-            raise ConfigError(f"init_from {init_from}: no such agent folder")
     seen = study.user_attrs.get("init_from")
     if seen is None:
         study.set_user_attr("init_from", origin)
