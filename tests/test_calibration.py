@@ -131,21 +131,18 @@ def test_parse_effects() -> None:
 def rr_case(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     """A small hidden-effect case diagnosed once: rolling resistance 0.05, 2 drives x 24 s."""
     root = tmp_path_factory.mktemp("rr")
-    paths = make_logs(
-        root / "logs",
-        {"rolling_resistance": {"c_rr": 0.05}},
-        drives=2,
-        seed=5,
-        duration=24.0,
-        progress=False,
-    )
-    opts = Options(
-        candidates=["rolling_resistance", "torque_limit", "command_lag"],
-        progress=False,
-        max_nfev=3,
-    )
-    result = diagnose([str(p) for p in paths], root / "out", opts)
+    result = _small_case(root, {"rolling_resistance": {"c_rr": 0.05}}, 5, SMALL_CANDIDATES)
     return root, result
+
+
+SMALL_CANDIDATES = ["rolling_resistance", "torque_limit", "command_lag"]
+
+
+def _small_case(root: Path, effects: dict, seed: int, candidates: list[str]) -> dict:
+    """``effects`` hidden in 2 drives of 24 s (``root/logs``), diagnosed (``root/out``)."""
+    paths = make_logs(root / "logs", effects, drives=2, seed=seed, duration=24.0, progress=False)
+    opts = Options(candidates=candidates, progress=False, max_nfev=3)
+    return diagnose([str(p) for p in paths], root / "out", opts)
 
 
 def test_drives_on_loose_soil_name_it_against_rolling_resistance(
@@ -155,16 +152,8 @@ def test_drives_on_loose_soil_name_it_against_rolling_resistance(
     the soil (not the rolling resistance its compaction also looks like) and fit Bekker's
     k_phi with an interval that covers it. The truth (1.5e6) is no rung of the fit's ladder
     (k_phi 8.1e6, 2.7e6, 9e5, 3e5, 1e5)."""
-    paths = make_logs(
-        tmp_path / "logs",
-        {"loose_soil": {"k_phi": 1.5e6}},
-        drives=2,
-        seed=15,
-        duration=24.0,
-        progress=False,
-    )
-    opts = Options(candidates=["rolling_resistance", "loose_soil"], progress=False, max_nfev=3)
-    result = diagnose([str(p) for p in paths], tmp_path / "out", opts)
+    soil = {"loose_soil": {"k_phi": 1.5e6}}
+    result = _small_case(tmp_path, soil, 15, ["rolling_resistance", "loose_soil"])
     assert result["named"] == ["loose_soil"]
     k, lo, hi = result["final"]["loose_soil"]["params"]["loose_soil"]["k_phi"]
     assert lo < 1.5e6 < hi, (k, lo, hi)
@@ -178,12 +167,7 @@ def test_drives_on_loose_soil_name_it_against_rolling_resistance(
 def test_parallel_candidate_fits_give_the_same_diagnosis(rr_case: tuple[Path, dict]) -> None:
     root, result = rr_case
     paths = sorted((root / "logs").glob("drive_*.csv"))
-    opts = Options(
-        candidates=["rolling_resistance", "torque_limit", "command_lag"],
-        progress=False,
-        max_nfev=3,
-        workers=2,
-    )
+    opts = Options(candidates=SMALL_CANDIDATES, progress=False, max_nfev=3, workers=2)
     again = diagnose([str(p) for p in paths], root / "out_parallel", opts)
     assert again["named"] == result["named"]
     for key in ("fits", "final"):
