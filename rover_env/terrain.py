@@ -38,7 +38,7 @@ class Terrain:
         self,
         cfg: TerrainConfig,
         tire: TireParams | None = None,
-        ground_soil: SoilParams | None = None,
+        soil_over_ground: SoilParams | None = None,
     ) -> None:
         tire = tire or TireParams()
         self.cfg = cfg
@@ -93,8 +93,8 @@ class Terrain:
         unique = list(dict.fromkeys(names))
         soils = [load_soil(n) for n in unique]
         self.ground_soil = unique.index(cfg.soil) + 1 if cfg.soil else 0
-        if ground_soil is not None:  # a model extension's soil over the ground (loose_soil)
-            soils.append(ground_soil)
+        if soil_over_ground is not None:  # a model extension's soil (loose_soil) replaces cfg.soil
+            soils.append(soil_over_ground)
             self.ground_soil = len(soils)
         self.soils: tuple[SoilParams, ...] = tuple(soils)
         self._patch_soil = np.array(

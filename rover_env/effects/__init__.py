@@ -530,8 +530,9 @@ class LooseSoil(Effect):
     a terrain that already has loose soil over the ground, its constants, with these three
     replaced ("softer than modelled"). Soil patches keep their own soil.
 
-    Only ``k_phi`` is fitted by ``diagnose`` (a log-spaced ladder over its range, as every
-    magnitude); ``phi_deg`` and ``n0`` are make-logs' and a rover file's to set. Why k_phi:
+    Only ``k_phi`` is fitted by ``diagnose``, as u = 1e6 / k_phi (a log-spaced ladder over
+    u's range, as every magnitude; ``calibration.candidates``); ``phi_deg`` and ``n0`` are
+    make-logs' and a rover file's to set. Why k_phi:
     at the rover's wheel it decides the static sinkage, which the rolling resistance of
     compaction and the slip the drive needs follow (the rig test checks Bekker's law).
     """
