@@ -234,8 +234,10 @@ def test_hinge_and_command_effects_together_agree_across_backends() -> None:
     np.testing.assert_allclose(runs["plugin"], runs["numpy"], atol=1e-9)
 
 
-def _settled_on(ext: dict[str, dict[str, float]], terrain: object = "flat") -> RoverSim:
-    sim = RoverSim(RoverConfig(extensions=ext), terrain, backend="plugin")  # type: ignore[arg-type]
+def _settled_on(
+    ext: dict[str, dict[str, float]], terrain: TerrainConfig | str = "flat"
+) -> RoverSim:
+    sim = RoverSim(RoverConfig(extensions=ext), terrain, backend="plugin")
     sim.step(2000)  # 2 s at rest: the wheels sink to where the soil carries them
     return sim
 
@@ -280,3 +282,13 @@ def test_loose_soil_on_hard_ground_is_the_soil_of_its_base_preset() -> None:
     softer = _settled_on({"loose_soil": {"k_phi": 3e5, "phi_deg": 28.0, "n0": 1.1}}, dune)
     plain = _settled_on({}, dune)
     assert np.all(softer.wheel_truth().sinkage > 1.3 * plain.wheel_truth().sinkage)
+
+
+def test_loose_soil_stays_when_the_terrain_is_swapped() -> None:
+    """``set_terrain`` (per-episode terrain in the environments) keeps the effect's soil."""
+    sim = _settled_on({"loose_soil": {"k_phi": 1e6}})
+    sim.set_terrain(from_dict(TerrainConfig, {"name": "flat"}))
+    sim.reset()
+    sim.step(1000)
+    assert np.all(sim.wheel_truth().soil == 1)
+    assert sim.wheel_truth().sinkage.min() > 0.003

@@ -236,11 +236,7 @@ class RoverSim:
         self._cmd_effects = [e for e in self.effects if isinstance(e, CommandEffect)]
         self._hinge_effects = [e for e in self.effects if isinstance(e, HingeEffect)]
         # --- end of model extensions ---
-        self.terrain = Terrain(
-            self.terrain_cfg,
-            self.phys_cfg.tire,
-            ground_soil=effect_soil(self.terrain_cfg, self.effects),
-        )
+        self.terrain = self._terrain_of(self.terrain_cfg)
         xml = scene_xml(self.phys_cfg, self.terrain_cfg)
         if backend == "plugin":
             slots: dict[str, float] = {}
@@ -379,6 +375,13 @@ class RoverSim:
                 self._plugin.clear_ground_memory(d.plugin_state)
             mujoco.mj_forward(m, d)
 
+    def _terrain_of(self, terrain: TerrainConfig) -> Terrain:
+        """The ground as simulated: ``terrain`` with the model extensions' loose soil (one
+        place, so a swapped terrain keeps a ``loose_soil`` effect)."""
+        return Terrain(
+            terrain, self.phys_cfg.tire, soil_over_ground=effect_soil(terrain, self.effects)
+        )
+
     def set_terrain(self, terrain: TerrainConfig) -> None:
         """Swap the ground without recompiling: new relief, friction map and obstacle poses.
 
@@ -387,7 +390,7 @@ class RoverSim:
         :meth:`reset` afterwards.
         """
         if self._plugin is not None:  # fast backend: refuse before anything changes
-            self._plugin.check_terrain(self.model, Terrain(terrain, self.phys_cfg.tire))
+            self._plugin.check_terrain(self.model, self._terrain_of(terrain))
         old = self.terrain_cfg
         if terrain.is_flat != old.is_flat or (
             not old.is_flat and (terrain.size != old.size or terrain.resolution != old.resolution)
@@ -417,7 +420,7 @@ class RoverSim:
             mujoco.mju_axisAngle2Quat(quat, np.array([0.0, 0.0, 1.0]), np.radians(ob.yaw_deg))
             m.geom_quat[gid] = quat
         self.terrain_cfg = terrain
-        self.terrain = Terrain(terrain, self.phys_cfg.tire)
+        self.terrain = self._terrain_of(terrain)
         self.tires.terrain = self.terrain
         if self._plugin is not None:  # fast backend: the plugin reads the ground from the model
             self._plugin.write_terrain(m, self.terrain)
