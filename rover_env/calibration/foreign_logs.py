@@ -25,7 +25,13 @@ What differs from the project's simulator (``rover_env.sim``), on purpose:
   spin, smoothed over ``W_RR``), slope as tilted gravity, rolling radius
   r_e = d - k_re delta + fraction d delta / delta_0, friction, load-dependent friction and
   the friction ellipse on mu, torque limit on the PI's output, lag and delay on the PI's
-  input at the control rate (the delay quantised to 4 ms, not 1 ms).
+  input at the control rate (the delay quantised to 4 ms, not 1 ms);
+* loose soil (``loose_soil``): SOIL.md's equations in this package's own quadrature on a
+  rigid wheel whose sinkage is its penetration of the flat surface, with no sinkage state,
+  dug hole or ruts (:mod:`rover_env.calibration.foreign_soil`); the soil constants are the
+  effect's (:func:`rover_env.sim.simulator.effect_soil`). On soil the tire's effects
+  (rolling resistance, rolling radius, friction and its load dependence, the ellipse) do
+  not act, as in the project's simulator, where the soil replaces the tire.
 
 Only flat ground; the MJCF bodies, joints and springs are the configuration's (the same
 physical rover), the actuators are replaced.
@@ -45,11 +51,13 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from rover_env.calibration import foreign_soil
 from rover_env.calibration.drives import drive_schedule
 from rover_env.config import JOINTS, WHEELS, ConfigError, RoverConfig, load_rover, to_dict
 from rover_env.effects import build_effects
 from rover_env.logs import DriveLog, LogMeta, write_log
 from rover_env.sim.model import scene_xml
+from rover_env.sim.simulator import effect_soil
 
 Array = NDArray[np.float64]
 
@@ -139,6 +147,7 @@ class ForeignRover:
                 -g * math.sin(th) * math.sin(ps),
                 -g * math.cos(th),
             )
+        self.soil = effect_soil(_flat(), list(eff.values()))
         self.per_control = round(1.0 / (CONTROL_HZ * DT))
         self.integ = np.zeros(4)
         self.lagged = np.zeros(4)
@@ -155,7 +164,8 @@ class ForeignRover:
         self.lagged[:] = 0.0
         self.queue = deque(np.zeros(4) for _ in range(self.delay_n))
         self.torque[:] = 0.0
-        self.run(np.zeros(4), 0.6)
+        # Settle on the ground; a rover on soil sinks more slowly (soft support).
+        self.run(np.zeros(4), 0.6 if self.soil is None else 1.5)
         d.time = 0.0
         d.qpos[self.wheel_qpos] = 0.0
         mujoco.mj_forward(m, d)
@@ -220,6 +230,9 @@ class ForeignRover:
         v_cz = at(rc)[:, 2]
         v_x = v_p[:, 0] * xc[:, 0] + v_p[:, 1] * xc[:, 1]
         v_y = v_p[:, 0] * yc[:, 0] + v_p[:, 1] * yc[:, 1]
+        if self.soil is not None:
+            self._on_soil(c, a, xc, yc, delta, v_x, v_y, v_cz)
+            return
         dpos = np.maximum(delta, 0.0)
         F_z = np.where(delta > 0, np.maximum(tp.C_z * delta - tp.D_z * v_cz, 0.0), 0.0)
         r_e = radius - tp.k_re * dpos + self.rr_frac * radius * dpos / self.delta0
@@ -282,6 +295,43 @@ class ForeignRover:
                 m, d, force[i], torque[i], point[i], int(self.wheel_body[i]), d.qfrc_applied
             )
 
+    def _on_soil(
+        self,
+        hub: Array,
+        axis: Array,
+        xc: Array,
+        yc: Array,
+        h: Array,
+        v_x: Array,
+        v_y: Array,
+        v_cz: Array,
+    ) -> None:
+        """Loose-soil contact (module docstring): forces at the hub, the resisting torque
+        about the axle, both at the spin rate after the step."""
+        m, d, tp = self.model, self.data, self.cfg.tire
+        assert self.soil is not None
+        g = self.cfg.geometry
+        tau_o = np.zeros(6)
+        tau_o[:4] = self.torque
+        omega = d.qvel[self.wheel_dof]
+        w1 = foreign_soil.spin_after_step(
+            omega, tau_o, DT / self.inertia, h, v_x, v_y, g.wheel_radius, g.wheel_width, self.soil
+        )
+        f = foreign_soil.at_spin(w1, h, v_x, v_y, g.wheel_radius, g.wheel_width, self.soil)
+        touch = h > 0
+        F_z = np.where(touch, np.maximum(f.F_z - tp.D_z * v_cz, 0.0), 0.0)
+        F_x = np.where(touch, f.F_x, 0.0)
+        F_y = np.where(touch, f.F_y, 0.0)
+        T = np.where(touch, f.T, 0.0)
+        force = F_x[:, None] * xc + F_y[:, None] * yc
+        force[:, 2] += F_z
+        torque = -T[:, None] * axis
+        d.qfrc_applied[:] = 0.0
+        for i in range(6):
+            mujoco.mj_applyFT(
+                m, d, force[i], torque[i], hub[i], int(self.wheel_body[i]), d.qfrc_applied
+            )
+
     def run(self, target: Array, seconds: float) -> None:
         n = round(seconds / DT)
         for k in range(n):
@@ -338,10 +388,10 @@ FOREIGN_EFFECTS = frozenset(
         "friction",
         "combined_slip",
         "load_dependent_friction",
+        "loose_soil",
     }
 )
-"""The catalogue effects :class:`ForeignRover` implements in its own code (no loose soil:
-it has no terramechanics contact)."""
+"""The catalogue effects :class:`ForeignRover` implements in its own code (all of them)."""
 
 
 def make_foreign_logs(
