@@ -187,16 +187,28 @@ def cases(quick: bool = False, seed0: int = SEED0) -> list[dict[str, Any]]:
     return out
 
 
+def _group(c: dict[str, Any]) -> tuple[str, str, str]:
+    """A case's group for the run order: generator, kind and (singles, weak) the effect."""
+    eff = next(iter(c["effects"]), "") if c["kind"] in ("single", "weak") else ""
+    return (c["gen"], c["kind"], eff)
+
+
 def planned(quick: bool, seed0: int = SEED0) -> list[dict[str, Any]]:
-    """The cases to run: the quick subset first, then (full matrix) the rest by priority."""
+    """The cases to run: the quick subset first, then (full matrix) the rest round-robin over
+    the groups (generator x kind x effect), so that a matrix stopped early has cases on every
+    acceptance line and every effect rather than all of the first kinds."""
     first = cases(True, seed0)
     if quick:
         return first
     key = {json.dumps(c, sort_keys=True) for c in first}
     rest = [c for c in cases(False, seed0) if json.dumps(c, sort_keys=True) not in key]
-    order = {"clean": 0, "single": 1, "pair": 2, "outside": 3, "weak": 4}
-    rest.sort(key=lambda c: (order[c["kind"]], c["gen"] != "own", c["seed"]))
-    return first + rest
+    groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    for c in rest:  # cases() order: by generator, kind, then seed
+        groups.setdefault(_group(c), []).append(c)
+    out = list(first)
+    for i in range(max((len(g) for g in groups.values()), default=0)):
+        out.extend(g[i] for g in groups.values() if i < len(g))
+    return out
 
 
 def _truth_value(effects: dict[str, dict[str, float]], name: str) -> tuple[str, float]:
