@@ -136,8 +136,10 @@ def test_foreign_soil_is_soil_md_in_its_own_quadrature() -> None:
 
 def test_foreign_rover_on_loose_soil_sinks_by_bekker_and_slips() -> None:
     """On ``loose_soil`` the foreign rover settles at the sinkage where SOIL.md's soil
-    carries the mean wheel load (within 3 %), sinks deeper on a softer soil, and its free
-    wheels lag the driven ones more than on hard ground (the drive needs slip)."""
+    carries the mean wheel load (within 3 %, every wheel in contact, up to the stiffest
+    sand of the matrix's range, where the tire's damping let it bounce), sinks deeper on a
+    softer soil, and its free wheels lag the driven ones more than on hard ground (the
+    drive needs slip)."""
     import dataclasses
 
     from rover_env.soil import load_soil, static_sinkage
@@ -147,7 +149,7 @@ def test_foreign_rover_on_loose_soil_sinks_by_bekker_and_slips() -> None:
     r = cfg.geometry.wheel_radius
     lag = {}
     sink = {}
-    for k_phi in (0.0, 3e5, 2e6):
+    for k_phi in (0.0, 3e5, 2e6, 1e7):
         ext = {"loose_soil": {"k_phi": k_phi}} if k_phi else {}
         fr = ForeignRover(cfg, ext)
         if k_phi:
@@ -155,9 +157,10 @@ def test_foreign_rover_on_loose_soil_sinks_by_bekker_and_slips() -> None:
             p = dataclasses.replace(load_soil("mars-sand"), k_phi=k_phi)
             want = static_sinkage(load, r, cfg.geometry.wheel_width, p)
             assert float(h.mean()) == pytest.approx(want, rel=0.03)
+            assert np.all(h > 0.5 * want), h
             sink[k_phi] = float(h.mean())
         fr.run(np.full(4, 2.0), 3.0)
         phi = fr.sample()[0]
         lag[k_phi] = 1.0 - float(phi[4:].mean() / phi[:4].mean())
     assert sink[3e5] > 1.5 * sink[2e6]
-    assert lag[3e5] > lag[0.0] + 0.05 and lag[2e6] > lag[0.0] + 0.05, lag
+    assert all(lag[k] > lag[0.0] + 0.05 for k in (3e5, 2e6, 1e7)), lag

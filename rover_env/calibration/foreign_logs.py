@@ -319,7 +319,7 @@ class ForeignRover:
         )
         f = foreign_soil.at_spin(w1, h, v_x, v_y, g.wheel_radius, g.wheel_width, self.soil)
         touch = h > 0
-        F_z = np.where(touch, np.maximum(f.F_z - tp.D_z * v_cz, 0.0), 0.0)
+        F_z = np.where(touch, np.maximum(f.F_z - self.soil.damping * v_cz, 0.0), 0.0)
         F_x = np.where(touch, f.F_x, 0.0)
         F_y = np.where(touch, f.F_y, 0.0)
         T = np.where(touch, f.T, 0.0)

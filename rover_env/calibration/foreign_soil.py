@@ -9,7 +9,9 @@ but another implementation and another dynamic design, on purpose (issue 16, ite
 * sinkage: the rigid wheel's penetration of a flat soil surface, no state of its own and
   no memory (the project: a sinkage state with damping, a dug hole and a rut map the
   following wheels run in), so a following wheel meets fresh soil;
-* damping: the tire's vertical damping ``D_z`` on the hub's vertical speed while in contact;
+* damping: the soil's ``damping`` (N s/m, the same number the project damps its sinkage
+  rate with) on the hub's vertical speed while in contact; the tire's ``D_z`` (72 N s/m)
+  let the rover bounce off a stiff sand (k_phi 1e7) at this explicit step;
 * wheel spin: semi-implicit through the resisting torque (bisection on the spin rate after
   the step), as this generator's tire does.
 
