@@ -308,7 +308,7 @@ class ForeignRover:
     ) -> None:
         """Loose-soil contact (module docstring): forces at the hub, the resisting torque
         about the axle, both at the spin rate after the step."""
-        m, d, tp = self.model, self.data, self.cfg.tire
+        m, d = self.model, self.data
         assert self.soil is not None
         g = self.cfg.geometry
         tau_o = np.zeros(6)
