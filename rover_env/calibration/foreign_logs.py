@@ -260,23 +260,13 @@ class ForeignRover:
             return np.asarray(-np.sign(s) * cap_x * (1.0 - ln * ln * ln), dtype=np.float64)
 
         # Semi-implicit in the spin: the force at the spin rate it produces after the step,
-        # F = f_x(omega + dt (tau - lever F) / I), monotone in F: bisection, then a secant
-        # step between the last bracket ends (smooth in the inputs, no bisection noise).
+        # F = f_x(omega + dt (tau - lever F) / I), monotone in F.
         k_w = DT / self.inertia
 
         def g(f: Array) -> Array:
             return np.asarray(f - f_x(omega + k_w * (tau_o - lever * f)), dtype=np.float64)
 
-        lo_f, hi_f = -cap_x - 1e-6, cap_x + 1e-6
-        g_lo, g_hi = g(lo_f), g(hi_f)
-        for _ in range(7):
-            mid = 0.5 * (lo_f + hi_f)
-            g_mid = g(mid)
-            neg = g_mid < 0
-            lo_f, g_lo = np.where(neg, mid, lo_f), np.where(neg, g_mid, g_lo)
-            hi_f, g_hi = np.where(neg, hi_f, mid), np.where(neg, g_hi, g_mid)
-        den = g_hi - g_lo
-        F_x = np.where(den > 0, lo_f - g_lo * (hi_f - lo_f) / np.where(den > 0, den, 1.0), lo_f)
+        F_x = foreign_soil.monotone_root(g, -cap_x - 1e-6, cap_x + 1e-6, 7)
         s_a = lateral_slip(v_x, v_y, r_e * omega)
         s_ac = 3.0 * mu_y * np.maximum(F_z, 1e-9) / tp.C_alpha
         ln_y = np.maximum(1.0 - s_a / s_ac, 0.0)

@@ -22,6 +22,7 @@ effect, with the constants :func:`rover_env.sim.simulator.effect_soil` would use
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -153,6 +154,13 @@ def spin_after_step(
             w1 - omega - k_w * (torque - at_spin(w1, h, v_x, v_y, radius, width, p).T)
         )
 
+    return monotone_root(g, lo, hi, iterations)
+
+
+def monotone_root(g: Callable[[Array], Array], lo: Array, hi: Array, iterations: int) -> Array:
+    """Root of each row of an increasing ``g`` bracketed by [lo, hi]: bisection, then a
+    secant step between the last bracket ends (smooth in the inputs, no bisection noise).
+    This generator's semi-implicit solves (tire force, soil spin) share it."""
     g_lo, g_hi = g(lo), g(hi)
     for _ in range(iterations):
         mid = 0.5 * (lo + hi)
@@ -161,7 +169,16 @@ def spin_after_step(
         lo, g_lo = np.where(neg, mid, lo), np.where(neg, g_mid, g_lo)
         hi, g_hi = np.where(neg, hi, mid), np.where(neg, g_hi, g_mid)
     den = g_hi - g_lo
-    return np.where(den > 0, lo - g_lo * (hi - lo) / np.where(den > 0, den, 1.0), lo)
+    return np.asarray(np.where(den > 0, lo - g_lo * (hi - lo) / np.where(den > 0, den, 1.0), lo))
 
 
-__all__ = ["NODES", "V_EPS", "WheelSoil", "at_spin", "slip", "spin_after_step", "wheel_soil"]
+__all__ = [
+    "NODES",
+    "V_EPS",
+    "WheelSoil",
+    "at_spin",
+    "monotone_root",
+    "slip",
+    "spin_after_step",
+    "wheel_soil",
+]
