@@ -58,7 +58,7 @@ RANGES: dict[str, tuple[str, float, float, tuple[int, ...]]] = {
     "combined_slip": ("on", 1.0, 1.0, (1,)),  # a switch: no magnitude
     "load_dependent_friction": ("fall", 0.03, 0.6, (1,)),
     # Bekker's k_phi from a sand far looser than dune sand (1.5e6) to a stiff one, whose wheel
-    # sinks 1.6 mm at rest (own generator only: the second one has no soil contact).
+    # sinks 1.6 mm at rest (both generators; the second one has its own soil since stop 29).
     "loose_soil": ("k_phi", 2e5, 1e7, (1,)),
 }
 BOUNDS = {"rolling_radius": (-0.2, 0.1), "friction": (-0.7, 1.0)}
