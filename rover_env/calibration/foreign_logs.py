@@ -308,14 +308,12 @@ class ForeignRover:
             omega, tau_o, DT / self.inertia, h, v_x, v_y, g.wheel_radius, g.wheel_width, self.soil
         )
         f = foreign_soil.at_spin(w1, h, v_x, v_y, g.wheel_radius, g.wheel_width, self.soil)
-        touch = h > 0
-        F_z = np.where(touch, np.maximum(f.F_z - self.soil.damping * v_cz, 0.0), 0.0)
-        F_x = np.where(touch, f.F_x, 0.0)
-        F_y = np.where(touch, f.F_y, 0.0)
-        T = np.where(touch, f.T, 0.0)
-        force = F_x[:, None] * xc + F_y[:, None] * yc
+        # Out of contact the stresses integrate over nothing (exactly 0); only the damping
+        # needs the contact test.
+        F_z = np.where(h > 0, np.maximum(f.F_z - self.soil.damping * v_cz, 0.0), 0.0)
+        force = f.F_x[:, None] * xc + f.F_y[:, None] * yc
         force[:, 2] += F_z
-        torque = -T[:, None] * axis
+        torque = -f.T[:, None] * axis
         d.qfrc_applied[:] = 0.0
         for i in range(6):
             mujoco.mj_applyFT(

@@ -4,6 +4,8 @@ The same steady-state equations (``shared/SOIL.md``: Bekker pressure-sinkage, Wo
 stress distribution, Janosi-Hanamoto shear, n = n0 + n1 |s|) and the same soil constants,
 but another implementation and another dynamic design, on purpose (issue 16, item 6):
 
+* slip and travel direction: SOIL.md's definition, :func:`rover_env.soil.slip_and_direction`
+  with this generator's 5 cm/s floor (a definition, not a design);
 * quadrature: Gauss-Legendre, ``NODES`` points on each side of the maximum-stress angle
   (the project: its own node scheme in :func:`rover_env.soil.stress_integrals`);
 * sinkage: the rigid wheel's penetration of a flat soil surface, no state of its own and
@@ -28,7 +30,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from rover_env.soil import SoilParams
+from rover_env.soil import SoilParams, slip_and_direction
 
 Array = NDArray[np.float64]
 
@@ -49,13 +51,10 @@ class WheelSoil(NamedTuple):
     s: Array
 
 
-def slip(v_x: Array, v_w: Array) -> tuple[Array, Array]:
-    """Wong's slip s (> 0 driving) and the travel direction d (SOIL.md, "Quantities")."""
-    lead_w = np.abs(v_w) >= np.abs(v_x)
-    d = np.where(lead_w, np.sign(v_w), np.sign(v_x))
-    d = np.where(d == 0.0, 1.0, d)
-    den = np.maximum(np.maximum(np.abs(v_w), np.abs(v_x)), V_EPS)
-    return np.clip(d * (v_w - v_x) / den, -1.0, 1.0), d
+def _angles(h: Array, radius: float, lam: float) -> tuple[Array, Array, Array]:
+    """Sinkage clipped to [0, r], entry angle theta_f and exit angle theta_r (SOIL.md)."""
+    h = np.clip(h, 0.0, radius)
+    return h, np.arccos(1.0 - h / radius), -np.arccos(1.0 - lam * h / radius)
 
 
 def _region(lo: Array, hi: Array) -> tuple[Array, Array]:
@@ -74,10 +73,8 @@ def wheel_soil(
     p: SoilParams,
 ) -> WheelSoil:
     """Steady-state forces at sinkage ``h`` (m), slip ``s``, direction ``d``, tan(slip angle)."""
-    h = np.clip(h, 0.0, radius)
     r, b = radius, width
-    t_f = np.arccos(1.0 - h / r)
-    t_r = -np.arccos(1.0 - p.lam * h / r)
+    h, t_f, t_r = _angles(h, r, p.lam)
     t_m = np.clip((p.a0 + p.a1 * s) * t_f, t_r, t_f)
     n = (p.n0 + p.n1 * np.abs(s))[:, None]
     k_s = p.k_c / b + p.k_phi
@@ -118,7 +115,7 @@ def at_spin(
     p: SoilParams,
 ) -> WheelSoil:
     """:func:`wheel_soil` at the wheels' spin rates ``omega`` (rad/s) and contact velocities."""
-    s, d = slip(v_x, radius * omega)
+    s, d = slip_and_direction(v_x, radius * omega, V_EPS)
     tan_beta = v_y / np.maximum(np.abs(v_x), V_EPS)
     return wheel_soil(h, s, d, tan_beta, radius, width, p)
 
@@ -139,9 +136,7 @@ def spin_after_step(
     w' itself (semi-implicit: a light free wheel on stiff shear stays stable at this step).
     T rises with the spin, so the root lies within T's bound on either side of the explicit
     step."""
-    hc = np.clip(h, 0.0, radius)
-    t_f = np.arccos(1.0 - hc / radius)
-    t_r = -np.arccos(1.0 - p.lam * hc / radius)
+    hc, t_f, t_r = _angles(h, radius, p.lam)
     # |T| <= r^2 b (t_f - t_r) (c + sigma_max tan(phi)), sigma_max = k_s h^n0 (h < 1 m).
     sig_max = (p.k_c / width + p.k_phi) * hc**p.n0
     tb = radius * radius * width * (t_f - t_r) * (p.c + sig_max * math.tan(math.radians(p.phi_deg)))
@@ -178,7 +173,6 @@ __all__ = [
     "WheelSoil",
     "at_spin",
     "monotone_root",
-    "slip",
     "spin_after_step",
     "wheel_soil",
 ]
