@@ -228,7 +228,9 @@ def write_report(
         " When no candidate passes that window test, one whose held-out replay takes at least one signal back"
         " under the current model's replay floor (the test of the tables below) and puts none above it may be"
         " named instead (an effect seen in a few windows only, such as a torque limit the drive reaches a few"
-        " times, cannot pass a test across windows). A runner-up not worse than the winner at p < "
+        " times, cannot pass a test across windows). A runner-up (the next significant candidate, or one"
+        " that improves the held-out drive more than the winner and lowers the training BIC without passing"
+        " the window test) not worse than the winner at p < "
         f"{opts.tie_alpha:g} is reported as a tie. Second effect by forward selection under the same rules.",
         f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay, {result['seconds']:.0f} s in all.",
         "",
