@@ -14,6 +14,7 @@ from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue, magnitude_ladder
 from rover_env.calibration.diagnose import (
     Scored,
+    _runner_up,
     better_worse,
     first_confident,
     interval_reaches_off,
@@ -189,6 +190,25 @@ def test_an_effect_whose_interval_reaches_off_is_not_named() -> None:
     assert first_confident(cands[:2], lambda s: None, lambda s: None, lambda m: None) is None
 
 
+def test_a_rival_that_explains_more_is_the_runner_up() -> None:
+    # Stop 30's case: the delay passes the window test, the lag explains more but does not.
+    delay = _scored(_fit_of("command_delay", 0.018, 0.014, 0.024))
+    delay.gain = 0.47
+    lag = _scored(_fit_of("command_lag", 0.037, 0.031, 0.041))
+    lag.gain, lag.significant, lag.p = 0.78, False, 0.019
+    limit = _scored(_fit_of("torque_limit", -0.34, -0.43, -0.28))
+    limit.gain = 0.22
+    ranked = [lag, delay, limit]
+    assert _runner_up(delay, ranked) is lag
+    # A rival that does not pay for itself on training, or explains less, is not one.
+    lag.d_bic = 1.0
+    assert _runner_up(delay, ranked) is limit
+    lag.d_bic, lag.gain = -5.0, 0.40
+    assert _runner_up(delay, ranked) is limit
+    limit.significant = False
+    assert _runner_up(delay, ranked) is None
+
+
 def test_loose_soil_is_fitted_as_inverse_modulus_and_shown_as_k_phi() -> None:
     (c,) = catalogue(["loose_soil"])
     # The ladder runs from "off" (u = 0: stiffer than any soil, next to hard ground) outwards.
@@ -204,3 +224,17 @@ def test_loose_soil_is_fitted_as_inverse_modulus_and_shown_as_k_phi() -> None:
     assert stiff.sides()["loose_soil"] == {"k_phi": "lower"}
     assert stiff.physical()["loose_soil"]["k_phi"][1] == pytest.approx(2e7)
     assert interval_reaches_off(stiff) == ["loose_soil.k_phi"]
+
+
+def test_the_anti_windup_form_is_fitted_unless_asked_not_to() -> None:
+    import argparse
+
+    from rover_env.calibration.diagnose import Options, add_cli
+
+    ap = argparse.ArgumentParser()
+    add_cli(ap.add_subparsers())
+    assert Options().fit_anti_windup
+    assert ap.parse_args(["diagnose", "a.csv", "--out", "o"]).fit_anti_windup
+    assert not ap.parse_args(
+        ["diagnose", "a.csv", "--out", "o", "--no-fit-anti-windup"]
+    ).fit_anti_windup

@@ -327,30 +327,9 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
         lambda s: None,
         say,
     )
-    sig = [s for s in ranked if s.significant]
-    if winner is not None:
-        sig = [winner, *(s for s in sig if s is not winner)]
     tie: dict[str, Any] | None = None
-    # The runner-up: the next significant candidate, or one that explains the held-out
-    # drive better than the winner and pays for itself on training (BIC) but misses the
-    # window test's p (few windows excite it). Naming the winner over a rival that explains
-    # more would be a choice the data did not make: that is a tie, and the separating drive
-    # decides (stop 30: a 42 ms lag was named a 18 ms delay, 47 % better at p 0.008,
-    # against the lag's 78 % at p 0.019).
-    rivals = [
-        s
-        for s in ranked
-        if winner is not None
-        and s is not winner
-        and not s.significant
-        and s.gain > winner.gain
-        and s.d_bic < 0
-    ]
-    runner_up = sig[1] if winner is not None and len(sig) >= 2 else None
-    if rivals and (runner_up is None or rivals[0].gain > runner_up.gain):
-        runner_up = rivals[0]
-    if winner is not None and runner_up is not None:
-        ru = runner_up
+    ru = _runner_up(winner, ranked) if winner is not None else None
+    if winner is not None and ru is not None:
         p_diff = _p_improved(ru.held_losses, winner.held_losses)
         if p_diff > opts.tie_alpha:
             plan, why = separating_plan(winner.fit.name, ru.fit.name)
@@ -616,6 +595,26 @@ def interval_reaches_off(f: Fit, effects: set[str] | None = None) -> list[str]:
                 out.append(f"{c.name}.{p.name}")
         i += n
     return out
+
+
+def _runner_up(winner: Scored, ranked: list[Scored]) -> Scored | None:
+    """The candidate the winner is tested against for a tie.
+
+    The best other significant candidate, unless a candidate explains the held-out drive
+    better than the winner and pays for itself on training (BIC) without passing the
+    window test (few windows excite it): naming the winner over a rival that explains more
+    would be a choice the data did not make, so that rival is the runner-up and a tie asks
+    for the separating drive. (Stop 30: a 42 ms lag of the second generator was named an
+    18 ms delay, held-out 47 % better at p 0.008, against the lag's 78 % at p 0.019.)
+    """
+    others = [s for s in ranked if s is not winner]
+    sig = [s for s in others if s.significant]
+    rivals = [s for s in others if not s.significant and s.gain > winner.gain and s.d_bic < 0]
+    best = max(sig, key=lambda s: s.gain) if sig else None
+    rival = max(rivals, key=lambda s: s.gain) if rivals else None
+    if rival is not None and (best is None or rival.gain > best.gain):
+        return rival
+    return best
 
 
 def first_confident(

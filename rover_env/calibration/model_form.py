@@ -38,12 +38,15 @@ torque limit and fitted the limit at the top of its range. Diagnose chooses the 
 on the training windows by the same rule (the alternative form replayed with the logs'
 setpoints recomputed for it; BIC with one parameter), before the bound, after sigma.
 
-Diagnose fits sigma always, and the form (``Options.fit_anti_windup``, ``--fit-anti-windup``)
-and the bound (``Options.fit_windup``, ``--fit-windup``) only on request: on the second
-generator's fresh cases the form named a torque limit that the clamp misnamed, but lost a
-rolling radius and narrowed the lag and delay intervals past their truths (stop 27,
-docs/calibration). Measured in stop 24: on the second generator the bound comes out at
-15.6 mrad, where the integral can hold only 0.6 N m. A steady load then shows as droop of
+Diagnose fits sigma and the form always (``Options.fit_anti_windup``; ``--no-fit-anti-windup``
+keeps the configuration's form), and the bound (``Options.fit_windup``, ``--fit-windup``)
+only on request. The form was opt-in from stop 27 to stop 29 (on 9 fresh cases of the second
+generator it named a torque limit the clamp misnamed, but lost a rolling radius); the
+stop-29 matrix then showed the clamp's cost: every large command step of the second
+generator's logs left the driven wheels 0.1-0.2 rad ahead in the replay, and a command lag
+was named for it on 6 foreign cases, clean ones among them (docs/calibration, stop 30).
+
+Measured in stop 24: on the second generator the bound comes out at 15.6 mrad, where the integral can hold only 0.6 N m. A steady load then shows as droop of
 the driven wheels, which the second generator's conditionally integrating PI does not
 have. Those wheels' residual scale falls 5-7 x, so they dominate the fit and pull rolling
 resistance to 30 % of the truth (case 2083: 0.0028 [0, 0.0057] for 0.0095; with sigma
