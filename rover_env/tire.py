@@ -48,7 +48,7 @@ ParamValue = float | FloatArray
 _X_FLOOR = 1e-300
 
 # Fields that are damping coefficients: zero damping is a legitimate (undamped) tire.
-_MAY_BE_ZERO = frozenset({"D_x", "D_y", "D_z", "k_re"})
+_MAY_BE_ZERO = frozenset({"D_x", "D_y", "D_z", "k_re", "v_floor"})
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,6 +76,13 @@ class TireParams:
     D_x: float = 100.0
     D_y: float = 100.0
     k_re: float = 1.0 / 3.0
+    v_floor: float = 0.0
+    """Low-speed floor (m/s) of the transient form's slip: its relaxation rate is
+    max(|v_x|, |v_w|, v_floor) / sigma, so in steady state the slip is
+    (v_x - v_w) / max(|v_x|, |v_w|, v_floor), the regularised slip a steady-state
+    implementation of Gim's tire needs at rest. 0 (the default): no floor, the deflection
+    is a pure spring at standstill. Another implementation's choice, which diagnose fits as
+    model form (:func:`rover_env.calibration.model_form.fit_slip_floor`)."""
 
     def __post_init__(self) -> None:
         # Reject bad constants here, once, so the hot per-substep paths need no checks.
@@ -125,6 +132,7 @@ class TireArrays(NamedTuple):
     D_x: ParamValue
     D_y: ParamValue
     k_re: ParamValue
+    v_floor: ParamValue
 
 
 def stack_params(params: Sequence[TireParams]) -> TireArrays:
@@ -324,7 +332,7 @@ def transient_step(
     """Advance the contact-patch deflections (u_x, u_y) (m) by dt; return them and rates.
 
     du_x/dt = (v_x - v_w) - (V / sigma_x) u_x and du_y/dt = v_y - (V / sigma_y) u_y with
-    V = max(|v_x|, |v_w|). In steady state u_x / sigma_x = (v_x - v_w) / V, which is
+    V = max(|v_x|, |v_w|, v_floor) (v_floor 0 by default). In steady state u_x / sigma_x = (v_x - v_w) / V, which is
     eq. (10)'s magnitude with the sliding direction as sign, and |u_y| / sigma_y =
     |v_y| / V, which equals eq. (11)'s S_alpha exactly whenever v_x and v_w have the same
     sign (when spinning, (1 - |S|) |tan alpha| = |v_y| / |v_w|). Below the v_eps
@@ -346,7 +354,7 @@ def transient_step(
     sy = params.sigma_y
     ux = np.asarray(u_x, dtype=np.float64)
     uy = np.asarray(u_y, dtype=np.float64)
-    speed = np.maximum(np.abs(v_x), np.abs(v_w))
+    speed = np.maximum(np.maximum(np.abs(v_x), np.abs(v_w)), params.v_floor)
 
     # u_new = u exp(-x) + rate * phi with x = lambda dt and phi = dt (-expm1(-x) / x).
     # Flooring x at a tiny positive number is the safe divisor: -expm1(-x) / x is 1 to

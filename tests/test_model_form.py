@@ -14,10 +14,12 @@ from rover_env.calibration import residuals as rs
 from rover_env.calibration.foreign_logs import make_foreign_logs
 from rover_env.calibration.make_logs import make_logs
 from rover_env.calibration.model_form import (
+    FLOOR_LADDER,
     LADDER,
     WINDUP_LADDER,
     FormFit,
     fit_relaxation,
+    fit_slip_floor,
     fit_windup,
     with_form,
     with_sigma,
@@ -31,17 +33,20 @@ CFG = RoverConfig()
 ST = ReplaySettings()
 
 
-def _fit(paths: list[Path]) -> tuple[FormFit, FormFit]:
+def _fit(paths: list[Path]) -> tuple[FormFit, FormFit, FormFit]:
     prepared = [prepare(read_log(p), CFG, p.name, ST) for p in paths]
     windows = make_windows(prepared, ST)
     noise = rs.noise_floor(prepared)
     relax = fit_relaxation(CFG, prepared, windows, ST, noise)
-    cfg = with_form(CFG, relax) if relax.adopted else CFG  # diagnose's order: sigma first
-    return relax, fit_windup(cfg, prepared, windows, ST, noise)
+    cfg = with_form(CFG, relax) if relax.adopted else CFG  # diagnose's order: sigma, floor
+    floor = fit_slip_floor(cfg, prepared, windows, ST, noise)
+    return relax, fit_windup(cfg, prepared, windows, ST, noise), floor
 
 
 @pytest.fixture(scope="module")
-def both(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[FormFit, FormFit]]:
+def both(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> dict[str, tuple[FormFit, FormFit, FormFit]]:
     root = tmp_path_factory.mktemp("model_form")
     own = make_logs(root / "own", {}, drives=1, seed=7, duration=30.0, progress=False)
     foreign = make_foreign_logs(
@@ -51,13 +56,33 @@ def both(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[FormFit, F
 
 
 @pytest.fixture(scope="module")
-def fits(both: dict[str, tuple[FormFit, FormFit]]) -> dict[str, FormFit]:
+def fits(both: dict[str, tuple[FormFit, FormFit, FormFit]]) -> dict[str, FormFit]:
     return {k: v[0] for k, v in both.items()}
 
 
 @pytest.fixture(scope="module")
-def windups(both: dict[str, tuple[FormFit, FormFit]]) -> dict[str, FormFit]:
+def windups(both: dict[str, tuple[FormFit, FormFit, FormFit]]) -> dict[str, FormFit]:
     return {k: v[1] for k, v in both.items()}
+
+
+@pytest.fixture(scope="module")
+def floors(both: dict[str, tuple[FormFit, FormFit, FormFit]]) -> dict[str, FormFit]:
+    return {k: v[2] for k, v in both.items()}
+
+
+def test_slip_floor_is_none_on_this_projects_logs(floors: dict[str, FormFit]) -> None:
+    f = floors["own"]
+    assert f.nominal == 0.0 and set(FLOOR_LADDER) <= set(f.ladder)  # the whole ladder
+    assert not f.adopted and f.d_bic > 0
+
+
+def test_slip_floor_is_found_on_a_regularised_steady_state_tire(
+    floors: dict[str, FormFit],
+) -> None:
+    # The second generator regularises its slip below 5 cm/s (foreign_logs.V_EPS).
+    f = floors["foreign"]
+    assert f.adopted and 0.02 <= f.value <= 0.1
+    assert f.ladder[f.value] < 0 < f.gain
 
 
 def test_relaxation_length_is_the_truths_on_this_projects_logs(

@@ -123,7 +123,7 @@ def test_params_error_message_format() -> None:
 
 @pytest.mark.parametrize("name", ALL_FIELDS)
 def test_params_zero_allowed_only_for_dampings(name: str) -> None:
-    if name in (*DAMPINGS, "k_re"):
+    if name in (*DAMPINGS, "k_re", "v_floor"):
         assert getattr(TireParams(**{name: 0.0}), name) == 0.0
     else:
         with pytest.raises(ValueError, match=rf"TireParams\.{name} must be > 0, got 0.0"):
@@ -565,6 +565,26 @@ def test_transient_step_never_grows_beyond_steady_or_bounds(
         assert min(u_y, star_y) - 1e-15 <= new_y or abs(new_y) == pytest.approx(lim_y)
         assert new_y <= max(u_y, star_y) + 1e-15 or abs(new_y) == pytest.approx(lim_y)
     np.testing.assert_allclose(du_x, (new_x - u_x) / dt, rtol=1e-12)
+
+
+def test_slip_floor_regularises_the_steady_slip_below_it() -> None:
+    # Below the floor the transient form settles at Gim's regularised slip
+    # (v_x - v_w) / max(|v_x|, |v_w|, v_floor); above it the floor changes nothing.
+    fl = dataclasses.replace(P, v_floor=0.05)
+    v_x = np.array([0.01, -0.02, 0.2])
+    v_w = np.array([0.02, -0.01, 0.25])
+    v_y = np.array([0.004, 0.0, 0.01])
+    ux = uy = np.zeros(3)
+    vx = vy = np.zeros(3)
+    for _ in range(1500):  # 15 s: 37 of the slowest relaxation times, sigma / v_floor
+        ux, uy, _, _ = transient_step(ux, uy, v_x, v_y, v_w, 27.0, 0.01, fl)
+        vx, vy, _, _ = transient_step(vx, vy, v_x, v_y, v_w, 27.0, 0.01, P)
+    den = np.maximum(np.maximum(np.abs(v_x), np.abs(v_w)), 0.05)
+    np.testing.assert_allclose(ux / fl.sigma_x, (v_x - v_w) / den, rtol=1e-9)
+    np.testing.assert_allclose(uy / fl.sigma_y, v_y / den, rtol=1e-9)
+    np.testing.assert_allclose(ux[2], vx[2], rtol=1e-12)  # 0.25 m/s: above the floor
+    # at 2 cm/s the floor lowers the slip: 0.2 against 0.5 (held at full sliding, 0.32)
+    assert abs(ux[0]) < 0.7 * abs(vx[0])
 
 
 def test_huge_lambda_dt_is_stable() -> None:

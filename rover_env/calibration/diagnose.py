@@ -55,6 +55,7 @@ from rover_env.calibration.model_form import (
     FormFit,
     fit_anti_windup,
     fit_relaxation,
+    fit_slip_floor,
     fit_windup,
     reprepare,
     with_form,
@@ -104,6 +105,12 @@ class Options:
     model_form: bool = True
     """Fit the model's own form first: the tire's relaxation length and the speed loop's
     anti-windup form (:mod:`.model_form`)."""
+    fit_slip_floor: bool = True
+    """Fit the tire's low-speed slip floor (``TireParams.v_floor``) as model form, before the
+    relaxation length (:func:`.model_form.fit_slip_floor`; stop 30: the second generator's
+    steady-state tire regularises slip below 5 cm/s, and in a slow pivot turn its free
+    wheels turned twice as fast as this model's, -0.22 against -0.11 rad/s; with the floor
+    at 5 cm/s and a 2.5 mm relaxation length, -0.220)."""
     fit_anti_windup: bool = True
     """Choose the speed loop's anti-windup form (clamp or conditional integration) as model
     form, after sigma (:func:`.model_form.fit_anti_windup`). On by default since stop 30:
@@ -226,8 +233,9 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
     forms: list[FormFit] = []
     if opts.model_form:
         stages = [
-            fit_relaxation,
             *([fit_anti_windup] if opts.fit_anti_windup else []),
+            fit_relaxation,
+            *([fit_slip_floor] if opts.fit_slip_floor else []),
             *([fit_windup] if opts.fit_windup else []),
         ]
         for fit_form in stages:
@@ -886,6 +894,7 @@ def _cli(args: argparse.Namespace) -> int:
         ray_address=args.ray_address,
         model_form=not args.no_model_form,
         fit_anti_windup=args.fit_anti_windup,
+        fit_slip_floor=args.fit_slip_floor,
         fit_windup=args.fit_windup,
     )
     try:
@@ -922,6 +931,13 @@ def add_cli(sub: Any) -> None:
         default=Options.fit_anti_windup,
         help="choose the speed loop's anti-windup form (clamp or conditional integration)"
         " as model form (default: on; see Options.fit_anti_windup)",
+    )
+    p.add_argument(
+        "--fit-slip-floor",
+        action=argparse.BooleanOptionalAction,
+        default=Options.fit_slip_floor,
+        help="fit the tire's low-speed slip floor as model form (default: on; see"
+        " Options.fit_slip_floor)",
     )
     p.add_argument(
         "--fit-windup",

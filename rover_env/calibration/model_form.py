@@ -80,6 +80,11 @@ Array = NDArray[np.float64]
 LADDER = tuple(float(0.02 * 2.0**k) for k in range(-4, 3))
 """Relaxation lengths tried (m): 1.25 mm to 8 cm, a factor 2 apart."""
 
+FLOOR_LADDER = tuple(float(0.0025 * 2.0**k) for k in range(6))
+"""Slip floors tried (m/s): 2.5 mm/s to 8 cm/s, a factor 2 apart, beside the nominal 0
+(none). The rover drives at 0.1-0.3 m/s; its wheels pass through these speeds at every
+start, stop, reversal and pivot turn."""
+
 WINDUP_LADDER = tuple(float(0.5 * 2.0**k) for k in range(-6, 2))
 """Anti-windup bounds tried (rad): 7.8 mrad (0.3 N m of integral) to 1 rad, a factor 2
 apart. The driver's 3 N m over the integral gain's 40 N m/rad is 0.075 rad, inside it."""
@@ -141,6 +146,11 @@ def with_sigma(cfg: RoverConfig, sigma: float) -> RoverConfig:
     return replace(cfg, tire=replace(cfg.tire, sigma_x=sigma, sigma_y=sigma))
 
 
+def with_slip_floor(cfg: RoverConfig, floor: float) -> RoverConfig:
+    """The configuration with the tire's low-speed slip floor ``floor`` (m/s)."""
+    return replace(cfg, tire=replace(cfg.tire, v_floor=floor))
+
+
 def with_windup(cfg: RoverConfig, bound: float) -> RoverConfig:
     """The configuration with the speed loop's anti-windup bound ``bound`` (rad)."""
     return replace(cfg, motor=replace(cfg.motor, max_angle_error=bound))
@@ -155,7 +165,11 @@ def with_form(cfg: RoverConfig, fit: FormFit) -> RoverConfig:
     """The configuration with a form fit's value."""
     if fit.name == "anti_windup":
         return with_anti_windup(cfg, ANTI_WINDUP_FORMS[int(fit.value)])
-    setters = {"relaxation_length": with_sigma, "max_angle_error": with_windup}
+    setters = {
+        "relaxation_length": with_sigma,
+        "slip_floor": with_slip_floor,
+        "max_angle_error": with_windup,
+    }
     return setters[fit.name](cfg, fit.value)
 
 
@@ -207,11 +221,13 @@ def _fit_ladder(
     xs = sorted({*ladder, nominal})
     losses = {x: l0 if x == nominal else losses_at(x) for x in xs}
     tried = {x: crit(v) for x, v in losses.items()}
-    lx = np.log(np.array(xs))
+    # log spacing for the parabola; a nominal 0 ("none", the slip floor's) sits below the
+    # ladder and is never a parabola's neighbour
+    lx = np.log(np.maximum(np.array(xs), 1e-300))
     y = np.array([tried[x] for x in xs])
     j = int(np.argmin(y))
     best = xs[j]
-    if 0 < j < len(xs) - 1:
+    if 0 < j < len(xs) - 1 and xs[j - 1] > 0:
         x_hat = parabola_min(lx, y, j)
         if x_hat != lx[j]:  # a vertex between the neighbours (not a flat or concave ladder)
             v = float(np.exp(x_hat))
@@ -280,6 +296,29 @@ def fit_relaxation(
     )
 
 
+def fit_slip_floor(
+    cfg: RoverConfig,
+    prepared: list[PreparedLog],
+    windows: list[Window],
+    settings: ReplaySettings,
+    sensor_noise: dict[str, float],
+) -> FormFit:
+    """Fit the tire's low-speed slip floor (``TireParams.v_floor``) on ``windows``
+    (training): 0 (none, the configuration's) against :data:`FLOOR_LADDER`."""
+    return _fit_ladder(
+        "slip_floor",
+        "m/s",
+        float(cfg.tire.v_floor),
+        FLOOR_LADDER,
+        lambda c, x: (with_slip_floor(c, x), prepared),
+        cfg,
+        prepared,
+        windows,
+        settings,
+        sensor_noise,
+    )
+
+
 def fit_windup(
     cfg: RoverConfig,
     prepared: list[PreparedLog],
@@ -340,10 +379,12 @@ __all__ = [
     "FormFit",
     "fit_anti_windup",
     "fit_relaxation",
+    "fit_slip_floor",
     "fit_windup",
     "reprepare",
     "with_anti_windup",
     "with_form",
     "with_sigma",
+    "with_slip_floor",
     "with_windup",
 ]

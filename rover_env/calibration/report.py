@@ -330,14 +330,19 @@ def _model_form_line(mf: dict[str, Any] | None) -> str:
     """The model-form stage (rover_env.calibration.model_form) in one bullet."""
     if mf is None:
         return (
-            "- Model form: not fitted (the configuration's tire relaxation length and speed-loop"
-            " windup kept)."
+            "- Model form: not fitted (the configuration's tire relaxation length and slip floor"
+            " and the speed loop's windup kept)."
         )
     what = {
         "relaxation_length": (
             "the tire's relaxation length (the SPEC's tire is steady state)",
             1e3,
             "mm",
+        ),
+        "slip_floor": (
+            "the tire's low-speed slip floor (Gim's slip is 0/0 at rest; 0: none)",
+            1e3,
+            "mm/s",
         ),
         "max_angle_error": ("the speed loop's anti-windup bound", 1e3, "mrad"),
         "anti_windup": ("the speed loop's anti-windup form", 1.0, ""),

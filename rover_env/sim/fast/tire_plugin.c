@@ -45,7 +45,7 @@
 //   motors           dcmotor actuator names (nd <= nw) with input="pos vel";
 //                    the setpoint clamps to the angle of the joint each one drives
 //   radius           nominal wheel radius (m)
-//   tire             11 numbers in TireParams field order
+//   tire             13 numbers in TireParams field order
 //   max_angle_error  anti-windup bound of the setpoint around the wheel angle (rad)
 //   anti_windup      optional, "clamp" (the default) or "conditional": the speed loop's
 //                    anti-windup form (MotorSpec.anti_windup, simulator.advance_setpoints);
@@ -84,7 +84,7 @@
 #include <mujoco/mujoco.h>
 
 #define PLUGIN_NAME "rover_env.tire"
-#define NTIRE 12
+#define NTIRE 13
 #define TERRAIN_VERSION 2
 #define TERRAIN_HEADER 19
 #define WAVE_STRIDE 5
@@ -102,7 +102,7 @@
 #define NAME_LEN 256
 
 // tire parameter indices (TireParams field order)
-enum { MU_X, MU_Y, C_S, C_ALPHA, C_Z, D_Z, V_EPS, SIGMA_X, SIGMA_Y, D_X, D_Y, K_RE };
+enum { MU_X, MU_Y, C_S, C_ALPHA, C_Z, D_Z, V_EPS, SIGMA_X, SIGMA_Y, D_X, D_Y, K_RE, V_FLOOR };
 
 // truth block field offsets, in units of nw
 enum { T_VX = 0, T_VY = 1, T_VW = 2, T_FX = 3, T_FY = 4, T_FZ = 5, T_DELTA = 6,
@@ -971,7 +971,7 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
     double ux = st[L.ux + i], uy = st[L.uy + i];
     double ux_new = 0.0, uy_new = 0.0, F_x = 0.0, F_y = 0.0;
     if (soil == 0) {  // hard ground (a soil wheel's Gim forces would be discarded)
-    double speed = np_max(fabs(v_x), fabs(v_w));
+    double speed = np_max(np_max(fabs(v_x), fabs(v_w)), tp[V_FLOOR]);  // TireParams.v_floor
     double x = np_max(speed*dt_sx, X_FLOOR);
     double y = np_max(speed*dt_sy, X_FLOOR);
     double em_x = expm1(-x);
