@@ -103,17 +103,17 @@ class Options:
     evidence: int = 2
     """Candidates for which a deciding drive is proposed and simulated, at most."""
     model_form: bool = True
-    """Fit the model's own form first: the tire's relaxation length and the speed loop's
-    anti-windup form (:mod:`.model_form`)."""
+    """Fit the model's own form first, in this order: the speed loop's anti-windup form,
+    the tire's relaxation length and its low-speed slip floor (:mod:`.model_form`)."""
     fit_slip_floor: bool = True
-    """Fit the tire's low-speed slip floor (``TireParams.v_floor``) as model form, before the
+    """Fit the tire's low-speed slip floor (``TireParams.v_floor``) as model form, after the
     relaxation length (:func:`.model_form.fit_slip_floor`; stop 30: the second generator's
     steady-state tire regularises slip below 5 cm/s, and in a slow pivot turn its free
     wheels turned twice as fast as this model's, -0.22 against -0.11 rad/s; with the floor
     at 5 cm/s and a 2.5 mm relaxation length, -0.220)."""
     fit_anti_windup: bool = True
     """Choose the speed loop's anti-windup form (clamp or conditional integration) as model
-    form, after sigma (:func:`.model_form.fit_anti_windup`). On by default since stop 30:
+    form, the first stage (:func:`.model_form.fit_anti_windup`). On by default since stop 30:
     with the clamp alone, every big command step of the second generator's logs (a
     conditionally integrating PI) left the driven wheels 0.1-0.2 rad ahead in the replay
     (the clamp's loop winds up and catches up the angle it lost), and a command lag was

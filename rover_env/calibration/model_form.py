@@ -1,8 +1,8 @@
-"""The model's own form, fitted before any effect: tire relaxation and speed-loop windup.
+"""The model's own form, fitted before any effect: the speed loop's anti-windup, the tire's
+relaxation length and low-speed slip floor.
 
-Two numbers of this project's simulator are its implementation's choices, not part of the
-rover's definition (SPEC), and another implementation of the same rover makes them
-differently:
+These are this project's simulator's implementation choices, not part of the rover's
+definition (SPEC), and another implementation of the same rover makes them differently:
 
 * **The tire's relaxation length** sigma. The SPEC's tire (§3, Gim's eqs. 10-16) is steady
   state: its forces follow the slip at once. The simulator integrates a transient form whose
@@ -16,6 +16,12 @@ differently:
   beyond what the output can use. Measured on the training windows (stop 23): the second
   generator's clean logs fit 3.6 x better at 0.03 rad than at 0.5 rad, this project's own
   20 x worse.
+
+* **The tire's low-speed slip floor** ``TireParams.v_floor`` (stop 30). Gim's slip is 0/0 at
+  rest; a steady-state implementation regularises it below some speed (the second
+  generator: 5 cm/s), this project's transient form needs no floor (0). The rover's wheels
+  pass below a few cm/s at every start, stop, reversal and slow turn: in a slow pivot the
+  second generator's free wheels turned twice as fast as this model's.
 
 A catalogue effect (friction, a lag, a torque limit) would otherwise absorb these
 differences and be named for them. So diagnose fits each, in turn, on the training windows
