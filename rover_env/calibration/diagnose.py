@@ -228,7 +228,7 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
     sets: dict[str, list[Window]] = {"train": train_w, "train_sub": sub_w, "held": held_w}
     say(f"{len(logs)} log(s), {split}; windows {len(train_w)} training, {len(held_w)} held out")
 
-    # 2. the model's own form (tire relaxation, speed-loop windup), then baseline replay, noise
+    # 2. the model's own form (anti-windup form, tire relaxation and slip floor), then baseline
     sensor_noise = rs.noise_floor(prepared)
     forms: list[FormFit] = []
     if opts.model_form:
