@@ -334,13 +334,15 @@ def transient_step(
     """Advance the contact-patch deflections (u_x, u_y) (m) by dt; return them and rates.
 
     du_x/dt = (v_x - v_w) - (V / sigma_x) u_x and du_y/dt = v_y - (V / sigma_y) u_y with
-    V = max(|v_x|, |v_w|, v_floor) (v_floor 0 by default). In steady state u_x / sigma_x = (v_x - v_w) / V, which is
-    eq. (10)'s magnitude with the sliding direction as sign, and |u_y| / sigma_y =
-    |v_y| / V, which equals eq. (11)'s S_alpha exactly whenever v_x and v_w have the same
-    sign (when spinning, (1 - |S|) |tan alpha| = |v_y| / |v_w|). Below the v_eps
-    regularisation and for opposite signs the two forms differ, by design. At standstill
-    (V = 0) u integrates the sliding displacement, so the tire is a spring of stiffness
-    C_s / sigma_x (C_alpha / sigma_y) and a parked rover holds without creep.
+    V = max(|v_x|, |v_w|, v_floor) (v_floor 0 by default). In steady state
+    u_x / sigma_x = (v_x - v_w) / V, which is eq. (10)'s magnitude with the sliding
+    direction as sign, and |u_y| / sigma_y = |v_y| / V, which equals eq. (11)'s S_alpha
+    exactly whenever v_x and v_w have the same sign (when spinning, (1 - |S|) |tan alpha| =
+    |v_y| / |v_w|). Below the v_eps regularisation and for opposite signs the two forms
+    differ, by design. At standstill (V = 0, no floor) u integrates the sliding
+    displacement, so the tire is a spring of stiffness C_s / sigma_x (C_alpha / sigma_y) and
+    a parked rover holds without creep; with a floor the spring leaks (time constant
+    sigma / v_floor).
 
     The update is exact for velocities frozen over dt (unconditionally stable for any
     V dt / sigma). Afterwards |u_x| <= sigma_x min(1, S_c) and |u_y| <= sigma_y S_alpha_c:

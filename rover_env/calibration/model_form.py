@@ -52,7 +52,8 @@ stop-29 matrix then showed the clamp's cost: every large command step of the sec
 generator's logs left the driven wheels 0.1-0.2 rad ahead in the replay, and a command lag
 was named for it on 6 foreign cases, clean ones among them (docs/calibration, stop 30).
 
-Measured in stop 24: on the second generator the bound comes out at 15.6 mrad, where the integral can hold only 0.6 N m. A steady load then shows as droop of
+Measured in stop 24: on the second generator the bound comes out at 15.6 mrad, where the
+integral can hold only 0.6 N m. A steady load then shows as droop of
 the driven wheels, which the second generator's conditionally integrating PI does not
 have. Those wheels' residual scale falls 5-7 x, so they dominate the fit and pull rolling
 resistance to 30 % of the truth (case 2083: 0.0028 [0, 0.0057] for 0.0095; with sigma
@@ -310,7 +311,8 @@ def fit_slip_floor(
     sensor_noise: dict[str, float],
 ) -> FormFit:
     """Fit the tire's low-speed slip floor (``TireParams.v_floor``) on ``windows``
-    (training): 0 (none, the configuration's) against :data:`FLOOR_LADDER`."""
+    (training): the configuration's value (0, none, by default) against
+    :data:`FLOOR_LADDER`."""
     return _fit_ladder(
         "slip_floor",
         "m/s",

@@ -173,7 +173,7 @@ def write_report(
     if tie:
         a, b = tie["effects"]
         L.append(
-            f"\n**Tie:** {a} and {b} improve the held-out drive alike (held-out reduction "
+            f"\n**Tie:** {a} is not shown better than {b} on the held-out drive (held-out reduction "
             f"{100 * tie['held_gain'][0]:.0f} % vs {100 * tie['held_gain'][1]:.0f} %; one-sided"
             f" Wilcoxon p that {a} is better: {_p(tie['p_winner_better'])}). The data cannot separate them."
             f" Separating drive: {tie['why']}. Generate it with\n\n"
