@@ -120,6 +120,18 @@ class Options:
     named for it on clean logs (stop-29 matrix: 6 foreign cases). Stop 27 had kept it opt-in
     on 9 cases (docs/calibration, stops 27 and 30). ``--no-fit-anti-windup`` keeps the
     configuration's form."""
+    rejudge_form: int = 3
+    """After a winner is named under an adopted model form, refit this many of the
+    significant candidates under the nominal form (0: never). When one of them explains the
+    training drives at a lower BIC than the winner and the adopted form together (the
+    form's parameters counted) and passes the held-out window test against the nominal
+    model, the adopted forms are reverted and the diagnosis runs again without them
+    (:func:`form_rejudgement`). Why: a form stage is judged before any effect, so it can
+    absorb part of one (stop 30, case 10005: a 17 ms command delay on the model's own logs;
+    the conditional anti-windup form was adopted at dBIC -1.7, the delay fitted 5 ms under
+    it and a lag was named; under the nominal form the delay fits 18.8 ms at dBIC -17)."""
+    forms_reverted: dict[str, Any] | None = None
+    """Set by the re-judgement when it reverts the forms: what it compared (for the report)."""
     fit_windup: bool = False
     """Also fit the speed loop's anti-windup bound (after sigma). Off by default: measured
     in stop 24, the bound that fits the second generator's loop (15.6 mrad) caps the
@@ -230,6 +242,7 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
 
     # 2. the model's own form (anti-windup form, tire relaxation and slip floor), then baseline
     sensor_noise = rs.noise_floor(prepared)
+    base0, prepared0 = base, prepared
     forms: list[FormFit] = []
     if opts.model_form:
         stages = [
@@ -335,6 +348,19 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
         lambda s: None,
         say,
     )
+    adopted = [f for f in forms if f.adopted]
+    if winner is not None and adopted and opts.rejudge_form > 0:
+        ev0 = Evaluator(base0, st, prepared0, sets, scale=scale)
+        verdict = form_rejudgement(ev, ev0, winner, ranked, adopted, noise, opts, say)
+        if verdict["revert"]:
+            say(
+                "model form re-judged beside the effects: "
+                + verdict["text"]
+                + "; the forms are reverted and the diagnosis runs again without them"
+            )
+            return _diagnose(paths, out, replace(opts, model_form=False, forms_reverted=verdict))
+        say("model form re-judged beside the effects: " + verdict["text"] + "; kept")
+
     tie: dict[str, Any] | None = None
     ru = _runner_up(winner, ranked) if winner is not None else None
     if winner is not None and ru is not None:
@@ -485,6 +511,7 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
         "unexplained": _unexplained(table_held_after, final_floor),
         "evidence": evidence,
         "model_form": None if not opts.model_form else {f.name: f.as_json() for f in forms},
+        "model_form_reverted": opts.forms_reverted,
     }
     (out / "result.json").write_text(json.dumps(strict_json(result), indent=2, allow_nan=False))
     from rover_env.calibration.report import write_report
@@ -512,6 +539,84 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
         f"{rb:.4g} -> {ra:.4g}; wrote {out}/report.md, rover.yaml ({elapsed:.0f}s)"
     )
     return result
+
+
+def form_rejudgement(
+    ev: Evaluator,
+    ev0: Evaluator,
+    winner: Scored,
+    ranked: list[Scored],
+    adopted: list[FormFit],
+    noise: dict[str, float],
+    opts: Options,
+    say: Callable[[str], None],
+) -> dict[str, Any]:
+    """Judge the adopted model forms again, beside the effects (:attr:`Options.rejudge_form`).
+
+    ``ev`` replays under the adopted forms, ``ev0`` under the nominal ones (same windows,
+    same signal scale). The significant candidates (best held-out gain first, at most
+    ``opts.rejudge_form``) are refitted under the nominal form. Every model is compared on
+    the same training windows against the nominal model without effects, by BIC with
+    windows as observations: the winner with the forms counts one parameter per adopted
+    form. The forms are reverted (``revert``) only when a nominal-form fit has the lower
+    BIC and also passes the held-out window test against the nominal model; the reason is in
+    ``text``. Nothing is named here: a reverted diagnosis judges every candidate again.
+    """
+    pool = [s for s in ranked if s.significant][: opts.rejudge_form]
+    if winner not in pool:
+        pool = [winner, *pool[: max(opts.rejudge_form - 1, 0)]]
+    # Compare on the windows every fit used: the numpy-only candidates' subset if any did.
+    which = "train_sub" if any(s.fit.which == "train_sub" for s in pool) else "train"
+    n = len(ev0.sets[which])
+    t_nom = rs.window_losses(ev0.run({}, which), ev0.scale)
+    h_nom = rs.window_losses(ev0.run({}, "held"), noise)
+
+    def d_bic(e: Evaluator, ext: Extensions, k: int) -> float:
+        tl = rs.window_losses(e.run(ext, which), ev0.scale)
+        return information_criteria(float(np.sum(_log_ratios(t_nom, tl))), n, k)[1]
+
+    with_form_bic = d_bic(ev, winner.fit.ext, winner.fit.k + len(adopted))
+
+    def refit(i: int) -> Scored:
+        cands = pool[i].fit.candidates
+        c_which = pool[i].fit.which
+        f = fit(
+            ev0,
+            cands,
+            c_which,
+            max_nfev=opts.max_nfev
+            if all(c.plugin_ok for c in cands)
+            else max(2, opts.max_nfev - 2),
+        )
+        hl = rs.window_losses(ev0.run(f.ext, "held"), noise)
+        s = Scored(f, float(hl.sum()), hl, _gain(h_nom, hl), _p_improved(h_nom, hl), 0.0, 0.0, n)
+        s.d_bic = d_bic(ev0, f.ext, f.k)
+        s.significant = s.gain >= opts.min_gain and s.p < opts.alpha and s.d_bic < 0
+        return s
+
+    def report(s: Scored) -> None:
+        say(
+            f"  nominal form: {s.fit.name:22s} {_fmt_phys(s.fit)}  held-out"
+            f" {better_worse(s.gain)}  p={s.p:.2g}  dBIC={s.d_bic:+.1f}"
+        )
+
+    nominal = _map_parallel(refit, report, len(pool), lambda i: pool[i].fit.candidates, ev0, opts)
+    best = min((s for s in nominal if s.significant), key=lambda s: s.d_bic, default=None)
+    forms = ", ".join(f"{f.name} {f.text(f.value)}" for f in adopted)
+    text = f"{winner.fit.name} with {forms}: dBIC {with_form_bic:+.1f} against the nominal model"
+    revert = best is not None and best.d_bic < with_form_bic
+    if best is not None:
+        text += f"; {best.fit.name} under the nominal form: dBIC {best.d_bic:+.1f}"
+    else:
+        text += "; no candidate passes the held-out test under the nominal form"
+    return {
+        "revert": bool(revert),
+        "text": text,
+        "forms": {f.name: f.as_json() for f in adopted},
+        "with_forms": {"effect": winner.fit.name, "d_bic": with_form_bic},
+        "nominal": {s.fit.name: {**_fit_dict(s), "d_bic_vs_nominal": s.d_bic} for s in nominal},
+        "windows": which,
+    }
 
 
 def missing_evidence(

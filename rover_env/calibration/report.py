@@ -211,7 +211,7 @@ def write_report(
         f" setpoints from the logged commands), first {st.burn_in:g} s of each not scored; residuals every"
         f" {st.stride:g} s: wheel-angle increments, joint angles, and pose increments where the log has pose."
         " Open-loop replay of a whole drive was rejected: one early heading error dominates everything after it.",
-        _model_form_line(result.get("model_form")),
+        _model_form_line(result.get("model_form"), result.get("model_form_reverted")),
         '- Fit, blind to magnitude: one parameter is searched over its whole physical range ("off" and a'
         " log-spaced ladder of 5 values per sign from 1.2 % to 100 % of the range, then a bounded Brent search"
         " between the best value's neighbours); several parameters start from the best ladder point or the"
@@ -326,8 +326,15 @@ def write_report(
     return path
 
 
-def _model_form_line(mf: dict[str, Any] | None) -> str:
+def _model_form_line(mf: dict[str, Any] | None, reverted: dict[str, Any] | None = None) -> str:
     """The model-form stage (rover_env.calibration.model_form) in one bullet."""
+    if reverted is not None:
+        return (
+            "- Model form: fitted first, then reverted to the configuration's when judged"
+            f" beside the effects ({reverted['text']}; BIC on the same training windows"
+            " against the nominal model, the form's parameters counted): the form had"
+            " absorbed part of an effect, so every candidate was judged again without it."
+        )
     if mf is None:
         return (
             "- Model form: not fitted (the configuration's tire relaxation length and slip floor"

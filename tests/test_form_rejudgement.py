@@ -1,0 +1,99 @@
+"""A model form adopted before any effect is judged again beside the effects (issue 16).
+
+The form stages run before the catalogue, so a form can absorb part of an effect: on the
+model's own logs of a 17 ms command delay (stop 30, case 10005) the conditional anti-windup
+form was adopted and a lag was named. These tests build that situation on purpose (the
+wrong form imposed) and its converse (the form is the truth), and check that the
+re-judgement reverts the first and keeps the second.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from rover_env.calibration import residuals as rs
+from rover_env.calibration.candidates import catalogue
+from rover_env.calibration.diagnose import Options, Scored, _gain, _p_improved, form_rejudgement
+from rover_env.calibration.fit import Evaluator, fit
+from rover_env.calibration.foreign_logs import make_foreign_logs
+from rover_env.calibration.make_logs import make_logs
+from rover_env.calibration.model_form import FormFit, reprepare, with_anti_windup
+from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
+from rover_env.config import ANTI_WINDUP_FORMS, load_rover
+from rover_env.logs import read_log
+
+CONDITIONAL = FormFit(
+    name="anti_windup",
+    unit="",
+    nominal=float(ANTI_WINDUP_FORMS.index("clamp")),
+    value=float(ANTI_WINDUP_FORMS.index("conditional")),
+    ladder={},
+    gain=0.15,
+    p=0.01,
+    d_bic=-1.7,
+    adopted=True,
+    labels=ANTI_WINDUP_FORMS,
+)
+
+
+def _judge(paths: list[Path]) -> dict:
+    """The lag and delay candidates fitted under the conditional anti-windup form (as if
+    its stage had adopted it) on ``paths`` (training, held out), then re-judged."""
+    st = ReplaySettings()
+    base0 = load_rover("proto_explorer")
+    prep0 = [prepare(read_log(p), base0, p.name, st) for p in paths]
+    windows = make_windows(prep0, st)
+    sets = {
+        "train": [w for w in windows if w.log_index == 0],
+        "held": [w for w in windows if w.log_index == 1],
+    }
+    noise = rs.noise_floor(prep0)
+    ev0 = Evaluator(base0, st, prep0, sets, scale=noise, log=lambda m: None)
+    base1 = with_anti_windup(base0, "conditional")
+    ev = Evaluator(base1, st, reprepare(prep0, base1, st), sets, scale=noise, log=lambda m: None)
+    held_ref = rs.window_losses(ev.run({}, "held"), noise)
+    ranked = []
+    for c in catalogue(["command_lag", "command_delay"]):
+        f = fit(ev, [c], "train", max_nfev=4)
+        hl = rs.window_losses(ev.run(f.ext, "held"), noise)
+        s = Scored(f, float(hl.sum()), hl, _gain(held_ref, hl), _p_improved(held_ref, hl), 0, 0, 0)
+        s.significant = True
+        ranked.append(s)
+    ranked.sort(key=lambda s: -s.gain)
+    opts = Options(progress=False, workers=1)
+    return form_rejudgement(ev, ev0, ranked[0], ranked, [CONDITIONAL], noise, opts, lambda m: None)
+
+
+def test_a_form_that_absorbed_a_delay_is_reverted(tmp_path: Path) -> None:
+    """This project's logs (a clamping loop) of a 20 ms delay."""
+    paths = make_logs(
+        tmp_path,
+        {"command_delay": {"delay": 0.02}},
+        drives=2,
+        seed=31,
+        duration=30.0,
+        progress=False,
+    )
+    verdict = _judge(paths)
+    assert verdict["revert"], verdict["text"]
+    best = min(verdict["nominal"].items(), key=lambda kv: kv[1]["d_bic_vs_nominal"])
+    assert best[0] == "command_delay", verdict["text"]
+    delay = best[1]["params"]["command_delay"]["delay"][0]
+    assert abs(delay - 0.02) < 0.004, delay
+
+
+def test_a_form_that_is_the_truth_is_kept(tmp_path: Path) -> None:
+    """The second generator's logs (a conditionally integrating loop) of a 0.15 s lag."""
+    paths = make_foreign_logs(
+        tmp_path,
+        {"command_lag": {"tau": 0.15}},
+        drives=2,
+        seed=31,
+        duration=30.0,
+        progress=False,
+    )
+    verdict = _judge(paths)
+    assert not verdict["revert"], verdict["text"]
+    assert verdict["with_forms"]["d_bic"] < 0 and np.isfinite(verdict["with_forms"]["d_bic"])
