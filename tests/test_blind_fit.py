@@ -238,3 +238,37 @@ def test_the_anti_windup_form_is_fitted_unless_asked_not_to() -> None:
     assert not ap.parse_args(
         ["diagnose", "a.csv", "--out", "o", "--no-fit-anti-windup"]
     ).fit_anti_windup
+
+
+def _group_curves(minima: list[float], noise: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per-window quadratic loss curves of four signal groups, (points, windows, groups):
+    group g's windows have their minima at ``minima[g]`` plus window noise."""
+    rng = np.random.default_rng(seed)
+    xs = np.linspace(0.0, 0.4, 41)
+    nw = 12
+    L = np.zeros((xs.size, nw, len(minima)))
+    for g, m in enumerate(minima):
+        for w in range(nw):
+            c = m + rng.normal(0.0, noise)
+            L[:, w, g] = 50.0 * (xs - c) ** 2 + 1.0
+    return xs, L
+
+
+def test_signal_groups_that_agree_add_nothing_to_the_interval() -> None:
+    from rover_env.calibration.fit import between_group_sd
+
+    xs, L = _group_curves([0.2, 0.2, 0.2, 0.2], noise=0.01, seed=0)
+    est, tau = between_group_sd(xs, L)
+    assert set(est) == {"driven wheels", "free wheels", "joints", "pose"}
+    assert all(abs(v - 0.2) < 0.02 for v in est.values()), est
+    assert tau < 0.005, tau
+
+
+def test_signal_groups_that_disagree_give_their_spread() -> None:
+    """A group pulled 25 % away, far beyond the windows' noise, is model form, not noise."""
+    from rover_env.calibration.fit import between_group_sd
+
+    xs, L = _group_curves([0.2, 0.2, 0.15, 0.2], noise=0.005, seed=1)
+    est, tau = between_group_sd(xs, L)
+    assert abs(est["joints"] - 0.15) < 0.01, est
+    assert 0.01 < tau < 0.04, tau

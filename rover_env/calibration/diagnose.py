@@ -50,7 +50,14 @@ from rover_env.calibration.candidates import (
     merge,
     separating_plan,
 )
-from rover_env.calibration.fit import Evaluator, Fit, fit, information_criteria, noise_threshold
+from rover_env.calibration.fit import (
+    Evaluator,
+    Fit,
+    fit,
+    information_criteria,
+    noise_threshold,
+    widen_by_groups,
+)
 from rover_env.calibration.model_form import (
     FormFit,
     fit_anti_windup,
@@ -443,6 +450,10 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
         )
         if second is not None:
             chosen = [second]
+
+    # The named effects' intervals carry the signal groups' disagreement (model form).
+    for s in chosen:
+        widen_by_groups(s.fit)
 
     # 5b. evidence the drives lack (see rover_env.calibration.evidence)
     evidence = missing_evidence(ev, ranked, chosen, noise, base, opts, say)
@@ -973,6 +984,8 @@ def _fit_dict(s: Scored) -> dict[str, Any]:
         "params": {e: {k: list(v) for k, v in p.items()} for e, p in s.fit.physical().items()},
         "sides": s.fit.sides(),
         "interval_method": s.fit.method,
+        "signal_groups": s.fit.groups,
+        "between_groups_sd": s.fit.between,
         "replay_bias": None if s.fit.bias is None else [float(b) for b in s.fit.bias],
         "train_cost": s.fit.cost,
         "held_cost": s.held_cost,
