@@ -10,6 +10,7 @@ re-judgement reverts the first and keeps the second.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -38,9 +39,11 @@ CONDITIONAL = FormFit(
 )
 
 
-def _judge(paths: list[Path]) -> dict:
-    """The lag and delay candidates fitted under the conditional anti-windup form (as if
-    its stage had adopted it) on ``paths`` (training, held out), then re-judged."""
+def _judge(root: Path, generator: Any, effects: dict[str, dict[str, float]]) -> dict:
+    """Two drives of 30 s with ``effects`` from ``generator`` (training, held out); the lag
+    and delay candidates fitted under the conditional anti-windup form (as if its stage had
+    adopted it), then re-judged."""
+    paths = generator(root, effects, drives=2, seed=31, duration=30.0, progress=False)
     st = ReplaySettings()
     base0 = load_rover("proto_explorer")
     prep0 = [prepare(read_log(p), base0, p.name, st) for p in paths]
@@ -68,15 +71,7 @@ def _judge(paths: list[Path]) -> dict:
 
 def test_a_form_that_absorbed_a_delay_is_reverted(tmp_path: Path) -> None:
     """This project's logs (a clamping loop) of a 20 ms delay."""
-    paths = make_logs(
-        tmp_path,
-        {"command_delay": {"delay": 0.02}},
-        drives=2,
-        seed=31,
-        duration=30.0,
-        progress=False,
-    )
-    verdict = _judge(paths)
+    verdict = _judge(tmp_path, make_logs, {"command_delay": {"delay": 0.02}})
     assert verdict["revert"], verdict["text"]
     best = min(verdict["nominal"].items(), key=lambda kv: kv[1]["d_bic_vs_nominal"])
     assert best[0] == "command_delay", verdict["text"]
@@ -86,14 +81,6 @@ def test_a_form_that_absorbed_a_delay_is_reverted(tmp_path: Path) -> None:
 
 def test_a_form_that_is_the_truth_is_kept(tmp_path: Path) -> None:
     """The second generator's logs (a conditionally integrating loop) of a 0.15 s lag."""
-    paths = make_foreign_logs(
-        tmp_path,
-        {"command_lag": {"tau": 0.15}},
-        drives=2,
-        seed=31,
-        duration=30.0,
-        progress=False,
-    )
-    verdict = _judge(paths)
+    verdict = _judge(tmp_path, make_foreign_logs, {"command_lag": {"tau": 0.15}})
     assert not verdict["revert"], verdict["text"]
     assert verdict["with_forms"]["d_bic"] < 0 and np.isfinite(verdict["with_forms"]["d_bic"])
