@@ -6,9 +6,9 @@
 Prints, per burn-in, the RMS residual of the free wheels (3L 3R) and of the joints under no
 slope and under the truth of ``CASE_DIR/logs/truth.yaml``, then the windows where the truth
 replays worst, with their commands. Why: on the model's own logs of a 6.3 deg slope the
-truth replayed the free wheels at 0.78 rad RMS (straight windows: 0.01), so the slope was
-fitted low (docs/calibration, stop 31). A replay that is right leaves the truth near the
-sensor floor.
+truth replayed the free wheels at 0.71 rad RMS (straight windows: 0.01), so the slope was
+fitted low; the cause was a sign error in the window's initial heading (docs/calibration,
+stop 31; after the fix 0.025). A replay that is right leaves the truth near the floor.
 """
 
 from __future__ import annotations

@@ -318,8 +318,13 @@ class Replayer:
         s, m, d = self.sim, self.sim.model, self.sim.data
         log = p.log
         th = log.theta[k0]
-        # Heading of segment 1 = segment 3's plus the yaw joints between them (small angles).
-        yaw1 = float(p.yaw3[k0] + th[1] + th[4])
+        # Heading of segment 1 = segment 3's minus the yaw joints between them (small angles):
+        # R_3 = R_1 Rx(theta_1) Rz(theta_2) Rx(theta_3) Ry(theta_4) Rz(theta_5) (SPEC §1).
+        # Until stop 31 the sign was +: every window started 2 (theta_2 + theta_5) off in
+        # heading, harmless under vertical gravity, but on a slope the tilt then acted in the
+        # wrong direction (a 6.3 deg cross-slope: 25 deg off in a pivot, the free wheels
+        # replayed at 0.78 rad RMS under the truth, and slopes were fitted low).
+        yaw1 = float(p.yaw3[k0] - th[1] - th[4])
         s.reset(0.0, 0.0, yaw1, settle=0.0, theta=th)
         d.time = float(log.t[k0])
         qv = np.zeros(self._nv)
