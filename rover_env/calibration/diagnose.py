@@ -166,6 +166,16 @@ class Scored:
     """Noise threshold of the effect on these drives (:func:`.fit.noise_threshold`)."""
 
 
+def _fit_budget(cands: list[Candidate], opts: Options) -> int:
+    """Replays a single fit may spend: numpy-only effects (~20x a plugin replay) get fewer."""
+    return opts.max_nfev if all(c.plugin_ok for c in cands) else max(2, opts.max_nfev - 2)
+
+
+def _passes_window_test(s: Scored, opts: Options) -> bool:
+    """The held-out window test that names a candidate: gain, Wilcoxon p, training BIC."""
+    return s.gain >= opts.min_gain and s.p < opts.alpha and s.d_bic < 0
+
+
 def _log_ratios(before: Array, after: Array) -> Array:
     """Per-window log(after / before): every window counts alike, whatever its size.
 
@@ -307,11 +317,9 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
         # Numpy-only effects cost ~20x a plugin replay: a continuous one is fitted on a
         # subset of the training windows; a switch needs one replay, on all of them.
         which = "train" if plugin_capable(c) or c.discrete else "train_sub"
-        f = fit(
-            ev, [c], which, max_nfev=opts.max_nfev if c.plugin_ok else max(2, opts.max_nfev - 2)
-        )
+        f = fit(ev, [c], which, max_nfev=_fit_budget([c], opts))
         s = score(f, held0, {})
-        s.significant = s.gain >= opts.min_gain and s.p < opts.alpha and s.d_bic < 0
+        s.significant = _passes_window_test(s, opts)
         s.test = "windows" if s.significant else ""
         s.threshold = noise_threshold(ev, c, which, noise)
         return s
@@ -420,7 +428,7 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
             x0 = xs if xs.size else None
             f2 = fit(ev, both, which, x_start=x0, max_nfev=max(3, opts.max_nfev - 2), probe=False)
             s2 = score(f2, winner.held_losses, winner.fit.ext, k=s.fit.k)
-            s2.significant = s2.gain >= opts.min_gain and s2.p < opts.alpha and s2.d_bic < 0
+            s2.significant = _passes_window_test(s2, opts)
             s2.test = "windows" if s2.significant else ""
             return s2
 
@@ -591,18 +599,11 @@ def form_rejudgement(
     def refit(i: int) -> Scored:
         cands = pool[i].fit.candidates
         c_which = pool[i].fit.which
-        f = fit(
-            ev0,
-            cands,
-            c_which,
-            max_nfev=opts.max_nfev
-            if all(c.plugin_ok for c in cands)
-            else max(2, opts.max_nfev - 2),
-        )
+        f = fit(ev0, cands, c_which, max_nfev=_fit_budget(cands, opts))
         hl = rs.window_losses(ev0.run(f.ext, "held"), noise)
         s = Scored(f, float(hl.sum()), hl, _gain(h_nom, hl), _p_improved(h_nom, hl), 0.0, 0.0, n)
         s.d_bic = d_bic(ev0, f.ext, f.k)
-        s.significant = s.gain >= opts.min_gain and s.p < opts.alpha and s.d_bic < 0
+        s.significant = _passes_window_test(s, opts)
         return s
 
     def report(s: Scored) -> None:

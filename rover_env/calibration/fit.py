@@ -263,20 +263,20 @@ SIGNAL_GROUPS: dict[str, tuple[str, ...]] = {
 wheels, the free wheels' rolling, the suspension's joints, the body's pose."""
 
 
+_GROUP_COLUMNS = [[SIGNALS.index(s) for s in sigs] for sigs in SIGNAL_GROUPS.values()]
+
+
 def group_losses(results: list[WindowResult], scale: dict[str, float]) -> Array:
-    """Sum of squared scaled residuals per window and signal group, (windows, groups)."""
+    """Sum of squared scaled residuals per window and signal group, (windows, groups); a
+    window's row sums to its :func:`~.residuals.window_losses` value."""
     sw = np.array([scale[s] for s in SIGNALS[:11]])
     sp = np.array([scale[s] for s in SIGNALS[11:]])
-    cols = {s: j for j, s in enumerate(SIGNALS)}
     out = np.zeros((len(results), len(SIGNAL_GROUPS)))
     for i, r in enumerate(results):
         per = np.concatenate(
             [np.sum((r.resid / sw) ** 2, axis=0), np.sum((r.pose_resid / sp) ** 2, axis=0)]
         )
-        if per.size < len(SIGNALS):  # a log without pose
-            per = np.concatenate([per, np.zeros(len(SIGNALS) - per.size)])
-        for g, sigs in enumerate(SIGNAL_GROUPS.values()):
-            out[i, g] = float(sum(per[cols[s]] for s in sigs))
+        out[i] = [per[cols].sum() for cols in _GROUP_COLUMNS]
     return out
 
 
@@ -373,10 +373,8 @@ def _fit_1d(
             ext = merge(fixed, c.to_ext(np.array([v])))
             try:
                 res = ev.run(ext, which)
-                seen[v] = np.array(
-                    [float(np.sum(residual_vector([r], ev.scale) ** 2)) for r in res]
-                )
                 by_group[v] = group_losses(res, ev.scale)
+                seen[v] = by_group[v].sum(axis=1)
                 size = len(res)
             except (EffectError, SimulationError) as exc:
                 ev.log(f"  {c.name}={v:.4g}: {exc}; treated as a very poor fit")

@@ -323,7 +323,7 @@ class Replayer:
         # Until stop 31 the sign was +: every window started 2 (theta_2 + theta_5) off in
         # heading, harmless under vertical gravity, but on a slope the tilt then acted in the
         # wrong direction (a 6.3 deg cross-slope: 25 deg off in a pivot, the free wheels
-        # replayed at 0.78 rad RMS under the truth, and slopes were fitted low).
+        # replayed at 0.71 rad RMS under the truth, and slopes were fitted low).
         yaw1 = float(p.yaw3[k0] - th[1] - th[4])
         s.reset(0.0, 0.0, yaw1, settle=0.0, theta=th)
         d.time = float(log.t[k0])
