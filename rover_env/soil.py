@@ -112,6 +112,16 @@ class SoilParams:
     """Depth dug per unit of slip travel (m per m of |v_w| - |v_x|) under a spinning wheel."""
     rut_cell: float = 0.025
     """Cell of the rut map (m): half the wheel's width, so a rut is two cells wide."""
+    memory: float = 1.0
+    """How much the surface remembers of a pass, 0..1: it scales the depth of the rut a wheel
+    leaves and the rate at which a spinning wheel digs. 1 is this project's soil (ruts at the
+    wheel's depth, holes dug at ``k_dig``); 0 a surface that forgets, so that every wheel meets
+    virgin soil (the memoryless design SOIL.md also allows; the second log generator's)."""
+    sigma: float = 0.0
+    """Relaxation length of the transient slip and slip angle on this soil (m); 0: the
+    tire's (``TireParams.sigma_x``, ``sigma_y``). SOIL.md's forces are steady state; how
+    fast they follow the slip is a design choice (docs/soil.md), which a shorter length
+    brings closer to the steady state."""
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -123,13 +133,15 @@ class SoilParams:
         for key in ("k_x", "k_y", "n0", "rut_cell"):
             if getattr(self, key) <= 0:
                 raise ConfigError(f"soil {self.name}: {key} must be > 0, got {getattr(self, key)}")
-        for key in ("c", "k_phi", "n1", "damping", "k_dig"):
+        for key in ("c", "k_phi", "n1", "damping", "k_dig", "sigma"):
             if getattr(self, key) < 0:
                 raise ConfigError(f"soil {self.name}: {key} must be >= 0, got {getattr(self, key)}")
         if not 0.0 <= self.phi_deg < 90.0:
             raise ConfigError(f"soil {self.name}: phi_deg must be in [0, 90), got {self.phi_deg}")
         if not 0.0 <= self.lam <= 1.0:
             raise ConfigError(f"soil {self.name}: lam must be in [0, 1], got {self.lam}")
+        if not 0.0 <= self.memory <= 1.0:
+            raise ConfigError(f"soil {self.name}: memory must be in [0, 1], got {self.memory}")
 
     def k_s(self, width: float) -> float:
         """Bekker's modulus k_c / b + k_phi for a wheel of this width."""
@@ -533,6 +545,7 @@ def soil_step(
       a spinning wheel excavates, travel leaves the hole behind (depth k_dig r s/(1−s) in
       steady driving); sinkage counts from the dug surface, so a wheel kept spinning in
       place buries itself (dig is capped at the radius).
+    * Memory: the dig rate is scaled by ``memory`` (0: no hole is dug).
     * Sinkage damping: F_z gains ``damping`` × the sinkage rate (zero in steady state).
     """
     p = params
@@ -549,7 +562,9 @@ def soil_step(
     tan_b = u_y / sigma_y
     # Digging, then the sinkages.
     contact_prev = delta - np.maximum(rut, dig) > 0.0
-    rate = np.where(contact_prev, p.k_dig * np.maximum(np.abs(v_w) - np.abs(v_x), 0.0), 0.0)
+    rate = np.where(
+        contact_prev, p.k_dig * p.memory * np.maximum(np.abs(v_w) - np.abs(v_x), 0.0), 0.0
+    )
     dig = np.minimum(dig * np.exp(-np.abs(v_x) * dt / radius) + rate * dt, radius)
     h = delta - dig
     h_c = delta - np.maximum(rut, dig)

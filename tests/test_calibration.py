@@ -164,6 +164,28 @@ def test_drives_on_loose_soil_name_it_against_rolling_resistance(
     )
 
 
+def test_second_generators_soil_is_named_under_the_soil_form_it_has(tmp_path: Path) -> None:
+    """Issue 16, item 7 on another implementation's logs: its soil has no memory of passes
+    and follows the slip at once (steady state). Fitted under the project's ruts and 2 cm
+    relaxation length alone, the best k_phi replayed worse than hard ground and rolling
+    resistance was named (0/4 foreign soil cases, stops 29-31). Under the soil forms the soil
+    is named against rolling resistance, in a memoryless form, with k_phi covered."""
+    from rover_env.calibration.foreign_logs import make_foreign_logs
+
+    k_phi = 3e5
+    paths = make_foreign_logs(
+        tmp_path / "logs", {"loose_soil": {"k_phi": k_phi}}, drives=2, seed=21,
+        duration=24.0, progress=False,
+    )  # fmt: skip
+    opts = Options(candidates=["rolling_resistance", "loose_soil"], progress=False, max_nfev=3)
+    result = diagnose([str(p) for p in paths], tmp_path / "out", opts)
+    assert result["named"] == ["loose_soil"], result["named"]
+    fit = result["final"]["loose_soil"]
+    assert fit["forms"]["loose_soil"].startswith("no memory"), fit["forms"]
+    k, lo, hi = fit["params"]["loose_soil"]["k_phi"]
+    assert lo < k_phi < hi, (k, lo, hi)
+
+
 def test_parallel_candidate_fits_give_the_same_diagnosis(rr_case: tuple[Path, dict]) -> None:
     root, result = rr_case
     paths = sorted((root / "logs").glob("drive_*.csv"))

@@ -212,3 +212,28 @@ def test_exp_and_log_twins_are_accurate() -> None:
     base = rng.uniform(1e-6, 0.085, 2000)  # Bekker's base^n as the nodes take it
     for n in (0.6, 0.92, 1.1, 1.9):
         np.testing.assert_allclose(soil._exp(n * soil._log(base)), base**n, rtol=3e-15)
+
+
+def test_backends_agree_on_soil_without_memory() -> None:
+    """``memory`` 0 (a surface that forgets): no rut is written and no hole dug, in both
+    backends alike, and the rover still stands in the soil."""
+    from rover_env.config import RoverConfig
+
+    cfg = dataclasses.replace(
+        RoverConfig(), extensions={"loose_soil": {"k_phi": 8e5, "memory": 0.0}}
+    )
+    a = RoverSim(cfg, "flat", backend="numpy")
+    b = RoverSim(cfg, "flat", backend="plugin")
+    for targets in ([3.0, 1.5, 3.0, 1.5], [-2.5] * 4):
+        for sim in (a, b):
+            sim.set_speed_targets(targets)
+            sim.step(400)
+    np.testing.assert_allclose(a.data.qpos, b.data.qpos, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a.data.qvel, b.data.qvel, rtol=0, atol=1e-10)
+    assert a.wheel_truth().sinkage.min() > 0.003
+    pv = b._plugin
+    assert pv is not None
+    assert not pv.state(b.data.plugin_state)[pv.layout.rut].any()
+    assert not a.tires.rut.any() and not a.tires.dig.any()
+    with pytest.raises(ConfigError, match="memory"):
+        SoilParams(memory=1.5)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,11 +39,36 @@ class Candidate:
     """For a one-variable candidate fitted in another variable than its effect's parameter:
     (x, 95 % low, 95 % high, side) -> (parameter, value, low, high, side) in the effect's
     terms (``loose_soil``: fitted as 1/k_phi, shown as k_phi). None: x is the parameter."""
+    forms: tuple[tuple[str, Extensions], ...] = ()
+    """Alternative forms of the effect's model, (label, extensions merged into every value):
+    the fit tries each and keeps the best (:func:`rover_env.calibration.fit.fit`), e.g. the
+    soil's memory of passes, which SOIL.md leaves to the implementation."""
+    form: str = ""
+    """The form this candidate was fixed to (:meth:`with_form`); "" when it has none."""
 
     @property
     def k(self) -> int:
-        """Number of fitted parameters (a switch counts as one model choice)."""
-        return max(1, len(self.labels))
+        """Number of fitted parameters (a switch counts as one model choice, and so does a
+        form chosen among several)."""
+        return max(1, len(self.labels)) + (1 if self.form else 0)
+
+    def with_form(self, label: str) -> Candidate:
+        """This candidate with its model fixed to form ``label`` (one of :attr:`forms`)."""
+        extra = dict(self.forms)[label]
+        base = self.to_ext
+
+        def to_ext(x: Array) -> Extensions:
+            return merge(base(x), extra)
+
+        return replace(self, to_ext=to_ext, forms=(), form=label)
+
+    def adopt_form(self, ext: Extensions) -> Candidate:
+        """The form whose extensions ``ext`` carries (a fit's, returned by a worker that
+        could not send its candidate back); self when it has no forms or none matches."""
+        for label, extra in self.forms:
+            if all(ext.get(e, {}).get(k) == v for e, d in extra.items() for k, v in d.items()):
+                return self.with_form(label)
+        return self
 
     def reported(self, x: Array) -> dict[str, float]:
         """Physical parameter values (the effect's own names) for fitted variables x."""
@@ -113,11 +138,30 @@ INV_K_PHI_MAX = 10.0
 (looser than any sand of configs/soil: dune sand 1.5e6, regolith 8.1e5)."""
 
 
+SOIL_SIGMA_SHORT = 0.0025
+"""The short relaxation length of the soil forms (m): an eighth of the tire's 2 cm, where the
+transient form is near SOIL.md's steady state (the model-form stage's shortest sigma)."""
+
+SOIL_FORMS: tuple[tuple[str, Extensions], ...] = tuple(
+    (f"{mem_label}, {sig_label}", {"loose_soil": {"memory": mem, "sigma": sig}})
+    for mem_label, mem in (("ruts", 1.0), ("no memory", 0.0))
+    for sig_label, sig in (("tire's relaxation", 0.0), ("short relaxation", SOIL_SIGMA_SHORT))
+)
+"""The soil's dynamic designs, which SOIL.md leaves open: whether the surface remembers
+passes (this project's ruts and dug holes, or virgin soil under every wheel) and how fast
+the forces follow the slip (the tire's 2 cm relaxation length, or a short one near the
+steady state). On a straight at 2 rad/s on k_phi 2.2e6 the two memories put the rear hubs
+5.8 mm apart, and after reversing the front ones 10 mm; the second generator's soil (no
+memory, steady state) is matched by the memoryless one to 0.02 mm. In a reversing turn on
+k_phi 2.35e5 its driven wheels replay at 0.27 rad RMS with the tire's relaxation length and
+0.003 with 5 mm (docs/calibration, stop 32)."""
+
+
 def _loose_soil() -> Candidate:
     """Fitted as u = 1e6 / k_phi (MN^-1 m^(n+2)): u = 0 is infinitely stiff soil, next to
     hard ground ("off"), so the ladder (10/81 .. 10: k_phi 8.1e6 .. 1e5) and the local search
     move continuously away from "off". k_phi itself would put "off" (0, hard ground) beside
-    the softest soils."""
+    the softest soils. Under each of :data:`SOIL_FORMS`; the fit keeps the better."""
     k_hi = CATALOGUE["loose_soil"].params[0].hi
 
     def to_ext(x: Array) -> Extensions:
@@ -140,6 +184,7 @@ def _loose_soil() -> Candidate:
         tuple((v,) for v in magnitude_ladder(0.0, INV_K_PHI_MAX, 0.0)),
         to_ext,
         shown=shown,
+        forms=SOIL_FORMS,
     )
 
 

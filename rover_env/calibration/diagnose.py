@@ -914,7 +914,7 @@ def _map_parallel(
         for i, (s, replays, seconds, cache) in ex.imap(
             _pool_task, range(n_tasks), shared={"ev": ev, "task": task}
         ):
-            s.fit.candidates = candidates_of(i)
+            s.fit.candidates = [c.adopt_form(s.fit.ext) for c in candidates_of(i)]
             ev.replays += replays
             ev.seconds += seconds
             ev.cache.update(cache)
@@ -960,6 +960,7 @@ def _fmt_phys(f: Fit) -> str:
                 parts.append(f"{k}={v:.0f}")
             else:
                 parts.append(interval_text(k, v, lo, hi, sides.get(eff, {}).get(k, "")))
+    parts += [f"form {c.form!r}" for c in f.candidates if c.form]
     return ", ".join(parts)
 
 
@@ -984,6 +985,7 @@ def _fit_dict(s: Scored) -> dict[str, Any]:
     return {
         "params": {e: {k: list(v) for k, v in p.items()} for e, p in s.fit.physical().items()},
         "sides": s.fit.sides(),
+        "forms": {c.name: c.form for c in s.fit.candidates if c.form},
         "interval_method": s.fit.method,
         "signal_groups": s.fit.groups,
         "between_groups_sd": s.fit.between,

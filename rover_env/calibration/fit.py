@@ -435,6 +435,31 @@ def _fit_1d(
     )
 
 
+def choose_form(ev: Evaluator, c: Candidate, which: str, fixed: Extensions) -> Candidate:
+    """The form of ``c`` (:attr:`Candidate.forms`) whose best ladder rung fits best.
+
+    Each form is replayed on the whole magnitude-blind ladder (its rungs are the same in
+    every form); the refinement then runs in the chosen form only, whose rungs are cached.
+    The choice costs the fit one parameter (:attr:`Candidate.k`)."""
+    best: tuple[float, str] | None = None
+    for label, _ in c.forms:
+        cf = c.with_form(label)
+        costs = []
+        for rung in c.ladder or ():
+            try:
+                res = ev.run(merge(fixed, cf.to_ext(np.array(rung, dtype=float))), which)
+                costs.append(float(group_losses(res, ev.scale).sum()))
+            except (EffectError, SimulationError):
+                costs.append(math.inf)
+        low = min(costs, default=math.inf)
+        if best is None or low < best[0]:
+            best = (low, label)
+    assert best is not None
+    if len(c.forms) > 1:
+        ev.log(f"  {c.name}: form {best[1]!r} (best rung {best[0]:.4g})")
+    return c.with_form(best[1])
+
+
 def fit(
     ev: Evaluator,
     cands: list[Candidate],
@@ -471,7 +496,8 @@ def fit(
         return r
 
     if probe and x_start is None and len(free) == 1 and len(free[0].labels) == 1:
-        return _fit_1d(ev, free[0], which, fixed, refine=max(2, max_nfev + 1), t0=t0)
+        c1 = choose_form(ev, free[0], which, fixed) if free[0].forms else free[0]
+        return _fit_1d(ev, c1, which, fixed, refine=max(2, max_nfev + 1), t0=t0)
     if probe and x_start is None and len(free) == 1 and free[0].ladder:
         # Several parameters of one effect (a slope's tilt vector): the best of "off" and
         # the magnitude-blind ladder starts the local fit.

@@ -532,7 +532,12 @@ class LooseSoil(Effect):
 
     Only ``k_phi`` is fitted by ``diagnose``, as u = 1e6 / k_phi (a log-spaced ladder over
     u's range, as every magnitude; ``calibration.candidates``); ``phi_deg`` and ``n0`` are
-    make-logs' and a rover file's to set. Why k_phi:
+    make-logs' and a rover file's to set. ``memory`` is the soil's dynamic design, which
+    SOIL.md leaves open (:attr:`rover_env.soil.SoilParams.memory`): 1 this project's ruts and
+    dug holes, 0 a surface that forgets; ``sigma`` the relaxation length of the slip on the
+    soil (0: the tire's). ``diagnose`` fits k_phi under each of their combinations
+    (``calibration.candidates.SOIL_FORMS``) and keeps the best (a model form of the soil,
+    counted as one parameter). Why k_phi:
     at the rover's wheel it decides the static sinkage, which the rolling resistance of
     compaction and the slip the drive needs follow (the rig test checks Bekker's law).
     """
@@ -550,6 +555,22 @@ class LooseSoil(Effect):
         ),
         Param("phi_deg", "deg", 15.0, 45.0, 35.0, "internal friction angle"),
         Param("n0", "-", 0.5, 1.5, 0.92, "sinkage exponent at zero slip"),
+        Param(
+            "memory",
+            "-",
+            0.0,
+            1.0,
+            1.0,
+            "the surface's memory of passes: 1 ruts and dug holes, 0 virgin soil under every wheel",
+        ),
+        Param(
+            "sigma",
+            "m",
+            0.0,
+            0.1,
+            0.0,
+            "relaxation length of the slip on the soil; 0: the tire's",
+        ),
     )
 
     @property
@@ -559,7 +580,7 @@ class LooseSoil(Effect):
     def soil_changes(self) -> dict[str, float]:
         if self.is_off:
             return {}
-        return {k: self[k] for k in ("k_phi", "phi_deg", "n0")}
+        return {k: self[k] for k in ("k_phi", "phi_deg", "n0", "memory", "sigma")}
 
 
 # --------------------------------------------------------------------------- helpers

@@ -56,19 +56,23 @@ def rut_writes(
     on_soil: NDArray[np.bool_],
     radius: float,
     width: float,
+    memory: Array | None = None,
 ) -> list[tuple[int, float]]:
     """Rut cells a substep compacts, as (cell, depth): behind each moving wheel on soil.
 
     The depth is that of the wheel's lowest point below the terrain surface, written across
     the wheel's width a little behind its contact patch (where it has left the soil), so a
-    wheel never reads its own rut under it but the wheels behind it run in it.
+    wheel never reads its own rut under it but the wheels behind it run in it. ``memory``
+    (per wheel, its soil's :attr:`~rover_env.soil.SoilParams.memory`; None: 1) scales the
+    depth; a soil without memory leaves no rut.
     """
     g = terrain.rut_grid
     out: list[tuple[int, float]] = []
     half = 0.5 * (width - g.cell)
     # Only a wheel clearly travelling (beyond the direction blend) leaves a rut: at start-up
     # creep the sign of v_x is noise, and a write "behind" could land ahead of the wheel.
-    for i in np.flatnonzero(on_soil & (np.abs(v_x) > soil.V_BLEND) & (delta > 0.0)):
+    keep = np.ones(len(delta)) if memory is None else memory
+    for i in np.flatnonzero(on_soil & (np.abs(v_x) > soil.V_BLEND) & (delta > 0.0) & (keep > 0.0)):
         h = min(float(sinkage[i]), radius)
         e = 1.0 - h / radius
         back = radius * np.sqrt(max(0.0, 1.0 - e * e)) + 1.5 * g.cell
@@ -77,7 +81,7 @@ def rut_writes(
             q = point[i] - sgn * back * xc[i] + k * half * axis[i]
             cell = g.cell_of(float(q[0]), float(q[1]))
             if cell >= 0:
-                out.append((cell, float(delta[i])))
+                out.append((cell, float(keep[i] * delta[i])))
     return out
 
 
@@ -188,17 +192,23 @@ class TireLayer:
                 rut = self.terrain.rut_grid.lookup(self.rut, c.point[:, 0], c.point[:, 1])
                 for k in np.unique(where[on]):
                     m = where == k
+                    sp = self.terrain.soils[k - 1]
+                    sgx = sp.sigma if sp.sigma > 0.0 else tp.sigma_x
+                    sgy = sp.sigma if sp.sigma > 0.0 else tp.sigma_y
                     st = soil.soil_step(
                         ux0[m], uy0[m], self.dig[m], v_x[m], v_y[m], v_w[m],
-                        c.delta[m], delta_dot[m], rut[m], self.dt, tp.sigma_x, tp.sigma_y,
-                        self.radius, self.width, self.terrain.soils[k - 1],
+                        c.delta[m], delta_dot[m], rut[m], self.dt, sgx, sgy,
+                        self.radius, self.width, sp,
                     )  # fmt: skip
                     self.u_x[m], self.u_y[m], self.dig[m] = st.u_x, st.u_y, st.dig
                     F_x[m], F_y[m], F_z[m] = st.F_x, st.F_y, st.F_z
                     sink[m], torque[m] = st.sinkage, st.T
+                memory = np.array(
+                    [self.terrain.soils[k - 1].memory if k > 0 else 0.0 for k in where]
+                )
                 writes = rut_writes(
                     self.terrain, c.point, xc, axis, v_x, c.delta, sink, on,
-                    self.radius, self.width,
+                    self.radius, self.width, memory,
                 )  # fmt: skip
                 for cell, depth in writes:
                     self.rut[cell] = max(self.rut[cell], depth)

@@ -48,7 +48,7 @@ _TERRAIN_VERSION = 2
 _HEADER = 19
 _WAVE = 5
 _PATCH = 7
-_SOIL = 14
+_SOIL = 16
 _TRUTH = 17
 
 Array = NDArray[np.float64]

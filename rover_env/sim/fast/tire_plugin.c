@@ -72,7 +72,7 @@
 //     [14] rut x0  [15] rut y0  [16] rut cell  [17] rut nx  [18] rut ny
 //     then W x (amplitude, k_x, k_y, phase, start),
 //     then P x (lo_x, lo_y, hi_x, hi_y, mu_x, mu_y, soil),
-//     then S x the 14 numbers of rover_env.soil.SoilParams.numbers()
+//     then S x the 16 numbers of rover_env.soil.SoilParams.numbers()
 
 #define _GNU_SOURCE  // sincos
 #include <math.h>
@@ -89,7 +89,7 @@
 #define TERRAIN_HEADER 19
 #define WAVE_STRIDE 5
 #define PATCH_STRIDE 7
-#define SOIL_STRIDE 14
+#define SOIL_STRIDE 16
 #define NTRUTH 17
 #define SOIL_NODES 8
 #define SOIL_NEWTON_STEPS 2  // soil._NEWTON_STEPS
@@ -110,7 +110,7 @@ enum { T_VX = 0, T_VY = 1, T_VW = 2, T_FX = 3, T_FY = 4, T_FZ = 5, T_DELTA = 6,
 
 // soil parameter indices (rover_env.soil.SoilParams.numbers() order)
 enum { S_C, S_PHI, S_KC, S_KPHI, S_N0, S_N1, S_KX, S_KY, S_A0, S_A1, S_LAM, S_DAMP, S_KDIG,
-       S_CELL };
+       S_CELL, S_MEMORY, S_SIGMA };
 
 // What the arcs of one wheel share (soil.stress_integrals' per-wheel quantities)
 typedef struct {
@@ -1010,20 +1010,22 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
     if (soil > 0) {  // loose soil: soil.soil_step and TireLayer's soil branch
       const double* sp = tv.soil + SOIL_STRIDE*(soil - 1);
       double r = c->radius;
+      double ssx = sp[S_SIGMA] > 0.0 ? sp[S_SIGMA] : sx;  // the soil's relaxation length
+      double ssy = sp[S_SIGMA] > 0.0 ? sp[S_SIGMA] : sy;
       v_w = r*d->qvel[c->dof[i]];
       double rut = rut_lookup(&tv, st + L.rut, point[0], point[1]);
-      double rho_x = np_max(np_max(fabs(v_x), fabs(v_w)), SOIL_V_EPS)/sx;
-      double rho_y = np_max(fabs(v_x), SOIL_V_EPS)/sy;
+      double rho_x = np_max(np_max(fabs(v_x), fabs(v_w)), SOIL_V_EPS)/ssx;
+      double rho_y = np_max(fabs(v_x), SOIL_V_EPS)/ssy;
       double emx = expm1(-rho_x*dt), emy = expm1(-rho_y*dt);
       ux_new = ux*(emx + 1.0) + (v_x - v_w)*(-emx/rho_x);
       uy_new = uy*(emy + 1.0) + v_y*(-emy/rho_y);
-      ux_new = np_min(np_max(ux_new, -sx), sx);
-      uy_new = np_min(np_max(uy_new, -SOIL_MAX_TAN_BETA*sy), SOIL_MAX_TAN_BETA*sy);
-      double s_fwd = -ux_new/sx;
-      double tan_b = uy_new/sy;
+      ux_new = np_min(np_max(ux_new, -ssx), ssx);
+      uy_new = np_min(np_max(uy_new, -SOIL_MAX_TAN_BETA*ssy), SOIL_MAX_TAN_BETA*ssy);
+      double s_fwd = -ux_new/ssx;
+      double tan_b = uy_new/ssy;
       dig = st[L.dig + i];
       int contact_prev = delta - np_max(rut, dig) > 0.0;
-      double rate = contact_prev ? sp[S_KDIG]*np_max(fabs(v_w) - fabs(v_x), 0.0) : 0.0;
+      double rate = contact_prev ? sp[S_KDIG]*sp[S_MEMORY]*np_max(fabs(v_w) - fabs(v_x), 0.0) : 0.0;
       dig = np_min(dig*exp(-fabs(v_x)*dt/r) + rate*dt, r);
       double h = delta - dig;
       double h_c = delta - np_max(rut, dig);
@@ -1046,7 +1048,7 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       F_z = contact ? np_max(F_z + sp[S_DAMP]*delta_dot, 0.0) : 0.0;
       sink = np_max(h, 0.0);
       // rut_writes: behind a moving wheel, across its width
-      if (fabs(v_x) > SOIL_V_BLEND && delta > 0.0) {  // clearly travelling (rut_writes)
+      if (fabs(v_x) > SOIL_V_BLEND && delta > 0.0 && sp[S_MEMORY] > 0.0) {  // rut_writes
         double hw = np_min(sink, r);
         double e = 1.0 - hw/r;
         double back = r*sqrt(np_max(0.0, 1.0 - e*e)) + 1.5*tv.rut_cell;
@@ -1059,7 +1061,7 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
           }
           pw[k] = rut_cell_of(&tv, q[0], q[1]);
         }
-        pw[3] = delta;
+        pw[3] = sp[S_MEMORY]*delta;
       }
     }
 
