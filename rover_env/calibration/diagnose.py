@@ -412,13 +412,11 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
     if winner is not None and left:
         say(f"still above noise after {winner.fit.name}: {', '.join(left)}; forward selection")
         w_cands = winner.fit.candidates
-        others = [
-            s
-            for s in ranked
-            if s is not winner
-            and s.gain > 0.0
-            and (tie is None or s.fit.name not in tie["effects"])
-        ][: opts.second]
+        # The tie's runner-up is tried too: a tie says either effect explains the drives
+        # alone, not that only one is there; the pair is named only if it beats the winner
+        # alone by the same window test (stop 32: a foreign 7.3 deg slope tied with a 0.44 s
+        # lag was never tried beside it).
+        others = [s for s in ranked if s is not winner and s.gain > 0.0][: opts.second]
 
         def fit_pair(i: int) -> Scored:
             s = others[i]
@@ -458,6 +456,9 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
         )
         if second is not None:
             chosen = [second]
+            if tie is not None and set(tie["effects"]) <= {c.name for c in second.fit.candidates}:
+                say(f"tie resolved: {' and '.join(tie['effects'])} are both named")
+                tie = None
 
     # The named effects' intervals carry the signal groups' disagreement (model form).
     for s in chosen:
