@@ -186,6 +186,25 @@ def test_second_generators_soil_is_named_under_the_soil_form_it_has(tmp_path: Pa
     assert lo < k_phi < hi, (k, lo, hi)
 
 
+def test_a_tied_runner_up_is_still_tried_as_the_second_effect(tmp_path: Path) -> None:
+    """A tie says that either effect explains the drives alone, not that only one is there.
+    With every runner-up forced into a tie, a lag and a slope hidden together are both named
+    (the runner-up is tried beside the winner, by the same window test) and the tie is
+    resolved. Before stop 32 the tied runner-up was never tried: a 7.3 deg slope beside a
+    0.44 s lag on the second generator's logs went unnamed (case 12113)."""
+    eff = {"command_lag": {"tau": 0.4}, "slope": {"deg": 8.0, "heading_deg": -35.0}}
+    paths = make_logs(tmp_path / "logs", eff, drives=2, seed=31, duration=36.0, progress=False)
+    opts = Options(
+        candidates=["command_lag", "slope"],
+        progress=False,
+        max_nfev=3,
+        tie_alpha=-1.0,  # every runner-up ties with the winner
+    )
+    result = diagnose([str(p) for p in paths], tmp_path / "out", opts)
+    assert sorted(result["named"]) == ["command_lag", "slope"], result["named"]
+    assert result["tie"] is None
+
+
 def test_parallel_candidate_fits_give_the_same_diagnosis(rr_case: tuple[Path, dict]) -> None:
     root, result = rr_case
     paths = sorted((root / "logs").glob("drive_*.csv"))
