@@ -152,9 +152,9 @@ passes (this project's ruts and dug holes, or virgin soil under every wheel) and
 the forces follow the slip (the tire's 2 cm relaxation length, or a short one near the
 steady state). On a straight at 2 rad/s on k_phi 2.2e6 the two memories put the rear hubs
 5.8 mm apart, and after reversing the front ones 10 mm; the second generator's soil (no
-memory, steady state) is matched by the memoryless one to 0.02 mm. In a reversing turn on
-k_phi 2.35e5 its driven wheels replay at 0.27 rad RMS with the tire's relaxation length and
-0.003 with 5 mm (docs/calibration, stop 32)."""
+memory, steady state) is matched by the memoryless one to 0.11 mm at rest. In a reversing
+turn on k_phi 2.35e5 its driven wheels replay at 0.27 rad RMS with the tire's relaxation
+length and 0.003 with 5 mm (docs/calibration, stop 32)."""
 
 
 def _loose_soil() -> Candidate:
