@@ -182,6 +182,7 @@ def test_second_generators_soil_is_named_under_the_soil_form_it_has(tmp_path: Pa
     assert result["named"] == ["loose_soil"], result["named"]
     fit = result["final"]["loose_soil"]
     assert fit["forms"]["loose_soil"].startswith("no memory"), fit["forms"]
+    assert "loose_soil in the form 'no memory" in (tmp_path / "out" / "report.md").read_text()
     k, lo, hi = fit["params"]["loose_soil"]["k_phi"]
     assert lo < k_phi < hi, (k, lo, hi)
 

@@ -43,6 +43,7 @@ def _phys(s: Scored) -> str:
                 out.append(f"{eff}.{k} = {v:.4g} (95 %: {lo:.3g} … {hi:.3g})")
             else:
                 out.append(f"{eff}.{k} = {v:.4g}")
+    out += [f"{c.name} in the form '{c.form}'" for c in s.fit.candidates if c.form]
     return "; ".join(out)
 
 
