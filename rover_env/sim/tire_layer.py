@@ -203,9 +203,8 @@ class TireLayer:
                     self.u_x[m], self.u_y[m], self.dig[m] = st.u_x, st.u_y, st.dig
                     F_x[m], F_y[m], F_z[m] = st.F_x, st.F_y, st.F_z
                     sink[m], torque[m] = st.sinkage, st.T
-                memory = np.array(
-                    [self.terrain.soils[k - 1].memory if k > 0 else 0.0 for k in where]
-                )
+                # Each wheel's soil memory, by soil index (0: hard ground, never written).
+                memory = np.array([0.0, *(sp.memory for sp in self.terrain.soils)])[where]
                 writes = rut_writes(
                     self.terrain, c.point, xc, axis, v_x, c.delta, sink, on,
                     self.radius, self.width, memory,
