@@ -21,7 +21,13 @@ from rover_env.calibration.diagnose import (
     interval_text,
     strict_json,
 )
-from rover_env.calibration.fit import Evaluator, Fit, bootstrap_interval, fit
+from rover_env.calibration.fit import (
+    Evaluator,
+    Fit,
+    bootstrap_interval,
+    bootstrap_over_forms,
+    fit,
+)
 from rover_env.calibration.make_logs import make_logs
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
 from rover_env.config import RoverConfig
@@ -123,6 +129,31 @@ def test_bootstrap_interval_covers_the_spread_of_the_windows() -> None:
     se = minima.std(ddof=1) / math.sqrt(len(minima))
     assert lo < minima.mean() < hi
     assert (hi - lo) == pytest.approx(2 * 1.96 * se, rel=0.4)
+
+
+def test_a_form_the_windows_cannot_reject_widens_the_interval() -> None:
+    """Two forms of one model: the interval bootstraps the form choice with the windows.
+    A second form as good as the first but with its minimum elsewhere widens the interval
+    to reach it; one clearly worse leaves the single form's interval as it was."""
+    rng = np.random.default_rng(1)
+    xs = np.linspace(0.0, 0.3, 31)
+    first = rng.normal(0.10, 0.02, 30)
+    one = bootstrap_interval(xs, _quadratic_losses(first, xs), 0.0, 0.3, 0.0)
+    alone = bootstrap_over_forms([(xs, _quadratic_losses(first, xs))], 0.0, 0.3, 0.0)
+    assert alone[:4] == one and alone[4] == 0
+    # Per-window offsets make the two forms' totals tie up to the windows' noise.
+    second = rng.normal(0.20, 0.02, 30)
+    noise = rng.normal(0.0, 0.01, 30)
+    tied = _quadratic_losses(second, xs) + noise[None, :]
+    est, lo, hi, side, best = bootstrap_over_forms(
+        [(xs, _quadratic_losses(first, xs)), (xs, tied)], 0.0, 0.3, 0.0
+    )
+    assert side == ""
+    assert lo < 0.1 and hi > 0.19  # both forms' minima inside
+    assert est == pytest.approx([first.mean(), second.mean()][best], abs=0.003)
+    worse = _quadratic_losses(second, xs) + 1.0
+    kept = bootstrap_over_forms([(xs, _quadratic_losses(first, xs)), (xs, worse)], 0, 0.3, 0)
+    assert kept[:4] == one and kept[4] == 0
 
 
 def test_interval_at_a_bound_is_one_sided_and_never_of_zero_width() -> None:

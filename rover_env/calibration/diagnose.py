@@ -53,6 +53,7 @@ from rover_env.calibration.candidates import (
 from rover_env.calibration.fit import (
     Evaluator,
     Fit,
+    carry_form_pad,
     fit,
     information_criteria,
     noise_threshold,
@@ -425,6 +426,7 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
             xs = np.concatenate([winner.fit.x, s.fit.x])
             x0 = xs if xs.size else None
             f2 = fit(ev, both, which, x_start=x0, max_nfev=max(3, opts.max_nfev - 2), probe=False)
+            carry_form_pad(f2, [winner.fit, s.fit])
             s2 = score(f2, winner.held_losses, winner.fit.ext, k=s.fit.k)
             s2.significant = _passes_window_test(s2, opts)
             s2.test = "windows" if s2.significant else ""
