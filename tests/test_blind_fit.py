@@ -324,3 +324,6 @@ def test_a_candidates_form_is_fixed_counted_and_recovered_from_its_extensions() 
         assert soil.adopt_form(soil.with_form(label).to_ext(np.array([1.0]))).form == label
     (lag,) = catalogue(["command_lag"])
     assert lag.adopt_form(ext) is lag
+    # "Off" (hard ground) is one model whatever the soil's form: the same extensions.
+    offs = {json.dumps(soil.with_form(f).to_ext(np.array([0.0])), sort_keys=True) for f in labels}
+    assert offs == {json.dumps({"loose_soil": {"k_phi": 0.0}})}

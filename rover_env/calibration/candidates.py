@@ -56,8 +56,12 @@ class Candidate:
         """This candidate with its model fixed to form ``label`` (one of :attr:`forms`)."""
         extra = dict(self.forms)[label]
         base = self.to_ext
+        off = np.asarray(self.off, dtype=float)
 
         def to_ext(x: Array) -> Extensions:
+            # "Off" is the same model in every form (hard ground has no memory): one replay.
+            if np.array_equal(np.asarray(x, dtype=float), off):
+                return base(x)
             return merge(base(x), extra)
 
         return replace(self, to_ext=to_ext, forms=(), form=label)

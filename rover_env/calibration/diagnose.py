@@ -889,16 +889,28 @@ def _pool_task(
 def _map_candidates(
     fit_one: Any, report: Any, cands: list[Candidate], ev: Evaluator, opts: Options
 ) -> list[Scored]:
-    """``fit_one`` on every candidate, in ``opts.workers`` workers; catalogue order."""
+    """``fit_one`` on every candidate, in ``opts.workers`` workers; catalogue order.
+
+    Candidates with several model forms are handed out first: they cost several fits each,
+    and the catalogue puts the soil, which has four, last, where the other worker idled
+    while it ran (own clean case 10070, 2 workers: 105 s)."""
+    order = sorted(range(len(cands)), key=lambda i: -max(1, len(cands[i].forms)))
     return _map_parallel(
-        lambda i: fit_one(cands[i]), report, len(cands), lambda i: [cands[i]], ev, opts
+        lambda i: fit_one(cands[i]), report, len(cands), lambda i: [cands[i]], ev, opts, order
     )
 
 
 def _map_parallel(
-    task: Any, report: Any, n_tasks: int, candidates_of: Any, ev: Evaluator, opts: Options
+    task: Any,
+    report: Any,
+    n_tasks: int,
+    candidates_of: Any,
+    ev: Evaluator,
+    opts: Options,
+    order: list[int] | None = None,
 ) -> list[Scored]:
-    """``task(i)`` for i < n_tasks through ``opts.executor``; results in order.
+    """``task(i)`` for i < n_tasks through ``opts.executor``; results in order (``order``:
+    the order the tasks are handed to the workers, longest first).
 
     The fits are independent and deterministic, so the result does not depend on where they
     run; the workers' replays of each fitted model come back into ``ev.cache``. Local workers
@@ -914,9 +926,11 @@ def _map_parallel(
         return out
     results: dict[int, Scored] = {}
     with make_executor(opts.executor, n, opts.ray_address, start_method="fork") as ex:
-        for i, (s, replays, seconds, cache) in ex.imap(
-            _pool_task, range(n_tasks), shared={"ev": ev, "task": task}
+        handed = list(range(n_tasks)) if order is None else list(order)
+        for j, (s, replays, seconds, cache) in ex.imap(
+            _pool_task, handed, shared={"ev": ev, "task": task}
         ):
+            i = handed[j]
             s.fit.candidates = [c.adopt_form(s.fit.ext) for c in candidates_of(i)]
             ev.replays += replays
             ev.seconds += seconds
