@@ -510,6 +510,13 @@ def _fit_forms(
         return min(fits, key=lambda f: f.cost)
     est, lo, hi, side, best = bootstrap_over_forms(curves, c.lo[0], c.hi[0], c.off[0])
     f = fits[best]
+    # The chosen form's own interval, widened to where the other forms take the resamples
+    # they win: a resample's best form need not contain the chosen form's tails (stop 31's
+    # own soil 12009, 5.56e6: 4.7e6 [4.0e6, 9.9e6] in one form; over the forms alone the
+    # upper bound fell to 5.39e6, the forms that win those resamples put the soil softer).
+    lo, hi = min(lo, float(f.ci_lo[0])), max(hi, float(f.ci_hi[0]))
+    if side != (f.sided[0] if f.sided else ""):
+        side = ""  # a bound reached in one view only: the widened interval is two-sided
     f.form_pad = (max(float(f.ci_lo[0]) - lo, 0.0), max(hi - float(f.ci_hi[0]), 0.0))
     ev.log(
         f"  {c.name}: form {c.forms[best][0]!r} ("
