@@ -496,9 +496,10 @@ def _fit_forms(
     ev: Evaluator, c: Candidate, which: str, fixed: Extensions, refine: int, t0: float
 ) -> Fit:
     """:func:`_fit_1d` in each of ``c``'s forms (:attr:`Candidate.forms`); the form whose
-    refined minimum fits best is kept, and the interval is bootstrapped over the forms
-    (:func:`bootstrap_over_forms`). The choice costs the fit one parameter
-    (:attr:`Candidate.k`).
+    refined minimum fits best is kept. Its interval is its own block bootstrap joined with
+    the bootstrap over the forms (:func:`bootstrap_over_forms`); how far the latter reaches
+    beyond the former is kept as :attr:`Fit.form_pad`. The choice costs the fit one
+    parameter (:attr:`Candidate.k`).
 
     Until stop 33 the form was chosen by its best ladder rung, before any refinement: the
     rungs are a factor 3 apart, so a flat form beat a sharp one whose minimum fell between
