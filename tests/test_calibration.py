@@ -393,3 +393,33 @@ def test_command_effect_block_is_n_steps(name: str, values: dict[str, float]) ->
         blocked = CommandEffect.block(b, u, 0.001, n) if n == 3 else b.block(u, 0.001, n)
         np.testing.assert_array_equal(blocked, stepped, err_msg=f"{name}, block of {n}")
     assert np.any(stepped != u)  # the effect did act (not a pass-through that agrees trivially)
+
+
+def test_tasks_handed_out_longest_first_come_back_in_task_order() -> None:
+    """``_map_parallel(order=...)`` (the soil's four forms go to a worker first): the order
+    the tasks are handed out changes where they run, not which result is whose."""
+    from rover_env.calibration.candidates import catalogue
+    from rover_env.calibration.diagnose import Scored, _map_parallel
+    from rover_env.calibration.fit import Evaluator, Fit
+
+    lag = catalogue(["command_lag"])[0]
+    ev = Evaluator(RoverConfig(), ReplaySettings(), [], {}, log=lambda m: None)
+
+    def task(i: int) -> Scored:
+        z = np.array([float(i)])
+        f = Fit([lag], z, z, z, z, float(i), 1, {"command_lag": {"tau": 0.01 * i}}, 0.0, "train")
+        return Scored(f, float(i), z, 0.0, 1.0, 0.0, 0.0, 1)
+
+    seen: list[float] = []
+    out = _map_parallel(
+        task,
+        lambda s: seen.append(s.fit.cost),
+        3,
+        lambda i: [lag],
+        ev,
+        Options(progress=False, workers=2),
+        order=[2, 0, 1],
+    )
+    assert [s.fit.cost for s in out] == [0.0, 1.0, 2.0]
+    assert [s.fit.ext["command_lag"]["tau"] for s in out] == [0.0, 0.01, 0.02]
+    assert sorted(seen) == [0.0, 1.0, 2.0]
