@@ -509,7 +509,7 @@ def _fit_forms(
     curves = [f.curve for f in fits if f.curve is not None]
     if len(curves) != len(fits):
         return min(fits, key=lambda f: f.cost)
-    est, lo, hi, side, best = bootstrap_over_forms(curves, c.lo[0], c.hi[0], c.off[0])
+    _, lo, hi, side, best = bootstrap_over_forms(curves, c.lo[0], c.hi[0], c.off[0])
     f = fits[best]
     # The chosen form's own interval, widened to where the other forms take the resamples
     # they win: a resample's best form need not contain the chosen form's tails (stop 31's
@@ -528,10 +528,7 @@ def _fit_forms(
         )
         + ")"
     )
-    f.x = np.array([est])
-    f.ext = merge(fixed, f.candidates[0].to_ext(f.x))
-    r = ev.vector(f.ext, which)
-    f.cost = float(r @ r)
+    # The best form's own fit already sits at ``est`` (the same curve, the same parabola).
     f.ci_lo, f.ci_hi = np.array([lo]), np.array([hi])
     f.se = np.array([(hi - lo) / (2 * 1.96)])
     f.sided = (side,)

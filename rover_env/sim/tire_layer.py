@@ -119,6 +119,8 @@ class TireLayer:
         self.roots = model.body_rootid[self.carriers]
         self.radius = radius
         self.terrain = terrain
+        # Each soil's memory by soil index (0: hard ground, never written), looked up per substep.
+        self._memory = np.array([0.0, *(sp.memory for sp in terrain.soils)])
         self.params = params
         self.effects = list(effects)
         self.dt = float(model.opt.timestep)
@@ -203,8 +205,7 @@ class TireLayer:
                     self.u_x[m], self.u_y[m], self.dig[m] = st.u_x, st.u_y, st.dig
                     F_x[m], F_y[m], F_z[m] = st.F_x, st.F_y, st.F_z
                     sink[m], torque[m] = st.sinkage, st.T
-                # Each wheel's soil memory, by soil index (0: hard ground, never written).
-                memory = np.array([0.0, *(sp.memory for sp in self.terrain.soils)])[where]
+                memory = self._memory[where]
                 writes = rut_writes(
                     self.terrain, c.point, xc, axis, v_x, c.delta, sink, on,
                     self.radius, self.width, memory,
