@@ -462,6 +462,45 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
                 say(f"tie resolved: {' and '.join(tie['effects'])} are both named")
                 tie = None
 
+    # 5a. Named with confidence only if the effects do not trade one signal for another: a
+    # signal left above the model's floor that the fit made worse, window by window, is
+    # what a catalogue effect standing in for one outside it does (issue 16: a rover 20 %
+    # heavier was named "friction +15 %" in every matrix, theta_4 worse by 8-22 %, p<0.002).
+    final_floor = noise
+    traded: dict[str, Any] | None = None
+    demoted: list[Scored] = []
+    if chosen:
+        held_c = ev.run(merge(*(s.fit.ext for s in chosen)), "held")
+        if chosen == [winner]:
+            final_floor = w_floor
+        else:
+            ff = replay_floor(
+                ev.config(merge(*(s.fit.ext for s in chosen))), prepared, held_w, sensor_noise, st
+            )
+            final_floor = {k: max(v, noise[k]) for k, v in ff.items()}
+        left_c = _unexplained(rs.table(rs.stack(held_c, prepared), final_floor), final_floor)
+        worse = traded_signals(base_held, held_c, left_c, opts.alpha)
+        if worse:
+            names = [c.name for s in chosen for c in s.fit.candidates]
+            traded = {
+                "effects": names,
+                "worse": worse,
+                "fits": {s.fit.name: _fit_dict(s) for s in chosen},
+            }
+            demoted = chosen
+            say(
+                f"not named with confidence: {' + '.join(names)} makes "
+                + ", ".join(
+                    f"{k} worse ({v['rms_ratio']:.2f}x RMS, p {v['p']:.2g})"
+                    for k, v in worse.items()
+                )
+                + ", left above its floor: an effect outside the catalogue may be standing"
+                " behind it"
+            )
+            chosen = []
+            final_floor = noise
+            tie = None  # nothing is named, so nothing is tied
+
     # The named effects' intervals carry the signal groups' disagreement (model form).
     for s in chosen:
         widen_by_groups(s.fit)
@@ -485,15 +524,8 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
     arrays.update({f"after_{k}": v for k, v in replay_after.items()})
     np.savez(out / "replay_heldout.npz", **arrays)
     held_final = ev.run(merge(*(s.fit.ext for s in chosen)) if chosen else {}, "held")
-    # The updated model's own floor (an effect can make the replay itself less exact).
-    final_floor = noise
-    if chosen == [winner] and winner is not None:
-        final_floor = w_floor
-    elif chosen:
-        ff = replay_floor(
-            ev.config(merge(*(s.fit.ext for s in chosen))), prepared, held_w, sensor_noise, st
-        )
-        final_floor = {k: max(v, noise[k]) for k, v in ff.items()}
+    # final_floor (5a): the updated model's own floor (an effect can make the replay itself
+    # less exact).
     table_held_after = rs.table(rs.stack(held_final, prepared), final_floor)
     main_sig = max(SIGNALS, key=lambda s: np.nan_to_num(table_held_before[s]["all"].ratio))
     rb, ra = table_held_before[main_sig]["all"].rms, table_held_after[main_sig]["all"].rms
@@ -532,6 +564,7 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
         "config": str(cfg_path),
         "unexplained": _unexplained(table_held_after, final_floor),
         "evidence": evidence,
+        "not_named": traded,
         "model_form": None if not opts.model_form else {f.name: f.as_json() for f in forms},
         "model_form_reverted": opts.forms_reverted,
     }
@@ -544,6 +577,7 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
         ranked=ranked,
         tried=tried,
         chosen=chosen,
+        demoted=demoted,
         tie=tie,
         opts=opts,
         table_before=table_before,
@@ -861,6 +895,30 @@ def _noise_test(ref_left: list[str], new_left: list[str]) -> list[str]:
     if any(s not in ref_left for s in new_left):
         return []
     return [s for s in ref_left if s not in new_left]
+
+
+def traded_signals(
+    before: list[WindowResult], after: list[WindowResult], left: list[str], alpha: float
+) -> dict[str, dict[str, float]]:
+    """Signals of ``left`` (still above the floor) that ``after`` makes worse than ``before``.
+
+    Same windows, each signal's mean square per window; worse means a one-sided Wilcoxon
+    signed-rank test of the per-window log ratios at ``alpha`` (the window test's level)
+    and a larger RMS over the drive. A signal at its floor may move either way (an effect
+    can make the replay itself less exact); one left above it is what the model fails on.
+    """
+    out: dict[str, dict[str, float]] = {}
+    for sig in left:
+        b = rs.signal_window_ms(before, sig)
+        a = rs.signal_window_ms(after, sig)
+        ok = np.isfinite(a) & np.isfinite(b) & (a > 0) & (b > 0)
+        if ok.sum() < 5:
+            continue
+        ratio = float(np.sqrt(np.sum(a[ok]) / np.sum(b[ok])))
+        p = _p_improved(a[ok], b[ok])  # that "before" is smaller: "after" is worse
+        if p < alpha and ratio > 1.0:
+            out[sig] = {"rms_ratio": ratio, "p": p, "windows": int(ok.sum())}
+    return out
 
 
 def _unexplained(table: dict[str, dict[str, rs.Cell]], noise: dict[str, float]) -> list[str]:

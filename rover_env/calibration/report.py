@@ -152,6 +152,7 @@ def write_report(
     tried: list[Scored],
     chosen: list[Scored],
     tie: dict[str, Any] | None,
+    demoted: list[Scored] | None = None,
     opts: Options,
     table_before: dict[str, dict[str, Cell]],
     table_held_before: dict[str, dict[str, Cell]],
@@ -169,6 +170,20 @@ def write_report(
     named = result["named"]
     if named:
         L.append(f"**Named:** {' + '.join(named)} — {'; '.join(_phys(s) for s in chosen)}.")
+    elif result.get("not_named"):
+        nn = result["not_named"]
+        worse = "; ".join(
+            f"{k} {v['rms_ratio']:.2f}x its RMS before (one-sided Wilcoxon over {v['windows']}"
+            f" windows, p {_p(v['p'])})"
+            for k, v in nn["worse"].items()
+        )
+        L.append(
+            f"**Nothing named with confidence.** The best fit, {' + '.join(nn['effects'])}"
+            f" ({'; '.join(_phys(s) for s in demoted or [])}), improves the held-out drive but"
+            f" makes signals it leaves above their floor worse: {worse}. An effect of the"
+            " catalogue that trades one signal for another is standing in for something"
+            " outside it (a mass, a spring, a tire stiffness); the configuration is left as it was."
+        )
     else:
         L.append("**No candidate explains the gap significantly.**")
     if tie:

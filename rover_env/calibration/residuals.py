@@ -190,6 +190,18 @@ def window_losses(results: list[WindowResult], scale: dict[str, float]) -> Array
     return np.array([float(np.sum(residual_vector([r], scale) ** 2)) for r in results])
 
 
+def signal_window_ms(results: list[WindowResult], signal: str) -> Array:
+    """Mean square of one signal's residual in each window (NaN where it has no sample)."""
+    j = SIGNALS.index(signal)
+    out = np.full(len(results), np.nan)
+    for i, r in enumerate(results):
+        col = r.resid[:, j] if j < 11 else r.pose_resid[:, j - 11]
+        col = col[np.isfinite(col)]
+        if col.size:
+            out[i] = float(np.mean(col**2))
+    return out
+
+
 def window_slices(results: list[WindowResult]) -> list[slice]:
     """Where each window's residuals sit in :func:`residual_vector`'s output."""
     out, a = [], 0
