@@ -18,7 +18,9 @@ Steps (each printed as it runs):
    indistinguishable on held-out windows, report a tie and the drive that separates them.
 5. Forward selection: refit the winner together with each of the other candidates that
    improved the held-out drive, and keep a second effect under the same rules against the
-   winner alone.
+   winner alone. The chosen effects are named with confidence only if they make no held-out
+   signal that they leave above its floor worse, window by window (:func:`traded_signals`):
+   one that trades a signal for another stands in for an effect outside the catalogue.
 6. Write the updated rover configuration (``rover.yaml``: the logs' rover plus the chosen
    effects with fitted values, loadable by RoverSim and the environments as it is), the
    held-out replay before/after, a Markdown report with figures (:mod:`.report`) and

@@ -247,7 +247,11 @@ def write_report(
         " times, cannot pass a test across windows). A runner-up (the next significant candidate, or one"
         " that improves the held-out drive more than the winner and lowers the training BIC without passing"
         " the window test) not worse than the winner at p < "
-        f"{opts.tie_alpha:g} is reported as a tie. Second effect by forward selection under the same rules.",
+        f"{opts.tie_alpha:g} is reported as a tie. Second effect by forward selection under the same rules."
+        " Named with confidence only if the chosen effects make no held-out signal they leave"
+        " above its floor worse (per-window mean squares, one-sided Wilcoxon at p <"
+        f" {opts.alpha:g}): an effect that trades one signal for another stands in for"
+        " something outside the catalogue.",
         f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay, {result['seconds']:.0f} s in all.",
         "",
         "## Where the disagreement is (current model)",
