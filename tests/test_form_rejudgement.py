@@ -66,7 +66,11 @@ def _judge(root: Path, generator: Any, effects: dict[str, dict[str, float]]) -> 
         ranked.append(s)
     ranked.sort(key=lambda s: -s.gain)
     opts = Options(progress=False, workers=1)
-    return form_rejudgement(ev, ev0, ranked[0], ranked, [CONDITIONAL], noise, opts, lambda m: None)
+    winner = ranked[0]
+    before = (winner.fit.ci_lo.copy(), winner.fit.ci_hi.copy())
+    verdict = form_rejudgement(ev, ev0, winner, ranked, [CONDITIONAL], noise, opts, lambda m: None)
+    verdict["_winner"], verdict["_before"] = winner, before
+    return verdict
 
 
 def test_a_form_that_absorbed_a_delay_is_reverted(tmp_path: Path) -> None:
@@ -84,3 +88,15 @@ def test_a_form_that_is_the_truth_is_kept(tmp_path: Path) -> None:
     verdict = _judge(tmp_path, make_foreign_logs, {"command_lag": {"tau": 0.15}})
     assert not verdict["revert"], verdict["text"]
     assert verdict["with_forms"]["d_bic"] < 0 and np.isfinite(verdict["with_forms"]["d_bic"])
+    # Kept, the winner's interval is joined with its own fit under the nominal form (here
+    # 0.1467 [0.1423, 0.1533]; under the adopted form [0.1423, 0.1503]).
+    w = verdict["_winner"].fit
+    lo0, hi0 = verdict["_before"]
+    name = next(iter(w.physical()[w.name]))
+    x_nom, lo_nom, hi_nom = verdict["nominal"][w.name]["params"][w.name][name]
+    assert w.ci_lo[0] <= min(x_nom, lo_nom) and w.ci_hi[0] >= max(x_nom, hi_nom), (
+        (x_nom, lo_nom, hi_nom),
+        (w.ci_lo, w.ci_hi),
+    )
+    assert w.ci_lo[0] <= lo0[0] and w.ci_hi[0] >= hi0[0]
+    assert w.form_pad == (lo0[0] - w.ci_lo[0], w.ci_hi[0] - hi0[0])

@@ -58,6 +58,7 @@ from rover_env.calibration.fit import (
     carry_form_pad,
     fit,
     information_criteria,
+    join_form_interval,
     noise_threshold,
     widen_by_groups,
 )
@@ -619,6 +620,8 @@ def form_rejudgement(
     form. The forms are reverted (``revert``) only when a nominal-form fit has the lower
     BIC and also passes the held-out window test against the nominal model; the reason is in
     ``text``. Nothing is named here: a reverted diagnosis judges every candidate again.
+    When the forms are kept, the winner's interval is joined with its own fit's under the
+    nominal form (:func:`rover_env.calibration.fit.join_form_interval`).
     """
     pool = [s for s in ranked if s.significant][: opts.rejudge_form]
     if winner not in pool:
@@ -660,6 +663,14 @@ def form_rejudgement(
         text += f"; {best.fit.name} under the nominal form: dBIC {best.d_bic:+.1f}"
     else:
         text += "; no candidate passes the held-out test under the nominal form"
+    same = next((s for s in nominal if s.fit.name == winner.fit.name), None)
+    if not revert and same is not None:
+        # The forms kept: the winner is known no better than both forms allow.
+        join_form_interval(winner.fit, same.fit)
+        text += (
+            f"; {winner.fit.name}'s interval joined with its fit under the nominal form"
+            f" ({_fmt_phys(same.fit)})"
+        )
     return {
         "revert": bool(revert),
         "text": text,
