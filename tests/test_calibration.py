@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -246,6 +247,41 @@ def test_a_heavier_rover_is_not_named_friction_with_confidence(tmp_path: Path) -
                       duration=36.0, progress=False)  # fmt: skip
     result = diagnose([str(p) for p in paths], tmp_path / "fric_out", opts)
     assert result["named"] == ["friction"] and result["not_named"] is None, result
+
+
+def test_a_pair_that_trades_keeps_its_winner_if_the_winner_alone_does_not() -> None:
+    """The trade test on a named pair: the partner is dropped when the winner alone trades
+    nothing; when the winner trades too, the pair is returned as it is (left unnamed by the
+    caller); a single winner is never split."""
+    from types import SimpleNamespace
+
+    from rover_env.calibration.diagnose import settle_trades
+
+    def sc(name: str) -> Any:
+        return SimpleNamespace(fit=SimpleNamespace(name=name))
+
+    win, pair = sc("command_lag"), sc("command_lag + friction")
+    bad = {"theta_4": {"rms_ratio": 1.2, "p": 1e-4, "windows": 12}}
+    floor = {"theta_4": 1.0}
+
+    def trades_pair_only(ch: list) -> tuple[dict, dict]:
+        return (bad if ch == [pair] else {}), floor
+
+    chosen, worse, dropped, _ = settle_trades([pair], win, trades_pair_only)
+    assert (
+        chosen == [win]
+        and worse == {}
+        and dropped
+        == {
+            "effects": "command_lag + friction",
+            "worse": bad,
+        }
+    )
+    chosen, worse, dropped, _ = settle_trades([pair], win, lambda ch: (bad, floor))
+    assert chosen == [pair] and worse == bad and dropped is None
+    chosen, worse, dropped, _ = settle_trades([win], win, lambda ch: (bad, floor))
+    assert chosen == [win] and worse == bad and dropped is None
+    assert settle_trades([], None, lambda ch: (bad, floor)) == ([], {}, None, None)
 
 
 def test_a_tied_runner_up_is_still_tried_as_the_second_effect(tmp_path: Path) -> None:

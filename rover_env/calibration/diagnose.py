@@ -471,18 +471,30 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
     # heavier was named "friction +15 %" in every matrix, theta_4 worse by 8-22 %, p<0.002).
     final_floor = noise
     traded: dict[str, Any] | None = None
+    dropped: dict[str, Any] | None = None
     demoted: list[Scored] = []
-    if chosen:
-        held_c = ev.run(merge(*(s.fit.ext for s in chosen)), "held")
-        if chosen == [winner]:
-            final_floor = w_floor
+
+    def trades(ch: list[Scored]) -> tuple[dict[str, dict[str, float]], dict[str, float]]:
+        """The signals ``ch`` trades (:func:`traded_signals`) and its model's floor."""
+        held_c = ev.run(merge(*(s.fit.ext for s in ch)), "held")
+        if ch == [winner]:
+            floor = w_floor
         else:
             ff = replay_floor(
-                ev.config(merge(*(s.fit.ext for s in chosen))), prepared, held_w, sensor_noise, st
+                ev.config(merge(*(s.fit.ext for s in ch))), prepared, held_w, sensor_noise, st
             )
-            final_floor = {k: max(v, noise[k]) for k, v in ff.items()}
-        left_c = _unexplained(rs.table(rs.stack(held_c, prepared), final_floor), final_floor)
-        worse = traded_signals(base_held, held_c, left_c, opts.alpha)
+            floor = {k: max(v, noise[k]) for k, v in ff.items()}
+        left_c = _unexplained(rs.table(rs.stack(held_c, prepared), floor), floor)
+        return traded_signals(base_held, held_c, left_c, opts.alpha), floor
+
+    chosen, worse, dropped, floor_c = settle_trades(chosen, winner, trades)
+    if dropped is not None:
+        say(
+            f"{dropped['effects']} makes {', '.join(dropped['worse'])} worse;"
+            f" {winner.fit.name if winner else ''} alone does not: the second effect is dropped"
+        )
+    if chosen:
+        final_floor = floor_c if floor_c is not None else noise
         if worse:
             names = [c.name for s in chosen for c in s.fit.candidates]
             traded = {
@@ -568,6 +580,7 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
         "unexplained": _unexplained(table_held_after, final_floor),
         "evidence": evidence,
         "not_named": traded,
+        "second_dropped": dropped,
         "model_form": None if not opts.model_form else {f.name: f.as_json() for f in forms},
         "model_form_reverted": opts.forms_reverted,
     }
@@ -908,6 +921,26 @@ def _noise_test(ref_left: list[str], new_left: list[str]) -> list[str]:
     if any(s not in ref_left for s in new_left):
         return []
     return [s for s in ref_left if s not in new_left]
+
+
+def settle_trades(
+    chosen: list[Scored],
+    winner: Scored | None,
+    trades: Callable[[list[Scored]], tuple[dict[str, Any], dict[str, float]]],
+) -> tuple[list[Scored], dict[str, Any], dict[str, Any] | None, dict[str, float] | None]:
+    """The effects to name after the trade test: (chosen, what they trade, the second effect
+    dropped, their model's floor). ``trades(ch)`` gives the signals ``ch`` trades
+    (:func:`traded_signals`) and its floor. A pair that trades while its winner alone does
+    not loses the partner: the partner, not the winner, stood in for something outside the
+    catalogue. What still trades is returned for the caller to leave unnamed."""
+    if not chosen:
+        return chosen, {}, None, None
+    worse, floor = trades(chosen)
+    if worse and winner is not None and chosen != [winner]:
+        alone, w_floor = trades([winner])
+        if not alone:
+            return [winner], {}, {"effects": chosen[0].fit.name, "worse": worse}, w_floor
+    return chosen, worse, None, floor
 
 
 def traded_signals(
