@@ -514,7 +514,9 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
             )
             chosen = []
             final_floor = noise
-            tie = None  # nothing is named, so nothing is tied
+            # A tie stays: the drive that separates the two is still the evidence to get
+            # (a 42 ms lag of the second generator, case 9094: the delay won, tied with the
+            # lag, and traded theta_1).
 
     # The named effects' intervals carry the signal groups' disagreement (model form).
     for s in chosen:
