@@ -469,9 +469,7 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
     # signal left above the model's floor that the fit made worse, window by window, is
     # what a catalogue effect standing in for one outside it does (issue 16: a rover 20 %
     # heavier was named "friction +15 %" in every matrix, theta_4 worse by 8-22 %, p<0.002).
-    final_floor = noise
     traded: dict[str, Any] | None = None
-    dropped: dict[str, Any] | None = None
     demoted: list[Scored] = []
 
     def trades(ch: list[Scored]) -> tuple[dict[str, dict[str, float]], dict[str, float]]:
@@ -493,30 +491,28 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
             f"{dropped['effects']} makes {', '.join(dropped['worse'])} worse;"
             f" {winner.fit.name if winner else ''} alone does not: the second effect is dropped"
         )
-    if chosen:
-        final_floor = floor_c if floor_c is not None else noise
-        if worse:
-            names = [c.name for s in chosen for c in s.fit.candidates]
-            traded = {
-                "effects": names,
-                "worse": worse,
-                "fits": {s.fit.name: _fit_dict(s) for s in chosen},
-            }
-            demoted = chosen
-            say(
-                f"not named with confidence: {' + '.join(names)} makes "
-                + ", ".join(
-                    f"{k} worse ({v['rms_ratio']:.2f}x RMS, p {v['p']:.2g})"
-                    for k, v in worse.items()
-                )
-                + ", left above its floor: an effect outside the catalogue may be standing"
-                " behind it"
+    if worse:  # only ever non-empty for a non-empty choice
+        names = [c.name for s in chosen for c in s.fit.candidates]
+        traded = {
+            "effects": names,
+            "worse": worse,
+            "fits": {s.fit.name: _fit_dict(s) for s in chosen},
+        }
+        demoted = chosen
+        say(
+            f"not named with confidence: {' + '.join(names)} makes "
+            + ", ".join(
+                f"{k} worse ({v['rms_ratio']:.2f}x RMS, p {v['p']:.2g})" for k, v in worse.items()
             )
-            chosen = []
-            final_floor = noise
-            # A tie stays: the drive that separates the two is still the evidence to get
-            # (a 42 ms lag of the second generator, case 9094: the delay won, tied with the
-            # lag, and traded theta_1).
+            + ", left above its floor: an effect outside the catalogue may be standing"
+            " behind it"
+        )
+        chosen = []
+        # A tie stays: the drive that separates the two is still the evidence to get (a
+        # 42 ms lag of the second generator, case 9094: the delay won, tied with the lag,
+        # and traded theta_1).
+    # The updated model's own floor (an effect can make the replay itself less exact).
+    final_floor = floor_c if chosen and floor_c is not None else noise
 
     # The named effects' intervals carry the signal groups' disagreement (model form).
     for s in chosen:
@@ -541,8 +537,6 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
     arrays.update({f"after_{k}": v for k, v in replay_after.items()})
     np.savez(out / "replay_heldout.npz", **arrays)
     held_final = ev.run(merge(*(s.fit.ext for s in chosen)) if chosen else {}, "held")
-    # final_floor (5a): the updated model's own floor (an effect can make the replay itself
-    # less exact).
     table_held_after = rs.table(rs.stack(held_final, prepared), final_floor)
     main_sig = max(SIGNALS, key=lambda s: np.nan_to_num(table_held_before[s]["all"].ratio))
     rb, ra = table_held_before[main_sig]["all"].rms, table_held_after[main_sig]["all"].rms
