@@ -249,6 +249,35 @@ def test_a_heavier_rover_is_not_named_friction_with_confidence(tmp_path: Path) -
     assert result["named"] == ["friction"] and result["not_named"] is None, result
 
 
+def test_a_partner_the_winner_hides_is_found_beside_it(tmp_path: Path) -> None:
+    """Forward selection searches every other effect blind with the winner held at its fit:
+    a load-dependent friction that alone fits the drives no better than nothing (held-out
+    worse, not significant) is found beside the rolling resistance, both named, intervals
+    covering (issue 16: pairs named one effect in 4 of 5 matrices; the partners were those
+    that had improved the held-out drive alone)."""
+    truth = {"rolling_resistance": {"c_rr": 0.05}, "load_dependent_friction": {"fall": 0.15}}
+    paths = make_logs(tmp_path / "logs", truth, drives=2, seed=43, duration=36.0,
+                      progress=False)  # fmt: skip
+    opts = Options(
+        candidates=["rolling_resistance", "load_dependent_friction", "friction"],
+        progress=False,
+        max_nfev=3,
+    )
+    result = diagnose([str(p) for p in paths], tmp_path / "out", opts)
+    assert not result["fits"]["load_dependent_friction"]["significant"]
+    assert (
+        result["fits"]["load_dependent_friction"]["held_gain"]
+        < 0.1
+        < (result["partners"]["load_dependent_friction"]["held_gain"])
+    )
+    assert result["named"] == ["rolling_resistance", "load_dependent_friction"], result["named"]
+    (pair,) = result["final"].values()
+    for name, eff in truth.items():
+        ((param, v),) = eff.items()
+        _, lo, hi = pair["params"][name][param]
+        assert lo <= v <= hi, (name, lo, v, hi)
+
+
 def test_a_pair_that_trades_keeps_its_winner_if_the_winner_alone_does_not() -> None:
     """The trade test on a named pair: the partner is dropped when the winner alone trades
     nothing; when the winner trades too, the pair is returned as it is (left unnamed by the

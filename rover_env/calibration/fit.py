@@ -504,6 +504,34 @@ def join_form_interval(f: Fit, other: Fit) -> None:
         i += n
 
 
+def stack_fits(held: Fit, added: Fit) -> Fit:
+    """One fit of ``held``'s and ``added``'s candidates, ``added`` fitted with ``held`` held
+    at its values (``fit(..., hold=held.ext)``): forward selection stage by stage. Each
+    keeps its own interval (already widened for its forms, so nothing is carried); the cost
+    and replays are ``added``'s (its ``ext`` has both)."""
+
+    def sides(f: Fit) -> tuple[str, ...]:
+        n = int(f.x.size)
+        return f.sided if len(f.sided) == n else ("",) * n
+
+    both = Fit(
+        [*held.candidates, *added.candidates],
+        np.concatenate([held.x, added.x]),
+        np.concatenate([held.ci_lo, added.ci_lo]),
+        np.concatenate([held.ci_hi, added.ci_hi]),
+        np.concatenate([held.se, added.se]),
+        added.cost,
+        added.nfev,
+        added.ext,
+        added.seconds,
+        added.which,
+        sided=sides(held) + sides(added),
+        method=added.method,
+        tq=max(held.tq, added.tq),
+    )
+    return both
+
+
 def carry_form_pad(f: Fit, singles: list[Fit]) -> None:
     """Widen ``f``'s interval of each variable of a candidate whose single fit (one of
     ``singles``) was widened for a form (its own soil form, or the model's forms:
@@ -572,16 +600,21 @@ def fit(
     x_start: Array | None = None,
     max_nfev: int = 6,
     probe: bool = True,
+    hold: Extensions | None = None,
 ) -> Fit:
-    """Bounded least squares of the candidates' variables on window set ``which``."""
+    """Bounded least squares of the candidates' variables on window set ``which``.
+
+    ``hold``: effects kept as they are beside the candidates (an effect already chosen); the
+    fit's ``ext`` includes them, its variables do not."""
     t0 = time.perf_counter()
+    held = hold or {}
     if all(c.discrete for c in cands):
-        ext = _to_ext(cands, np.zeros(0))
+        ext = merge(held, _to_ext(cands, np.zeros(0)))
         r = ev.vector(ext, which)
         z = np.zeros(0)
         return Fit(cands, z, z, z, z, float(r @ r), 1, ext, time.perf_counter() - t0, which)
     free = [c for c in cands if not c.discrete]
-    fixed = merge(*[c.to_ext(np.zeros(0)) for c in cands if c.discrete])
+    fixed = merge(held, *[c.to_ext(np.zeros(0)) for c in cands if c.discrete])
     lo = np.concatenate([c.lo for c in free])
     hi = np.concatenate([c.hi for c in free])
     x0 = np.concatenate([c.off for c in free]) if x_start is None else np.array(x_start)
