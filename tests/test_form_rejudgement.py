@@ -16,8 +16,15 @@ import numpy as np
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue
-from rover_env.calibration.diagnose import Options, Scored, _gain, _p_improved, form_rejudgement
-from rover_env.calibration.fit import Evaluator, fit
+from rover_env.calibration.diagnose import (
+    Options,
+    Scored,
+    _gain,
+    _p_improved,
+    form_rejudgement,
+    join_if_seen,
+)
+from rover_env.calibration.fit import Evaluator, Fit, fit
 from rover_env.calibration.foreign_logs import make_foreign_logs
 from rover_env.calibration.make_logs import make_logs
 from rover_env.calibration.model_form import FormFit, reprepare, with_anti_windup
@@ -92,6 +99,7 @@ def test_a_form_that_is_the_truth_is_kept(tmp_path: Path) -> None:
     # 0.1467 [0.1423, 0.1533]; under the adopted form [0.1423, 0.1503]).
     w = verdict["_winner"].fit
     lo0, hi0 = verdict["_before"]
+    assert verdict["nominal"][w.name]["significant"]  # seen under the nominal form: joined
     name = next(iter(w.physical()[w.name]))
     x_nom, lo_nom, hi_nom = verdict["nominal"][w.name]["params"][w.name][name]
     assert w.ci_lo[0] <= min(x_nom, lo_nom) and w.ci_hi[0] >= max(x_nom, hi_nom), (
@@ -100,3 +108,24 @@ def test_a_form_that_is_the_truth_is_kept(tmp_path: Path) -> None:
     )
     assert w.ci_lo[0] <= lo0[0] and w.ci_hi[0] >= hi0[0]
     assert w.form_pad == (lo0[0] - w.ci_lo[0], w.ci_hi[0] - hi0[0])
+
+
+def test_a_nominal_refit_that_sees_nothing_is_not_joined() -> None:
+    """The join needs the nominal form to see the effect: a refit failing the held-out test
+    spans "off" and would make a named interval reach it (second generator 14113)."""
+    (c,) = catalogue(["torque_limit"])
+
+    def mk(x: float, lo: float, hi: float) -> Fit:
+        a = np.array
+        return Fit([c], a([x]), a([lo]), a([hi]), a([(hi - lo) / 3.92]), 1.0, 1, {}, 0.0, "train")
+
+    def scored(f: Fit, significant: bool) -> Scored:
+        s = Scored(f, 1.0, np.ones(3), 0.5, 0.001, -5.0, -5.0, 3)
+        s.significant = significant
+        return s
+
+    named = mk(-0.244, -0.283, -0.201)
+    assert not join_if_seen(named, scored(mk(0.040, -0.152, 1.0), False))
+    assert (named.ci_lo[0], named.ci_hi[0]) == (-0.283, -0.201)
+    assert join_if_seen(named, scored(mk(-0.22, -0.25, -0.19), True))
+    assert (named.ci_lo[0], named.ci_hi[0]) == (-0.283, -0.19)

@@ -700,7 +700,8 @@ def form_rejudgement(
     BIC and also passes the held-out window test against the nominal model; the reason is in
     ``text``. Nothing is named here: a reverted diagnosis judges every candidate again.
     When the forms are kept, the winner's interval is joined with its own fit's under the
-    nominal form (:func:`rover_env.calibration.fit.join_form_interval`).
+    nominal form (:func:`rover_env.calibration.fit.join_form_interval`) if that fit passes
+    the held-out test there.
     """
     pool = [s for s in ranked if s.significant][: opts.rejudge_form]
     if winner not in pool:
@@ -743,9 +744,7 @@ def form_rejudgement(
     else:
         text += "; no candidate passes the held-out test under the nominal form"
     same = next((s for s in nominal if s.fit.name == winner.fit.name), None)
-    if not revert and same is not None:
-        # The forms kept: the winner is known no better than both forms allow.
-        join_form_interval(winner.fit, same.fit)
+    if not revert and same is not None and join_if_seen(winner.fit, same):
         text += (
             f"; {winner.fit.name}'s interval joined with its fit under the nominal form"
             f" ({_fmt_phys(same.fit)})"
@@ -758,6 +757,20 @@ def form_rejudgement(
         "nominal": {s.fit.name: {**_fit_dict(s), "d_bic_vs_nominal": s.d_bic} for s in nominal},
         "windows": which,
     }
+
+
+def join_if_seen(f: Fit, nominal: Scored) -> bool:
+    """Join ``f``'s interval with ``nominal``'s (the same effect refitted under the nominal
+    model form: :func:`rover_env.calibration.fit.join_form_interval`) if the nominal form
+    sees the effect at all (its refit passes the held-out test); whether it joined.
+
+    A refit that fails the test measures nothing, and its interval, spanning "off", would be
+    joined after the winner was judged clear of off (second generator 14113: torque limit
+    -0.244 [-0.283, -0.201]; under the nominal form 0.040 [-0.152, 1]; joined [-0.283, 1])."""
+    if not nominal.significant:
+        return False
+    join_form_interval(f, nominal.fit)
+    return True
 
 
 def missing_evidence(
