@@ -104,8 +104,8 @@ class Options:
     """Numpy-only candidates are fitted on every n-th training window (they are ~20x slower)."""
     max_nfev: int = 4
     second: int = 4
-    """Partners refitted jointly with the winner in forward selection (those that improve the
-    held-out drive most beside it)."""
+    """Partners judged as pairs with the winner in forward selection: those that improve the
+    held-out drive most beside it (``blind_partners``), or alone (otherwise)."""
     blind_partners: bool = True
     """Forward selection: every other candidate's magnitude-blind search with the winner held
     at its fit chooses the partners (False: the candidates that improved held-out alone,
@@ -700,8 +700,8 @@ def form_rejudgement(
     BIC and also passes the held-out window test against the nominal model; the reason is in
     ``text``. Nothing is named here: a reverted diagnosis judges every candidate again.
     When the forms are kept, the winner's interval is joined with its own fit's under the
-    nominal form (:func:`rover_env.calibration.fit.join_form_interval`) if that fit passes
-    the held-out test there.
+    nominal form (:func:`rover_env.calibration.fit.join_form_interval`) if that fit's
+    interval keeps clear of "off" (:func:`join_if_seen`).
     """
     pool = [s for s in ranked if s.significant][: opts.rejudge_form]
     if winner not in pool:
