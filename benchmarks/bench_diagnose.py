@@ -396,6 +396,14 @@ def _acceptance(rows: list[dict[str, Any]], gen: str) -> list[str]:
         for r in g
         if r["kind"] == "pair" and all(_above(r, e) for e in r["truth"])
     ]
+    # Each effect of a pair named, its 95 % interval (from the pair's fit) against the truth.
+    pair_cov = [
+        _covers(r["fits"][e])
+        for r in g
+        if r["kind"] == "pair"
+        for e in r["truth"]
+        if e in r["named"] and e in r["fits"]
+    ]
     outside = [not r["named"] and bool(r["unexplained"]) for r in g if r["kind"] == "outside"]
     secs = [r["diagnose_s"] + r["followup_s"] for r in g]
     logs_s = [r["make_logs_s"] for r in g]
@@ -408,7 +416,8 @@ def _acceptance(rows: list[dict[str, Any]], gen: str) -> list[str]:
         f"- Single effect: another effect named besides or instead {share(wrong)}",
         f"- Clean: nothing named {share(clean)}",
         f"- Pairs: both named {share(pairs)}; of those whose effects are both ≥ 2 × their"
-        f" threshold {share(pairs_above)}",
+        f" threshold {share(pairs_above)}; named effects' 95 % intervals covering the truth"
+        f" {share(pair_cov)}",
         "- Outside the catalogue (passes only when nothing is named and a gap is reported):"
         f" {share(outside)}",
         f"- Seconds per case: diagnose {np.mean(secs) if secs else float('nan'):.0f} s"
