@@ -27,6 +27,7 @@ from rover_env.calibration.fit import (
     bootstrap_interval,
     bootstrap_over_forms,
     fit,
+    stack_fits,
 )
 from rover_env.calibration.make_logs import make_logs
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
@@ -327,3 +328,32 @@ def test_a_candidates_form_is_fixed_counted_and_recovered_from_its_extensions() 
     # "Off" (hard ground) is one model whatever the soil's form: the same extensions.
     offs = {json.dumps(soil.with_form(f).to_ext(np.array([0.0])), sort_keys=True) for f in labels}
     assert offs == {json.dumps({"loose_soil": {"k_phi": 0.0}})}
+
+
+def test_a_fit_beside_a_held_effect_replays_with_it(lag_logs: list[Path]) -> None:
+    """``fit(..., hold=)``: forward selection's second stage fits a partner with the winner
+    in every replay; the fit's ext carries both, its variables only the partner's."""
+    ev = _evaluator(lag_logs)
+    held = _fit_of("friction", 0.2, 0.15, 0.25)
+    lag = catalogue(["command_lag"])
+    beside = fit(ev, lag, "train", max_nfev=1, hold=held.ext)
+    alone = fit(ev, lag, "train", max_nfev=1)
+    assert set(held.ext) < set(beside.ext) and not set(held.ext) & set(alone.ext)
+    assert beside.x.size == 1 and beside.candidates == lag
+    r = ev.vector(beside.ext, "train")
+    assert beside.cost == pytest.approx(float(r @ r))
+    assert beside.cost != pytest.approx(alone.cost)  # the held friction is in the replays
+
+
+def test_a_stacked_fit_keeps_each_effects_own_interval() -> None:
+    """A pair from forward selection: the winner's fit and its partner's (fitted beside it),
+    each with its own interval and side, the partner's ext (which holds both)."""
+    winner = _fit_of("command_lag", 0.09, 0.077, 0.103)
+    partner = _fit_of("command_delay", 0.0016, 0.0, 0.0033, "upper")
+    partner.ext = {**winner.ext, **partner.ext}
+    both = stack_fits(winner, partner)
+    assert both.name == "command_lag + command_delay"
+    assert list(both.x) == [0.09, 0.0016] and list(both.ci_hi) == [0.103, 0.0033]
+    assert both.sided == ("", "upper") and both.ext == partner.ext
+    assert interval_reaches_off(both, {"command_delay"}) == ["command_delay.delay"]
+    assert interval_reaches_off(both, {"command_lag"}) == []
