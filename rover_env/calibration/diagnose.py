@@ -430,14 +430,13 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
     if winner is not None and left:
         say(f"still above noise after {winner.fit.name}: {', '.join(left)}; forward selection")
         w_cands = winner.fit.candidates
-        w_names0 = {c.name for c in w_cands}
         if opts.blind_partners:
             # Each other effect's own magnitude-blind search with the winner held at its
             # fit (forward selection proper): an effect the winner hides, or one that alone
             # fits the drives worse than nothing, shows here (issue 16, stop 35: rolling
             # resistance 0.052 + load-dependent friction 0.108, the latter alone p = 1; a
             # soil + 2.2 deg slope, the slope alone fitted at heading -4 deg, truth 131).
-            pool = [c for c in cands if c.name not in w_names0]
+            pool = [c for c in cands if c.name not in {w.name for w in w_cands}]
             # Stage two weighs the training signals as stage one did, with the winner as the
             # reference: each by its residual after the winner (or its floor). Weighed by
             # the residuals before it, the signals the winner fixed still set the scale, and

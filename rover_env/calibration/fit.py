@@ -514,7 +514,7 @@ def stack_fits(held: Fit, added: Fit) -> Fit:
         n = int(f.x.size)
         return f.sided if len(f.sided) == n else ("",) * n
 
-    both = Fit(
+    return Fit(
         [*held.candidates, *added.candidates],
         np.concatenate([held.x, added.x]),
         np.concatenate([held.ci_lo, added.ci_lo]),
@@ -529,7 +529,6 @@ def stack_fits(held: Fit, added: Fit) -> Fit:
         method=added.method,
         tq=max(held.tq, added.tq),
     )
-    return both
 
 
 def carry_form_pad(f: Fit, singles: list[Fit]) -> None:
