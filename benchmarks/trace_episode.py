@@ -3,6 +3,9 @@
 python benchmarks/trace_episode.py ppo:agents/mobility-ppo-rr-ft-patch 1052 --scenario soft-patch
 
 Used to see what a controller does where it stalls (docs/benchmark-agents-mobility, stop 27).
+``--spread`` adds a PPO or SAC policy's action mean and standard deviation (is it held at the
+clip bound?); ``--scale-after T:S`` multiplies the controller's targets by S from T seconds
+on and prints the energy spent from then (what easing off in a stall would save; stop 36).
 The seed is kept in its split like every entry point (a test seed is refused: tracing is
 looking).
 """
@@ -26,7 +29,19 @@ def main() -> int:
     ap.add_argument("seed", type=int, help="episode seed (tuning or validation split)")
     ap.add_argument("--scenario", default="soft-patch")
     ap.add_argument("--every", type=float, default=1.0, help="seconds between lines (1)")
+    ap.add_argument("--spread", action="store_true", help="print the policy's mean and std")
+    ap.add_argument("--scale-after", default=None, metavar="T:S",
+                    help="targets x S from T seconds on (e.g. 7:0.5)")  # fmt: skip
     args = ap.parse_args()
+    t_scale, scale = 0.0, 1.0
+    if args.scale_after is not None:
+        try:
+            t_text, s_text = args.scale_after.split(":")
+            t_scale, scale = float(t_text), float(s_text)
+        except ValueError:
+            print(f"error: --scale-after {args.scale_after!r}: expected T:S, e.g. 7:0.5",
+                  file=sys.stderr)  # fmt: skip
+            return 2
     if split_of(args.seed) == "test":
         print(
             f"error: seed {args.seed} is a test seed; trace tuning or validation seeds",
@@ -43,22 +58,45 @@ def main() -> int:
     dt = w.base.control_dt
     every = max(1, round(args.every / dt))
     vmax = w.base.sim.cfg.motor.max_wheel_speed
-    k, energy = 0, 0.0
+    spread = getattr(ctrl, "spread", None) if args.spread else None
+    if args.spread and spread is None:
+        print(f"error: --spread needs a ppo: or sac: controller, not {args.controller}",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    k, energy, energy_after = 0, 0.0, 0.0
     print(
         "t [s]  path [m]  targets 1L 1R 2L 2R [rad/s]   slip 1L 1R 2L 2R   sinkage [mm]  energy [J]"
+        + ("   policy mean (std)" if spread else "")
     )
     while True:
-        a = ctrl.action(w.base, obs)
+        stats = spread(obs) if spread else None
+        a = np.asarray(ctrl.action(w.base, obs), dtype=np.float32)
+        late = args.scale_after is not None and k * dt >= t_scale
+        if late:
+            a = a * np.float32(scale)
         obs, _, term, trunc, info = w.step(a)
         k += 1
         energy += float(info["energy"])
+        energy_after += float(info["energy"]) if late else 0.0
         if k % every == 0 or term or trunc:
             path = float(np.linalg.norm(np.asarray(info["position"])[:2] - x0))
             tg = " ".join(f"{v:5.2f}" for v in np.asarray(a, dtype=float)[:4] * vmax)
             sl = " ".join(f"{v:5.2f}" for v in np.asarray(info["slip_true"], dtype=float))
             sink = 1000 * float(np.mean(info["wheel_sinkage"]))
-            print(f"{k * dt:5.1f}  {path:8.2f}  {tg}   {sl}   {sink:6.1f}  {energy:8.1f}")
+            line = f"{k * dt:5.1f}  {path:8.2f}  {tg}   {sl}   {sink:6.1f}  {energy:8.1f}"
+            if stats is not None:
+                mean, std = stats
+                line += (
+                    "   " + " ".join(f"{v:+5.2f}" for v in mean) + f" ({float(np.mean(std)):.2f})"
+                )
+            print(line)
         if term or trunc:
+            if args.scale_after is not None:
+                span = max(k * dt - t_scale, dt)
+                print(
+                    f"from {t_scale:g} s on, targets x {scale:g}: {energy_after:.1f} J over"
+                    f" {span:.1f} s ({energy_after / span:.2f} W)"
+                )
             return 0
 
 

@@ -429,3 +429,22 @@ def test_widen_residual_keeps_the_agents_actions_and_noise(tmp_path: Path) -> No
         widen_residual(src, 1.0, out)
     with pytest.raises(ConfigError, match="new_scale"):
         widen_residual(src, 3.0, tmp_path / "w3")
+
+
+def test_spread_is_the_mean_the_deterministic_action_clips() -> None:
+    """``spread`` reads the policy's own mean and noise: where the mean is inside [-1, 1] it is
+    the deterministic action; beyond, the action is the bound (what a saturated policy does)."""
+    ctrl = make_controller(f"ppo:{REPO / 'agents' / 'mobility-ppo-rr-ft-patch'}")
+    obs = np.random.default_rng(1).normal(size=(64, 46)).astype(np.float32) * 20.0
+    n_in = n_out = 0
+    for o in obs:
+        stats = ctrl.spread(o)
+        assert stats is not None
+        mean, std = stats
+        o_n = np.asarray(ctrl.normalizer.normalize_obs(o), dtype=np.float32)
+        act, _ = ctrl.model.predict(o_n, deterministic=True)
+        np.testing.assert_allclose(np.clip(mean, -1, 1), act, rtol=1e-5, atol=1e-6)
+        assert np.all(std > 0)
+        n_in += int(np.sum(np.abs(mean) < 1))
+        n_out += int(np.sum(np.abs(mean) > 1))
+    assert n_in > 0 and n_out > 0  # both cases were exercised

@@ -146,6 +146,31 @@ class SB3Controller:
             a = self.residual(a, env, np.asarray(obs, dtype=np.float32))
         return a
 
+    def spread(self, obs: Obs) -> tuple[Obs, Obs] | None:
+        """The policy's action mean and standard deviation in its own units (a residual
+        before its base is added; PPO: before clipping, SAC: before its tanh); None for a
+        policy without a Gaussian head (TD3). Why: to tell a policy held at the clip bound, where exploring
+        no longer changes the action, from one that chooses its action (issue 18)."""
+        import torch
+
+        o = np.asarray(obs, dtype=np.float32)
+        if self.normalizer is not None:
+            o = np.asarray(self.normalizer.normalize_obs(o), dtype=np.float32)
+        t = torch.as_tensor(o[None])
+        with torch.no_grad():
+            if self.algo == "ppo":
+                dist = self.model.policy.get_distribution(t).distribution
+                mean, std = dist.mean, dist.stddev
+            elif self.algo == "sac":
+                mean, log_std, _ = self.model.policy.actor.get_action_dist_params(t)
+                std = log_std.exp()
+            else:
+                return None
+        return (
+            np.asarray(mean.numpy()[0], dtype=np.float32),
+            np.asarray(std.numpy()[0], dtype=np.float32),
+        )
+
 
 class PPOController(SB3Controller):
     """The ``ppo:PATH`` controller (:class:`SB3Controller` of a PPO model)."""
