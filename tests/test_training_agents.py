@@ -425,6 +425,14 @@ def test_widen_residual_keeps_the_agents_actions_and_noise(tmp_path: Path) -> No
     std_old = old.policy.log_std.exp().detach().numpy()
     std_new = new.policy.log_std.exp().detach().numpy()
     np.testing.assert_allclose(1.0 * std_new, 0.5 * std_old, rtol=1e-6)
+    noisy = widen_residual(src, 1.0, tmp_path / "noisy", noise_factor=4.0)
+    m_noisy = PPO.load(str(noisy / "model.zip"), device="cpu")
+    mean_noisy = m_noisy.policy.get_distribution(m_noisy.policy.obs_to_tensor(obs)[0])
+    np.testing.assert_allclose(mean_noisy.distribution.mean.detach().numpy(), m_new, rtol=1e-6)
+    std_noisy = m_noisy.policy.log_std.exp().detach().numpy()
+    np.testing.assert_allclose(std_noisy, 4.0 * std_new, rtol=1e-5)
+    with pytest.raises(ConfigError, match="noise_factor"):
+        widen_residual(src, 1.0, tmp_path / "w0", noise_factor=0.0)
     with pytest.raises(ConfigError, match="already exists"):
         widen_residual(src, 1.0, out)
     with pytest.raises(ConfigError, match="new_scale"):

@@ -11,7 +11,10 @@ Gaussian policy is rescaled by ``k = old / new``: the mean's output layer (``act
 times k and ``log_std`` plus ln k. Its env actions are then the old agent's wherever the old
 mean lay inside [-1, 1], and the exploration noise in rad/s is unchanged; only where the old
 mean was clipped does the new one reach further. A fine-tune (``--init-from``) of the copy
-starts from the same driving with the wider range open.
+starts from the same driving with the wider range open. ``noise_factor`` f > 1 also widens
+the exploration (``log_std`` plus ln f): the deterministic actions stay the old agent's, the
+fine-tune explores f times further (issue 18, stop 36: a stalled agent explored ±0.24 rad/s
+where stopping is a 4 rad/s move).
 
 PPO only: SAC and TD3 squash their actions with tanh, which no linear rescaling preserves.
 """
@@ -32,9 +35,12 @@ from rover_env.config import ConfigError
 __all__ = ["widen_residual"]
 
 
-def widen_residual(agent: str | Path, new_scale: float, out: str | Path) -> Path:
+def widen_residual(
+    agent: str | Path, new_scale: float, out: str | Path, noise_factor: float = 1.0
+) -> Path:
     """Copy ``agent`` (an agent or run folder: model, observation statistics, ``config.yaml``) to
-    ``out`` with its residual scale ``new_scale`` (module docstring); returns ``out``."""
+    ``out`` with its residual scale ``new_scale`` and its exploration noise times
+    ``noise_factor`` (module docstring); returns ``out``."""
     src, dst = Path(agent), Path(out)
     cfg_file = src / "config.yaml"
     try:
@@ -50,6 +56,8 @@ def widen_residual(agent: str | Path, new_scale: float, out: str | Path) -> Path
         raise ConfigError(f"{cfg_file}: {env_id}.env_kwargs.action_residual is not set")
     if not (isinstance(new_scale, int | float) and 0 < new_scale <= 2):
         raise ConfigError(f"new_scale must be in (0, 2], got {new_scale!r}")
+    if not (isinstance(noise_factor, int | float) and 0 < noise_factor <= 10):
+        raise ConfigError(f"noise_factor must be in (0, 10], got {noise_factor!r}")
     if (src / "command.txt").is_file() and "algo: ppo" not in (src / "command.txt").read_text():
         raise ConfigError(f"{src}: only a PPO agent can be widened (tanh-squashed SAC/TD3 cannot)")
     if dst.exists():
@@ -66,7 +74,7 @@ def widen_residual(agent: str | Path, new_scale: float, out: str | Path) -> Path
     with torch.no_grad():
         sd["action_net.weight"] = sd["action_net.weight"] * k
         sd["action_net.bias"] = sd["action_net.bias"] * k
-        sd["log_std"] = sd["log_std"] + math.log(k)
+        sd["log_std"] = sd["log_std"] + math.log(k) + math.log(noise_factor)
     model.policy.load_state_dict(sd)
 
     dst.mkdir(parents=True)
@@ -76,7 +84,8 @@ def widen_residual(agent: str | Path, new_scale: float, out: str | Path) -> Path
     entry = {**entry, "env_kwargs": kw}
     head = (
         f"# {src} with its residual widened from {old} to {new_scale} of the wheel-speed range\n"
-        f"# (rover_env.training.widen: action_net and log_std rescaled by {k:g})\n"
+        f"# (rover_env.training.widen: action_net and log_std rescaled by {k:g}"
+        + (f", exploration noise x {noise_factor:g})\n" if noise_factor != 1 else ")\n")
     )
     (dst / "config.yaml").write_text(head + yaml.safe_dump({env_id: entry}, sort_keys=False))
     (dst / "widened_from.yaml").write_text(
@@ -86,6 +95,7 @@ def widen_residual(agent: str | Path, new_scale: float, out: str | Path) -> Path
                 "model": model_p.name,
                 "old_scale": float(old),
                 "new_scale": float(new_scale),
+                "noise_factor": float(noise_factor),
             }
         )
     )
