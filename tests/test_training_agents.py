@@ -456,3 +456,65 @@ def test_spread_is_the_mean_the_deterministic_action_clips() -> None:
         n_in += int(np.sum(np.abs(mean) < 1))
         n_out += int(np.sum(np.abs(mean) > 1))
     assert n_in > 0 and n_out > 0  # both cases were exercised
+
+
+def test_stall_clock_counts_slow_seconds_resets_and_caps() -> None:
+    from rover_env.envs.proto_explorer import OBS_NAMES
+    from rover_env.policies.memory import StallClock, stall_clock_from
+
+    clock = StallClock(speed=0.02, cap=1.0)
+    obs = np.zeros(len(OBS_NAMES), dtype=np.float32)
+    i = OBS_NAMES.index("speed_estimate")
+    ts = []
+    for v in (0.1, 0.0, 0.01, -0.019, 0.03, 0.0):
+        obs[i] = v
+        ts.append(clock.update(obs, 0.25))
+    assert ts == [0.0, 0.25, 0.5, 0.75, 0.0, 0.25]
+    for _ in range(10):
+        clock.update(obs, 0.25)
+    assert clock.t == 1.0  # capped
+    assert stall_clock_from(None) is None and stall_clock_from(False) is None
+    assert stall_clock_from({"cap": 5}).cap == 5.0  # type: ignore[union-attr]
+    with pytest.raises(ValueError, match=r"stall_clock: unknown key\(s\) \['sped'\]"):
+        stall_clock_from({"sped": 0.1})
+    with pytest.raises(ValueError, match="speed must be > 0"):
+        stall_clock_from({"speed": 0})
+
+
+def test_an_agent_given_the_stall_clock_acts_as_before_and_the_mix_env_feeds_it(
+    tmp_path: Path,
+) -> None:
+    """The copy with the clock as a zero-weight 47th input drives the benchmark exactly as the
+    agent; the training env appends the same clock the controller computes."""
+    from rover_env.benchmark.mixture import ScenarioMixEnv
+    from rover_env.policies.memory import StallClock
+    from rover_env.training.widen import add_stall_clock
+
+    src = REPO / "agents" / "mobility-ppo-rr-ft-patch"
+    out = add_stall_clock(src, tmp_path / "clock")
+    with pytest.raises(ConfigError, match="already set"):
+        add_stall_clock(out, tmp_path / "again")
+    a, b = make_controller(f"ppo:{src}"), make_controller(f"ppo:{out}")
+    assert b.clock is not None and a.clock is None  # type: ignore[attr-defined]
+    episode = load_scenario("soft-patch").episode(1052)
+    wrapper = ScenarioWrapper(ProtoExplorerEnv(terrain=episode.terrain))
+    wrapper.set_episode(episode)
+    obs, _ = wrapper.reset()
+    a.reset(wrapper.base)
+    b.reset(wrapper.base)
+    for _ in range(40):
+        act_a, act_b = a.action(wrapper.base, obs), b.action(wrapper.base, obs)
+        np.testing.assert_allclose(act_b, act_a, rtol=0, atol=1e-6)
+        obs, *_ = wrapper.step(act_a)
+
+    env = ScenarioMixEnv(scenarios=["soft-patch"], stall_clock={"speed": 0.05, "cap": 3.0})
+    assert env.observation_space.shape == (47,)
+    o, _ = env.reset(seed=100000)
+    mirror = StallClock(0.05, 3.0)
+    assert o.shape == (47,) and o[-1] == 0.0
+    seen = []
+    for _ in range(30):
+        o, *_ = env.step(np.zeros(4, dtype=np.float32))
+        assert o[-1] == pytest.approx(mirror.update(o[:-1], 0.1))
+        seen.append(float(o[-1]))
+    assert max(seen) > 0  # the start from rest is slow

@@ -1,25 +1,41 @@
-"""Copy a residual PPO agent with a wider residual, acting the same (rover_env.training.widen).
+"""Copy a residual PPO agent with a wider residual and/or the stall clock as a new input, acting
+the same (rover_env.training.widen).
 
 python train/widen.py agents/mobility-ppo-rr-ft-patch --scale 1.0 --out agents/mobility-ppo-rr-wide
+python train/widen.py agents/mobility-ppo-rr-ft-patch --scale 1.0 --stall-clock --out runs/x
 """
 
 import argparse
 import sys
+import tempfile
+from pathlib import Path
 
 from rover_env.config import ConfigError
-from rover_env.training.widen import widen_residual
+from rover_env.training.widen import add_stall_clock, widen_residual
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(prog="train/widen.py", description=__doc__)
     ap.add_argument("agent", help="agent or run folder (model, statistics, config.yaml)")
-    ap.add_argument("--scale", type=float, required=True, help="new action_residual, in (0, 2]")
+    ap.add_argument("--scale", type=float, default=None, help="new action_residual, in (0, 2]")
     ap.add_argument("--out", required=True, help="new agent folder (must not exist)")
     ap.add_argument("--noise-factor", type=float, default=1.0,
                     help="exploration noise of the copy x this (1: unchanged)")  # fmt: skip
+    ap.add_argument("--stall-clock", action="store_true",
+                    help="add the stall clock as a 47th input of zero weight")  # fmt: skip
     args = ap.parse_args()
+    if args.scale is None and not args.stall_clock:
+        print("error: give --scale, --stall-clock or both", file=sys.stderr)
+        return 2
     try:
-        print(widen_residual(args.agent, args.scale, args.out, args.noise_factor))
+        if not args.stall_clock:
+            print(widen_residual(args.agent, args.scale, args.out, args.noise_factor))
+            return 0
+        with tempfile.TemporaryDirectory() as tmp:
+            src = args.agent
+            if args.scale is not None:
+                src = widen_residual(args.agent, args.scale, Path(tmp) / "w", args.noise_factor)
+            print(add_stall_clock(src, args.out))
     except (ConfigError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -20,7 +20,8 @@ every reset seed drew a training-block episode, so "validation" was training epi
 episodes of training seeds are unchanged draw for draw, so the id was kept.
 
 The action may be a residual or a gain schedule (``action_residual``, ``action_schedule``;
-:mod:`rover_env.policies.residual`).
+:mod:`rover_env.policies.residual`). ``stall_clock`` appends one observation, the seconds the
+rover has been slow (:mod:`rover_env.policies.memory`).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ import numpy.typing as npt
 
 from rover_env.benchmark.run import ScenarioWrapper
 from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
+from rover_env.policies.memory import StallClock, stall_clock_from
 from rover_env.policies.residual import Residual, Schedule
 from rover_env.seeds import SPLITS
 from rover_env.tasks.mix import DEFAULT_MIX, SOIL_MIX, ScenarioMix
@@ -59,6 +61,9 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         action_schedule: None, or ``{knob: octaves}`` over ``SCHEDULE_KNOBS`` (or
             ``[deadband_octaves, gain_octaves]``): the action is then a gain schedule of the
             ``residual_base`` slip PI (:class:`Schedule`), one value per knob.
+        stall_clock: None/false, true or ``{speed, cap}``: append the seconds since the
+            estimated speed was last >= ``speed`` (:class:`StallClock`) to the observation,
+            which then has 47 values.
         speed_scale: range of the factor on every commanded speed of an episode.
         yaw_scale: range of the factor on every commanded yaw rate (its sign is drawn too).
         **env_kwargs: passed to every scenario's ``ProtoExplorerEnv`` (e.g. reward_weights);
@@ -74,6 +79,7 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         residual_base: str = "open-loop",
         residual_ramp: float = 0.0,
         action_schedule: Sequence[float] | Mapping[str, float] | None = None,
+        stall_clock: bool | Mapping[str, float] | None = None,
         speed_scale: tuple[float, float] = (0.6, 1.3),
         yaw_scale: tuple[float, float] = (0.5, 1.5),
         **env_kwargs: Any,
@@ -90,6 +96,7 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
             self.residual = Schedule(residual_base, action_schedule)
         if self.residual is not None and env_kwargs.get("action_layout", "wheels") != "wheels":
             raise ValueError("action_residual and action_schedule need action_layout='wheels'")
+        self.clock: StallClock | None = stall_clock_from(stall_clock)
         self.names = self.mix.names
         self.p = self.mix.p
         self.env_kwargs = dict(env_kwargs)
@@ -97,6 +104,9 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         first = self._wrapper(self.mix.cfgs[0].episode(SPLITS["training"].start))
         self.rover_cfg = first.base.rover_cfg
         self.observation_space = first.observation_space
+        if self.clock is not None:
+            n = len(OBS_NAMES) + 1
+            self.observation_space = gym.spaces.Box(-np.inf, np.inf, (n,), dtype=np.float32)
         self.action_space = first.action_space
         if isinstance(self.residual, Schedule):
             self.action_space = gym.spaces.Box(
@@ -126,6 +136,9 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         info["seed_split"] = self.mix.split
         info["episode_seed"] = episode.seed
         self._obs = obs
+        if self.clock is not None:
+            self.clock.reset()
+            return self.clock.extend(obs, 0.0), info
         return obs, info
 
     def step(self, action: Obs) -> tuple[Obs, float, bool, bool, dict[str, Any]]:
@@ -134,6 +147,8 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
             a = self.residual(action, self._active.base, self._obs)
         obs, reward, terminated, truncated, info = self._active.step(a)
         self._obs = obs
+        if self.clock is not None:
+            obs = self.clock.extend(obs, self._active.base.control_dt)
         return obs, float(reward), terminated, truncated, info
 
     def close(self) -> None:

@@ -28,7 +28,8 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from rover_env.envs.proto_explorer import ProtoExplorerEnv
+from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
+from rover_env.policies.memory import StallClock, stall_clock_from
 from rover_env.policies.residual import Residual, Schedule
 
 __all__ = ["PPOController", "SB3Controller", "resolve_model_path"]
@@ -100,11 +101,17 @@ class SB3Controller:
                 self.normalizer = pickle.load(fh)  # a VecNormalize without its venv
             self.normalizer.training = False
         self.residual: Residual | Schedule | None = None
+        self.clock: StallClock | None = None
+        self._first = True
         cfg_file = self.model_path.parent / "config.yaml"
         if cfg_file.is_file():
             data = yaml.safe_load(cfg_file.read_text()) or {}
             entry: dict[str, Any] = next(iter(data.values()), {}) or {}
             kw = entry.get("env_kwargs") or {}
+            try:
+                self.clock = stall_clock_from(kw.get("stall_clock"), f"{cfg_file}: stall_clock")
+            except ValueError as exc:
+                raise ValueError(str(exc)) from None
             if kw.get("action_residual") is not None:
                 base = str(kw.get("residual_base", "open-loop"))
                 ramp = float(kw.get("residual_ramp", 0.0))
@@ -125,19 +132,34 @@ class SB3Controller:
         else:
             raise ValueError(f"{self.model_path}: action space {shape}, expected (4,) or (2,)")
         obs_shape = tuple(self.model.observation_space.shape or ())
-        if obs_shape != (46,):
+        want = (len(OBS_NAMES) + (1 if self.clock is not None else 0),)
+        if obs_shape != want:
             raise ValueError(
                 f"{self.model_path}: observation space {obs_shape}; the benchmark feeds the "
-                "plain ProtoExplorerEnv observation (46,)"
+                f"ProtoExplorerEnv observation{' and the stall clock' if self.clock else ''} "
+                f"{want}"
             )
 
     def reset(self, env: ProtoExplorerEnv) -> None:
-        """The MLP is stateless; a residual's base controller is reset."""
+        """The MLP is stateless; a residual's base controller and the stall clock are reset."""
         if self.residual is not None:
             self.residual.reset(env)
+        if self.clock is not None:
+            self.clock.reset()
+        self._first = True
+
+    def _policy_input(self, env: ProtoExplorerEnv | None, obs: Obs) -> Obs:
+        """The observation as the policy was trained on it: with the stall clock advanced
+        (by one control step, 0 on an episode's first) when the run had one."""
+        o = np.asarray(obs, dtype=np.float32)
+        if self.clock is not None:
+            dt = 0.0 if (self._first or env is None) else env.control_dt
+            o = self.clock.extend(o, dt)
+            self._first = False
+        return o
 
     def action(self, env: ProtoExplorerEnv, obs: Obs) -> Obs:
-        o = np.asarray(obs, dtype=np.float32)
+        o = self._policy_input(env, obs)
         if self.normalizer is not None:
             o = np.asarray(self.normalizer.normalize_obs(o), dtype=np.float32)
         act, _ = self.model.predict(o, deterministic=True)
@@ -154,6 +176,8 @@ class SB3Controller:
         import torch
 
         o = np.asarray(obs, dtype=np.float32)
+        if self.clock is not None:  # the clock as action() will see it, left unadvanced
+            o = np.append(o, np.float32(self.clock.t)).astype(np.float32)
         if self.normalizer is not None:
             o = np.asarray(self.normalizer.normalize_obs(o), dtype=np.float32)
         t = torch.as_tensor(o[None])

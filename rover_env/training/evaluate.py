@@ -25,7 +25,7 @@ from rover_env.policies.specs import parse_specs
 
 # env_kwargs that change only the reward, not what the agent sees or how the rover moves.
 # Also the ScenarioMixEnv's training-distribution keys; its action_residual is applied by the
-# agent's controller itself (rover_env.policies.ppo).
+# agent's controller itself (rover_env.policies.ppo), and so is its stall clock.
 _REWARD_ONLY = {
     "reward_weights",
     "slip_source",
@@ -36,6 +36,7 @@ _REWARD_ONLY = {
     "residual_base",
     "residual_ramp",
     "action_schedule",
+    "stall_clock",
 }
 
 

@@ -22,17 +22,19 @@ PPO only: SAC and TD3 squash their actions with tanh, which no linear rescaling 
 from __future__ import annotations
 
 import math
+import pickle
 import shutil
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 import yaml
 from stable_baselines3 import PPO
 
 from rover_env.config import ConfigError
 
-__all__ = ["widen_residual"]
+__all__ = ["add_stall_clock", "widen_residual"]
 
 
 def widen_residual(
@@ -98,5 +100,74 @@ def widen_residual(
                 "noise_factor": float(noise_factor),
             }
         )
+    )
+    return dst
+
+
+def add_stall_clock(agent: str | Path, out: str | Path, spec: Any = True) -> Path:
+    """Copy the PPO ``agent`` to ``out`` with the stall clock (:mod:`rover_env.policies.memory`,
+    ``spec`` as ``env_kwargs.stall_clock``) as a 47th input whose weights are zero, so the copy
+    acts exactly as the agent until a fine-tune (``--init-from``) learns to read the clock.
+    The clock's normalisation starts at mean 0 s, standard deviation 2 s; the optimiser starts
+    afresh (its moments have the old input's shape). Returns ``out``."""
+    from gymnasium import spaces
+
+    from rover_env.policies.memory import stall_clock_from
+    from rover_env.policies.ppo import resolve_model_path
+
+    src, dst = Path(agent), Path(out)
+    cfg_file = src / "config.yaml"
+    try:
+        data = yaml.safe_load(cfg_file.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f"{cfg_file}: cannot read the agent's config: {exc}") from None
+    if not isinstance(data, dict) or len(data) != 1:
+        raise ConfigError(f"{cfg_file}: expected one env id entry")
+    ((env_id, entry),) = data.items()
+    kw: dict[str, Any] = dict(entry.get("env_kwargs") or {})
+    if kw.get("stall_clock"):
+        raise ConfigError(f"{cfg_file}: {env_id}.env_kwargs.stall_clock is already set")
+    try:
+        stall_clock_from(spec)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    if dst.exists():
+        raise ConfigError(f"{dst} already exists")
+    model_p, stats_p = resolve_model_path(src)
+    if stats_p is None:
+        raise ConfigError(f"{src}: no observation statistics beside {model_p.name}")
+    model: Any = PPO.load(str(model_p), device="cpu")
+    n_old = int(model.observation_space.shape[0])
+    space = spaces.Box(-np.inf, np.inf, (n_old + 1,), dtype=np.float32)
+    sd = model.policy.state_dict()
+    firsts = [k for k, v in sd.items() if k.endswith(".0.weight") and v.shape[-1] == n_old]
+    if not firsts:
+        raise ConfigError(f"{model_p}: no first layer taking the {n_old} observations")
+    with torch.no_grad():
+        for k in firsts:
+            sd[k] = torch.cat([sd[k], torch.zeros(sd[k].shape[0], 1)], dim=1)
+    policy = model.policy_class(space, model.action_space, model.lr_schedule, **model.policy_kwargs)
+    policy.load_state_dict(sd)
+    model.policy = policy
+    model.observation_space = space
+    dst.mkdir(parents=True)
+    model.save(str(dst / "model.zip"))
+    with stats_p.open("rb") as fh:
+        stats = pickle.load(fh)
+    stats.obs_rms.mean = np.append(stats.obs_rms.mean, 0.0)
+    stats.obs_rms.var = np.append(stats.obs_rms.var, 4.0)
+    stats.observation_space = space
+    # a loaded VecNormalize lacks what its __getstate__ drops; give it back empty to re-pickle
+    stats.class_attributes, stats.returns = {}, None
+    with (dst / "vecnormalize.pkl").open("wb") as fh:
+        pickle.dump(stats, fh)
+    kw["stall_clock"] = spec
+    entry = {**entry, "env_kwargs": kw}
+    head = (
+        f"# {src} with the stall clock as a 47th input of zero weight (rover_env.training.widen)\n"
+    )
+    (dst / "config.yaml").write_text(head + yaml.safe_dump({env_id: entry}, sort_keys=False))
+    (dst / "widened_from.yaml").write_text(
+        yaml.safe_dump({"agent": str(src), "model": model_p.name, "stall_clock": spec})
     )
     return dst
