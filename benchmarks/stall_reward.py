@@ -7,52 +7,72 @@ Soft-patch, one tuning or validation seed; the reward weights of configs/agents_
 ppo_rr_wide_e04.yaml (energy 0.04 per W).
 """
 
+from __future__ import annotations
+
+import argparse
 import sys
 
 import numpy as np
+
 from rover_env.benchmark.run import ScenarioWrapper
 from rover_env.envs.proto_explorer import ProtoExplorerEnv
 from rover_env.policies.specs import make_controller
 from rover_env.seeds import split_of
 from rover_env.tasks.scenarios import load_scenario
 
-spec, seed, t_switch = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
-if split_of(seed) == "test":
-    sys.exit(f"error: seed {seed} is a test seed; probe tuning or validation seeds")
-rw = dict(
-    tracking=0.0,
-    yaw_tracking=0.4,
-    progress=4.0,
-    energy=0.04,
-    sinkage=0.05,
-    slip=0.3,
-    slip_scale=0.1,
-)
-for scale in (1.0, 0.5, 0.0):
+WEIGHTS = {
+    "tracking": 0.0,
+    "yaw_tracking": 0.4,
+    "progress": 4.0,
+    "energy": 0.04,
+    "sinkage": 0.05,
+    "slip": 0.3,
+    "slip_scale": 0.1,
+}
+
+
+def mean_terms(spec: str, seed: int, t_switch: float, scale: float) -> dict[str, float]:
+    """Mean reward and reward terms a step from ``t_switch`` s on, targets x ``scale`` then."""
     ctrl = make_controller(spec)
-    ep = load_scenario("soft-patch").episode(seed)
-    w = ScenarioWrapper(ProtoExplorerEnv(terrain=ep.terrain, reward_weights=rw))
-    w.set_episode(ep)
-    obs, info = w.reset()
+    episode = load_scenario("soft-patch").episode(seed)
+    w = ScenarioWrapper(ProtoExplorerEnv(terrain=episode.terrain, reward_weights=WEIGHTS))
+    w.set_episode(episode)
+    obs, _ = w.reset()
     ctrl.reset(w.base)
     k = 0
-    R = []
-    keys = {}
+    terms: dict[str, list[float]] = {"reward": []}
     while True:
         a = np.asarray(ctrl.action(w.base, obs), dtype=np.float32)
-        t = k * w.base.control_dt
-        if t >= t_switch:
-            a = a * scale
+        late = k * w.base.control_dt >= t_switch
+        if late:
+            a = a * np.float32(scale)
         obs, r, term, trunc, info = w.step(a)
         k += 1
-        if t >= t_switch:
-            R.append(r)
-            for kk, v in info.items():
-                if kk.startswith("reward_"):
-                    keys.setdefault(kk, []).append(float(v))
+        if late:
+            terms["reward"].append(float(r))
+            for key, v in info.items():
+                if key.startswith("reward_"):
+                    terms.setdefault(key[7:], []).append(float(v))
         if term or trunc:
-            break
-    print(
-        f"x{scale}: reward/step {np.mean(R):+.3f} over {len(R)} steps; "
-        + " ".join(f"{kk[7:]} {np.mean(v):+.3f}" for kk, v in keys.items())
-    )
+            return {key: float(np.mean(v)) for key, v in terms.items()}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("controller", help="controller spec, as in rover-env benchmark")
+    ap.add_argument("seed", type=int, help="soft-patch episode seed (tuning or validation)")
+    ap.add_argument("t", type=float, help="seconds after which the targets are scaled")
+    args = ap.parse_args()
+    if split_of(args.seed) == "test":
+        print(f"error: seed {args.seed} is a test seed; probe tuning or validation seeds",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    for scale in (1.0, 0.5, 0.0):
+        m = mean_terms(args.controller, args.seed, args.t, scale)
+        rest = " ".join(f"{k} {v:+.3f}" for k, v in m.items() if k != "reward")
+        print(f"targets x {scale:g}: reward {m['reward']:+.3f} a step; {rest}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
