@@ -37,13 +37,8 @@ from rover_env.config import ConfigError
 __all__ = ["add_stall_clock", "widen_residual"]
 
 
-def widen_residual(
-    agent: str | Path, new_scale: float, out: str | Path, noise_factor: float = 1.0
-) -> Path:
-    """Copy ``agent`` (an agent or run folder: model, observation statistics, ``config.yaml``) to
-    ``out`` with its residual scale ``new_scale`` and its exploration noise times
-    ``noise_factor`` (module docstring); returns ``out``."""
-    src, dst = Path(agent), Path(out)
+def _agent_config(src: Path) -> tuple[Path, str, dict[str, Any]]:
+    """(config file, env id, its entry) of an agent or run folder's ``config.yaml``."""
     cfg_file = src / "config.yaml"
     try:
         data = yaml.safe_load(cfg_file.read_text())
@@ -52,6 +47,17 @@ def widen_residual(
     if not isinstance(data, dict) or len(data) != 1:
         raise ConfigError(f"{cfg_file}: expected one env id entry")
     ((env_id, entry),) = data.items()
+    return cfg_file, str(env_id), dict(entry or {})
+
+
+def widen_residual(
+    agent: str | Path, new_scale: float, out: str | Path, noise_factor: float = 1.0
+) -> Path:
+    """Copy ``agent`` (an agent or run folder: model, observation statistics, ``config.yaml``) to
+    ``out`` with its residual scale ``new_scale`` and its exploration noise times
+    ``noise_factor`` (module docstring); returns ``out``."""
+    src, dst = Path(agent), Path(out)
+    cfg_file, env_id, entry = _agent_config(src)
     kw: dict[str, Any] = dict(entry.get("env_kwargs") or {})
     old = kw.get("action_residual")
     if old is None:
@@ -116,14 +122,7 @@ def add_stall_clock(agent: str | Path, out: str | Path, spec: Any = True) -> Pat
     from rover_env.policies.ppo import resolve_model_path
 
     src, dst = Path(agent), Path(out)
-    cfg_file = src / "config.yaml"
-    try:
-        data = yaml.safe_load(cfg_file.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f"{cfg_file}: cannot read the agent's config: {exc}") from None
-    if not isinstance(data, dict) or len(data) != 1:
-        raise ConfigError(f"{cfg_file}: expected one env id entry")
-    ((env_id, entry),) = data.items()
+    cfg_file, env_id, entry = _agent_config(src)
     kw: dict[str, Any] = dict(entry.get("env_kwargs") or {})
     if kw.get("stall_clock"):
         raise ConfigError(f"{cfg_file}: {env_id}.env_kwargs.stall_clock is already set")
