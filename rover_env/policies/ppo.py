@@ -108,10 +108,7 @@ class SB3Controller:
             data = yaml.safe_load(cfg_file.read_text()) or {}
             entry: dict[str, Any] = next(iter(data.values()), {}) or {}
             kw = entry.get("env_kwargs") or {}
-            try:
-                self.clock = stall_clock_from(kw.get("stall_clock"), f"{cfg_file}: stall_clock")
-            except ValueError as exc:
-                raise ValueError(str(exc)) from None
+            self.clock = stall_clock_from(kw.get("stall_clock"), f"{cfg_file}: stall_clock")
             if kw.get("action_residual") is not None:
                 base = str(kw.get("residual_base", "open-loop"))
                 ramp = float(kw.get("residual_ramp", 0.0))
@@ -171,12 +168,12 @@ class SB3Controller:
     def spread(self, obs: Obs) -> tuple[Obs, Obs] | None:
         """The policy's action mean and standard deviation in its own units (a residual
         before its base is added; PPO: before clipping, SAC: before its tanh); None for a
-        policy without a Gaussian head (TD3). Why: to tell a policy held at the clip bound, where exploring
-        no longer changes the action, from one that chooses its action (issue 18)."""
+        policy without a Gaussian head (TD3). Why: to tell a policy held at the clip bound,
+        where exploring no longer changes the action, from one that chooses its action."""
         import torch
 
         o = np.asarray(obs, dtype=np.float32)
-        if self.clock is not None:  # the clock as action() will see it, left unadvanced
+        if self.clock is not None:  # the clock as of the last action, not advanced
             o = np.append(o, np.float32(self.clock.t)).astype(np.float32)
         if self.normalizer is not None:
             o = np.asarray(self.normalizer.normalize_obs(o), dtype=np.float32)
