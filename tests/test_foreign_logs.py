@@ -219,3 +219,25 @@ def test_soil_without_memory_is_the_second_generators_soil() -> None:
     assert d0[:, 6:].max() < 1e-3, d0[:, 6:]
     d1 = np.abs(own[1.0] - foreign)
     assert d1[:, 4:6].max() > 3e-3, d1[:, :6]  # rear hubs in the front ruts
+
+
+def test_foreign_speed_loop_rate_is_a_whole_number_of_steps_and_changes_the_drive(
+    tmp_path: Path,
+) -> None:
+    """``control_hz`` (a probe of the loop's form, stop 36): 1250 Hz (every step) drives the
+    same command to within 2 % of 250 Hz but not to the bit; a rate whose period is not a whole
+    number of steps is one error naming it; the truth records the rate."""
+    from rover_env.config import ConfigError
+
+    cmd = np.array([2.0, 2.0, 2.0, 2.0])
+    phis = []
+    for hz in (250.0, 1250.0):
+        fr = ForeignRover(RoverConfig(), {}, control_hz=hz)
+        fr.run(cmd, 1.0)
+        phis.append(fr.sample()[0])
+    np.testing.assert_allclose(phis[1], phis[0], rtol=0.02)
+    assert np.abs(phis[1] - phis[0]).max() > 1e-6
+    with pytest.raises(ConfigError, match="control_hz 300.0: the speed loop's period"):
+        ForeignRover(RoverConfig(), {}, control_hz=300.0)
+    make_foreign_logs(tmp_path, {}, drives=1, duration=1.0, progress=False, control_hz=1250.0)
+    assert yaml.safe_load((tmp_path / "truth.yaml").read_text())["control_hz"] == 1250.0

@@ -91,7 +91,19 @@ def _quantise(x: Array, lsb: float) -> Array:
 class ForeignRover:
     """The rover as another team might simulate it (see the module docstring)."""
 
-    def __init__(self, cfg: RoverConfig, extensions: dict[str, dict[str, float]]) -> None:
+    def __init__(
+        self,
+        cfg: RoverConfig,
+        extensions: dict[str, dict[str, float]],
+        control_hz: float = CONTROL_HZ,
+    ) -> None:
+        per = 1.0 / (control_hz * DT) if control_hz > 0 else 0.0
+        if not (per >= 1 - 1e-9 and abs(per - round(per)) < 1e-6):
+            raise ConfigError(
+                f"control_hz {control_hz!r}: the speed loop's period must be a whole number"
+                f" of the {DT * 1e3:g} ms steps (e.g. 250 or 1250 Hz)"
+            )
+        self.control_hz = float(control_hz)
         self.cfg = cfg
         eff = {e.name: e for e in build_effects(extensions) if not e.is_off}
         self.ext = eff
@@ -136,7 +148,7 @@ class ForeignRover:
         )
         self.tau_lag = eff["command_lag"]["tau"] if "command_lag" in eff else 0.0
         self.delay_n = (
-            round(eff["command_delay"]["delay"] * CONTROL_HZ) if "command_delay" in eff else 0
+            round(eff["command_delay"]["delay"] * control_hz) if "command_delay" in eff else 0
         )
         if "slope" in eff:
             th = math.radians(eff["slope"]["deg"])
@@ -148,7 +160,7 @@ class ForeignRover:
                 -g * math.cos(th),
             )
         self.soil = effect_soil(_flat(), list(eff.values()))
-        self.per_control = round(1.0 / (CONTROL_HZ * DT))
+        self.per_control = round(per)
         self.integ = np.zeros(4)
         self.lagged = np.zeros(4)
         self.queue: deque[Array] = deque()
@@ -173,7 +185,7 @@ class ForeignRover:
     # ------------------------------------------------------------------ speed loop
     def _control(self, target: Array) -> None:
         """One PI update at the control rate: lag, delay, PI, torque bounds."""
-        tc = 1.0 / CONTROL_HZ
+        tc = 1.0 / self.control_hz
         u = target
         if self.tau_lag > 0:
             self.lagged += (1.0 - math.exp(-tc / self.tau_lag)) * (u - self.lagged)
@@ -393,8 +405,10 @@ def make_foreign_logs(
     truth_rover: RoverConfig | None = None,
     progress: bool = True,
     first_index: int = 0,
+    control_hz: float = CONTROL_HZ,
 ) -> list[Path]:
-    """Write ``drives`` SPEC §6 logs from :class:`ForeignRover` and ``truth.yaml``."""
+    """Write ``drives`` SPEC §6 logs from :class:`ForeignRover` and ``truth.yaml``.
+    ``control_hz``: the rate of its speed loop (a probe of the loop's form; stop 36)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     nominal = load_rover(rover)
@@ -415,7 +429,7 @@ def make_foreign_logs(
     for i, kid in enumerate(kids):
         k = first_index + i
         rng_plan, rng_sens = (np.random.default_rng(s) for s in kid.spawn(2))
-        sim = ForeignRover(base, effects)
+        sim = ForeignRover(base, effects, control_hz)
         sched = drive_schedule(plan, rng_plan, duration, nominal.motor.max_wheel_speed)
         if progress:
             print(f"make-logs (foreign): drive {k + 1}/{first_index + drives} ({plan})")
@@ -458,7 +472,7 @@ def make_foreign_logs(
         "plan": plan,
         "duration_s": duration,
         "step_s": DT,
-        "control_hz": CONTROL_HZ,
+        "control_hz": control_hz,
         "sensors": {
             "encoder_counts": ENCODER_COUNTS,
             "pot_bits": POT_BITS,
