@@ -237,7 +237,7 @@ def test_foreign_speed_loop_rate_is_a_whole_number_of_steps_and_changes_the_driv
         phis.append(fr.sample()[0])
     np.testing.assert_allclose(phis[1], phis[0], rtol=0.02)
     assert np.abs(phis[1] - phis[0]).max() > 1e-6
-    with pytest.raises(ConfigError, match="control_hz 300.0: the speed loop's period"):
+    with pytest.raises(ConfigError, match=r"control_hz 300\.0: the speed loop's period"):
         ForeignRover(RoverConfig(), {}, control_hz=300.0)
     make_foreign_logs(tmp_path, {}, drives=1, duration=1.0, progress=False, control_hz=1250.0)
     assert yaml.safe_load((tmp_path / "truth.yaml").read_text())["control_hz"] == 1250.0
