@@ -3,16 +3,19 @@ are, halved and stopped: what stopping in a stall pays (issue 18, stop 36).
 
 python benchmarks/stall_reward.py ppo:agents/mobility-ppo-rr-ft-patch 1052 7
 
-Soft-patch, one tuning or validation seed; the reward weights of configs/agents_mobility/
-ppo_rr_wide_e04.yaml (energy 0.04 per W).
+Soft-patch, one tuning or validation seed; the reward weights of a training config
+(``--config``, default configs/agents_mobility/ppo_rr_wide_e04.yaml: energy 0.04 per W).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
+from typing import Any
 
 import numpy as np
+import yaml
 
 from rover_env.benchmark.run import ScenarioWrapper
 from rover_env.envs.proto_explorer import ProtoExplorerEnv
@@ -20,22 +23,23 @@ from rover_env.policies.specs import make_controller
 from rover_env.seeds import split_of
 from rover_env.tasks.scenarios import load_scenario
 
-WEIGHTS = {
-    "tracking": 0.0,
-    "yaw_tracking": 0.4,
-    "progress": 4.0,
-    "energy": 0.04,
-    "sinkage": 0.05,
-    "slip": 0.3,
-    "slip_scale": 0.1,
-}
+CONFIG = Path(__file__).resolve().parent.parent / "configs/agents_mobility/ppo_rr_wide_e04.yaml"
 
 
-def mean_terms(spec: str, seed: int, t_switch: float, scale: float) -> dict[str, float]:
+def reward_weights(config: Path) -> dict[str, Any]:
+    """``env_kwargs.reward_weights`` of a one-entry training config (rl-zoo layout)."""
+    data = yaml.safe_load(config.read_text())
+    ((_, entry),) = data.items()
+    return dict(entry["env_kwargs"]["reward_weights"])
+
+
+def mean_terms(
+    spec: str, seed: int, t_switch: float, scale: float, weights: dict[str, Any]
+) -> dict[str, float]:
     """Mean reward and reward terms a step from ``t_switch`` s on, targets x ``scale`` then."""
     ctrl = make_controller(spec)
     episode = load_scenario("soft-patch").episode(seed)
-    w = ScenarioWrapper(ProtoExplorerEnv(terrain=episode.terrain, reward_weights=WEIGHTS))
+    w = ScenarioWrapper(ProtoExplorerEnv(terrain=episode.terrain, reward_weights=weights))
     w.set_episode(episode)
     obs, _ = w.reset()
     ctrl.reset(w.base)
@@ -62,13 +66,15 @@ def main() -> int:
     ap.add_argument("controller", help="controller spec, as in rover-env benchmark")
     ap.add_argument("seed", type=int, help="soft-patch episode seed (tuning or validation)")
     ap.add_argument("t", type=float, help="seconds after which the targets are scaled")
+    ap.add_argument("--config", type=Path, default=CONFIG, help="training config (its reward)")
     args = ap.parse_args()
     if split_of(args.seed) == "test":
         print(f"error: seed {args.seed} is a test seed; probe tuning or validation seeds",
               file=sys.stderr)  # fmt: skip
         return 2
+    weights = reward_weights(args.config)
     for scale in (1.0, 0.5, 0.0):
-        m = mean_terms(args.controller, args.seed, args.t, scale)
+        m = mean_terms(args.controller, args.seed, args.t, scale, weights)
         rest = " ".join(f"{k} {v:+.3f}" for k, v in m.items() if k != "reward")
         print(f"targets x {scale:g}: reward {m['reward']:+.3f} a step; {rest}")
     return 0

@@ -485,7 +485,8 @@ def test_an_agent_given_the_stall_clock_acts_as_before_and_the_mix_env_feeds_it(
     tmp_path: Path,
 ) -> None:
     """The copy with the clock as a zero-weight 47th input drives the benchmark exactly as the
-    agent; the training env appends the same clock the controller computes."""
+    agent, through a stall where the clock runs; the training env appends the same clock the
+    controller computes."""
     from rover_env.benchmark.mixture import ScenarioMixEnv
     from rover_env.policies.memory import StallClock
     from rover_env.training.widen import add_stall_clock
@@ -502,10 +503,13 @@ def test_an_agent_given_the_stall_clock_acts_as_before_and_the_mix_env_feeds_it(
     obs, _ = wrapper.reset()
     a.reset(wrapper.base)
     b.reset(wrapper.base)
-    for _ in range(40):
+    clock_seen = []
+    for _ in range(80):  # seed 1052 stalls at ~5.5 s: the clock runs after it
         act_a, act_b = a.action(wrapper.base, obs), b.action(wrapper.base, obs)
         np.testing.assert_allclose(act_b, act_a, rtol=0, atol=1e-6)
+        clock_seen.append(b.clock.t)  # type: ignore[attr-defined]
         obs, *_ = wrapper.step(act_a)
+    assert max(clock_seen) > 1.0  # the new input was read while it ran, not only at 0
 
     env = ScenarioMixEnv(scenarios=["soft-patch"], stall_clock={"speed": 0.05, "cap": 3.0})
     assert env.observation_space.shape == (47,)

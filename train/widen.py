@@ -27,6 +27,9 @@ def main() -> int:
     if args.scale is None and not args.stall_clock:
         print("error: give --scale, --stall-clock or both", file=sys.stderr)
         return 2
+    if args.scale is None and args.noise_factor != 1.0:
+        print("error: --noise-factor rescales with --scale; give both", file=sys.stderr)
+        return 2
     try:
         if not args.stall_clock:
             print(widen_residual(args.agent, args.scale, args.out, args.noise_factor))

@@ -145,12 +145,12 @@ class SB3Controller:
             self.clock.reset()
         self._first = True
 
-    def _policy_input(self, env: ProtoExplorerEnv | None, obs: Obs) -> Obs:
+    def _policy_input(self, env: ProtoExplorerEnv, obs: Obs) -> Obs:
         """The observation as the policy was trained on it: with the stall clock advanced
         (by one control step, 0 on an episode's first) when the run had one."""
         o = np.asarray(obs, dtype=np.float32)
         if self.clock is not None:
-            dt = 0.0 if (self._first or env is None) else env.control_dt
+            dt = 0.0 if self._first else env.control_dt
             o = self.clock.extend(o, dt)
             self._first = False
         return o

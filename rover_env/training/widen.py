@@ -50,6 +50,12 @@ def _agent_config(src: Path) -> tuple[Path, str, dict[str, Any]]:
     return cfg_file, str(env_id), dict(entry or {})
 
 
+def _require_ppo(src: Path) -> None:
+    """Only a PPO agent's Gaussian head can be rescaled or given an input (SAC/TD3: tanh)."""
+    if (src / "command.txt").is_file() and "algo: ppo" not in (src / "command.txt").read_text():
+        raise ConfigError(f"{src}: only a PPO agent can be widened (tanh-squashed SAC/TD3 cannot)")
+
+
 def widen_residual(
     agent: str | Path, new_scale: float, out: str | Path, noise_factor: float = 1.0
 ) -> Path:
@@ -66,8 +72,7 @@ def widen_residual(
         raise ConfigError(f"new_scale must be in (0, 2], got {new_scale!r}")
     if not (isinstance(noise_factor, int | float) and 0 < noise_factor <= 10):
         raise ConfigError(f"noise_factor must be in (0, 10], got {noise_factor!r}")
-    if (src / "command.txt").is_file() and "algo: ppo" not in (src / "command.txt").read_text():
-        raise ConfigError(f"{src}: only a PPO agent can be widened (tanh-squashed SAC/TD3 cannot)")
+    _require_ppo(src)
     if dst.exists():
         raise ConfigError(f"{dst} already exists")
     k = float(old) / float(new_scale)
@@ -126,6 +131,7 @@ def add_stall_clock(agent: str | Path, out: str | Path, spec: Any = True) -> Pat
     kw: dict[str, Any] = dict(entry.get("env_kwargs") or {})
     if kw.get("stall_clock"):
         raise ConfigError(f"{cfg_file}: {env_id}.env_kwargs.stall_clock is already set")
+    _require_ppo(src)
     try:
         stall_clock_from(spec)
     except ValueError as exc:
