@@ -201,3 +201,31 @@ def test_with_form_sets_the_chosen_form() -> None:
     js = fit.as_json()
     assert js["value"] == "conditional" and js["nominal"] == "clamp"
     assert fit.text(fit.value) == "conditional"
+
+
+@pytest.mark.parametrize(
+    "effect",
+    [{"command_delay": {"delay": 0.22}}, {"command_lag": {"tau": 0.3}}],
+    ids=["delay", "lag"],
+)
+@pytest.mark.parametrize("form", ["clamp", "conditional"])
+def test_replay_recursion_integrates_the_commands_after_their_effects(
+    effect: dict[str, dict[str, float]], form: AntiWindup
+) -> None:
+    """The simulator integrates its setpoints from the targets after a delay or a lag, so the
+    replay's recursion must too. Measured: 1.6 mrad median, 5 at most (clamp); 5.2 and 26
+    (conditional, as with no effect: its saturation is read from the logged rates). Fed the
+    logged commands instead, the clamp's recursion runs ``cmd x delay`` ahead once the drive
+    moves: 0.40 rad median (delay 0.22 s), 0.48 (lag 0.3 s), 17-20 N m of integral at every
+    window's start (stop 37). Conditional integration freezes such a lead at the first
+    saturated sample, so there it was only 8-23 mrad."""
+    cfg = _cfg(form, effect)
+    log, err = _own_log(cfg)
+    d = np.abs(prepare(log, cfg, "own", ReplaySettings()).setpoint_err - err)
+    assert np.median(d) < 0.006
+    assert d.max() < 0.03
+    blind = replace(cfg, extensions={})  # the same loop, the commands as logged
+    assert loop_key(blind) != loop_key(cfg)
+    if form == "clamp":
+        wrong = np.abs(prepare(log, blind, "own", ReplaySettings()).setpoint_err - err)
+        assert np.median(wrong) > 0.2

@@ -45,6 +45,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rover_env.config import JOINTS, WHEELS, MotorSpec, RoverConfig, to_dict
+from rover_env.effects import CommandEffect, build_effects
 from rover_env.executor import die_with_parent
 from rover_env.logs import DriveLog
 from rover_env.sim.simulator import RoverSim, advance_setpoints, physical_config
@@ -106,12 +107,21 @@ def loop_motor(cfg: RoverConfig) -> MotorSpec:
     return physical_config(cfg).motor
 
 
+def _command_effects(cfg: RoverConfig) -> list[CommandEffect]:
+    """The command effects (lag, delay) that are on in ``cfg``, in the simulator's order."""
+    return [
+        e for e in build_effects(cfg.extensions) if not e.is_off and isinstance(e, CommandEffect)
+    ]
+
+
 def loop_key(cfg: RoverConfig) -> tuple[object, ...]:
     """The numbers the setpoint recursion reads from ``cfg``: the bound alone for the clamp,
-    the loop's gains and the motor's torque bounds too for conditional integration."""
+    the loop's gains and the motor's torque bounds too for conditional integration, and the
+    command effects that change what the loop integrates (a delay or a lag)."""
     mo = loop_motor(cfg)
+    cmd = tuple((e.name, tuple(sorted(e.values.items()))) for e in _command_effects(cfg))
     if mo.anti_windup == "clamp":
-        return ("clamp", mo.max_angle_error)
+        return ("clamp", mo.max_angle_error, cmd)
     return (
         mo.anti_windup,
         mo.max_angle_error,
@@ -120,7 +130,42 @@ def loop_key(cfg: RoverConfig) -> tuple[object, ...]:
         mo.torque_limit,
         mo.stall_torque,
         mo.no_load_speed,
+        cmd,
     )
+
+
+def loop_commands(log: DriveLog, cfg: RoverConfig) -> Array:
+    """(N, 4) the speed targets the loop integrates over each log interval: ``log.cmd``
+    after the command effects of ``cfg``, averaged over the interval's substeps (row k is the
+    interval from sample k to k + 1; the last row repeats its command).
+
+    The simulator integrates its setpoints from the targets *after* a delay or a lag, so the
+    recursion must too: fed the logged commands, a 0.22 s delay left every window's setpoint
+    ``cmd x delay`` ahead (0.44 rad at 2 rad/s, 17 N m of integral), a surge at each window's
+    start that a fitted torque limit then made up for (issue 16, stop 37).
+    """
+    effects = _command_effects(cfg)
+    cmd = np.asarray(log.cmd, dtype=np.float64)
+    if not effects:
+        return cmd
+    dt = cfg.sim.timestep
+    step_of = np.round(np.asarray(log.t) / dt).astype(np.int64)
+    for e in effects:
+        e.reset(np.zeros(4))
+    out = cmd.copy()
+    for k in range(len(cmd) - 1):
+        n = int(step_of[k + 1] - step_of[k])
+        if n <= 0:
+            continue
+        rows = None
+        for e in effects:
+            if rows is None:
+                rows = e.block(cmd[k], dt, n)
+            else:
+                rows = np.array([e.step(r, dt) for r in rows])
+        assert rows is not None
+        out[k] = rows.mean(axis=0)
+    return out
 
 
 def setpoint_errors(log: DriveLog, cfg: RoverConfig) -> Array:
@@ -138,6 +183,7 @@ def setpoint_errors(log: DriveLog, cfg: RoverConfig) -> Array:
     """
     t = log.t
     mo = loop_motor(cfg)
+    u = loop_commands(log, cfg)
     sp = np.zeros(4)
     errs = np.zeros((len(t), 4))
     for k in range(len(t)):
@@ -147,7 +193,7 @@ def setpoint_errors(log: DriveLog, cfg: RoverConfig) -> Array:
         else:
             dt = float(t[k] - t[k - 1])
             dq = q - log.phi[k - 1, :4]
-            sp = advance_setpoints(sp, q, dq, dq / dt, log.cmd[k - 1], dt, mo)
+            sp = advance_setpoints(sp, q, dq, dq / dt, u[k - 1], dt, mo)
         errs[k] = sp - q
     return errs
 
