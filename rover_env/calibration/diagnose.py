@@ -183,6 +183,8 @@ class Scored:
     """Which held-out test named it (the window test, or the noise-floor test and what it cleared)."""
     threshold: dict[str, float] = field(default_factory=dict)
     """Noise threshold of the effect on these drives (:func:`.fit.noise_threshold`)."""
+    reweighed_from: dict[str, dict[str, list[float]]] | None = None
+    """The fit under the stage's own signal scale, before :attr:`Options.reweigh`'s refits."""
     fit_scale: dict[str, float] | None = None
     """The signal scale the fit was made with when it is not the stage's own (a reweighed
     refit, :attr:`Options.reweigh`): the replay's bias is measured with the same weights."""
@@ -354,6 +356,9 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
             f = fit(ev_r, cands_r, cur.fit.which, max_nfev=_fit_budget(cands_r, opts))
             ns = score(f, held0, {})
             ns.fit_scale, ns.threshold = sc, cur.threshold
+            ns.reweighed_from = w.reweighed_from or {
+                e: {k: list(v) for k, v in p.items()} for e, p in w.fit.physical().items()
+            }
             width = np.maximum(np.abs(cur.fit.ci_hi - cur.fit.ci_lo), 1e-12)
             moved = float((np.abs(ns.fit.x - cur.fit.x) / width).max())
             say(
@@ -1245,6 +1250,7 @@ def _fit_dict(s: Scored) -> dict[str, Any]:
         "threshold": s.threshold,
         "nfev": s.fit.nfev,
         "seconds": s.fit.seconds,
+        "reweighed_from": s.reweighed_from,
     }
 
 

@@ -224,7 +224,7 @@ def write_report(
         f"- Split: {result['split']}.",
         f"- Replay: multiple shooting, windows of {st.window:g} s re-initialised from the log (joint"
         " angles and rates, wheel rates, segment 3's motion from the free wheels, controller"
-        f" setpoints from the logged commands), first {st.burn_in:g} s of each not scored; residuals every"
+        f" setpoints from the logged commands after the model's command delay or lag), first {st.burn_in:g} s of each not scored; residuals every"
         f" {st.stride:g} s: wheel-angle increments, joint angles, and pose increments where the log has pose."
         " Open-loop replay of a whole drive was rejected: one early heading error dominates everything after it.",
         _model_form_line(result.get("model_form"), result.get("model_form_reverted")),
@@ -232,7 +232,10 @@ def write_report(
         " log-spaced ladder of 5 values per sign from 1.2 % to 100 % of the range, then a bounded Brent search"
         " between the best value's neighbours); several parameters start from the best ladder point or the"
         " single fits and are refined by bounded least squares (`scipy.optimize.least_squares`). Residuals"
-        " scaled per signal by the larger of the baseline training RMS and the sensor noise. 95 % intervals:"
+        " scaled per signal by the larger of the baseline training RMS and the sensor noise; a candidate"
+        " that improves the drives is refitted with each signal scaled by its residual under that fit"
+        f" (iteratively reweighted, up to {opts.reweigh} times), so the signals it fixes keep their weight."
+        " 95 % intervals:"
         " one parameter, block bootstrap over training windows on the evaluated loss curves; several,"
         " cluster-robust (windows as clusters) sandwich covariance with Student t; one-sided where the"
         " estimate sits at a bound of its range, never narrower than the search's resolution, widened by"
