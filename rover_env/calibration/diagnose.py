@@ -107,9 +107,9 @@ class Options:
     """Partners judged as pairs with the winner in forward selection: those that improve the
     held-out drive most beside it (``blind_partners``), or alone (otherwise)."""
     reweigh: int = 2
-    """Refits of each candidate that improves the drives, with each signal weighed by its residual after the last fit
-    (iteratively reweighted least squares: per-signal error scales estimated with the
-    parameter, 0: the stage-one scale only). Why: stage one weighs each signal by its residual
+    """Refits of each candidate that improves the training drives (BIC), with each signal
+    weighed by its residual after the last fit (iteratively reweighted least squares:
+    per-signal error scales estimated with the parameter; 0: the stage-one scale only). Why: stage one weighs each signal by its residual
     *before* any effect, so the signals an effect fixes best (a delay: the driven wheels,
     0.22 rad before, 3 mrad after) weigh ~1e-4 of the rest afterwards and the estimate is
     set by signals that carry the model's form difference (stop 37, case 16105: the
@@ -377,7 +377,7 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
         f = fit(ev, [c], which, max_nfev=_fit_budget([c], opts))
         s = score(f, held0, {})
         s.threshold = noise_threshold(ev, c, which, noise)
-        if opts.reweigh > 0 and f.x.size and s.gain > 0 and s.d_bic < 0:
+        if opts.reweigh > 0 and f.x.size and s.d_bic < 0:  # training only: not held-out
             s = reweighed(s, opts.reweigh)
         s.significant = _passes_window_test(s, opts)
         s.test = "windows" if s.significant else ""

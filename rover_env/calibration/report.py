@@ -233,7 +233,7 @@ def write_report(
         " between the best value's neighbours); several parameters start from the best ladder point or the"
         " single fits and are refined by bounded least squares (`scipy.optimize.least_squares`). Residuals"
         " scaled per signal by the larger of the baseline training RMS and the sensor noise; a candidate"
-        " that improves the drives is refitted with each signal scaled by its residual under that fit"
+        " that improves the training drives (BIC) is refitted with each signal scaled by its residual under that fit"
         f" (iteratively reweighted, up to {opts.reweigh} times), so the signals it fixes keep their weight."
         " 95 % intervals:"
         " one parameter, block bootstrap over training windows on the evaluated loss curves; several,"
