@@ -109,10 +109,10 @@ class Options:
     reweigh: int = 2
     """Refits of each candidate that improves the training drives (BIC), with each signal
     weighed by its residual after the last fit (iteratively reweighted least squares:
-    per-signal error scales estimated with the parameter; 0: the stage-one scale only). Why: stage one weighs each signal by its residual
-    *before* any effect, so the signals an effect fixes best (a delay: the driven wheels,
-    0.22 rad before, 3 mrad after) weigh ~1e-4 of the rest afterwards and the estimate is
-    set by signals that carry the model's form difference (stop 37, case 16105: the
+    per-signal error scales estimated with the parameter; 0: the stage-one scale only).
+    Why: stage one weighs each signal by its residual *before* any effect, so the signals
+    an effect fixes best (a delay: the driven wheels, 0.22 rad before, 3 mrad after) weigh
+    ~1e-4 of the rest afterwards and the estimate is set by signals that carry the model's form difference (stop 37, case 16105: the
     second generator's joints put the delay at 0.197 s, its driven wheels at 0.226, truth
     0.2244; the fit at 0.209 and a partner, a lag or a torque limit, to make up the rest)."""
     blind_partners: bool = True

@@ -224,7 +224,8 @@ def write_report(
         f"- Split: {result['split']}.",
         f"- Replay: multiple shooting, windows of {st.window:g} s re-initialised from the log (joint"
         " angles and rates, wheel rates, segment 3's motion from the free wheels, controller"
-        f" setpoints from the logged commands after the model's command delay or lag), first {st.burn_in:g} s of each not scored; residuals every"
+        " setpoints from the logged commands after the model's command delay or lag),"
+        f" first {st.burn_in:g} s of each not scored; residuals every"
         f" {st.stride:g} s: wheel-angle increments, joint angles, and pose increments where the log has pose."
         " Open-loop replay of a whole drive was rejected: one early heading error dominates everything after it.",
         _model_form_line(result.get("model_form"), result.get("model_form_reverted")),
