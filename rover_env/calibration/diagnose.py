@@ -348,6 +348,7 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
         """``w`` refitted (magnitude-blind, as before) with each training signal weighed by
         its residual under the last fit (:attr:`Options.reweigh`), then judged again by the
         same held-out tests. Stops once the value moves less than 5 % of its interval."""
+        before = {e: {k: list(v) for k, v in p.items()} for e, p in w.fit.physical().items()}
         cur = w
         for _ in range(passes):
             sc = rs.signal_scale(rs.stack(ev.run(cur.fit.ext, cur.fit.which), prepared), noise)
@@ -355,10 +356,7 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
             cands_r = cur.fit.candidates
             f = fit(ev_r, cands_r, cur.fit.which, max_nfev=_fit_budget(cands_r, opts))
             ns = score(f, held0, {})
-            ns.fit_scale, ns.threshold = sc, cur.threshold
-            ns.reweighed_from = w.reweighed_from or {
-                e: {k: list(v) for k, v in p.items()} for e, p in w.fit.physical().items()
-            }
+            ns.fit_scale, ns.threshold, ns.reweighed_from = sc, cur.threshold, before
             width = np.maximum(np.abs(cur.fit.ci_hi - cur.fit.ci_lo), 1e-12)
             moved = float((np.abs(ns.fit.x - cur.fit.x) / width).max())
             say(

@@ -157,13 +157,9 @@ def loop_commands(log: DriveLog, cfg: RoverConfig) -> Array:
         n = int(step_of[k + 1] - step_of[k])
         if n <= 0:
             continue
-        rows = None
-        for e in effects:
-            if rows is None:
-                rows = e.block(cmd[k], dt, n)
-            else:
-                rows = np.array([e.step(r, dt) for r in rows])
-        assert rows is not None
+        rows = effects[0].block(cmd[k], dt, n)
+        for e in effects[1:]:  # the simulator's order: each effect takes the last one's output
+            rows = np.array([e.step(r, dt) for r in rows])
         out[k] = rows.mean(axis=0)
     return out
 
