@@ -154,3 +154,26 @@ def test_a_nominal_refit_that_sees_nothing_is_not_joined() -> None:
     assert (named.ci_lo[0], named.ci_hi[0]) == (-0.283, -0.201)
     assert join_if_seen(named, scored(mk(-0.22, -0.25, -0.19)))
     assert (named.ci_lo[0], named.ci_hi[0]) == (-0.283, -0.19)
+
+
+def test_a_nominal_refit_the_windows_reject_is_not_joined() -> None:
+    """Second generator 17093 (stop 38): under the adopted forms the torque limit is -0.147
+    [-0.185, -0.113] at dBIC -43.8; refitted under the nominal form -0.332 [-0.433, -0.044]
+    at dBIC +2.9 (no better than no effect). Joined, the interval would be [-0.433, -0.044];
+    the windows reject that form, so it is not joined. Within the margin it is."""
+    (c,) = catalogue(["torque_limit"])
+    a = np.array
+
+    def mk(x: float, lo: float, hi: float) -> Fit:
+        return Fit([c], a([x]), a([lo]), a([hi]), a([(hi - lo) / 3.92]), 1.0, 1, {}, 0.0, "train")
+
+    def scored(f: Fit, d_bic: float) -> Scored:
+        s = Scored(f, 1.0, np.ones(3), 0.05, 0.3, 1.0, 1.0, 3)
+        s.d_bic = d_bic
+        return s
+
+    named = mk(-0.147, -0.185, -0.113)
+    assert not join_if_seen(named, scored(mk(-0.332, -0.433, -0.044), 2.9), -43.8)
+    assert (named.ci_lo[0], named.ci_hi[0]) == (-0.185, -0.113)
+    assert join_if_seen(named, scored(mk(-0.332, -0.433, -0.044), -40.0), -43.8)
+    assert (named.ci_lo[0], named.ci_hi[0]) == (-0.433, -0.044)

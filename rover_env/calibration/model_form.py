@@ -84,8 +84,12 @@ from rover_env.config import ANTI_WINDUP_FORMS, AntiWindup, RoverConfig
 
 Array = NDArray[np.float64]
 
-LADDER = tuple(float(0.02 * 2.0**k) for k in range(-4, 3))
-"""Relaxation lengths tried (m): 1.25 mm to 8 cm, a factor 2 apart."""
+LADDER = tuple(float(0.02 * 2.0**k) for k in range(-7, 3))
+"""Relaxation lengths tried (m): 0.16 mm to 8 cm, a factor 2 apart. Down to 0.16 mm
+since stop 38: an implementation whose tire has no relaxation (steady-state Gim, the second
+generator's) sat at the old bottom rung, 1.25 mm, where its torque limit was fitted 24 %
+strong (case 17093: driven wheels' minimum -0.165 against -0.133; at 0.1 mm -0.148, and
+every signal's residual lower). The tire update is exact for any V dt / sigma."""
 
 FLOOR_LADDER = tuple(float(0.0025 * 2.0**k) for k in range(6))
 """Slip floors tried (m/s): 2.5 mm/s to 8 cm/s, a factor 2 apart, beside the nominal 0

@@ -96,7 +96,16 @@ def twin_log(
     model would leave (the "replay floor": sensor noise seen through the window
     initialisation), against which the real residual is tested.
     """
-    from rover_env.estimation.sensors import quantize
+    return twin_sensed(p, twin_states(p, cfg), noise, res, rng)
+
+
+TwinStates = tuple[Array, Array, Array]
+"""A twin drive's true wheel angles (N, 6), joint angles (N, 5) and pose (N, 3)."""
+
+
+def twin_states(p: PreparedLog, cfg: RoverConfig) -> TwinStates:
+    """The model driven from rest by ``p``'s logged commands: its true angles and pose at
+    the log's sample times (:func:`twin_log` reads them through sensors)."""
     from rover_env.sim.recorder import relative_pose
     from rover_env.sim.simulator import RoverSim
 
@@ -115,16 +124,38 @@ def twin_log(
         if k + 1 < len(log):
             sim.set_speed_targets(log.cmd[k])
             sim.step(int(step_of[k + 1] - step_of[k]))
-    ph = np.array(phi)
-    ph = quantize(ph - ph[0], res[0]) if res[0] > 0 else ph - ph[0]
-    th = np.array(theta)
+    return np.array(phi), np.array(theta), relative_pose(np.array(pos), np.array(quat))
+
+
+def twin_sensed(
+    p: PreparedLog,
+    states: TwinStates,
+    noise: dict[str, float],
+    res: tuple[float, float],
+    rng: np.random.Generator,
+    encoder_phase: Array | None = None,
+) -> DriveLog:
+    """A twin's states read through the log's sensors (:func:`twin_log`).
+
+    ``encoder_phase`` (6,): where each wheel's travel starts on its encoder's grid, as a
+    fraction of a count; None starts every wheel on a count. An encoder's quantisation error
+    is a function of the true angle, so one twin trajectory gives independent draws of it
+    only through its phase (:func:`rover_env.calibration.noise_interval.noise_draws`)."""
+    from rover_env.estimation.sensors import quantize
+
+    log = p.log
+    ph0, th0, pose0 = states
+    ph = ph0 - ph0[0]
+    if encoder_phase is not None and res[0] > 0:
+        ph = ph + np.asarray(encoder_phase, dtype=np.float64) * res[0]
+    ph = quantize(ph, res[0]) if res[0] > 0 else ph
+    th = th0.copy()
     j_noise = np.array([noise[j] for j in JOINTS])
     th = th + rng.normal(0.0, 1.0, th.shape) * np.sqrt(np.maximum(j_noise**2 - res[1] ** 2 / 12, 0))
     th = quantize(th, res[1]) if res[1] > 0 else th
-    pose = relative_pose(np.array(pos), np.array(quat))
     have = np.isfinite(log.pose[:, 0])
     ps = np.array([noise[s] for s in ("pose_x", "pose_y", "pose_yaw")]) / np.sqrt(2)
-    pose = pose + rng.normal(0.0, 1.0, pose.shape) * ps
+    pose = pose0 + rng.normal(0.0, 1.0, pose0.shape) * ps
     pose[~have] = np.nan
     pose[0] = np.where(have[0], 0.0, np.nan)
     return DriveLog(log.t, log.cmd, ph, th, pose, log.meta)
