@@ -120,16 +120,18 @@ class Options:
     polish: int = 12
     """Evaluations (``least_squares``' ``max_nfev``) to finish a named effect's fit of
     several parameters (a slope's tilt vector) from where its search stopped, in the scale
-    it was fitted with (0: none). Why: the search's budget (:attr:`max_nfev`) is spent
-    across every candidate, and a tilt vector fitted from a ladder rung a factor 3 away has
-    not converged in it (stop 38, own slope 7.19 deg: fitted 6.57 [6.32, 6.82], where the
-    cost falls on to 6.8 and each signal group's own minimum lies at 7.1-7.2)."""
+    it was fitted with (0: none), by central differences. Why: the search's budget
+    (:attr:`max_nfev`) is spent across every candidate, from a ladder rung up to a factor 3
+    away, with forward differences (stop 38, own slope 7.19 deg, case 17001: the search
+    7.175 [7.04, 7.31], finished 7.247 [7.05, 7.45]; before the steps were fixed, see
+    :func:`rover_env.calibration.fit.fit`, the search stopped at 6.57)."""
     noise_draws: int = NOISE_DRAWS
     """Simulated sensor-noise draws behind each named effect's interval (0: none): the
     interval is widened to at least what the sensors alone put on the value
     (:mod:`rover_env.calibration.noise_interval`). Why: both interval methods resample
     windows, and when one window carries an effect (a torque limit reached once) they
-    cannot see that window's own noise (stop 38: own torque limits covered 5 of 10)."""
+    cannot see that window's own noise (stop 38: own logs of a torque limit of -0.09, seed
+    19003, one window of 32 reaching it: -0.0968 [-0.150, -0.0932])."""
     blind_partners: bool = True
     """Forward selection: every other candidate's magnitude-blind search with the winner held
     at its fit chooses the partners (False: the candidates that improved held-out alone,
