@@ -22,7 +22,7 @@ def test_draws_give_the_least_squares_covariance_and_bias() -> None:
     jac, slices = _design()
     rng = np.random.default_rng(1)
     s, offset = 0.5, 0.5
-    draws = [offset + s * rng.normal(size=jac.shape[0]) for _ in range(3000)]
+    draws = [np.asarray(offset + s * rng.normal(size=jac.shape[0])) for _ in range(3000)]
     cov, bias = draw_moments(jac, slices, draws)
     want = s**2 * np.linalg.inv(jac.T @ jac)
     np.testing.assert_allclose(np.sqrt(np.diag(cov)), np.sqrt(np.diag(want)), rtol=0.05)
