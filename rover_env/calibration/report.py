@@ -228,7 +228,11 @@ def write_report(
         f" first {st.burn_in:g} s of each not scored; residuals every"
         f" {st.stride:g} s: wheel-angle increments, joint angles, and pose increments where the log has pose."
         " Open-loop replay of a whole drive was rejected: one early heading error dominates everything after it.",
-        _model_form_line(result.get("model_form"), result.get("model_form_reverted")),
+        _model_form_line(
+            result.get("model_form"),
+            result.get("model_form_reverted"),
+            result.get("model_form_beside"),
+        ),
         '- Fit, blind to magnitude: one parameter is searched over its whole physical range ("off" and a'
         " log-spaced ladder of 5 values per sign from 1.2 % to 100 % of the range, then a bounded Brent search"
         " between the best value's neighbours); several parameters start from the best ladder point or the"
@@ -240,7 +244,11 @@ def write_report(
         " one parameter, block bootstrap over training windows on the evaluated loss curves; several,"
         " cluster-robust (windows as clusters) sandwich covariance with Student t; one-sided where the"
         " estimate sits at a bound of its range, never narrower than the search's resolution, widened by"
-        " the replay's own bias measured on the fitted model's twin drives.",
+        " the replay's own bias measured on the fitted model's twin drives. A named effect of several"
+        f" parameters is finished by least squares with central differences (up to {opts.polish}"
+        " evaluations); a named effect's interval is then widened to at least what the sensors alone put"
+        f" on it ({opts.noise_draws} twins of the fitted model read through the logs' sensors with fresh"
+        " encoder phases and noise, replayed: the estimate's scatter and bias under noise, 1.96 x).",
         f"- Decision: named only if the held-out error falls by ≥ {100 * opts.min_gain:.0f} % (geometric mean over"
         " held-out windows of the per-window ratio, so that a few very sensitive windows do not decide alone)"
         f" with a one-sided Wilcoxon signed-rank test of the per-window log ratios at p < {opts.alpha:g} and the"
@@ -350,7 +358,11 @@ def write_report(
     return path
 
 
-def _model_form_line(mf: dict[str, Any] | None, reverted: dict[str, Any] | None = None) -> str:
+def _model_form_line(
+    mf: dict[str, Any] | None,
+    reverted: dict[str, Any] | None = None,
+    beside: str | None = None,
+) -> str:
     """The model-form stage (rover_env.calibration.model_form) in one bullet."""
     if reverted is not None:
         return (
@@ -394,9 +406,14 @@ def _model_form_line(mf: dict[str, Any] | None, reverted: dict[str, Any] | None 
             f", training windows {words} (Wilcoxon p {f['p']:.2g}, dBIC"
             f" {f['d_bic']:+.1f}): {verdict}"
         )
+    when = (
+        f"fitted beside {beside} (named in a first pass, under forms fitted before any effect"
+        " that came out otherwise beside it)"
+        if beside
+        else "fitted before any effect (and, where an effect was named, again beside it, unchanged)"
+    )
     return (
-        "- Model form, fitted before any effect (the implementation's choices, not the rover's"
-        " definition): "
+        f"- Model form, {when} (the implementation's choices, not the rover's definition): "
         + "; ".join(parts)
         + ". These are not effects; the adopted values are written into the updated"
         " configuration."
