@@ -175,3 +175,19 @@ def test_a_nominal_refit_the_windows_reject_is_not_joined() -> None:
     assert (named.ci_lo[0], named.ci_hi[0]) == (-0.185, -0.113)
     assert join_if_seen(named, scored(mk(-0.332, -0.433, -0.044), -40.0), -43.8)
     assert (named.ci_lo[0], named.ci_hi[0]) == (-0.433, -0.044)
+
+
+def test_forms_beside_the_winner_rerun_only_when_they_change_the_model() -> None:
+    """The second pass (``Options.forms_beside_winner``) runs only if the forms fitted
+    beside the named effect change the model: an adopted value, or which are adopted; a
+    different best value of a form kept nominal changes nothing."""
+    from rover_env.calibration.diagnose import _form_key
+    from rover_env.calibration.model_form import FormFit
+
+    def form(value: float, adopted: bool) -> FormFit:
+        return FormFit("relaxation_length", "m", 0.02, value, {}, 0.1, 0.01, -5.0, adopted)
+
+    first = [form(0.00125, False)]
+    assert _form_key([form(0.005, False)]) == _form_key(first)
+    assert _form_key([form(0.00125, True)]) != _form_key(first)
+    assert _form_key([form(0.00152, True)]) != _form_key([form(0.00125, True)])
