@@ -132,8 +132,9 @@ class Fit:
     above): the candidate's own forms the windows cannot reject, and the model's forms
     (:func:`join_form_interval`); carried by fits that keep the forms."""
     noise_se: Array | None = None
-    """Per free variable: the standard error the sensor noise alone puts on it, from
-    simulated noise draws (:mod:`rover_env.calibration.noise_interval`; named effects)."""
+    """Per free variable: the uncertainty the sensor noise alone puts on it, scatter and
+    bias in quadrature, from simulated noise draws
+    (:mod:`rover_env.calibration.noise_interval`; named effects only)."""
 
     @property
     def name(self) -> str:
