@@ -262,6 +262,8 @@ def test_a_partner_the_winner_hides_is_found_beside_it(tmp_path: Path) -> None:
         candidates=["rolling_resistance", "load_dependent_friction", "friction"],
         progress=False,
         max_nfev=3,
+        forms_beside_winner=False,  # not this test's subject (suite time)
+        noise_draws=0,
     )
     result = diagnose([str(p) for p in paths], tmp_path / "out", opts)
     assert not result["fits"]["load_dependent_friction"]["significant"]
@@ -325,7 +327,8 @@ def test_a_tied_runner_up_is_still_tried_as_the_second_effect(tmp_path: Path) ->
         candidates=["command_lag", "slope"],
         progress=False,
         max_nfev=3,
-        tie_alpha=-1.0,  # every runner-up ties with the winner
+        tie_alpha=-1.0,  # every runner-up ties with the winner    forms_beside_winner=False,  # not this test's subject (suite time)
+        noise_draws=0,
     )
     result = diagnose([str(p) for p in paths], tmp_path / "out", opts)
     assert sorted(result["named"]) == ["command_lag", "slope"], result["named"]

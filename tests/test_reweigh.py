@@ -21,7 +21,11 @@ def test_a_second_generator_delay_is_fitted_by_the_signals_it_moves(tmp_path: Pa
     paths = make_foreign_logs(tmp_path / "logs", {"command_delay": {"delay": DELAY}}, drives=2,
                               seed=37, duration=36.0, plan="test", progress=False)  # fmt: skip
     opts = Options(
-        candidates=["command_delay", "command_lag", "torque_limit"], progress=False, max_nfev=3
+        candidates=["command_delay", "command_lag", "torque_limit"],
+        progress=False,
+        max_nfev=3,
+        forms_beside_winner=False,  # not this test's subject (suite time)
+        noise_draws=0,
     )
     result = diagnose([str(p) for p in paths], tmp_path / "out", opts)
     assert result["named"] == ["command_delay"], result["named"]
