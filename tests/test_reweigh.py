@@ -26,6 +26,7 @@ def test_a_second_generator_delay_is_fitted_by_the_signals_it_moves(tmp_path: Pa
         max_nfev=3,
         forms_beside_winner=False,  # not this test's subject (suite time)
         noise_draws=0,
+        rejudge_form=0,  # keeps the first stage's form; the revert re-ran the diagnosis
     )
     result = diagnose([str(p) for p in paths], tmp_path / "out", opts)
     assert result["named"] == ["command_delay"], result["named"]
