@@ -1,0 +1,99 @@
+"""Forward selection and out-of-catalogue cases in the discrepancy diagnosis (issue 16):
+a heavier rover, a partner the winner hides, a tied runner-up.
+
+A file of its own so that the test runner's workers (``--dist loadfile``) share the slow
+diagnose-level tests evenly."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rover_env.calibration.diagnose import Options, diagnose
+from rover_env.calibration.make_logs import make_logs
+from rover_env.config import RoverConfig
+
+
+def test_a_heavier_rover_is_not_named_friction_with_confidence(tmp_path: Path) -> None:
+    """Outside the catalogue: a rover 20 % heavier. Friction stands in for it (held-out
+    better) but the fit leaves the rocker joint theta_4 above its floor and worse in every
+    window (the sag of a heavier rover on its springs): nothing is named, the gap is reported
+    (issue 16: named "friction +15 %" in every matrix, stops 29-33). The same drives with a
+    real +15 % friction name it."""
+    from dataclasses import replace as dc_replace
+
+    c = RoverConfig()
+    m = c.masses
+    heavy = dc_replace(c, masses=dc_replace(
+        m, wheel=m.wheel * 1.2, motor=m.motor * 1.2, battery=m.battery * 1.2,
+        chassis=tuple(x * 1.2 for x in m.chassis),
+    ))  # fmt: skip
+    opts = Options(
+        candidates=["friction", "rolling_resistance"],
+        progress=False,
+        max_nfev=3,
+        forms_beside_winner=False,  # not this test's subject (suite time)
+        noise_draws=0,
+    )
+    paths = make_logs(tmp_path / "heavy", {}, drives=2, seed=41, duration=36.0,
+                      truth_rover=heavy, progress=False)  # fmt: skip
+    result = diagnose([str(p) for p in paths], tmp_path / "heavy_out", opts)
+    assert result["named"] == [], result["named"]
+    assert result["not_named"] is not None and result["unexplained"]
+    assert set(result["not_named"]["worse"]) <= set(result["unexplained"])
+    assert "Nothing named with confidence" in (tmp_path / "heavy_out" / "report.md").read_text()
+    paths = make_logs(tmp_path / "fric", {"friction": {"fraction": 0.15}}, drives=2, seed=41,
+                      duration=36.0, progress=False)  # fmt: skip
+    result = diagnose([str(p) for p in paths], tmp_path / "fric_out", opts)
+    assert result["named"] == ["friction"] and result["not_named"] is None, result
+
+
+def test_a_partner_the_winner_hides_is_found_beside_it(tmp_path: Path) -> None:
+    """Forward selection searches every other effect blind with the winner held at its fit:
+    a load-dependent friction that alone fits the drives no better than nothing (held-out
+    worse, not significant) is found beside the rolling resistance, both named, intervals
+    covering (issue 16: pairs named one effect in 4 of 5 matrices; the partners were those
+    that had improved the held-out drive alone)."""
+    truth = {"rolling_resistance": {"c_rr": 0.05}, "load_dependent_friction": {"fall": 0.15}}
+    paths = make_logs(tmp_path / "logs", truth, drives=2, seed=43, duration=36.0,
+                      progress=False)  # fmt: skip
+    opts = Options(
+        candidates=["rolling_resistance", "load_dependent_friction", "friction"],
+        progress=False,
+        max_nfev=3,
+        forms_beside_winner=False,  # not this test's subject (suite time)
+        noise_draws=0,
+    )
+    result = diagnose([str(p) for p in paths], tmp_path / "out", opts)
+    assert not result["fits"]["load_dependent_friction"]["significant"]
+    assert (
+        result["fits"]["load_dependent_friction"]["held_gain"]
+        < 0.1
+        < (result["partners"]["load_dependent_friction"]["held_gain"])
+    )
+    assert result["named"] == ["rolling_resistance", "load_dependent_friction"], result["named"]
+    (pair,) = result["final"].values()
+    for name, eff in truth.items():
+        ((param, v),) = eff.items()
+        _, lo, hi = pair["params"][name][param]
+        assert lo <= v <= hi, (name, lo, v, hi)
+
+
+def test_a_tied_runner_up_is_still_tried_as_the_second_effect(tmp_path: Path) -> None:
+    """A tie says that either effect explains the drives alone, not that only one is there.
+    With every runner-up forced into a tie, a lag and a slope hidden together are both named
+    (the runner-up is tried beside the winner, by the same window test) and the tie is
+    resolved. Before stop 32 the tied runner-up was never tried: a 7.3 deg slope beside a
+    0.44 s lag on the second generator's logs went unnamed (case 12113)."""
+    eff = {"command_lag": {"tau": 0.4}, "slope": {"deg": 8.0, "heading_deg": -35.0}}
+    paths = make_logs(tmp_path / "logs", eff, drives=2, seed=31, duration=36.0, progress=False)
+    opts = Options(
+        candidates=["command_lag", "slope"],
+        progress=False,
+        max_nfev=3,
+        tie_alpha=-1.0,  # every runner-up ties with the winner
+        forms_beside_winner=False,  # not this test's subject (suite time)
+        noise_draws=0,
+    )
+    result = diagnose([str(p) for p in paths], tmp_path / "out", opts)
+    assert sorted(result["named"]) == ["command_lag", "slope"], result["named"]
+    assert result["tie"] is None
