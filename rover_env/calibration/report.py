@@ -232,6 +232,7 @@ def write_report(
             result.get("model_form"),
             result.get("model_form_reverted"),
             result.get("model_form_beside"),
+            opts.forms_beside_winner,
         ),
         '- Fit, blind to magnitude: one parameter is searched over its whole physical range ("off" and a'
         " log-spaced ladder of 5 values per sign from 1.2 % to 100 % of the range, then a bounded Brent search"
@@ -362,6 +363,7 @@ def _model_form_line(
     mf: dict[str, Any] | None,
     reverted: dict[str, Any] | None = None,
     beside: str | None = None,
+    refit_beside: bool = True,
 ) -> str:
     """The model-form stage (rover_env.calibration.model_form) in one bullet."""
     if reverted is not None:
@@ -410,7 +412,8 @@ def _model_form_line(
         f"fitted beside {beside} (named in a first pass, under forms fitted before any effect"
         " that came out otherwise beside it)"
         if beside
-        else "fitted before any effect (and, where an effect was named, again beside it, unchanged)"
+        else "fitted before any effect"
+        + (" (and, where an effect was named, again beside it, unchanged)" if refit_beside else "")
     )
     return (
         f"- Model form, {when} (the implementation's choices, not the rover's definition): "
