@@ -134,6 +134,26 @@ def test_foreign_soil_is_soil_md_in_its_own_quadrature() -> None:
     assert np.sum(mine.s > 0.2) > 30 and np.sum(mine.s < -0.2) > 30  # driving and braking
 
 
+def test_foreign_spin_solve_uses_the_same_torque_as_the_forces() -> None:
+    """The spin solve evaluates the resisting torque alone (no forces, the sinkage's angles
+    computed once per step): it must be the torque :func:`wheel_soil` reports, to the bit,
+    so that the shortcut changes the second generator's logs in nothing but speed."""
+    from rover_env.calibration import foreign_soil as fs
+    from rover_env.soil import load_soil, slip_and_direction
+
+    p = load_soil("mars-sand")
+    r, b = 0.085, 0.05
+    rng = np.random.default_rng(9)
+    n = 200
+    h = np.concatenate([rng.uniform(-0.01, 0.1, n - 2), [0.0, r]])  # out of contact, buried
+    v_x = rng.uniform(-0.3, 0.3, n)
+    s, d = slip_and_direction(v_x, v_x * rng.uniform(-0.5, 3.0, n), fs.V_EPS)
+    full = fs.wheel_soil(h, s, d, rng.uniform(-0.2, 0.2, n), r, b, p)
+    alone = fs._torque(fs._contact(h, r, p.lam), s, d, r, b, p)
+    assert np.count_nonzero(full.T) > n // 2
+    assert np.array_equal(alone, full.T)
+
+
 def test_foreign_rover_on_loose_soil_sinks_by_bekker_and_slips() -> None:
     """On ``loose_soil`` the foreign rover settles at the sinkage where SOIL.md's soil
     carries the mean wheel load (within 3 %, every wheel in contact, up to the stiffest

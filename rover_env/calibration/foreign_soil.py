@@ -57,10 +57,51 @@ def _angles(h: Array, radius: float, lam: float) -> tuple[Array, Array, Array]:
     return h, np.arccos(1.0 - h / radius), -np.arccos(1.0 - lam * h / radius)
 
 
-def _region(lo: Array, hi: Array) -> tuple[Array, Array]:
-    """Nodes (n, NODES) and weights of Gauss-Legendre on each row's [lo, hi]."""
-    half = 0.5 * (hi - lo)
-    return (lo + half)[:, None] + half[:, None] * _GX, half[:, None] * _GW
+class _Contact(NamedTuple):
+    """What the sinkage alone fixes (the spin solve evaluates many slips at one sinkage)."""
+
+    t_f: Array
+    t_r: Array
+    cf: Array
+    tf_: Array
+    sin_tf: Array
+
+
+def _contact(h: Array, radius: float, lam: float) -> _Contact:
+    _, t_f, t_r = _angles(h, radius, lam)
+    tf_ = t_f[:, None]
+    return _Contact(t_f, t_r, np.cos(t_f)[:, None], tf_, np.sin(tf_))
+
+
+def _stresses(
+    g: _Contact, s: Array, radius: float, width: float, p: SoilParams
+) -> tuple[Array, Array, Array, Array]:
+    """Nodes ``theta`` (n, 2 NODES), weights, normal stress and shear displacement j_x."""
+    r, b = radius, width
+    t_f, t_r, cf, tf_ = g.t_f, g.t_r, g.cf, g.tf_
+    t_m = np.minimum(np.maximum((p.a0 + p.a1 * s) * t_f, t_r), t_f)
+    n = (p.n0 + p.n1 * np.abs(s))[:, None]
+    k_s = p.k_c / b + p.k_phi
+    # Both regions in one array: front of t_m, then behind it (Gauss-Legendre on each).
+    lo = np.concatenate([t_m, t_r])
+    half = 0.5 * (np.concatenate([t_f, t_m]) - lo)
+    nodes = ((lo + half)[:, None] + half[:, None] * _GX).reshape(2, -1, NODES)
+    wts = (half[:, None] * _GW).reshape(2, -1, NODES)
+    th_f, th_r = nodes[0], nodes[1]
+    span = np.maximum(t_m - t_r, 1e-12)[:, None]
+    th_eq = t_f[:, None] - (th_r - t_r[:, None]) / span * (t_f - t_m)[:, None]
+    theta = np.concatenate([th_f, th_r], axis=1)
+    w = np.concatenate([wts[0], wts[1]], axis=1)
+    # sigma at the front nodes, and behind t_m at the equivalent front angles (SOIL.md).
+    sig = k_s * np.maximum(r * (np.cos(np.concatenate([th_f, th_eq], axis=1)) - cf), 0.0) ** n
+    one_s = (1.0 - s)[:, None]
+    j_x = r * (tf_ - theta - one_s * (g.sin_tf - np.sin(theta)))
+    return theta, w, sig, j_x
+
+
+def _shear(sig: Array, j: Array, k: float, p: SoilParams, tan_phi: float) -> Array:
+    """Janosi-Hanamoto shear stress at normal stress ``sig`` and shear displacement ``j``."""
+    return np.asarray((p.c + sig * tan_phi) * np.sign(j) * (1.0 - np.exp(-np.abs(j) / k)))
 
 
 def wheel_soil(
@@ -74,35 +115,27 @@ def wheel_soil(
 ) -> WheelSoil:
     """Steady-state forces at sinkage ``h`` (m), slip ``s``, direction ``d``, tan(slip angle)."""
     r, b = radius, width
-    h, t_f, t_r = _angles(h, r, p.lam)
-    t_m = np.clip((p.a0 + p.a1 * s) * t_f, t_r, t_f)
-    n = (p.n0 + p.n1 * np.abs(s))[:, None]
-    k_s = p.k_c / b + p.k_phi
-    cf = np.cos(t_f)[:, None]
-
-    def sigma(theta: Array) -> Array:
-        return np.asarray(k_s * np.maximum(r * (np.cos(theta) - cf), 0.0) ** n)
-
-    th_f, w_f = _region(t_m, t_f)
-    th_r, w_r = _region(t_r, t_m)
-    span = np.maximum(t_m - t_r, 1e-12)[:, None]
-    th_eq = t_f[:, None] - (th_r - t_r[:, None]) / span * (t_f - t_m)[:, None]
-    theta = np.concatenate([th_f, th_r], axis=1)
-    w = np.concatenate([w_f, w_r], axis=1)
-    sig = np.concatenate([sigma(th_f), sigma(th_eq)], axis=1)
-    tf_ = t_f[:, None]
+    g = _contact(h, r, p.lam)
+    theta, w, sig, j_x = _stresses(g, s, r, b, p)
     one_s = (1.0 - s)[:, None]
-    j_x = r * (tf_ - theta - one_s * (np.sin(tf_) - np.sin(theta)))
-    j_y = r * one_s * (tf_ - theta) * tan_beta[:, None]
-    strength = p.c + sig * math.tan(math.radians(p.phi_deg))
-    tau_x = strength * np.sign(j_x) * (1.0 - np.exp(-np.abs(j_x) / p.k_x))
-    tau_y = strength * np.sign(j_y) * (1.0 - np.exp(-np.abs(j_y) / p.k_y))
+    j_y = r * one_s * (g.tf_ - theta) * tan_beta[:, None]
+    tan_phi = math.tan(math.radians(p.phi_deg))
+    tau_x = _shear(sig, j_x, p.k_x, p, tan_phi)
+    tau_y = _shear(sig, j_y, p.k_y, p, tan_phi)
     c, sn = np.cos(theta), np.sin(theta)
-    F_x = d * r * b * np.sum(w * (tau_x * c - sig * sn), axis=1)
-    F_z = r * b * np.sum(w * (tau_x * sn + sig * c), axis=1)
-    F_y = -r * b * np.sum(w * tau_y, axis=1)
-    T = d * r * r * b * np.sum(w * tau_x, axis=1)
+    F_x = d * r * b * (w * (tau_x * c - sig * sn)).sum(axis=1)
+    F_z = r * b * (w * (tau_x * sn + sig * c)).sum(axis=1)
+    F_y = -r * b * (w * tau_y).sum(axis=1)
+    T = d * r * r * b * (w * tau_x).sum(axis=1)
     return WheelSoil(F_x, F_y, F_z, T, s)
+
+
+def _torque(g: _Contact, s: Array, d: Array, radius: float, width: float, p: SoilParams) -> Array:
+    """The resisting torque of :func:`wheel_soil` alone (the spin solve needs no force)."""
+    r, b = radius, width
+    _, w, sig, j_x = _stresses(g, s, r, b, p)
+    tau_x = _shear(sig, j_x, p.k_x, p, math.tan(math.radians(p.phi_deg)))
+    return np.asarray(d * r * r * b * (w * tau_x).sum(axis=1))
 
 
 def at_spin(
@@ -144,10 +177,11 @@ def spin_after_step(
     lo = omega + k_w * (torque - tb)
     hi = omega + k_w * (torque + tb)
 
+    geo = _contact(h, radius, p.lam)
+
     def g(w1: Array) -> Array:
-        return np.asarray(
-            w1 - omega - k_w * (torque - at_spin(w1, h, v_x, v_y, radius, width, p).T)
-        )
+        s, d = slip_and_direction(v_x, radius * w1, V_EPS)
+        return np.asarray(w1 - omega - k_w * (torque - _torque(geo, s, d, radius, width, p)))
 
     return monotone_root(g, lo, hi, iterations)
 
