@@ -60,6 +60,7 @@ def _angles(h: Array, radius: float, lam: float) -> tuple[Array, Array, Array]:
 class _Contact(NamedTuple):
     """What the sinkage alone fixes (the spin solve evaluates many slips at one sinkage)."""
 
+    h: Array
     t_f: Array
     t_r: Array
     cf: Array
@@ -68,9 +69,9 @@ class _Contact(NamedTuple):
 
 
 def _contact(h: Array, radius: float, lam: float) -> _Contact:
-    _, t_f, t_r = _angles(h, radius, lam)
+    hc, t_f, t_r = _angles(h, radius, lam)
     tf_ = t_f[:, None]
-    return _Contact(t_f, t_r, np.cos(t_f)[:, None], tf_, np.sin(tf_))
+    return _Contact(hc, t_f, t_r, np.cos(t_f)[:, None], tf_, np.sin(tf_))
 
 
 def _stresses(
@@ -169,15 +170,19 @@ def spin_after_step(
     w' itself (semi-implicit: a light free wheel on stiff shear stays stable at this step).
     T rises with the spin, so the root lies within T's bound on either side of the explicit
     step."""
-    hc, t_f, t_r = _angles(h, radius, p.lam)
+    geo = _contact(h, radius, p.lam)
     # |T| <= r^2 b (t_f - t_r) (c + sigma_max tan(phi)), sigma_max = k_s h^n0 (h < 1 m).
-    sig_max = (p.k_c / width + p.k_phi) * hc**p.n0
-    tb = radius * radius * width * (t_f - t_r) * (p.c + sig_max * math.tan(math.radians(p.phi_deg)))
+    sig_max = (p.k_c / width + p.k_phi) * geo.h**p.n0
+    tb = (
+        radius
+        * radius
+        * width
+        * (geo.t_f - geo.t_r)
+        * (p.c + sig_max * math.tan(math.radians(p.phi_deg)))
+    )
     tb = tb * 1.01 + 1e-9
     lo = omega + k_w * (torque - tb)
     hi = omega + k_w * (torque + tb)
-
-    geo = _contact(h, radius, p.lam)
 
     def g(w1: Array) -> Array:
         s, d = slip_and_direction(v_x, radius * w1, V_EPS)
