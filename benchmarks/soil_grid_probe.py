@@ -30,7 +30,7 @@ import numpy as np
 import yaml
 
 from rover_env.benchmark.run import ScenarioWrapper, run_episode
-from rover_env.config import TerrainConfig, to_dict
+from rover_env.config import ConfigError, TerrainConfig, to_dict
 from rover_env.envs.proto_explorer import ProtoExplorerEnv
 from rover_env.policies.specs import make_controller
 from rover_env.seeds import split_of
@@ -70,6 +70,14 @@ def terrain_with(t: TerrainConfig, changes: dict[str, float], folder: Path) -> T
 
 
 def main() -> int:
+    try:
+        return _main()
+    except ConfigError as exc:  # a soil field or a rut cell the soil or the arena refuses
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--controller", default="open-loop@gain=2.3@ramp=2")
     ap.add_argument("--scenario", default="soft-patch")
@@ -80,21 +88,25 @@ def main() -> int:
                     help="another soil field for every setting, e.g. k_dig=0")  # fmt: skip
     ap.add_argument("--out", default=None, help="folder for probe.csv and probe.png")
     args = ap.parse_args()
-    first, _, last = args.seeds.partition("-")
-    seeds = list(range(int(first), int(last or first) + 1))
+    try:
+        first, _, last = args.seeds.partition("-")
+        seeds = list(range(int(first), int(last or first) + 1))
+        extra = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.set)}
+        cells = [float(c) for c in args.rut_cells.split(",")]
+        yaws = [None if y == "seed" else float(y) for y in args.yaws.split(",")]
+    except ValueError as exc:
+        print(f"error: {exc} (--seeds FIRST-LAST, --rut-cells and --yaws comma-separated "
+              "numbers, --set FIELD=NUMBER)", file=sys.stderr)  # fmt: skip
+        return 2
+    if not seeds:
+        print(f"error: --seeds {args.seeds!r} holds no seed", file=sys.stderr)
+        return 2
     bad = [s for s in seeds if split_of(s) == "test"]
     if bad:
         print(
             f"error: seeds {bad[0]}..: test seeds; probe tuning or validation seeds",
             file=sys.stderr,
         )
-        return 2
-    try:
-        extra = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.set)}
-        cells = [float(c) for c in args.rut_cells.split(",")]
-        yaws = [None if y == "seed" else float(y) for y in args.yaws.split(",")]
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
         return 2
     scen = load_scenario(args.scenario)
     ctrl = make_controller(args.controller)
