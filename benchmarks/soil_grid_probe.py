@@ -109,13 +109,17 @@ def _main() -> int:
         )
         return 2
     scen = load_scenario(args.scenario)
+    ground = scen.episode(seeds[0]).terrain
+    varies = [s for s in seeds if scen.episode(s).terrain != ground]
+    if varies:  # one env per rut cell is built on one ground
+        print(f"error: {args.scenario}'s ground differs with the seed (seed {varies[0]} "
+              f"against {seeds[0]}); this probe needs one ground", file=sys.stderr)  # fmt: skip
+        return 2
     ctrl = make_controller(args.controller)
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for cell in cells:
-            terrain = terrain_with(
-                scen.episode(seeds[0]).terrain, {**extra, "rut_cell": cell}, Path(tmp)
-            )
+            terrain = terrain_with(ground, {**extra, "rut_cell": cell}, Path(tmp))
             env = ScenarioWrapper(
                 ProtoExplorerEnv(terrain=terrain, action_layout=ctrl.action_layout)  # type: ignore[arg-type]
             )
