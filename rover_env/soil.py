@@ -110,8 +110,9 @@ class SoilParams:
     """Damping of the sinkage rate (N s/m): the soil's plastic flow dissipates; zero in steady state."""
     k_dig: float = 0.02
     """Depth dug per unit of slip travel (m per m of |v_w| - |v_x|) under a spinning wheel."""
-    rut_cell: float = 0.025
-    """Cell of the rut map (m): half the wheel's width, so a rut is two cells wide."""
+    rut_cell: float = 0.005
+    """Cell of the rut map (m): a tenth of the wheel's width, where the footprint map has
+    converged (rover_env/rut.py, docs/soil.md 3.4b)."""
     memory: float = 1.0
     """How much the surface remembers of a pass, 0..1: it scales the depth of the rut a wheel
     leaves and the rate at which a spinning wheel digs. 1 is this project's soil (ruts at the

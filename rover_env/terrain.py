@@ -13,7 +13,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from rover_env.config import ConfigError, TerrainConfig
+from rover_env.config import TerrainConfig
+from rover_env.rut import RutGrid
 from rover_env.soil import SoilParams, load_soil
 from rover_env.tire import TireParams
 
@@ -100,7 +101,17 @@ class Terrain:
         self._patch_soil = np.array(
             [unique.index(q.soil) + 1 if q.soil else 0 for q in p], dtype=np.int64
         )
-        self.rut_grid = RutGrid.covering(cfg.size, self.soils)
+        self.rut_grid = RutGrid.covering(*self._soil_box(), self.soils)
+
+    def _soil_box(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """Where the ground is loose soil: the arena, or the box around the soil patches."""
+        sx, sy = self.cfg.size
+        if self.ground_soil or not self._patch_soil.any():
+            return (-sx / 2, -sy / 2), (sx / 2, sy / 2)
+        on = self._patch_soil > 0
+        lo = self._patch_lo[on].min(axis=0)
+        hi = self._patch_hi[on].max(axis=0)
+        return (float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1]))
 
     @property
     def has_soil(self) -> bool:
@@ -207,72 +218,3 @@ class Terrain:
 def _normal(hx: Array, hy: Array) -> Array:
     n = np.stack([-hx, -hy, np.ones_like(hx)], axis=-1)
     return n / np.linalg.norm(n, axis=-1, keepdims=True)
-
-
-MAX_RUT_CELLS = 4_000_000
-"""Largest rut map (cells) a terrain may ask for: 32 MB of state per simulation."""
-
-
-class RutGrid(NamedTuple):
-    """Geometry of the rut map over the arena: cell (ix, iy) covers x0 + ix*cell, y0 + iy*cell.
-
-    The map itself (depth below the terrain surface that wheels have compacted, m) is
-    simulation state, held by the soil contact (numpy layer or compiled plugin).
-    """
-
-    x0: float
-    y0: float
-    cell: float
-    nx: int
-    ny: int
-
-    @classmethod
-    def covering(cls, size: tuple[float, float], soils: tuple[SoilParams, ...]) -> RutGrid:
-        if not soils:
-            return cls(0.0, 0.0, 1.0, 0, 0)
-        cell = min(sp.rut_cell for sp in soils)
-        nx = int(np.ceil(size[0] / cell))
-        ny = int(np.ceil(size[1] / cell))
-        if nx * ny > MAX_RUT_CELLS:
-            raise ConfigError(
-                f"terrain size {size} with rut_cell {cell} m needs {nx * ny} rut cells, more than"
-                f" {MAX_RUT_CELLS}; use a smaller arena or a coarser rut_cell"
-            )
-        return cls(-size[0] / 2, -size[1] / 2, cell, nx, ny)
-
-    @property
-    def ncell(self) -> int:
-        return self.nx * self.ny
-
-    def lookup(self, grid: Array, x: Array, y: Array) -> Array:
-        """Bilinear rut depth at points (0 outside the map): smooth as a wheel crosses cells."""
-        out = np.zeros(np.shape(x))
-        if self.ncell == 0:
-            return out
-        gx = (np.asarray(x) - self.x0) / self.cell - 0.5
-        gy = (np.asarray(y) - self.y0) / self.cell - 0.5
-        ix = np.floor(gx)
-        iy = np.floor(gy)
-        fx = gx - ix
-        fy = gy - iy
-        g = grid.reshape(self.ny, self.nx)
-        for dx, dy, wgt in (
-            (0, 0, (1 - fx) * (1 - fy)),
-            (1, 0, fx * (1 - fy)),
-            (0, 1, (1 - fx) * fy),
-            (1, 1, fx * fy),
-        ):
-            cx = (ix + dx).astype(np.int64)
-            cy = (iy + dy).astype(np.int64)
-            ok = (cx >= 0) & (cx < self.nx) & (cy >= 0) & (cy < self.ny)
-            val = np.where(ok, g[np.clip(cy, 0, self.ny - 1), np.clip(cx, 0, self.nx - 1)], 0.0)
-            out = out + wgt * val
-        return out
-
-    def cell_of(self, x: float, y: float) -> int:
-        """Flat index of the cell holding (x, y), or -1 outside the map."""
-        ix = int(np.floor((x - self.x0) / self.cell))
-        iy = int(np.floor((y - self.y0) / self.cell))
-        if 0 <= ix < self.nx and 0 <= iy < self.ny:
-            return iy * self.nx + ix
-        return -1

@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from rover_env import tire
 from rover_env.config import DRIVEN_WHEELS, JOINTS, WHEELS, RoverConfig, TerrainConfig
 from rover_env.sim.fast import PluginView
+from rover_env.rut import check_overflow
 from rover_env.sim.simulator import RoverSim, SimulationError, WheelTruth
 
 Array = NDArray[np.float64]
@@ -270,6 +271,10 @@ class BatchRoverSim:
         bad = ~(np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1))
         if bad.any():
             raise SimulationError(f"non-finite state in rover(s) {rows[bad].tolist()}")
+        pv = self._plugin
+        if pv.layout.rut_state:  # one number per rover: the writes a full rut pool refused
+            col = pv.slice.start + pv.layout.rut.start + 1
+            check_overflow(float(np.max(self.batch.plugin_state[sel, col])))
 
     def wheel_truth(self) -> WheelTruth:
         """Per-wheel truth of the last substep, arrays with a leading rover axis (n, 6, ...)."""

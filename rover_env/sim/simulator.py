@@ -42,6 +42,7 @@ from rover_env.effects import (
 )
 from rover_env.sim.fast import FastBackendError, PluginView, inject_plugin, load_plugin
 from rover_env.sim.model import fill_hfield, hfield_data, scene_xml, static_deflection
+from rover_env.rut import check_overflow, refused_writes
 from rover_env.sim.tire_layer import TireLayer, TireState
 from rover_env.soil import SoilParams, load_soil
 from rover_env.terrain import Terrain
@@ -591,6 +592,9 @@ class RoverSim:
             raise SimulationError(f"MuJoCo warning(s) at t={d.time:.3f}s: {', '.join(warned)}")
         if not np.all(np.isfinite(d.qpos)) or not np.all(np.isfinite(d.qvel)):
             raise SimulationError(f"non-finite state at t={d.time:.3f}s")
+        if self.terrain.has_soil:  # a full rut pool would leave ruts out silently
+            rut = self.tires.rut if self._plugin is None else self._plugin.rut_state(d.plugin_state)
+            check_overflow(refused_writes(rut))
 
     # ------------------------------------------------------------------ outputs
     def wheel_truth(self) -> WheelTruth:

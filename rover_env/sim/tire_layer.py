@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 
 from rover_env import soil, tire
 from rover_env.effects import TireEffect
+from rover_env.rut import RutGrid, across_unit
 from rover_env.terrain import Terrain
 from rover_env.tire import TireParams
 
@@ -55,33 +56,31 @@ def rut_writes(
     sinkage: Array,
     on_soil: NDArray[np.bool_],
     radius: float,
-    width: float,
     memory: Array | None = None,
-) -> list[tuple[int, float]]:
-    """Rut cells a substep compacts, as (cell, depth): behind each moving wheel on soil.
+) -> list[tuple[float, float, float, float, float]]:
+    """Ruts a substep leaves, as (x, y, across_x, across_y, depth): behind each moving wheel.
 
-    The depth is that of the wheel's lowest point below the terrain surface, written across
-    the wheel's width a little behind its contact patch (where it has left the soil), so a
+    The depth is that of the wheel's lowest point below the terrain surface, written over
+    the wheel's footprint (:meth:`~rover_env.rut.RutGrid.write_footprint`) a little behind
+    its contact patch (where it has left the soil, and beyond its own footprint read), so a
     wheel never reads its own rut under it but the wheels behind it run in it. ``memory``
     (per wheel, its soil's :attr:`~rover_env.soil.SoilParams.memory`; None: 1) scales the
     depth; a soil without memory leaves no rut.
     """
     g = terrain.rut_grid
-    out: list[tuple[int, float]] = []
-    half = 0.5 * (width - g.cell)
+    out: list[tuple[float, float, float, float, float]] = []
+    keep = np.ones(len(delta)) if memory is None else memory
+    ax, ay = across_unit(axis)
     # Only a wheel clearly travelling (beyond the direction blend) leaves a rut: at start-up
     # creep the sign of v_x is noise, and a write "behind" could land ahead of the wheel.
-    keep = np.ones(len(delta)) if memory is None else memory
     for i in np.flatnonzero(on_soil & (np.abs(v_x) > soil.V_BLEND) & (delta > 0.0) & (keep > 0.0)):
         h = min(float(sinkage[i]), radius)
         e = 1.0 - h / radius
-        back = radius * np.sqrt(max(0.0, 1.0 - e * e)) + 1.5 * g.cell
+        back = radius * np.sqrt(max(0.0, 1.0 - e * e)) + 2.0 * g.cell
         sgn = 1.0 if v_x[i] > 0 else -1.0
-        for k in (-1.0, 0.0, 1.0):
-            q = point[i] - sgn * back * xc[i] + k * half * axis[i]
-            cell = g.cell_of(float(q[0]), float(q[1]))
-            if cell >= 0:
-                out.append((cell, float(keep[i] * delta[i])))
+        qx = point[i, 0] - sgn * back * xc[i, 0]
+        qy = point[i, 1] - sgn * back * xc[i, 1]
+        out.append((float(qx), float(qy), float(ax[i]), float(ay[i]), float(keep[i] * delta[i])))
     return out
 
 
@@ -129,21 +128,21 @@ class TireLayer:
         self.u_y = np.zeros(n)
         self.width = width
         self.dig = np.zeros(n)
-        self.rut = np.zeros(terrain.rut_grid.ncell)
+        self.rut = terrain.rut_grid.new_state()
         self.last: TireState | None = None
 
     def reset(self) -> None:
         self.u_x[:] = 0.0
         self.u_y[:] = 0.0
         self.dig[:] = 0.0
-        if self.rut.size != self.terrain.rut_grid.ncell:
-            self.rut = np.zeros(self.terrain.rut_grid.ncell)
-        self.rut[:] = 0.0
+        if self.rut.size != self.terrain.rut_grid.state_size:
+            self.rut = self.terrain.rut_grid.new_state()
+        RutGrid.clear(self.rut, self.terrain.rut_grid.index_size)
         self.last = None
 
     def clear_ground_memory(self) -> None:
         """Forget the ruts and dug holes (the soil becomes virgin again); tire states stay."""
-        self.rut[:] = 0.0
+        RutGrid.clear(self.rut, self.terrain.rut_grid.index_size)
         self.dig[:] = 0.0
 
     def apply(self, data: mujoco.MjData) -> None:
@@ -191,7 +190,8 @@ class TireLayer:
             if on.any():
                 at = np.where(on[:, None], centre, c.point)
                 v_w = np.where(on, self.radius * data.qvel[self.dofs], v_w)
-                rut = self.terrain.rut_grid.lookup(self.rut, c.point[:, 0], c.point[:, 1])
+                g = self.terrain.rut_grid
+                rut = g.footprint_depth(self.rut, c.point, axis, self.width)
                 for k in np.unique(where[on]):
                     m = where == k
                     sp = self.terrain.soils[k - 1]
@@ -207,11 +207,10 @@ class TireLayer:
                     sink[m], torque[m] = st.sinkage, st.T
                 memory = self._memory[where]
                 writes = rut_writes(
-                    self.terrain, c.point, xc, axis, v_x, c.delta, sink, on,
-                    self.radius, self.width, memory,
-                )  # fmt: skip
-                for cell, depth in writes:
-                    self.rut[cell] = max(self.rut[cell], depth)
+                    self.terrain, c.point, xc, axis, v_x, c.delta, sink, on, self.radius, memory
+                )
+                for qx, qy, ax, ay, depth in writes:
+                    g.write_footprint(self.rut, qx, qy, ax, ay, depth, self.width)
             self.dig[~on] = 0.0
         force = F_x[:, None] * xc + F_y[:, None] * yc + F_z[:, None] * nrm
         data.qfrc_applied[:] = 0.0

@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rover_env.config import DRIVEN_WHEELS, WHEELS, RoverConfig
+from rover_env.rut import RUT_POOL_TILES, RUT_TILE, RutGrid
 from rover_env.sim.fast.build import PLUGIN_NAME, load_plugin
 from rover_env.terrain import Terrain
 from rover_env.tire import TireParams
@@ -44,7 +45,7 @@ MIN_PATCH_CAPACITY = 16
 MIN_SOIL_CAPACITY = 4
 """Soil presets a compiled model can take later (set_terrain), at the least."""
 
-_TERRAIN_VERSION = 2
+_TERRAIN_VERSION = 3
 _HEADER = 19
 _WAVE = 5
 _PATCH = 7
@@ -143,7 +144,7 @@ def inject_plugin(
         "max_angle_error": _num(cfg.motor.max_angle_error),
         "terrain": TERRAIN_NUMERIC,
         "effects": " ".join(_num(eff[k]) for k in EFFECT_SLOTS),
-        "rut_cells": str(terrain.rut_grid.ncell),
+        "rut_state": str(terrain.rut_grid.state_size),
         "width": _num(cfg.geometry.wheel_width),
     }
     mo = cfg.motor
@@ -183,7 +184,7 @@ class StateLayout:
 
     nw: int
     nd: int
-    rut_cells: int = 0
+    rut_state: int = 0
 
     @property
     def u_x(self) -> slice:
@@ -221,8 +222,13 @@ class StateLayout:
 
     @property
     def rut(self) -> slice:
-        start = self.dig.stop + 5 * self.nw  # after pending dig and the pending rut writes
-        return slice(start, start + self.rut_cells)
+        start = self.dig.stop + 6 * self.nw  # after pending dig and the pending rut writes
+        return slice(start, start + self.rut_state)
+
+    @property
+    def rut_index(self) -> int:
+        """Capacity of the rut map's tile index (rover_env.rut's state layout)."""
+        return max(self.rut_state - 2 - RUT_POOL_TILES * RUT_TILE * RUT_TILE, 0)
 
     @property
     def size(self) -> int:
@@ -258,6 +264,8 @@ class PluginView:
         num = int(model.plugin_statenum[inst])
         bare = StateLayout(len(WHEELS), len(DRIVEN_WHEELS))
         self.layout = StateLayout(bare.nw, bare.nd, max(num - bare.size, 0))
+        if self.layout.rut_state and not self.layout.rut_index:
+            raise ValueError(f"plugin state's rut block ({self.layout.rut_state}) has no index")
         if num != self.layout.size:
             raise ValueError(f"plugin state has {num} numbers, layout expects {self.layout.size}")
         self.slice = slice(adr, adr + num)
@@ -279,13 +287,17 @@ class PluginView:
         st[..., self.layout.u_x] = 0.0
         st[..., self.layout.u_y] = 0.0
         st[..., self.layout.dig] = 0.0
-        st[..., self.layout.rut] = 0.0
+        RutGrid.clear(st[..., self.layout.rut], self.layout.rut_index)
 
     def clear_ground_memory(self, plugin_state: Array) -> None:
         """Forget the ruts and dug holes (TireLayer.clear_ground_memory); tire states stay."""
         st = self.state(plugin_state)
         st[..., self.layout.dig] = 0.0
-        st[..., self.layout.rut] = 0.0
+        RutGrid.clear(st[..., self.layout.rut], self.layout.rut_index)
+
+    def rut_state(self, plugin_state: Array) -> Array:
+        """The rut map's block (rover_env.rut's layout): a view."""
+        return self.state(plugin_state)[..., self.layout.rut]
 
     def nstep(self, plugin_state: Array) -> Array:
         return self.state(plugin_state)[..., self.layout.nstep]
@@ -328,10 +340,11 @@ class PluginView:
         cur = model.numeric_data[self.terrain_slice]
         if bool(cur[1]) != terrain.flat:
             raise ValueError("tire plugin: the terrain's flatness must not change")
-        if terrain.rut_grid.ncell > self.layout.rut_cells:
+        if terrain.rut_grid.index_size > self.layout.rut_index:
             raise ValueError(
-                f"tire plugin: the terrain's rut map needs {terrain.rut_grid.ncell} cells, the"
-                f" compiled model holds {self.layout.rut_cells}; build it with that terrain"
+                f"tire plugin: the terrain's rut map needs {terrain.rut_grid.index_size} tiles"
+                f" in its index, the compiled model holds {self.layout.rut_index}; build it"
+                " with that terrain"
             )
         return terrain_block(terrain, int(cur[9]), int(cur[10]), int(cur[13]))
 

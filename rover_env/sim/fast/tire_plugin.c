@@ -34,9 +34,13 @@
 //   next 17 nw         pending truth, same layout as truth
 //   next nw            dig       committed depth each wheel has dug into the soil (m)
 //   next nw            pending dig
-//   next 4 nw          pending rut writes: 3 cells (-1: none) and the depth, per wheel
-//   next rut_cells     rut       the rut map: compacted depth below the terrain surface (m),
-//                                written by advance() from the pending writes
+//   next 5 nw          pending rut writes: the footprint's centre x, y, its across
+//                                direction x, y and the depth (0: none), per wheel
+//   next rut_state     rut       the rut map (rover_env/rut.py): tiles used, writes refused,
+//                                the tile index (capacity rut_state - 2 - pool), the pool of
+//                                RUT_POOL_TILES tiles of RUT_TILE^2 cells: compacted depth
+//                                below the terrain surface (m), written by advance() from
+//                                the pending writes
 // rover_env.sim.fast.layout() mirrors this.
 //
 // Configuration (MJCF <config key=... value=...>, all strings):
@@ -56,8 +60,8 @@
 //                    torque_limit, stall_torque, no_load_speed (the physical motor's, as
 //                    the <dcmotor> is built: saturation, and the voltage line
 //                    stall_torque (1 -+ w / no_load_speed))
-//   rut_cells        size of the rut map in plugin_state (cells; 0 without soil); the
-//                    terrain's grid (nx ny) must fit in it
+//   rut_state        size of the rut map's block in plugin_state (0 without soil); the
+//                    terrain's tile index must fit in it
 //   width            wheel width b (m), for the soil stresses and the rut width
 //   effects          optional, 4 numbers (default "0 0 1 1"): the tire-layer model extensions
 //                    of rover_env.effects: combined_slip's switch (friction ellipse on the
@@ -65,7 +69,7 @@
 //                    and the width of its load range 2 range F_z0 (N)
 //   terrain          name of the <numeric> element holding the ground (read at every
 //                    compute, so it may change at run time and per simulation):
-//     [0] layout version (2)  [1] flat (0/1)  [2] contact iterations
+//     [0] layout version (3)  [1] flat (0/1)  [2] contact iterations
 //     [3] dh/dx slope  [4] dh/dy slope  [5] default mu_x  [6] default mu_y
 //     [7] nwave  [8] npatch  [9] wave capacity W  [10] patch capacity P
 //     [11] ground soil (0: hard ground)  [12] nsoil  [13] soil capacity S
@@ -85,7 +89,7 @@
 
 #define PLUGIN_NAME "rover_env.tire"
 #define NTIRE 13
-#define TERRAIN_VERSION 2
+#define TERRAIN_VERSION 3
 #define TERRAIN_HEADER 19
 #define WAVE_STRIDE 5
 #define PATCH_STRIDE 7
@@ -100,6 +104,10 @@
 #define X_FLOOR 1e-300
 #define MAX_WAVES 4096
 #define NAME_LEN 256
+#define RUT_TILE 16          // rover_env.rut.RUT_TILE
+#define RUT_POOL_TILES 2048  // rover_env.rut.RUT_POOL_TILES
+#define RUT_HEAD 2           // tiles used, writes refused
+#define RUT_POOL_SIZE (RUT_POOL_TILES*RUT_TILE*RUT_TILE)
 
 // tire parameter indices (TireParams field order)
 enum { MU_X, MU_Y, C_S, C_ALPHA, C_Z, D_Z, V_EPS, SIGMA_X, SIGMA_Y, D_X, D_Y, K_RE, V_FLOOR };
@@ -124,7 +132,7 @@ typedef void (*ArcsFn)(const ArcShared* A, const double lo[4], const double hi[4
 
 static const char* kAttributes[] = {
   "wheels", "joints", "motors", "radius", "tire", "max_angle_error", "terrain", "effects",
-  "rut_cells", "width", "anti_windup", "speed_loop"
+  "rut_state", "width", "anti_windup", "speed_loop"
 };
 
 typedef struct {
@@ -134,7 +142,7 @@ typedef struct {
   double radius, max_err, width;
   int conditional;                        // anti_windup "conditional" (1) or "clamp" (0)
   double ki, kd, tau_max, stall, w0;      // speed_loop (conditional only)
-  int rut_cells;
+  int rut_state;
   double tire[NTIRE];
   double combined_on, load_fall, load_fz0, load_span;  // model extensions (config 'effects')
   // per-model constants of the hot path, each computed exactly as the numpy code does per call
@@ -152,7 +160,7 @@ typedef struct {
   int ux, uy, sp, nstep, truth, pux, puy, psp, ptruth, dig, pdig, pwrite, rut, total;
 } Layout;
 
-static Layout layout_of(int nw, int nd, int rut_cells) {
+static Layout layout_of(int nw, int nd, int rut_state) {
   Layout L;
   L.ux = 0;
   L.uy = nw;
@@ -166,8 +174,8 @@ static Layout layout_of(int nw, int nd, int rut_cells) {
   L.dig = L.ptruth + NTRUTH*nw;
   L.pdig = L.dig + nw;
   L.pwrite = L.pdig + nw;
-  L.rut = L.pwrite + 4*nw;
-  L.total = L.rut + rut_cells;
+  L.rut = L.pwrite + 5*nw;
+  L.total = L.rut + rut_state;
   return L;
 }
 
@@ -258,7 +266,7 @@ typedef struct {
   const double* patch;
   const double* soil;
   double rut_x0, rut_y0, rut_cell;
-  int rut_nx, rut_ny;
+  int rut_nx, rut_ny, rut_ntx, rut_nty;
 } TerrainView;
 
 // read the terrain block; 0 if it is malformed (then the plugin adds no force)
@@ -285,6 +293,8 @@ static int terrain_view(const mjModel* m, int id, TerrainView* t) {
   t->rut_cell = p[16];
   t->rut_nx = rut_nx;
   t->rut_ny = rut_ny;
+  t->rut_ntx = (rut_nx + RUT_TILE - 1)/RUT_TILE;
+  t->rut_nty = (rut_ny + RUT_TILE - 1)/RUT_TILE;
   t->soil = p + TERRAIN_HEADER + WAVE_STRIDE*capw + PATCH_STRIDE*capp;
   t->p = p;
   t->flat = p[1] != 0.0;
@@ -396,10 +406,23 @@ static void friction(const TerrainView* t, double x, double y,
   }
 }
 
+// the rut map (rover_env/rut.py): index capacity of a rut block of rut_state numbers
+static inline int rut_index_capacity(int rut_state) {
+  return rut_state > 0 ? rut_state - RUT_HEAD - RUT_POOL_SIZE : 0;
+}
+
+// RutGrid.cells: depth stored at cell (ix, iy); 0 outside the map and in tiles never written
+static double rut_cell(const TerrainView* t, const double* rut, int icap, long ix, long iy) {
+  if (ix < 0 || ix >= t->rut_nx || iy < 0 || iy >= t->rut_ny) return 0.0;
+  long tile = (long)rut[RUT_HEAD + (iy/RUT_TILE)*t->rut_ntx + ix/RUT_TILE];
+  if (tile <= 0) return 0.0;
+  return rut[RUT_HEAD + icap + (tile - 1)*RUT_TILE*RUT_TILE + (iy % RUT_TILE)*RUT_TILE
+             + ix % RUT_TILE];
+}
+
 // RutGrid.lookup: bilinear rut depth at (x, y), 0 outside the map
-static double rut_lookup(const TerrainView* t, const double* rut, double x, double y) {
-  int nx = t->rut_nx, ny = t->rut_ny;
-  if (nx*ny == 0) return 0.0;
+static double rut_lookup(const TerrainView* t, const double* rut, int icap, double x, double y) {
+  if (t->rut_nx*t->rut_ny == 0) return 0.0;
   double gx = (x - t->rut_x0)/t->rut_cell - 0.5;
   double gy = (y - t->rut_y0)/t->rut_cell - 0.5;
   double ix = floor(gx), iy = floor(gy);
@@ -408,21 +431,98 @@ static double rut_lookup(const TerrainView* t, const double* rut, double x, doub
   const double w[4] = {(1 - fx)*(1 - fy), fx*(1 - fy), (1 - fx)*fy, fx*fy};
   double out = 0.0;
   for (int k = 0; k < 4; k++) {
-    long cx = (long)(ix + dx[k]), cy = (long)(iy + dy[k]);
-    double val = (cx >= 0 && cx < nx && cy >= 0 && cy < ny) ? rut[cy*nx + cx] : 0.0;
-    out = out + w[k]*val;
+    out = out + w[k]*rut_cell(t, rut, icap, (long)(ix + dx[k]), (long)(iy + dy[k]));
   }
   return out;
 }
 
-// RutGrid.cell_of: flat cell index of (x, y), -1 outside
-static int rut_cell_of(const TerrainView* t, double x, double y) {
-  double fx = floor((x - t->rut_x0)/t->rut_cell);
-  double fy = floor((y - t->rut_y0)/t->rut_cell);
-  if (fx >= 0 && fx < t->rut_nx && fy >= 0 && fy < t->rut_ny) {
-    return (int)fy*t->rut_nx + (int)fx;
+// rut.across_unit: the horizontal unit direction of a spin axis (x for a wheel on its side)
+static void rut_across(const double* axis, double* ax, double* ay) {
+  double h = hypot(axis[0], axis[1]);
+  if (h > 1e-9) {
+    *ax = axis[0]/h;
+    *ay = axis[1]/h;
+  } else {
+    *ax = 1.0;
+    *ay = 0.0;
   }
-  return -1;
+}
+
+// RutGrid.samples
+static int rut_samples(double cell, double width) {
+  int k = (int)ceil(2.0*width/cell);
+  return k > 2 ? k : 2;
+}
+
+// RutGrid.footprint_depth: mean rut depth across a wheel's width at its contact point
+static double rut_footprint(const TerrainView* t, const double* rut, int icap,
+                            const double* point, const double* axis, double width) {
+  if (t->rut_nx*t->rut_ny == 0) return 0.0;
+  int k = rut_samples(t->rut_cell, width);
+  double ax, ay;
+  rut_across(axis, &ax, &ay);
+  double vals[512];
+  if (k > 512) k = 512;  // 2 width / cell: the soil's rut_cell is validated far above this
+  for (int j = 0; j < k; j++) {
+    double tt = ((double)j + 0.5)*(width/k) - 0.5*width;
+    vals[j] = rut_lookup(t, rut, icap, point[0] + tt*ax, point[1] + tt*ay);
+  }
+  return pairwise_sum(vals, k)/k;
+}
+
+// rut.coverage_cdf
+static double rut_cdf(double z, double w1, double w2) {
+  double zp = z + 0.5*(w1 + w2);
+  if (zp <= 0.0) return 0.0;
+  if (zp >= w1 + w2) return 1.0;
+  if (zp <= w2) return zp*zp/(2.0*w1*w2);
+  if (zp <= w1) return (zp - 0.5*w2)/w1;
+  double tail = w1 + w2 - zp;
+  return 1.0 - tail*tail/(2.0*w1*w2);
+}
+
+// RutGrid.write_footprint: a strip `width` across (ax, ay), one cell along, centred at
+// (qx, qy), compacted to `depth` (each cell keeps the deepest covered fraction)
+static void rut_write(const TerrainView* t, double* rut, int icap, double qx, double qy,
+                      double ax, double ay, double depth, double width) {
+  double c = t->rut_cell;
+  double ux = -ay, uy = ax;
+  double reach = 0.5*width + c;
+  double hx = fabs(ux)*0.5*c + fabs(ax)*reach;
+  double hy = fabs(uy)*0.5*c + fabs(ay)*reach;
+  long ix0 = (long)floor((qx - hx - t->rut_x0)/c), ix1 = (long)floor((qx + hx - t->rut_x0)/c);
+  long iy0 = (long)floor((qy - hy - t->rut_y0)/c), iy1 = (long)floor((qy + hy - t->rut_y0)/c);
+  if (ix0 < 0) ix0 = 0;
+  if (iy0 < 0) iy0 = 0;
+  if (ix1 > t->rut_nx - 1) ix1 = t->rut_nx - 1;
+  if (iy1 > t->rut_ny - 1) iy1 = t->rut_ny - 1;
+  double w1 = c*np_max(fabs(ax), fabs(ay));
+  double w2 = c*np_min(fabs(ax), fabs(ay));
+  const long size = RUT_TILE*RUT_TILE;
+  for (long iy = iy0; iy <= iy1; iy++) {
+    for (long ix = ix0; ix <= ix1; ix++) {
+      double px = (t->rut_x0 + ((double)ix + 0.5)*c) - qx;
+      double py = (t->rut_y0 + ((double)iy + 0.5)*c) - qy;
+      double s = px*ux + py*uy;
+      double tt = px*ax + py*ay;
+      double f = rut_cdf(0.5*width - tt, w1, w2) - rut_cdf(-0.5*width - tt, w1, w2);
+      double val = depth*f;
+      if (!(fabs(s) <= 0.5*c) || !(val > rut_cell(t, rut, icap, ix, iy))) continue;
+      long at = RUT_HEAD + (iy/RUT_TILE)*t->rut_ntx + ix/RUT_TILE;
+      if (rut[at] == 0.0) {  // a new tile from the pool
+        long used = (long)rut[0];
+        if (used >= RUT_POOL_TILES) {
+          rut[1] += 1.0;
+          continue;
+        }
+        rut[0] = used + 1;
+        rut[at] = used + 1;
+        memset(rut + RUT_HEAD + icap + used*size, 0, sizeof(double)*size);
+      }
+      long tile = (long)rut[at];
+      rut[RUT_HEAD + icap + (tile - 1)*size + (iy % RUT_TILE)*RUT_TILE + ix % RUT_TILE] = val;
+    }
+  }
 }
 
 //---------------------------------------------------------------- soil (rover_env.soil)
@@ -796,10 +896,11 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
   c->load_fz0 = ev[2];
   c->load_span = ev[3];
   double rc;
-  if (!parse_numbers(config(m, instance, "rut_cells"), &rc, 1) || rc < 0 || rc != floor(rc)) {
-    return fail(c, "config 'rut_cells' must be one integer >= 0", NULL);
+  if (!parse_numbers(config(m, instance, "rut_state"), &rc, 1) || rc < 0 || rc != floor(rc)
+      || (rc > 0 && rc < RUT_HEAD + RUT_POOL_SIZE)) {
+    return fail(c, "config 'rut_state' must be 0 or an integer >= the rut pool", NULL);
   }
-  c->rut_cells = (int)rc;
+  c->rut_state = (int)rc;
   if (!parse_numbers(config(m, instance, "width"), &c->width, 1) || c->width <= 0) {
     return fail(c, "config 'width' must be one positive number", NULL);
   }
@@ -823,10 +924,10 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
     return fail(c, "the RK4 integrator is not supported (it evaluates forces at"
                 " intermediate stages); use Euler, implicit or implicitfast", NULL);
   }
-  if (tv.rut_nx*tv.rut_ny > c->rut_cells) {
-    return fail(c, "config 'terrain': rut map larger than config 'rut_cells'", NULL);
+  if (tv.rut_nx*tv.rut_ny > 0 && tv.rut_ntx*tv.rut_nty > rut_index_capacity(c->rut_state)) {
+    return fail(c, "config 'terrain': rut map larger than config 'rut_state'", NULL);
   }
-  Layout L = layout_of(nw, nd, c->rut_cells);
+  Layout L = layout_of(nw, nd, c->rut_state);
   if (m->plugin_statenum[instance] != L.total) {
     return fail(c, "plugin state size does not match the configuration", NULL);
   }
@@ -840,7 +941,7 @@ static int tire_nstate(const mjModel* m, int instance) {
   int nw = count_tokens(config(m, instance, "wheels"));
   int nd = count_tokens(config(m, instance, "motors"));
   double rc = 0.0;
-  if (!parse_numbers(config(m, instance, "rut_cells"), &rc, 1) || rc < 0) rc = 0.0;
+  if (!parse_numbers(config(m, instance, "rut_state"), &rc, 1) || rc < 0) rc = 0.0;
   return layout_of(nw, nd, (int)rc).total;
 }
 
@@ -875,7 +976,8 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
   Config* c = (Config*)d->plugin_data[instance];  // this MjData's own (soil_tan_phi writes)
   if (!c) return;
   const int nw = c->nw, nd = c->nd, nv = m->nv;
-  const Layout L = layout_of(nw, nd, c->rut_cells);
+  const Layout L = layout_of(nw, nd, c->rut_state);
+  const int icap = rut_index_capacity(c->rut_state);
   mjtNum* st = d->plugin_state + m->plugin_stateadr[instance];
   const double dt = m->opt.timestep;
   const double* tp = c->tire;
@@ -908,7 +1010,8 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
   }
 
   // the terrain's wave capacity may not exceed the one the scratch was sized for
-  if (tv.capw > c->capw || tv.rut_nx*tv.rut_ny > c->rut_cells) {
+  if (tv.capw > c->capw
+      || (tv.rut_nx*tv.rut_ny > 0 && tv.rut_ntx*tv.rut_nty > icap)) {
     mju_warning("%s plugin: terrain numeric resized after compilation; no tire forces",
                 PLUGIN_NAME);
     return;
@@ -1004,16 +1107,15 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
     }  // hard ground
 
     double sink = 0.0, torque = 0.0, dig = 0.0;
-    double* pw = st + L.pwrite + 4*i;
-    pw[0] = pw[1] = pw[2] = -1.0;
-    pw[3] = 0.0;
+    double* pw = st + L.pwrite + 5*i;
+    pw[0] = pw[1] = pw[2] = pw[3] = pw[4] = 0.0;
     if (soil > 0) {  // loose soil: soil.soil_step and TireLayer's soil branch
       const double* sp = tv.soil + SOIL_STRIDE*(soil - 1);
       double r = c->radius;
       double ssx = sp[S_SIGMA] > 0.0 ? sp[S_SIGMA] : sx;  // the soil's relaxation length
       double ssy = sp[S_SIGMA] > 0.0 ? sp[S_SIGMA] : sy;
       v_w = r*d->qvel[c->dof[i]];
-      double rut = rut_lookup(&tv, st + L.rut, point[0], point[1]);
+      double rut = rut_footprint(&tv, st + L.rut, icap, point, axis, c->width);
       double rho_x = np_max(np_max(fabs(v_x), fabs(v_w)), SOIL_V_EPS)/ssx;
       double rho_y = np_max(fabs(v_x), SOIL_V_EPS)/ssy;
       double emx = expm1(-rho_x*dt), emy = expm1(-rho_y*dt);
@@ -1051,17 +1153,12 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       if (fabs(v_x) > SOIL_V_BLEND && delta > 0.0 && sp[S_MEMORY] > 0.0) {  // rut_writes
         double hw = np_min(sink, r);
         double e = 1.0 - hw/r;
-        double back = r*sqrt(np_max(0.0, 1.0 - e*e)) + 1.5*tv.rut_cell;
+        double back = r*sqrt(np_max(0.0, 1.0 - e*e)) + 2.0*tv.rut_cell;
         double sgn = v_x > 0 ? 1.0 : -1.0;
-        double half = 0.5*(c->width - tv.rut_cell);
-        for (int k = 0; k < 3; k++) {
-          double kk = k - 1.0, q[2];
-          for (int a = 0; a < 2; a++) {
-            q[a] = point[a] - sgn*back*xc[a] + kk*half*axis[a];
-          }
-          pw[k] = rut_cell_of(&tv, q[0], q[1]);
-        }
-        pw[3] = sp[S_MEMORY]*delta;
+        pw[0] = point[0] - sgn*back*xc[0];
+        pw[1] = point[1] - sgn*back*xc[1];
+        rut_across(axis, &pw[2], &pw[3]);
+        pw[4] = sp[S_MEMORY]*delta;
       }
     }
 
@@ -1095,18 +1192,22 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
 static void tire_advance(const mjModel* m, mjData* d, int instance) {
   const Config* c = (const Config*)d->plugin_data[instance];
   if (!c) return;
-  const Layout L = layout_of(c->nw, c->nd, c->rut_cells);
+  const Layout L = layout_of(c->nw, c->nd, c->rut_state);
   mjtNum* st = d->plugin_state + m->plugin_stateadr[instance];
   // pending u_x, u_y, sp -> committed, pending truth -> truth
   memcpy(st + L.ux, st + L.pux, sizeof(mjtNum) * (2*c->nw + c->nd));
   memcpy(st + L.truth, st + L.ptruth, sizeof(mjtNum) * NTRUTH*c->nw);
   memcpy(st + L.dig, st + L.pdig, sizeof(mjtNum) * c->nw);
-  // the rut map remembers the deepest pass (TireLayer.apply: max over the writes)
-  for (int i = 0; i < c->nw; i++) {
-    const double* pw = st + L.pwrite + 4*i;
-    for (int k = 0; k < 3; k++) {
-      int cell = (int)pw[k];
-      if (cell >= 0 && cell < c->rut_cells && st[L.rut + cell] < pw[3]) st[L.rut + cell] = pw[3];
+  // the rut map remembers the deepest pass (TireLayer.apply: the wheels' writes in order)
+  TerrainView tv;
+  const int icap = rut_index_capacity(c->rut_state);
+  if (c->rut_state > 0 && terrain_view(m, c->terrain, &tv) && tv.rut_nx*tv.rut_ny > 0
+      && tv.rut_ntx*tv.rut_nty <= icap) {
+    for (int i = 0; i < c->nw; i++) {
+      const double* pw = st + L.pwrite + 5*i;
+      if (pw[4] > 0.0) {
+        rut_write(&tv, st + L.rut, icap, pw[0], pw[1], pw[2], pw[3], pw[4], c->width);
+      }
     }
   }
   st[L.nstep] += 1.0;
