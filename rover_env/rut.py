@@ -182,10 +182,10 @@ class RutGrid(NamedTuple):
         reach = 0.5 * width + c
         hx = abs(ux) * 0.5 * c + abs(ax) * reach
         hy = abs(uy) * 0.5 * c + abs(ay) * reach
-        ix0 = max(int(math.floor((qx - hx - self.x0) / c)), 0)
-        ix1 = min(int(math.floor((qx + hx - self.x0) / c)), self.nx - 1)
-        iy0 = max(int(math.floor((qy - hy - self.y0) / c)), 0)
-        iy1 = min(int(math.floor((qy + hy - self.y0) / c)), self.ny - 1)
+        ix0 = max(math.floor((qx - hx - self.x0) / c), 0)
+        ix1 = min(math.floor((qx + hx - self.x0) / c), self.nx - 1)
+        iy0 = max(math.floor((qy - hy - self.y0) / c), 0)
+        iy1 = min(math.floor((qy + hy - self.y0) / c), self.ny - 1)
         if ix0 > ix1 or iy0 > iy1:
             return
         iy, ix = np.mgrid[iy0 : iy1 + 1, ix0 : ix1 + 1]

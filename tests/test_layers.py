@@ -15,6 +15,7 @@ RANKS = {
     "rover_env.tire": 0,
     "rover_env.soil": 0,
     "rover_env.terrain": 0,
+    "rover_env.rut": 0,
     "rover_env.kinematics": 0,
     "rover_env.config": 0,
     "rover_env.logs": 0,

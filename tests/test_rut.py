@@ -21,7 +21,9 @@ B = 0.05  # the rover's wheel width
 
 
 def _grid(cell: float, size: float = 2.0) -> RutGrid:
-    return RutGrid.covering((-size / 2, -size / 2), (size / 2, size / 2), (SoilParams(rut_cell=cell),))
+    return RutGrid.covering(
+        (-size / 2, -size / 2), (size / 2, size / 2), (SoilParams(rut_cell=cell),)
+    )
 
 
 def _drive(g: RutGrid, state: np.ndarray, heading: float, y0: float, depth: float) -> None:
@@ -115,7 +117,9 @@ def test_the_map_covers_the_soil_only() -> None:
             {
                 "name": "p",
                 "size": [20.0, 10.0],
-                "patches": [{"name": "s", "center": [3.5, 0.0], "size": [6.0, 4.0], "soil": "mars-sand"}],
+                "patches": [
+                    {"name": "s", "center": [3.5, 0.0], "size": [6.0, 4.0], "soil": "mars-sand"}
+                ],
             },
         )
     )

@@ -815,6 +815,10 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
     ## Version history
     * v0: initial release. (Issue 17 moved the command drawing into the task layer, draw for
       draw, and added ``info["slip_abs_step"]``; the episodes of every seed are unchanged.)
+    * ``ProtoExplorerSoil-v1`` (stop 41): the loose soil's rut map writes and reads the
+      wheel's whole footprint on 5 mm cells (``rover_env.rut``), so ruts no longer depend on
+      the grid or the heading (docs/soil.md 3.4b). Episodes on soil differ from v0's; the
+      hard-ground ids are unchanged.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}  # noqa: RUF012

@@ -6,7 +6,7 @@ import gymnasium as gym
 
 ENV_IDS = ("rover_env/ProtoExplorer-v0", "rover_env/ProtoExplorerRough-v0")
 MIX_ENV_ID = "rover_env/ProtoExplorerScenarioMix-v0"
-SOIL_ENV_ID = "rover_env/ProtoExplorerSoil-v0"
+SOIL_ENV_ID = "rover_env/ProtoExplorerSoil-v1"
 """Random tracking commands on loose soil (``configs/terrain/sand.yaml``). Not in ENV_IDS,
 the ids configs/ppo.yaml carries training settings for."""
 MAX_EPISODE_STEPS = 300

@@ -28,8 +28,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from rover_env import tire
 from rover_env.config import DRIVEN_WHEELS, JOINTS, WHEELS, RoverConfig, TerrainConfig
-from rover_env.sim.fast import PluginView
 from rover_env.rut import check_overflow
+from rover_env.sim.fast import PluginView
 from rover_env.sim.simulator import RoverSim, SimulationError, WheelTruth
 
 Array = NDArray[np.float64]

@@ -40,9 +40,9 @@ from rover_env.effects import (
     build_effects,
     plugin_refusals,
 )
+from rover_env.rut import check_overflow, refused_writes
 from rover_env.sim.fast import FastBackendError, PluginView, inject_plugin, load_plugin
 from rover_env.sim.model import fill_hfield, hfield_data, scene_xml, static_deflection
-from rover_env.rut import check_overflow, refused_writes
 from rover_env.sim.tire_layer import TireLayer, TireState
 from rover_env.soil import SoilParams, load_soil
 from rover_env.terrain import Terrain
