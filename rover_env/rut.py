@@ -10,8 +10,9 @@ so that the physics does not depend on the cell:
 * **read** the mean over the follower's width, bilinearly at points spaced at half a cell.
 
 A follower offset by e from its leader then reads d (1 - |e| / b), smooth in e and the same
-whichever way the track crosses the grid (to one part in a hundred at 5 mm; the rut an
-aligned follower reads falls short of d by about 0.4 cell / b at the edges' blur).
+whichever way the track crosses the grid (within 1.5 % of d at offsets beyond a cell, at any
+angle; an aligned follower reads about 0.4 cell / b short, 4 % at 5 mm, from the edges' blur,
+and halving the cell halves that: tests/test_rut.py).
 
 Cells are grouped in tiles of ``RUT_TILE`` squared, allocated from a pool the first time a
 wheel writes into them, so the map costs memory only where wheels have driven: a 20 x 20 m
@@ -39,6 +40,8 @@ RUT_TILE = 16
 """Cells per tile side (a tile of 8 cm at 5 mm cells)."""
 RUT_POOL_TILES = 2048
 """Tiles one simulation may touch: 512 k cells, 4 MB of state (about 50 m of straight drive)."""
+MAX_RUT_SAMPLES = 512
+"""Most footprint read points across a wheel (2 width / cell; the plugin's buffer)."""
 MAX_RUT_INDEX = 1_000_000
 """Largest tile index a terrain may ask for (its soil's bounding box in tiles)."""
 _HEAD = 2  # tiles used, writes refused
@@ -156,7 +159,14 @@ class RutGrid(NamedTuple):
 
     def samples(self, width: float) -> int:
         """Points across a wheel for its footprint read: at most half a cell apart."""
-        return max(2, math.ceil(2.0 * width / self.cell))
+        k = max(2, math.ceil(2.0 * width / self.cell))
+        if k > MAX_RUT_SAMPLES:
+            raise ConfigError(
+                f"rut_cell {self.cell} m is too fine for a wheel {width} m wide: its footprint"
+                f" read needs {k} points, more than {MAX_RUT_SAMPLES}; use rut_cell >="
+                f" {2.0 * width / MAX_RUT_SAMPLES:.2g} m"
+            )
+        return k
 
     def footprint_depth(self, state: Array, point: Array, axis: Array, width: float) -> Array:
         """Mean rut depth across each wheel's width at its contact point (n,): ``point``
@@ -208,16 +218,17 @@ class RutGrid(NamedTuple):
         size = RUT_TILE * RUT_TILE
         base = _HEAD + self.index_size
         ok = np.ones(len(idx), dtype=bool)
-        for j in range(len(idx)):  # take new tiles in row order, as the plugin does
-            if state[idx[j]] == 0.0:
-                used = int(state[0])
-                if used >= RUT_POOL_TILES:
-                    state[1] += 1.0
-                    ok[j] = False
-                    continue
-                state[0] = used + 1
-                state[idx[j]] = used + 1
-                state[base + used * size : base + (used + 1) * size] = 0.0
+        for j in np.flatnonzero(state[idx] == 0.0):  # new tiles in row order, as the plugin
+            if state[idx[j]] != 0.0:  # taken by an earlier cell of this write
+                continue
+            used = int(state[0])
+            if used >= RUT_POOL_TILES:
+                state[1] += 1.0
+                ok[j] = False
+                continue
+            state[0] = used + 1
+            state[idx[j]] = used + 1
+            state[base + used * size : base + (used + 1) * size] = 0.0
         tile = state[idx].astype(np.int64)
         at = base + (tile - 1) * size + (iy % RUT_TILE) * RUT_TILE + ix % RUT_TILE
         state[at[ok]] = val[ok]

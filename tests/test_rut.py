@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rover_env.config import TerrainConfig, from_dict
+from rover_env.config import ConfigError, TerrainConfig, from_dict
 from rover_env.rut import (
     RUT_POOL_TILES,
     RUT_TILE,
@@ -128,3 +128,10 @@ def test_the_map_covers_the_soil_only() -> None:
     assert g.nx * g.cell == pytest.approx(6.0) and g.ny * g.cell == pytest.approx(4.0)
     hard = Terrain(from_dict(TerrainConfig, {"name": "h", "size": [20.0, 10.0]}))
     assert hard.rut_grid.state_size == 0
+
+
+def test_a_cell_too_fine_for_the_wheel_is_refused() -> None:
+    g = _grid(0.0001, size=0.5)
+    with pytest.raises(ConfigError, match=r"rut_cell 0.0001 m is too fine.*1000 points"):
+        g.samples(B)
+    assert _grid(0.005).samples(B) == 20

@@ -128,6 +128,8 @@ class TireLayer:
         self.u_y = np.zeros(n)
         self.width = width
         self.dig = np.zeros(n)
+        if terrain.has_soil:
+            terrain.rut_grid.samples(width)  # a rut_cell too fine for this wheel: ConfigError
         self.rut = terrain.rut_grid.new_state()
         self.last: TireState | None = None
 

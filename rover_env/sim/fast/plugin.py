@@ -128,6 +128,8 @@ def inject_plugin(
     if unknown:
         raise ValueError(f"inject_plugin: unknown effect slot(s) {sorted(unknown)}")
     load_plugin()
+    if terrain.has_soil:  # the footprint read's points must fit the plugin's buffer
+        terrain.rut_grid.samples(cfg.geometry.wheel_width)
     tire = cfg.tire
     block = terrain_block(
         terrain,

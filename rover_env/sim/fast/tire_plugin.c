@@ -107,6 +107,7 @@
 #define RUT_TILE 16          // rover_env.rut.RUT_TILE
 #define RUT_POOL_TILES 2048  // rover_env.rut.RUT_POOL_TILES
 #define RUT_HEAD 2           // tiles used, writes refused
+#define RUT_MAX_SAMPLES 512  // rover_env.rut.MAX_RUT_SAMPLES (RutGrid.samples refuses more)
 #define RUT_POOL_SIZE (RUT_POOL_TILES*RUT_TILE*RUT_TILE)
 
 // tire parameter indices (TireParams field order)
@@ -461,8 +462,8 @@ static double rut_footprint(const TerrainView* t, const double* rut, int icap,
   int k = rut_samples(t->rut_cell, width);
   double ax, ay;
   rut_across(axis, &ax, &ay);
-  double vals[512];
-  if (k > 512) k = 512;  // 2 width / cell: the soil's rut_cell is validated far above this
+  double vals[RUT_MAX_SAMPLES];
+  if (k > RUT_MAX_SAMPLES) return 0.0;  // never: inject_plugin checks RutGrid.samples
   for (int j = 0; j < k; j++) {
     double tt = ((double)j + 0.5)*(width/k) - 0.5*width;
     vals[j] = rut_lookup(t, rut, icap, point[0] + tt*ax, point[1] + tt*ay);
