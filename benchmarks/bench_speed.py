@@ -46,7 +46,7 @@ ID = "rover_env/ProtoExplorer-v0"
 TARGETS = [2.0, 3.0, 2.0, 3.0]
 SOIL_PRESETS = ("regolith", "mars-sand", "dune-sand")
 SOIL_ARENA = (20.0, 20.0)
-"""Arena of the soil rows (flat; its size sets the rut map: 800 x 800 cells)."""
+"""Arena of the soil rows (flat, soil over all of it: a rut index of 250 x 250 tiles of 5 mm cells)."""
 
 
 CPU_RATES: dict[str, float] = {}

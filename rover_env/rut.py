@@ -40,6 +40,9 @@ RUT_TILE = 16
 """Cells per tile side (a tile of 8 cm at 5 mm cells)."""
 RUT_POOL_TILES = 2048
 """Tiles one simulation may touch: 512 k cells, 4 MB of state (about 50 m of straight drive)."""
+RUT_WRITE_EVERY = 4
+"""A wheel writes its rut every this many substeps, over a strip stretched to twice the
+distance it travels meanwhile (at least one cell): every cell it passes is written."""
 MAX_RUT_SAMPLES = 512
 """Most footprint read points across a wheel (2 width / cell; the plugin's buffer)."""
 MAX_RUT_INDEX = 1_000_000
@@ -182,16 +185,25 @@ class RutGrid(NamedTuple):
         return np.mean(self.lookup(state, x, y), axis=1)
 
     def write_footprint(
-        self, state: Array, qx: float, qy: float, ax: float, ay: float, depth: float, width: float
+        self,
+        state: Array,
+        qx: float,
+        qy: float,
+        ax: float,
+        ay: float,
+        depth: float,
+        width: float,
+        length: float,
     ) -> None:
-        """Compact a strip ``width`` across (unit (ax, ay), horizontal), one cell along,
-        centred at (qx, qy), to ``depth``: each cell keeps max(its depth, depth x the
-        fraction of it inside the strip). Cells and new tiles in row order (iy, then ix)."""
+        """Compact a strip ``width`` across (unit (ax, ay), horizontal) and ``length`` along,
+        centred at (qx, qy), to ``depth``: each cell whose centre lies within the length keeps
+        max(its depth, depth x the fraction of it inside the strip's width). Cells and new
+        tiles in row order (iy, then ix)."""
         c = self.cell
         ux, uy = -ay, ax
         reach = 0.5 * width + c
-        hx = abs(ux) * 0.5 * c + abs(ax) * reach
-        hy = abs(uy) * 0.5 * c + abs(ay) * reach
+        hx = abs(ux) * 0.5 * length + abs(ax) * reach
+        hy = abs(uy) * 0.5 * length + abs(ay) * reach
         ix0 = max(math.floor((qx - hx - self.x0) / c), 0)
         ix1 = min(math.floor((qx + hx - self.x0) / c), self.nx - 1)
         iy0 = max(math.floor((qy - hy - self.y0) / c), 0)
@@ -210,7 +222,7 @@ class RutGrid(NamedTuple):
         f = coverage_cdf(0.5 * width - t, w1, w2) - coverage_cdf(-0.5 * width - t, w1, w2)
         val = depth * f
         cur = self.cells(state, ix, iy)
-        keep = (np.abs(s) <= 0.5 * c) & (val > cur)
+        keep = (np.abs(s) <= 0.5 * length) & (val > cur)
         if not keep.any():
             return
         ix, iy, val = ix[keep], iy[keep], val[keep]

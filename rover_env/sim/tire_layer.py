@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from rover_env import soil, tire
 from rover_env.effects import TireEffect
-from rover_env.rut import RutGrid, across_unit
+from rover_env.rut import RUT_WRITE_EVERY, RutGrid, across_unit
 from rover_env.terrain import Terrain
 from rover_env.tire import TireParams
 
@@ -56,9 +56,11 @@ def rut_writes(
     sinkage: Array,
     on_soil: NDArray[np.bool_],
     radius: float,
+    dt: float,
     memory: Array | None = None,
-) -> list[tuple[float, float, float, float, float]]:
-    """Ruts a substep leaves, as (x, y, across_x, across_y, depth): behind each moving wheel.
+) -> list[tuple[float, float, float, float, float, float]]:
+    """Ruts a substep leaves, as (x, y, across_x, across_y, depth, length): behind each
+    moving wheel, on every :data:`~rover_env.rut.RUT_WRITE_EVERY`-th substep (the caller's).
 
     The depth is that of the wheel's lowest point below the terrain surface, written over
     the wheel's footprint (:meth:`~rover_env.rut.RutGrid.write_footprint`) a little behind
@@ -68,7 +70,7 @@ def rut_writes(
     depth; a soil without memory leaves no rut.
     """
     g = terrain.rut_grid
-    out: list[tuple[float, float, float, float, float]] = []
+    out: list[tuple[float, float, float, float, float, float]] = []
     keep = np.ones(len(delta)) if memory is None else memory
     ax, ay = across_unit(axis)
     # Only a wheel clearly travelling (beyond the direction blend) leaves a rut: at start-up
@@ -76,11 +78,13 @@ def rut_writes(
     for i in np.flatnonzero(on_soil & (np.abs(v_x) > soil.V_BLEND) & (delta > 0.0) & (keep > 0.0)):
         h = min(float(sinkage[i]), radius)
         e = 1.0 - h / radius
-        back = radius * np.sqrt(max(0.0, 1.0 - e * e)) + 2.0 * g.cell
+        length = max(g.cell, 2.0 * abs(float(v_x[i])) * (RUT_WRITE_EVERY * dt))
+        back = (radius * np.sqrt(max(0.0, 1.0 - e * e)) + 0.5 * length) + 1.5 * g.cell
         sgn = 1.0 if v_x[i] > 0 else -1.0
         qx = point[i, 0] - sgn * back * xc[i, 0]
         qy = point[i, 1] - sgn * back * xc[i, 1]
-        out.append((float(qx), float(qy), float(ax[i]), float(ay[i]), float(keep[i] * delta[i])))
+        depth = float(keep[i] * delta[i])
+        out.append((float(qx), float(qy), float(ax[i]), float(ay[i]), depth, length))
     return out
 
 
@@ -131,6 +135,9 @@ class TireLayer:
         if terrain.has_soil:
             terrain.rut_grid.samples(width)  # a rut_cell too fine for this wheel: ConfigError
         self.rut = terrain.rut_grid.new_state()
+        self.substeps = 0
+        """Substeps applied since the reset (the plugin's committed count): ruts are written
+        on every RUT_WRITE_EVERY-th."""
         self.last: TireState | None = None
 
     def reset(self) -> None:
@@ -140,6 +147,7 @@ class TireLayer:
         if self.rut.size != self.terrain.rut_grid.state_size:
             self.rut = self.terrain.rut_grid.new_state()
         RutGrid.clear(self.rut, self.terrain.rut_grid.index_size)
+        self.substeps = 0
         self.last = None
 
     def clear_ground_memory(self) -> None:
@@ -208,11 +216,13 @@ class TireLayer:
                     F_x[m], F_y[m], F_z[m] = st.F_x, st.F_y, st.F_z
                     sink[m], torque[m] = st.sinkage, st.T
                 memory = self._memory[where]
-                writes = rut_writes(
-                    self.terrain, c.point, xc, axis, v_x, c.delta, sink, on, self.radius, memory
-                )
-                for qx, qy, ax, ay, depth in writes:
-                    g.write_footprint(self.rut, qx, qy, ax, ay, depth, self.width)
+                if self.substeps % RUT_WRITE_EVERY == 0:
+                    writes = rut_writes(
+                        self.terrain, c.point, xc, axis, v_x, c.delta, sink, on,
+                        self.radius, self.dt, memory,
+                    )  # fmt: skip
+                    for qx, qy, ax, ay, depth, length in writes:
+                        g.write_footprint(self.rut, qx, qy, ax, ay, depth, self.width, length)
             self.dig[~on] = 0.0
         force = F_x[:, None] * xc + F_y[:, None] * yc + F_z[:, None] * nrm
         data.qfrc_applied[:] = 0.0
@@ -230,3 +240,4 @@ class TireLayer:
         self.last = TireState(
             v_x, v_y, v_w, F_x, F_y, F_z, c.delta, c.point, nrm, patch, sink, torque, where
         )
+        self.substeps += 1

@@ -224,7 +224,7 @@ class StateLayout:
 
     @property
     def rut(self) -> slice:
-        start = self.dig.stop + 6 * self.nw  # after pending dig and the pending rut writes
+        start = self.dig.stop + 7 * self.nw  # after pending dig and the pending rut writes
         return slice(start, start + self.rut_state)
 
     @property

@@ -34,8 +34,9 @@
 //   next 17 nw         pending truth, same layout as truth
 //   next nw            dig       committed depth each wheel has dug into the soil (m)
 //   next nw            pending dig
-//   next 5 nw          pending rut writes: the footprint's centre x, y, its across
-//                                direction x, y and the depth (0: none), per wheel
+//   next 6 nw          pending rut writes: the footprint's centre x, y, its across
+//                                direction x, y, the depth (0: none) and the strip's
+//                                length along the track, per wheel
 //   next rut_state     rut       the rut map (rover_env/rut.py): tiles used, writes refused,
 //                                the tile index (capacity rut_state - 2 - pool), the pool of
 //                                RUT_POOL_TILES tiles of RUT_TILE^2 cells: compacted depth
@@ -107,6 +108,7 @@
 #define RUT_TILE 16          // rover_env.rut.RUT_TILE
 #define RUT_POOL_TILES 2048  // rover_env.rut.RUT_POOL_TILES
 #define RUT_HEAD 2           // tiles used, writes refused
+#define RUT_WRITE_EVERY 4    // rover_env.rut.RUT_WRITE_EVERY
 #define RUT_MAX_SAMPLES 512  // rover_env.rut.MAX_RUT_SAMPLES (RutGrid.samples refuses more)
 #define RUT_POOL_SIZE (RUT_POOL_TILES*RUT_TILE*RUT_TILE)
 
@@ -175,7 +177,7 @@ static Layout layout_of(int nw, int nd, int rut_state) {
   L.dig = L.ptruth + NTRUTH*nw;
   L.pdig = L.dig + nw;
   L.pwrite = L.pdig + nw;
-  L.rut = L.pwrite + 5*nw;
+  L.rut = L.pwrite + 6*nw;
   L.total = L.rut + rut_state;
   return L;
 }
@@ -407,6 +409,12 @@ static void friction(const TerrainView* t, double x, double y,
   }
 }
 
+// floor(x) for |x| < 2^62 without a libm call (-O2 without SSE4.1 calls floor()): the same value
+static inline double rut_floor(double x) {
+  double i = (double)(long)x;
+  return x < i ? i - 1.0 : i;
+}
+
 // the rut map (rover_env/rut.py): index capacity of a rut block of rut_state numbers
 static inline int rut_index_capacity(int rut_state) {
   return rut_state > 0 ? rut_state - RUT_HEAD - RUT_POOL_SIZE : 0;
@@ -421,19 +429,37 @@ static double rut_cell(const TerrainView* t, const double* rut, int icap, long i
              + ix % RUT_TILE];
 }
 
-// RutGrid.lookup: bilinear rut depth at (x, y), 0 outside the map
-static double rut_lookup(const TerrainView* t, const double* rut, int icap, double x, double y) {
-  if (t->rut_nx*t->rut_ny == 0) return 0.0;
+// RutGrid.lookup: bilinear rut depth at (x, y), 0 outside the map (which is not empty)
+static inline double rut_lookup(const TerrainView* t, const double* rut, int icap, double x,
+                                double y) {
   double gx = (x - t->rut_x0)/t->rut_cell - 0.5;
   double gy = (y - t->rut_y0)/t->rut_cell - 0.5;
-  double ix = floor(gx), iy = floor(gy);
+  if (!(fabs(gx) < 4e18 && fabs(gy) < 4e18)) return 0.0;  // far outside (or NaN): no rut
+  double ix = rut_floor(gx), iy = rut_floor(gy);
   double fx = gx - ix, fy = gy - iy;
-  const int dx[4] = {0, 1, 0, 1}, dy[4] = {0, 0, 1, 1};
   const double w[4] = {(1 - fx)*(1 - fy), fx*(1 - fy), (1 - fx)*fy, fx*fy};
-  double out = 0.0;
-  for (int k = 0; k < 4; k++) {
-    out = out + w[k]*rut_cell(t, rut, icap, (long)(ix + dx[k]), (long)(iy + dy[k]));
+  long cx = (long)ix, cy = (long)iy;
+  double v[4];
+  if (cx >= 0 && cx + 1 < t->rut_nx && cy >= 0 && cy + 1 < t->rut_ny
+      && (cx & (RUT_TILE - 1)) != RUT_TILE - 1 && (cy & (RUT_TILE - 1)) != RUT_TILE - 1) {
+    // the four cells share one tile (the common case): one index read (cx, cy >= 0 here)
+    unsigned long ux = (unsigned long)cx, uy = (unsigned long)cy;
+    long tile = (long)rut[RUT_HEAD + (uy/RUT_TILE)*t->rut_ntx + ux/RUT_TILE];
+    if (tile <= 0) return 0.0;  // 0 + w 0 + ...: the same +0.0
+    const double* p = rut + RUT_HEAD + icap + (tile - 1)*RUT_TILE*RUT_TILE
+                      + (uy % RUT_TILE)*RUT_TILE + ux % RUT_TILE;
+    v[0] = p[0];
+    v[1] = p[1];
+    v[2] = p[RUT_TILE];
+    v[3] = p[RUT_TILE + 1];
+  } else {
+    v[0] = rut_cell(t, rut, icap, cx, cy);
+    v[1] = rut_cell(t, rut, icap, cx + 1, cy);
+    v[2] = rut_cell(t, rut, icap, cx, cy + 1);
+    v[3] = rut_cell(t, rut, icap, cx + 1, cy + 1);
   }
+  double out = 0.0;
+  for (int k = 0; k < 4; k++) out = out + w[k]*v[k];
   return out;
 }
 
@@ -462,6 +488,28 @@ static double rut_footprint(const TerrainView* t, const double* rut, int icap,
   int k = rut_samples(t->rut_cell, width);
   double ax, ay;
   rut_across(axis, &ax, &ay);
+  {  // every tile the reads could touch never written (virgin soil): the mean is +0.0
+    double hx = 0.5*width*fabs(ax), hy = 0.5*width*fabs(ay), c = t->rut_cell;
+    double lx = (point[0] - hx - t->rut_x0)/c - 1.5, hxc = (point[0] + hx - t->rut_x0)/c + 1.5;
+    double ly = (point[1] - hy - t->rut_y0)/c - 1.5, hyc = (point[1] + hy - t->rut_y0)/c + 1.5;
+    if (lx > -1e9 && hxc < 1e9 && ly > -1e9 && hyc < 1e9) {
+      long cx0 = (long)rut_floor(lx), cx1 = (long)rut_floor(hxc);
+      long cy0 = (long)rut_floor(ly), cy1 = (long)rut_floor(hyc);
+      if (cx1 < 0 || cx0 >= t->rut_nx || cy1 < 0 || cy0 >= t->rut_ny) return 0.0;  // off the map
+      long tx0 = (cx0 < 0 ? 0 : cx0)/RUT_TILE, tx1 = (cx1 >= t->rut_nx ? t->rut_nx - 1 : cx1)/RUT_TILE;
+      long ty0 = (cy0 < 0 ? 0 : cy0)/RUT_TILE, ty1 = (cy1 >= t->rut_ny ? t->rut_ny - 1 : cy1)/RUT_TILE;
+      int any = 0;
+      for (long ty = ty0; ty <= ty1 && !any; ty++) {
+        for (long tx = tx0; tx <= tx1; tx++) {
+          if (rut[RUT_HEAD + ty*t->rut_ntx + tx] != 0.0) {
+            any = 1;
+            break;
+          }
+        }
+      }
+      if (!any) return 0.0;
+    }
+  }
   double vals[RUT_MAX_SAMPLES];
   if (k > RUT_MAX_SAMPLES) return 0.0;  // never: inject_plugin checks RutGrid.samples
   for (int j = 0; j < k; j++) {
@@ -485,12 +533,12 @@ static double rut_cdf(double z, double w1, double w2) {
 // RutGrid.write_footprint: a strip `width` across (ax, ay), one cell along, centred at
 // (qx, qy), compacted to `depth` (each cell keeps the deepest covered fraction)
 static void rut_write(const TerrainView* t, double* rut, int icap, double qx, double qy,
-                      double ax, double ay, double depth, double width) {
+                      double ax, double ay, double depth, double width, double length) {
   double c = t->rut_cell;
   double ux = -ay, uy = ax;
   double reach = 0.5*width + c;
-  double hx = fabs(ux)*0.5*c + fabs(ax)*reach;
-  double hy = fabs(uy)*0.5*c + fabs(ay)*reach;
+  double hx = fabs(ux)*0.5*length + fabs(ax)*reach;
+  double hy = fabs(uy)*0.5*length + fabs(ay)*reach;
   long ix0 = (long)floor((qx - hx - t->rut_x0)/c), ix1 = (long)floor((qx + hx - t->rut_x0)/c);
   long iy0 = (long)floor((qy - hy - t->rut_y0)/c), iy1 = (long)floor((qy + hy - t->rut_y0)/c);
   if (ix0 < 0) ix0 = 0;
@@ -505,10 +553,11 @@ static void rut_write(const TerrainView* t, double* rut, int icap, double qx, do
       double px = (t->rut_x0 + ((double)ix + 0.5)*c) - qx;
       double py = (t->rut_y0 + ((double)iy + 0.5)*c) - qy;
       double s = px*ux + py*uy;
+      if (!(fabs(s) <= 0.5*length)) continue;  // beyond the strip's length: nothing to do
       double tt = px*ax + py*ay;
       double f = rut_cdf(0.5*width - tt, w1, w2) - rut_cdf(-0.5*width - tt, w1, w2);
       double val = depth*f;
-      if (!(fabs(s) <= 0.5*c) || !(val > rut_cell(t, rut, icap, ix, iy))) continue;
+      if (!(val > rut_cell(t, rut, icap, ix, iy))) continue;
       long at = RUT_HEAD + (iy/RUT_TILE)*t->rut_ntx + ix/RUT_TILE;
       if (rut[at] == 0.0) {  // a new tile from the pool
         long used = (long)rut[0];
@@ -1108,8 +1157,8 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
     }  // hard ground
 
     double sink = 0.0, torque = 0.0, dig = 0.0;
-    double* pw = st + L.pwrite + 5*i;
-    pw[0] = pw[1] = pw[2] = pw[3] = pw[4] = 0.0;
+    double* pw = st + L.pwrite + 6*i;
+    pw[0] = pw[1] = pw[2] = pw[3] = pw[4] = pw[5] = 0.0;
     if (soil > 0) {  // loose soil: soil.soil_step and TireLayer's soil branch
       const double* sp = tv.soil + SOIL_STRIDE*(soil - 1);
       double r = c->radius;
@@ -1151,15 +1200,18 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
       F_z = contact ? np_max(F_z + sp[S_DAMP]*delta_dot, 0.0) : 0.0;
       sink = np_max(h, 0.0);
       // rut_writes: behind a moving wheel, across its width
-      if (fabs(v_x) > SOIL_V_BLEND && delta > 0.0 && sp[S_MEMORY] > 0.0) {  // rut_writes
+      if (fabs(v_x) > SOIL_V_BLEND && delta > 0.0 && sp[S_MEMORY] > 0.0
+          && (long)st[L.nstep] % RUT_WRITE_EVERY == 0) {  // rut_writes
         double hw = np_min(sink, r);
         double e = 1.0 - hw/r;
-        double back = r*sqrt(np_max(0.0, 1.0 - e*e)) + 2.0*tv.rut_cell;
+        double length = np_max(tv.rut_cell, 2.0*fabs(v_x)*(RUT_WRITE_EVERY*dt));
+        double back = (r*sqrt(np_max(0.0, 1.0 - e*e)) + 0.5*length) + 1.5*tv.rut_cell;
         double sgn = v_x > 0 ? 1.0 : -1.0;
         pw[0] = point[0] - sgn*back*xc[0];
         pw[1] = point[1] - sgn*back*xc[1];
         rut_across(axis, &pw[2], &pw[3]);
         pw[4] = sp[S_MEMORY]*delta;
+        pw[5] = length;
       }
     }
 
@@ -1205,9 +1257,9 @@ static void tire_advance(const mjModel* m, mjData* d, int instance) {
   if (c->rut_state > 0 && terrain_view(m, c->terrain, &tv) && tv.rut_nx*tv.rut_ny > 0
       && tv.rut_ntx*tv.rut_nty <= icap) {
     for (int i = 0; i < c->nw; i++) {
-      const double* pw = st + L.pwrite + 5*i;
+      const double* pw = st + L.pwrite + 6*i;
       if (pw[4] > 0.0) {
-        rut_write(&tv, st + L.rut, icap, pw[0], pw[1], pw[2], pw[3], pw[4], c->width);
+        rut_write(&tv, st + L.rut, icap, pw[0], pw[1], pw[2], pw[3], pw[4], c->width, pw[5]);
       }
     }
   }
