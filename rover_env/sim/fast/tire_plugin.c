@@ -268,7 +268,7 @@ typedef struct {
   const double* wave;
   const double* patch;
   const double* soil;
-  double rut_x0, rut_y0, rut_cell;
+  double rut_x0, rut_y0, rut_cell, rut_inv;
   int rut_nx, rut_ny, rut_ntx, rut_nty;
 } TerrainView;
 
@@ -294,6 +294,7 @@ static int terrain_view(const mjModel* m, int id, TerrainView* t) {
   t->rut_x0 = p[14];
   t->rut_y0 = p[15];
   t->rut_cell = p[16];
+  t->rut_inv = 1.0/p[16];
   t->rut_nx = rut_nx;
   t->rut_ny = rut_ny;
   t->rut_ntx = (rut_nx + RUT_TILE - 1)/RUT_TILE;
@@ -432,8 +433,8 @@ static double rut_cell(const TerrainView* t, const double* rut, int icap, long i
 // RutGrid.lookup: bilinear rut depth at (x, y), 0 outside the map (which is not empty)
 static inline double rut_lookup(const TerrainView* t, const double* rut, int icap, double x,
                                 double y) {
-  double gx = (x - t->rut_x0)/t->rut_cell - 0.5;
-  double gy = (y - t->rut_y0)/t->rut_cell - 0.5;
+  double gx = (x - t->rut_x0)*t->rut_inv - 0.5;
+  double gy = (y - t->rut_y0)*t->rut_inv - 0.5;
   if (!(fabs(gx) < 4e18 && fabs(gy) < 4e18)) return 0.0;  // far outside (or NaN): no rut
   double ix = rut_floor(gx), iy = rut_floor(gy);
   double fx = gx - ix, fy = gy - iy;
