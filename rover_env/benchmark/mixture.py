@@ -17,7 +17,11 @@ are those the shipped agents were trained on, draw for draw. ``info["seed_split"
 
 Version history: v0. Issue 17 made held-out seeds play their own split's episodes (before,
 every reset seed drew a training-block episode, so "validation" was training episodes);
-episodes of training seeds are unchanged draw for draw, so the id was kept.
+episodes of training seeds are unchanged draw for draw, so the id was kept. Stop 41 changed
+the loose soil's rut map (docs/soil.md 3.4b) and raised ``soft-patch``'s ripples to 9 cm: with
+``scenarios=SOIL_MIX`` (or any soil scenario) episodes differ from before; the default mix is
+hard ground only and unchanged, so the id was kept and the change is the scenarios' (agents
+trained on soil before stop 41 met the old map: docs/benchmark-agents-soil/README.md).
 
 The action may be a residual or a gain schedule (``action_residual``, ``action_schedule``;
 :mod:`rover_env.policies.residual`). ``stall_clock`` appends one observation, the seconds the
