@@ -27,14 +27,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from rover_env.benchmark.run import ScenarioWrapper, run_episode
-from rover_env.config import ConfigError, TerrainConfig, to_dict
+from rover_env.config import ConfigError, TerrainConfig
 from rover_env.envs.proto_explorer import ProtoExplorerEnv
 from rover_env.policies.specs import make_controller
 from rover_env.seeds import split_of
-from rover_env.soil import load_soil
+from rover_env.soil import soil_variant
 from rover_env.tasks.scenarios import load_scenario
 
 
@@ -49,23 +48,13 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
     return max(0.0, mid - half), min(1.0, mid + half)  # rounding: no -0.0 at k = 0
 
 
-def soil_file(name: str, changes: dict[str, float], folder: Path) -> str:
-    """A YAML copy of soil ``name`` with ``changes`` (validated by loading it back)."""
-    base = to_dict(load_soil(name))
-    base.update(changes)
-    path = folder / f"{name}-{'-'.join(f'{k}{v:g}' for k, v in sorted(changes.items()))}.yaml"
-    path.write_text(yaml.safe_dump(base, sort_keys=False))
-    load_soil(path)
-    return str(path)
-
-
 def terrain_with(t: TerrainConfig, changes: dict[str, float], folder: Path) -> TerrainConfig:
     """``t`` with every loose patch's soil (and the ground's, if loose) changed."""
     patches = tuple(
-        dataclasses.replace(p, soil=soil_file(p.soil, changes, folder)) if p.soil else p
+        dataclasses.replace(p, soil=str(soil_variant(p.soil, changes, folder))) if p.soil else p
         for p in t.patches
     )
-    soil = soil_file(t.soil, changes, folder) if t.soil else None
+    soil = str(soil_variant(t.soil, changes, folder)) if t.soil else None
     return dataclasses.replace(t, patches=patches, soil=soil)
 
 

@@ -170,6 +170,22 @@ def load_soil(name_or_path: str | Path) -> SoilParams:
         raise ConfigError(f"{path}: {exc}") from None
 
 
+def soil_variant(name_or_path: str | Path, changes: dict[str, float], folder: Path) -> Path:
+    """A YAML copy of soil ``name_or_path`` with ``changes`` in ``folder``, validated by
+    loading it back (a bad field or value raises :class:`ConfigError` naming it)."""
+    import yaml
+
+    from rover_env.config import to_dict
+
+    base = to_dict(load_soil(name_or_path))
+    base.update(changes)
+    tag = "-".join(f"{k}{v:g}" for k, v in sorted(changes.items()))
+    path = Path(folder) / f"{Path(str(name_or_path)).stem}-{tag}.yaml"
+    path.write_text(yaml.safe_dump(base, sort_keys=False))
+    load_soil(path)
+    return path
+
+
 class SoilForces(NamedTuple):
     """Soil-on-wheel forces (N), resistive torque (N m) and the slips that produced them."""
 

@@ -239,35 +239,20 @@ def test_backends_agree_on_soil_without_memory() -> None:
         SoilParams(memory=1.5)
 
 
-def _followers_sinkage(tmp_path, rut_cell: float, yaw: float) -> np.ndarray:
-    """Mean sinkage (m) of the middle and rear wheels over 4-7 s of a straight drive on level
-    mars-sand at 3 rad/s (by then the rear wheels have passed the holes the others dug
-    starting, and ride the steady rut)."""
-    import yaml
+def _followers_sinkage(rut_cell: float, yaw: float) -> np.ndarray:
+    """Mean sinkage (m) of the middle and rear wheels (rover_env.sim.rut_rig)."""
+    from rover_env.sim.rut_rig import follower_sinkage
 
-    from rover_env.config import to_dict
-
-    soil = tmp_path / f"mars-sand-{rut_cell:g}.yaml"
-    soil.write_text(yaml.safe_dump({**to_dict(load_soil("mars-sand")), "rut_cell": rut_cell}))
-    t = from_dict(TerrainConfig, {"name": "level", "size": [8.0, 4.0], "soil": str(soil)})
-    sim = RoverSim(terrain=t, backend="plugin")
-    sim.reset(-2.0, 0.0, yaw)
-    sim.set_speed_targets([3.0] * 4)
-    sim.step(4000)
-    sinks = []
-    for _ in range(300):
-        sim.step(10)
-        sinks.append(sim.wheel_truth().sinkage[2:])
-    return np.mean(sinks, axis=0)
+    return follower_sinkage(rut_cell, yaw)[0][2:]
 
 
-def test_followers_sinkage_is_the_soils_not_the_rut_grids(tmp_path) -> None:
+def test_followers_sinkage_is_the_soils_not_the_rut_grids() -> None:
     """The middle and rear wheels' steady sinkage in the front wheels' ruts is a property of
     the soil: the same at 0.1 rad across the grid as along it, and within 3 % when the rut
     cell is halved (a discretisation that converges)."""
     shipped = load_soil("mars-sand").rut_cell
-    ref = _followers_sinkage(tmp_path, shipped, 0.0)
+    ref = _followers_sinkage(shipped, 0.0)
     assert np.all(ref > 0.008)  # in the ruts, deeper than a front wheel (6.5 mm)
-    np.testing.assert_allclose(_followers_sinkage(tmp_path, shipped, 0.1), ref, rtol=0.03)
-    np.testing.assert_allclose(_followers_sinkage(tmp_path, shipped / 2, 0.0), ref, rtol=0.03)
-    np.testing.assert_allclose(_followers_sinkage(tmp_path, shipped / 2, 0.1), ref, rtol=0.03)
+    np.testing.assert_allclose(_followers_sinkage(shipped, 0.1), ref, rtol=0.03)
+    np.testing.assert_allclose(_followers_sinkage(shipped / 2, 0.0), ref, rtol=0.03)
+    np.testing.assert_allclose(_followers_sinkage(shipped / 2, 0.1), ref, rtol=0.03)

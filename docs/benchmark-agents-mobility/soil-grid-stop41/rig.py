@@ -9,31 +9,8 @@ wheel's sinkage over 4-7 s (the rear wheels have passed the start-up holes by th
 from __future__ import annotations
 
 import argparse
-import tempfile
-from pathlib import Path
 
-import numpy as np
-import yaml
-
-from rover_env.config import TerrainConfig, from_dict, to_dict
-from rover_env.sim.simulator import RoverSim
-from rover_env.soil import load_soil
-
-
-def rig(tmp: Path, cell: float, yaw: float) -> tuple[np.ndarray, np.ndarray]:
-    soil = tmp / f"mars-sand-{cell:g}.yaml"
-    soil.write_text(yaml.safe_dump({**to_dict(load_soil("mars-sand")), "rut_cell": cell}))
-    t = from_dict(TerrainConfig, {"name": "level", "size": [8.0, 4.0], "soil": str(soil)})
-    sim = RoverSim(terrain=t, backend="plugin")
-    sim.reset(-2.0, 0.0, yaw)
-    sim.set_speed_targets([3.0] * 4)
-    sim.step(4000)
-    sinks = []
-    for _ in range(300):
-        sim.step(10)
-        sinks.append(sim.wheel_truth().sinkage)
-    s = np.array(sinks) * 1000.0
-    return s.mean(axis=0), s.std(axis=0)
+from rover_env.sim.rut_rig import follower_sinkage
 
 
 def main() -> None:
@@ -46,16 +23,16 @@ def main() -> None:
         yaws = [float(y) for y in args.yaws.split(",")]
     except ValueError as e:
         ap.error(f"cells and --yaws must be comma-separated numbers: {e}")
-    with tempfile.TemporaryDirectory() as d:
-        for cell in cells:
-            for yaw in yaws:
-                m, sd = rig(Path(d), cell, yaw)
-                print(
-                    f"cell {cell * 1000:5.1f} mm yaw {yaw:.2f}: front {m[:2].round(2)}"
-                    f" middle {m[2:4].round(2)} ± {sd[2:4].round(2)}"
-                    f" rear {m[4:].round(2)} ± {sd[4:].round(2)} mm",
-                    flush=True,
-                )
+    for cell in cells:
+        for yaw in yaws:
+            m, sd = follower_sinkage(cell, yaw)
+            m, sd = m * 1000.0, sd * 1000.0
+            print(
+                f"cell {cell * 1000:5.1f} mm yaw {yaw:.2f}: front {m[:2].round(2)}"
+                f" middle {m[2:4].round(2)} ± {sd[2:4].round(2)}"
+                f" rear {m[4:].round(2)} ± {sd[4:].round(2)} mm",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":
