@@ -125,20 +125,26 @@ class RutGrid(NamedTuple):
         """Forget every rut (tiles are zeroed when they are next taken from the pool)."""
         state[..., : _HEAD + index_size] = 0.0
 
+    def _index_at(self, ix: NDArray[np.int64], iy: NDArray[np.int64]) -> NDArray[np.int64]:
+        """Where in the state the tile index entry of cells (ix, iy) (inside the map) lies."""
+        return _HEAD + (iy // RUT_TILE) * self.ntx + ix // RUT_TILE
+
+    def _cell_at(
+        self, tile: NDArray[np.int64], ix: NDArray[np.int64], iy: NDArray[np.int64]
+    ) -> NDArray[np.int64]:
+        """Where in the state cells (ix, iy) of pool tiles ``tile`` (1-based) lie."""
+        size = RUT_TILE * RUT_TILE
+        return (
+            _HEAD + self.index_size + (tile - 1) * size + (iy % RUT_TILE) * RUT_TILE + ix % RUT_TILE
+        )
+
     def cells(self, state: Array, ix: NDArray[np.int64], iy: NDArray[np.int64]) -> Array:
         """Depth stored at cells (ix, iy); 0 outside the map and in tiles never written."""
         ok = (ix >= 0) & (ix < self.nx) & (iy >= 0) & (iy < self.ny)
         cx = np.where(ok, ix, 0)
         cy = np.where(ok, iy, 0)
-        tile = state[_HEAD + (cy // RUT_TILE) * self.ntx + cx // RUT_TILE].astype(np.int64)
-        at = (
-            _HEAD
-            + self.index_size
-            + (np.maximum(tile, 1) - 1) * (RUT_TILE * RUT_TILE)
-            + (cy % RUT_TILE) * RUT_TILE
-            + cx % RUT_TILE
-        )
-        return np.where(ok & (tile > 0), state[at], 0.0)
+        tile = state[self._index_at(cx, cy)].astype(np.int64)
+        return np.where(ok & (tile > 0), state[self._cell_at(np.maximum(tile, 1), cx, cy)], 0.0)
 
     def lookup(self, state: Array, x: Array, y: Array) -> Array:
         """Bilinear rut depth at points (0 outside the map)."""
@@ -228,7 +234,7 @@ class RutGrid(NamedTuple):
         if not keep.any():
             return
         ix, iy, val = ix[keep], iy[keep], val[keep]
-        idx = _HEAD + (iy // RUT_TILE) * self.ntx + ix // RUT_TILE
+        idx = self._index_at(ix, iy)
         size = RUT_TILE * RUT_TILE
         base = _HEAD + self.index_size
         ok = np.ones(len(idx), dtype=bool)
@@ -243,8 +249,7 @@ class RutGrid(NamedTuple):
             state[0] = used + 1
             state[idx[j]] = used + 1
             state[base + used * size : base + (used + 1) * size] = 0.0
-        tile = state[idx].astype(np.int64)
-        at = base + (tile - 1) * size + (iy % RUT_TILE) * RUT_TILE + ix % RUT_TILE
+        at = self._cell_at(state[idx].astype(np.int64), ix, iy)
         state[at[ok]] = val[ok]
 
 

@@ -558,9 +558,12 @@ static void rut_write(const TerrainView* t, double* rut, int icap, double qx, do
       double tt = px*ax + py*ay;
       double f = rut_cdf(0.5*width - tt, w1, w2) - rut_cdf(-0.5*width - tt, w1, w2);
       double val = depth*f;
-      if (!(val > rut_cell(t, rut, icap, ix, iy))) continue;
+      // the cell is inside the map here: its index entry and its place in its tile
       long at = RUT_HEAD + (iy/RUT_TILE)*t->rut_ntx + ix/RUT_TILE;
-      if (rut[at] == 0.0) {  // a new tile from the pool
+      long off = (iy % RUT_TILE)*RUT_TILE + ix % RUT_TILE;
+      long tile = (long)rut[at];
+      if (!(val > (tile > 0 ? rut[RUT_HEAD + icap + (tile - 1)*size + off] : 0.0))) continue;
+      if (tile <= 0) {  // a new tile from the pool
         long used = (long)rut[0];
         if (used >= RUT_POOL_TILES) {
           rut[1] += 1.0;
@@ -569,9 +572,9 @@ static void rut_write(const TerrainView* t, double* rut, int icap, double qx, do
         rut[0] = used + 1;
         rut[at] = used + 1;
         memset(rut + RUT_HEAD + icap + used*size, 0, sizeof(double)*size);
+        tile = used + 1;
       }
-      long tile = (long)rut[at];
-      rut[RUT_HEAD + icap + (tile - 1)*size + (iy % RUT_TILE)*RUT_TILE + ix % RUT_TILE] = val;
+      rut[RUT_HEAD + icap + (tile - 1)*size + off] = val;
     }
   }
 }
@@ -1253,9 +1256,12 @@ static void tire_advance(const mjModel* m, mjData* d, int instance) {
   memcpy(st + L.truth, st + L.ptruth, sizeof(mjtNum) * NTRUTH*c->nw);
   memcpy(st + L.dig, st + L.pdig, sizeof(mjtNum) * c->nw);
   // the rut map remembers the deepest pass (TireLayer.apply: the wheels' writes in order)
+  // (most substeps write nothing: rut writes come every RUT_WRITE_EVERY-th, on soil only)
+  int pending = 0;
+  for (int i = 0; i < c->nw && c->rut_state > 0; i++) pending |= st[L.pwrite + 6*i + 4] > 0.0;
   TerrainView tv;
   const int icap = rut_index_capacity(c->rut_state);
-  if (c->rut_state > 0 && terrain_view(m, c->terrain, &tv) && tv.rut_nx*tv.rut_ny > 0
+  if (pending && terrain_view(m, c->terrain, &tv) && tv.rut_nx*tv.rut_ny > 0
       && tv.rut_ntx*tv.rut_nty <= icap) {
     for (int i = 0; i < c->nw; i++) {
       const double* pw = st + L.pwrite + 6*i;
