@@ -7,12 +7,15 @@ Runs one controller (default ``open-loop@gain=2.3@ramp=2``) on a scenario's seed
 soft-patch, tuning seeds 1000-1039) once per setting: the soil of every loose patch with
 ``rut_cell`` (and any ``--set`` field) replaced, and the start heading either the seed's own
 (``seed``: the scenario's jitter) or forced to +-YAW rad (sign alternating with the seed).
-A stall rate that depends on the rut cell, or on the heading of a straight drive across a
-ripple that runs across the drive, is a property of the discretisation, not of the soil:
-a real rover's middle wheels run in its front wheels' ruts at any heading (stop 40,
-``docs/benchmark-agents-mobility/README.md``). Prints goals with a Wilson 95 % interval, the
+A stall rate that depends on the rut cell is a property of the discretisation, not of the
+soil. One that depends on the heading of a straight drive across a ripple running across the
+drive is suspect (a real rover's middle wheels run in its front wheels' ruts at any heading,
+stop 40), but not proven numerical: stop 42 found a heading window on soft-patch that neither
+the rut cell nor the heightfield's grid moves (``docs/benchmark-agents-mobility/README.md``). Prints goals with a Wilson 95 % interval, the
 failed seeds, energy per metre and mean sinkage per setting; writes ``--out`` (CSV and a
-plot). Tuning and validation seeds only (a test seed is refused: this is looking).
+plot; ``episodes.csv`` holds every drive with its start heading). ``--resolution`` replaces
+the terrain heightfield's grid, to tell that discretisation apart too. Tuning and validation
+seeds only (a test seed is refused: this is looking).
 """
 
 from __future__ import annotations
@@ -75,6 +78,12 @@ def _main() -> int:
     ap.add_argument("--yaws", default="seed,0,0.05,0.1", help="'seed' or a heading (rad)")
     ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
                     help="another soil field for every setting, e.g. k_dig=0")  # fmt: skip
+    ap.add_argument(
+        "--resolution",
+        type=float,
+        default=None,
+        help="the terrain heightfield's grid (m) instead of the scenario's",
+    )
     ap.add_argument("--out", default=None, help="folder for probe.csv and probe.png")
     args = ap.parse_args()
     try:
@@ -106,9 +115,12 @@ def _main() -> int:
         return 2
     ctrl = make_controller(args.controller)
     rows: list[dict[str, Any]] = []
+    episodes: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for cell in cells:
             terrain = terrain_with(ground, {**extra, "rut_cell": cell}, Path(tmp))
+            if args.resolution is not None:  # the heightfield's own grid, not the rut map's
+                terrain = dataclasses.replace(terrain, resolution=args.resolution)
             env = ScenarioWrapper(
                 ProtoExplorerEnv(terrain=terrain, action_layout=ctrl.action_layout)  # type: ignore[arg-type]
             )
@@ -120,6 +132,17 @@ def _main() -> int:
                         x, y, _ = ep.start
                         ep = dataclasses.replace(ep, start=(x, y, yaw if s % 2 == 0 else -yaw))
                     res.append((s, run_episode(env, ctrl, ep)))
+                    episodes.append(
+                        {
+                            "rut_cell": cell,
+                            "yaw": "seed" if yaw is None else yaw,
+                            "seed": s,
+                            "start_yaw": ep.start[2],
+                            "success": bool(res[-1][1]["success"]),
+                            "energy_per_metre": float(res[-1][1]["energy_per_metre"]),
+                            "mean_sinkage_mm": 1000 * float(res[-1][1]["mean_sinkage"]),
+                        }
+                    )
                 ok = [s for s, m in res if m["success"]]
                 lo, hi = wilson(len(ok), len(res))
                 row = {
@@ -148,8 +171,12 @@ def _main() -> int:
             w = csv.DictWriter(fh, fieldnames=list(rows[0]))
             w.writeheader()
             w.writerows(rows)
+        with (out / "episodes.csv").open("w", newline="") as fh:  # one row per drive
+            w = csv.DictWriter(fh, fieldnames=list(episodes[0]))
+            w.writeheader()
+            w.writerows(episodes)
         _plot(rows, out / "probe.png", args)
-        print(f"wrote {out / 'probe.csv'} and {out / 'probe.png'}")
+        print(f"wrote {out / 'probe.csv'}, {out / 'episodes.csv'} and {out / 'probe.png'}")
     return 0
 
 
