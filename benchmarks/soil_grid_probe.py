@@ -11,11 +11,12 @@ A stall rate that depends on the rut cell is a property of the discretisation, n
 soil. One that depends on the heading of a straight drive across a ripple running across the
 drive is suspect (a real rover's middle wheels run in its front wheels' ruts at any heading,
 stop 40), but not proven numerical: stop 42 found a heading window on soft-patch that neither
-the rut cell nor the heightfield's grid moves (``docs/benchmark-agents-mobility/README.md``). Prints goals with a Wilson 95 % interval, the
-failed seeds, energy per metre and mean sinkage per setting; writes ``--out`` (CSV and a
-plot; ``episodes.csv`` holds every drive with its start heading). ``--resolution`` replaces
-the terrain heightfield's grid, to tell that discretisation apart too. Tuning and validation
-seeds only (a test seed is refused: this is looking).
+the rut cell nor the heightfield's grid moves (``docs/benchmark-agents-mobility/README.md``).
+Prints goals with a Wilson 95 % interval, the failed seeds, energy per metre and mean
+sinkage per setting; writes ``--out`` (CSV and a plot; ``episodes.csv`` holds every drive
+with its start heading). ``--resolution`` replaces the terrain heightfield's grid, to tell
+that discretisation apart too. Tuning and validation seeds only (a test seed is refused:
+this is looking).
 """
 
 from __future__ import annotations
