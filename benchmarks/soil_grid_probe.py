@@ -132,16 +132,17 @@ def _main() -> int:
                     if yaw is not None:
                         x, y, _ = ep.start
                         ep = dataclasses.replace(ep, start=(x, y, yaw if s % 2 == 0 else -yaw))
-                    res.append((s, run_episode(env, ctrl, ep)))
+                    m = run_episode(env, ctrl, ep)
+                    res.append((s, m))
                     episodes.append(
                         {
                             "rut_cell": cell,
                             "yaw": "seed" if yaw is None else yaw,
                             "seed": s,
                             "start_yaw": ep.start[2],
-                            "success": bool(res[-1][1]["success"]),
-                            "energy_per_metre": float(res[-1][1]["energy_per_metre"]),
-                            "mean_sinkage_mm": 1000 * float(res[-1][1]["mean_sinkage"]),
+                            "success": bool(m["success"]),
+                            "energy_per_metre": float(m["energy_per_metre"]),
+                            "mean_sinkage_mm": 1000 * float(m["mean_sinkage"]),
                         }
                     )
                 ok = [s for s, m in res if m["success"]]

@@ -422,12 +422,21 @@ static inline int rut_index_capacity(int rut_state) {
 }
 
 // RutGrid.cells: depth stored at cell (ix, iy); 0 outside the map and in tiles never written
+// RutGrid._index_at: where the tile index entry of cell (ix, iy) (inside the map) lies
+static inline long rut_index_at(const TerrainView* t, long ix, long iy) {
+  return RUT_HEAD + (iy/RUT_TILE)*t->rut_ntx + ix/RUT_TILE;
+}
+
+// RutGrid._cell_at: where cell (ix, iy) of pool tile `tile` (1-based) lies
+static inline long rut_cell_at(int icap, long tile, long ix, long iy) {
+  return RUT_HEAD + icap + (tile - 1)*RUT_TILE*RUT_TILE + (iy % RUT_TILE)*RUT_TILE
+         + ix % RUT_TILE;
+}
+
 static double rut_cell(const TerrainView* t, const double* rut, int icap, long ix, long iy) {
   if (ix < 0 || ix >= t->rut_nx || iy < 0 || iy >= t->rut_ny) return 0.0;
-  long tile = (long)rut[RUT_HEAD + (iy/RUT_TILE)*t->rut_ntx + ix/RUT_TILE];
-  if (tile <= 0) return 0.0;
-  return rut[RUT_HEAD + icap + (tile - 1)*RUT_TILE*RUT_TILE + (iy % RUT_TILE)*RUT_TILE
-             + ix % RUT_TILE];
+  long tile = (long)rut[rut_index_at(t, ix, iy)];
+  return tile > 0 ? rut[rut_cell_at(icap, tile, ix, iy)] : 0.0;
 }
 
 // RutGrid.lookup: bilinear rut depth at (x, y), 0 outside the map (which is not empty)
@@ -559,10 +568,9 @@ static void rut_write(const TerrainView* t, double* rut, int icap, double qx, do
       double f = rut_cdf(0.5*width - tt, w1, w2) - rut_cdf(-0.5*width - tt, w1, w2);
       double val = depth*f;
       // the cell is inside the map here: its index entry and its place in its tile
-      long at = RUT_HEAD + (iy/RUT_TILE)*t->rut_ntx + ix/RUT_TILE;
-      long off = (iy % RUT_TILE)*RUT_TILE + ix % RUT_TILE;
+      long at = rut_index_at(t, ix, iy);
       long tile = (long)rut[at];
-      if (!(val > (tile > 0 ? rut[RUT_HEAD + icap + (tile - 1)*size + off] : 0.0))) continue;
+      if (!(val > (tile > 0 ? rut[rut_cell_at(icap, tile, ix, iy)] : 0.0))) continue;
       if (tile <= 0) {  // a new tile from the pool
         long used = (long)rut[0];
         if (used >= RUT_POOL_TILES) {
@@ -574,7 +582,7 @@ static void rut_write(const TerrainView* t, double* rut, int icap, double qx, do
         memset(rut + RUT_HEAD + icap + used*size, 0, sizeof(double)*size);
         tile = used + 1;
       }
-      rut[RUT_HEAD + icap + (tile - 1)*size + off] = val;
+      rut[rut_cell_at(icap, tile, ix, iy)] = val;
     }
   }
 }
