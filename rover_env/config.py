@@ -253,6 +253,10 @@ class FrictionPatch:
             _positive(f"friction patch {self.name}: size", v)
 
 
+BUMP_STEP_TOL = 1e-4
+"""Largest height step (m) a bump field may start with: a tenth of a millimetre."""
+
+
 @dataclass(frozen=True)
 class Bumps:
     """Sinusoidal bumps: amplitude (m) times sin(2 pi s / wavelength + phase) along a direction."""
@@ -262,11 +266,24 @@ class Bumps:
     direction_deg: float = 0.0
     phase: float = 0.0
     start: float = -1e9
-    """Bumps begin at this distance along their direction (flat before it)."""
+    """Bumps begin at this distance along their direction (flat before it). The sine's
+    argument counts from the origin, not from ``start``, so ``phase`` must put a zero at
+    ``start``: a bump field beginning mid-wave is a ledge (refused below)."""
 
     def __post_init__(self) -> None:
         _nonneg("bumps.amplitude", self.amplitude)
         _positive("bumps.wavelength", self.wavelength)
+        if self.start > -1e8:  # a start inside any arena: the ground must be continuous there
+            arg = 2 * math.pi * self.start / self.wavelength + self.phase
+            step = self.amplitude * math.sin(arg)
+            if abs(step) > BUMP_STEP_TOL:
+                fix = math.remainder(-2 * math.pi * self.start / self.wavelength, 2 * math.pi)
+                raise ConfigError(
+                    f"bumps: amplitude {self.amplitude:g} m, wavelength {self.wavelength:g} m "
+                    f"starting at {self.start:g} m with phase {self.phase:g} begins with a "
+                    f"{1000 * step:+.1f} mm ledge (the sine counts from the origin); set "
+                    f"phase: {fix:.10f} to start at zero height, rising"
+                )
 
 
 @dataclass(frozen=True)

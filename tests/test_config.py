@@ -4,10 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
 from rover_env.config import ConfigError, RoverConfig, load_rover, load_terrain
+from rover_env.terrain import Terrain
 
 
 def _write(tmp_path: Path, data: dict) -> Path:
@@ -87,3 +89,40 @@ def test_terrain_friction_patch_validation(tmp_path: Path) -> None:
     )
     with pytest.raises(ConfigError, match=r"t\.yaml.*ice.*mu_x"):
         load_terrain(p)
+
+
+def test_bumps_starting_mid_wave_are_a_ledge_and_refused(tmp_path: Path) -> None:
+    """Stop 43: soft-patch's ripples began at x = 1 m at sin(2 pi / 3), a 7.8 cm ledge of sand
+    the rover hit at ~1 kN; the sine counts from the origin, so the phase must put a zero at
+    the start. The error names the file, the key and the phase that fixes it."""
+    bump = {"amplitude": 0.09, "wavelength": 3.0, "direction_deg": 0.0, "start": 1.0}
+    p = tmp_path / "t.yaml"
+    p.write_text(yaml.safe_dump({"bumps": [bump]}))
+    with pytest.raises(ConfigError, match=r"t\.yaml.*bumps\[0\].*\+77\.9 mm ledge.*phase: -2\.09"):
+        load_terrain(p)
+    p.write_text(yaml.safe_dump({"bumps": [{**bump, "phase": -2.0943951024}]}))
+    terrain = Terrain(load_terrain(p))
+    h = terrain.height(np.array([1.0 - 1e-9, 1.0 + 1e-9, 1.75]), np.zeros(3))
+    assert abs(h[1] - h[0]) < 1e-6  # continuous at the start
+    assert h[2] == pytest.approx(0.09)  # and rising to the first crest a quarter wave on
+    # a bump field that starts on a zero of its own sine needs no phase (the shipped bumps)
+    p.write_text(yaml.safe_dump({"bumps": [{**bump, "wavelength": 1.0}]}))
+    assert load_terrain(p).bumps[0].phase == 0.0
+
+
+def test_every_shipped_ground_is_continuous() -> None:
+    """No shipped terrain or scenario starts a bump field mid-wave (loading validates it)."""
+    from rover_env.benchmark.scenarios import load_scenario, scenario_names
+
+    root = Path(__file__).resolve().parents[1] / "configs"
+    for f in sorted((root / "terrain").glob("*.yaml")):
+        load_terrain(f)
+    names = list(scenario_names()) + [str(f) for f in (root / "scenarios_train").glob("*.yaml")]
+    assert "soft-patch" in names
+    for name in names:
+        terrain = load_scenario(name).episode(1000).terrain
+        for b in terrain.bumps:  # just before and after the start, along the bumps' direction
+            s = np.array([b.start - 1e-9, b.start + 1e-9])
+            th = np.radians(b.direction_deg)
+            h = Terrain(terrain).height(s * np.cos(th), s * np.sin(th))
+            assert abs(h[1] - h[0]) < 1e-4, (name, b)

@@ -497,11 +497,11 @@ def test_an_agent_given_the_stall_clock_acts_as_before_and_the_mix_env_feeds_it(
         add_stall_clock(out, tmp_path / "again")
     a, b = make_controller(f"ppo:{src}"), make_controller(f"ppo:{out}")
     assert b.clock is not None and a.clock is None  # type: ignore[attr-defined]
-    # soft-patch with 13 cm ripples (since the stop-41 rut map the shipped 8 cm ones no
-    # longer stop this agent): seed 1052 stalls at the first face, and the clock runs
-    wall = yaml.safe_load((REPO / "configs/scenarios_train/soft-patch-9cm.yaml").read_text())
-    wall["name"] = "soft-patch-13cm"
-    wall["terrain"]["bumps"][0]["amplitude"] = 0.13
+    # soft-patch with 20 cm ripples (the shipped 15 cm ones rarely stop this agent): seed
+    # 1052 stalls at the first face, and the clock runs
+    wall = yaml.safe_load((REPO / "configs/scenarios/soft-patch.yaml").read_text())
+    wall["name"] = "soft-patch-20cm"
+    wall["terrain"]["bumps"][0]["amplitude"] = 0.20
     (tmp_path / "wall.yaml").write_text(yaml.safe_dump(wall))
     episode = load_scenario(tmp_path / "wall.yaml").episode(1052)
     wrapper = ScenarioWrapper(ProtoExplorerEnv(terrain=episode.terrain))
