@@ -11,7 +11,8 @@ A stall rate that depends on the rut cell is a property of the discretisation, n
 soil. One that depends on the heading of a straight drive across a ripple running across the
 drive is suspect (a real rover's middle wheels run in its front wheels' ruts at any heading,
 stop 40), but not proven numerical: stop 42 found a heading window on soft-patch that neither
-the rut cell nor the heightfield's grid moves (``docs/benchmark-agents-mobility/README.md``).
+the rut cell nor the heightfield's grid moved, and stop 43 traced it to a 7.8 cm ledge where
+the ripples began (``docs/benchmark-agents-mobility/README.md``, Stop 43).
 Prints goals with a Wilson 95 % interval, the failed seeds, energy per metre and mean
 sinkage per setting; writes ``--out`` (CSV and a plot; ``episodes.csv`` holds every drive
 with its start heading). ``--resolution`` replaces the terrain heightfield's grid, to tell
