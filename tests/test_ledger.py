@@ -125,3 +125,15 @@ def test_ablation_grid_ranks_fixed_settings_on_validation(tmp_path: Path) -> Non
     ]
     scores = rank(rows, ["a", "b"], "mean_abs_slip")
     assert scores["b"] < scores["a"]  # -5 % on "big" but -50 % on "small"
+
+
+def test_every_shipped_agent_with_a_test_run_is_the_one_tested() -> None:
+    """An agent's files under agents/ are those its ledger row hashed: a re-save, a retrain or a
+    swapped normaliser after the one test run would make the shipped figures someone else's."""
+    repo = Path(__file__).resolve().parents[1]
+    rows = _rows(repo / "docs" / "benchmark" / "test_ledger.csv")
+    tested = {r["agent"]: r["agent_hash"] for r in rows if r["agent"].startswith("ppo:agents/")}
+    assert "ppo:agents/mobility-ppo-sp15" in tested  # the shipped mobility agent (stop 43)
+    for spec, digest in tested.items():
+        if (repo / spec.split(":", 1)[1]).is_dir():  # run from the repository root
+            assert agent_hash(f"ppo:{repo / spec.split(':', 1)[1]}") == digest, spec
