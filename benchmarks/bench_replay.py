@@ -5,8 +5,10 @@ Run: python benchmarks/bench_replay.py [--windows 12] [--rounds 5]
 One seeded own-generator drive (50 s) is cut into the replay's windows; the same windows are
 replayed in interleaved rounds (the machine is shared: medians of the rounds) by:
 
-* ``contacts``: the replay with MuJoCo's own collisions on (the reference) and off (what
-  ``diagnose`` runs; flat ground, the same numbers to the bit, checked here);
+* ``contacts``: the replay with MuJoCo's own collisions on (the reference) and off (flat
+  ground, the same numbers to the bit, checked here);
+* ``sensors``: then MuJoCo's sensor stage off too (what ``diagnose`` runs: the replay reads
+  the state only; the same numbers to the bit, checked here);
 * ``command_lag``: a replay with a command effect (the Python-side path that feeds the
   motors substep by substep) over the plain plugin replay: what one command-effect
   candidate costs against the others.
@@ -51,22 +53,24 @@ def main() -> None:
     windows = make_windows([p], st)[: args.windows]
     lag = replace(base, extensions={"command_lag": {"tau": 0.15}})
     variants = {
-        "contacts on (reference)": (base, True),
-        "contacts off (diagnose)": (base, False),
-        "command_lag, contacts off": (lag, False),
+        "contacts on (reference)": (base, True, True),
+        "contacts off": (base, False, True),
+        "contacts, sensors off (diagnose)": (base, False, False),
+        "command_lag, diagnose's": (lag, False, False),
     }
     times: dict[str, list[float]] = {k: [] for k in variants}
     outputs: dict[str, dict[str, np.ndarray]] = {}
     for _ in range(args.rounds):
-        for name, (cfg, contacts) in variants.items():
+        for name, (cfg, contacts, sensors) in variants.items():
             t0 = time.perf_counter()
-            res = Replayer(cfg, st, contacts=contacts).run([p], windows)
+            res = Replayer(cfg, st, contacts=contacts, sensors=sensors).run([p], windows)
             times[name].append(time.perf_counter() - t0)
             outputs[name] = replay_arrays(res)
-    same = all(
-        np.array_equal(outputs["contacts on (reference)"][k], outputs["contacts off (diagnose)"][k])
-        for k in outputs["contacts on (reference)"]
-    )
+    ref = outputs["contacts on (reference)"]
+
+    def same(name: str) -> bool:
+        return all(np.array_equal(ref[k], outputs[name][k]) for k in ref)
+
     med = {k: statistics.median(v) for k, v in times.items()}
     sim_s = len(windows) * st.window
     print(
@@ -74,14 +78,19 @@ def main() -> None:
     )
     for k, v in med.items():
         print(f"  {k:28s} {v:6.3f} s per replay  ({sim_s / v:5.0f} x real time)")
+    on = med["contacts on (reference)"]
+    off = med["contacts off"]
+    dia = med["contacts, sensors off (diagnose)"]
     print(
-        f"contacts off / on: {med['contacts off (diagnose)'] / med['contacts on (reference)']:.2f}"
-        f" of the time, identical to the bit: {same}"
+        f"contacts off / on: {off / on:.2f} of the time, identical to the bit:"
+        f" {same('contacts off')}"
     )
     print(
-        "command_lag / plain (contacts off): "
-        f"{med['command_lag, contacts off'] / med['contacts off (diagnose)']:.2f}"
+        f"sensors off / on (contacts off): {dia / off:.2f} of the time; diagnose's replay / the"
+        f" reference: {dia / on:.2f}; identical to the bit: {same('contacts, sensors off (diagnose)')}"
     )
+    lag_s = med["command_lag, diagnose's"]
+    print(f"command_lag / plain (diagnose's replay): {lag_s / dia:.2f}")
 
 
 if __name__ == "__main__":

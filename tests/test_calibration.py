@@ -232,7 +232,7 @@ def test_replays_split_over_processes_are_the_same_to_the_bit(
 ) -> None:
     """``parallel_replays``: each window starts from a full reset, so the windows a worker
     replays give the numbers they give in order in one process (a hinge effect's update
-    phase and a command effect's memory included)."""
+    phase and a command effect's memory included), and as with MuJoCo's sensor stage on."""
     from rover_env.calibration.replay import (
         Replayer,
         make_windows,
@@ -254,6 +254,11 @@ def test_replays_split_over_processes_are_the_same_to_the_bit(
     assert serial["resid"].shape[0] > 50
     for k in serial:
         np.testing.assert_array_equal(split[k], serial[k], err_msg=k)
+    # The replay's simulator runs without MuJoCo's sensor stage; with it, the same to the bit
+    # (here with a hinge and a command effect, the substep-by-substep paths).
+    with_sensors = replay_arrays(Replayer(cfg, st, sensors=True).run(prepared, windows))
+    for k in serial:
+        np.testing.assert_array_equal(with_sensors[k], serial[k], err_msg=k)
 
 
 def test_make_logs_writes_readable_logs_and_hidden_truth(rr_case: tuple[Path, dict]) -> None:

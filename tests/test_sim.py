@@ -103,6 +103,23 @@ def test_flat_drive_is_the_same_without_mujoco_contacts() -> None:
     np.testing.assert_array_equal(runs[0], runs[1])
 
 
+@pytest.mark.parametrize("backend", ["numpy", "plugin"])
+def test_state_is_the_same_without_the_sensor_stage(backend: str) -> None:
+    """The calibration replay runs with ``sensors=False`` (no accelerometer pass): the state
+    must not depend on MuJoCo's sensor stage, in either tire backend; a tire layer reading
+    ``sensordata`` would differ. ``sensors()`` then refuses rather than return stale data."""
+    runs = []
+    for sensors in (True, False):
+        sim = RoverSim(backend=backend, contacts=False, sensors=sensors)
+        for targets in ([3.0, 3.0, 3.0, 3.0], [-2.0, 4.0, -2.0, 4.0]):
+            sim.set_speed_targets(targets)
+            sim.step(600)
+        runs.append(np.concatenate([sim.data.qpos, sim.data.qvel]))
+    np.testing.assert_array_equal(runs[0], runs[1])
+    with pytest.raises(RuntimeError, match="sensors=False"):
+        sim.sensors()
+
+
 def test_turn_outer_wheels_spin_inner_wheels_skid() -> None:
     sim = RoverSim()
     sim.set_speed_targets([1.0, 3.0, 1.0, 3.0])  # right side faster: a left turn

@@ -339,14 +339,18 @@ class Replayer:
         settings: ReplaySettings,
         backend: str = "auto",
         contacts: bool = False,
+        sensors: bool = False,
     ) -> None:
         self.cfg = cfg
         self.settings = settings
         self.contacts = contacts
+        self.sensors = sensors
         # Flat ground: the chassis never touches it and the tire layer is the wheels' contact,
         # so MuJoCo's collision pass is skipped (the same replay to the bit, ~15 % faster;
         # benchmarks/bench_replay.py).
-        self.sim = RoverSim(cfg, "flat", backend=backend, contacts=contacts)
+        # The replay reads the state only (qpos, the segments' poses), so MuJoCo's sensor
+        # stage is off by default: the same replay to the bit, faster (bench_replay.py).
+        self.sim = RoverSim(cfg, "flat", backend=backend, contacts=contacts, sensors=sensors)
         self.backend = self.sim.backend
         s = self.sim
         m = s.model
@@ -463,7 +467,12 @@ class Replayer:
             return [self.run_window(logs[w.log_index], w) for w in windows]
         bounds = np.linspace(0, len(windows), n + 1).round().astype(int)
         chunks = [windows[a:b] for a, b in itertools.pairwise(bounds)]
-        key = json.dumps(to_dict(self.cfg), sort_keys=True, default=str)
+        # A worker keeps one simulator per key: everything the simulator is built from.
+        key = json.dumps(
+            [to_dict(self.cfg), self.backend, self.contacts, self.sensors],
+            sort_keys=True,
+            default=str,
+        )
         futures = [
             pool.submit(
                 _replay_chunk,
@@ -472,6 +481,7 @@ class Replayer:
                 self.settings,
                 self.backend,
                 self.contacts,
+                self.sensors,
                 {i: logs[i] for i in {w.log_index for w in c}},
                 c,
             )
@@ -493,6 +503,7 @@ def _replay_chunk(
     settings: ReplaySettings,
     backend: str,
     contacts: bool,
+    sensors: bool,
     logs: dict[int, PreparedLog],
     windows: list[Window],
 ) -> list[WindowResult]:
@@ -501,7 +512,7 @@ def _replay_chunk(
     if rp is None or rp.settings != settings:
         if len(_WORKER_REPLAYERS) >= 4:
             _WORKER_REPLAYERS.clear()
-        rp = _WORKER_REPLAYERS[key] = Replayer(cfg, settings, backend, contacts)
+        rp = _WORKER_REPLAYERS[key] = Replayer(cfg, settings, backend, contacts, sensors)
     return [rp.run_window(logs[w.log_index], w) for w in windows]
 
 

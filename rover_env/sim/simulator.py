@@ -203,6 +203,10 @@ class RoverSim:
         contacts: ``False`` skips MuJoCo's own collisions (the chassis boxes on the ground,
             wheel on wheel; the tire layer is the wheels' ground contact either way): for
             flat-ground replays, where they never fire and cost ~1/5 of a substep.
+        sensors: ``False`` skips MuJoCo's sensor stage (the accelerometers need a second
+            pass over the bodies' accelerations every substep) and makes :meth:`sensors`
+            refuse; the state is the same to the bit. For replays that read only the state
+            (~1/8 of a substep, ``benchmarks/bench_replay.py``).
 
     Model extensions (``cfg.extensions``, catalogue in :mod:`rover_env.effects`) are applied
     here: through the configuration the physics is built from (``self.phys_cfg``), the
@@ -216,6 +220,7 @@ class RoverSim:
         terrain: TerrainConfig | str | Path = "flat",
         backend: str = "numpy",
         contacts: bool = True,
+        sensors: bool = True,
     ) -> None:
         self.cfg = rover if isinstance(rover, RoverConfig) else load_rover(rover)
         self.terrain_cfg = terrain if isinstance(terrain, TerrainConfig) else load_terrain(terrain)
@@ -251,6 +256,9 @@ class RoverSim:
             # on flat ground they never fire while the rover drives (the tire layer carries it),
             # yet their collision pass is ~1/5 of a substep. The calibration replay skips it.
             self.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        self.has_sensors = sensors
+        if not sensors:  # nothing reads sensordata; the dynamics do not depend on it
+            self.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
         frictionloss0 = self.model.dof_frictionloss.copy()  # before any effect
         for e in self.effects:
             e.apply_model(self.model, self.phys_cfg)
@@ -643,6 +651,11 @@ class RoverSim:
         )
 
     def sensors(self) -> SensorReadings:
+        if not self.has_sensors:
+            raise RuntimeError(
+                "RoverSim.sensors(): this simulator was built with sensors=False (its sensor"
+                " stage is off, sensordata is not updated); build it with sensors=True"
+            )
         s, sd = self._sensor, self.data.sensordata
         return SensorReadings(
             t=self.time,
