@@ -77,7 +77,7 @@ def main() -> None:
         f"{len(windows)} windows of {st.window:g} s ({sim_s:g} s simulated), {args.rounds} rounds"
     )
     for k, v in med.items():
-        print(f"  {k:28s} {v:6.3f} s per replay  ({sim_s / v:5.0f} x real time)")
+        print(f"  {k:34s} {v:6.3f} s per replay  ({sim_s / v:5.0f} x real time)")
     on = med["contacts on (reference)"]
     off = med["contacts off"]
     dia = med["contacts, sensors off (diagnose)"]

@@ -206,7 +206,7 @@ class RoverSim:
         sensors: ``False`` skips MuJoCo's sensor stage (the accelerometers need a second
             pass over the bodies' accelerations every substep) and makes :meth:`sensors`
             refuse; the state is the same to the bit. For replays that read only the state
-            (~1/8 of a substep, ``benchmarks/bench_replay.py``).
+            (a tenth of a replay's time, ``benchmarks/bench_replay.py``).
 
     Model extensions (``cfg.extensions``, catalogue in :mod:`rover_env.effects`) are applied
     here: through the configuration the physics is built from (``self.phys_cfg``), the
