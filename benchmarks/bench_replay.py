@@ -9,9 +9,11 @@ replayed in interleaved rounds (the machine is shared: medians of the rounds) by
   ground, the same numbers to the bit, checked here);
 * ``sensors``: then MuJoCo's sensor stage off too (what ``diagnose`` runs: the replay reads
   the state only; the same numbers to the bit, checked here);
-* ``command_lag``: a replay with a command effect (the Python-side path that feeds the
-  motors substep by substep) over the plain plugin replay: what one command-effect
-  candidate costs against the others.
+* ``command_lag``, ``command_delay``: a replay with a command effect over the plain plugin
+  replay: what one command-effect candidate costs against the others. The effect's rows
+  for a held command are computed in Python and queued in the plugin's state, which feeds
+  them to the motors inside one ``mj_step`` call (until stop 45: one call per substep,
+  1.9 x a plain replay).
 
 Prints seconds per replay and the ratios; nothing is timed in the tests.
 """
@@ -52,11 +54,13 @@ def main() -> None:
     p = prepare(log, base, "drive", st)
     windows = make_windows([p], st)[: args.windows]
     lag = replace(base, extensions={"command_lag": {"tau": 0.15}})
+    delay = replace(base, extensions={"command_delay": {"delay": 0.15}})
     variants = {
         "contacts on (reference)": (base, True, True),
         "contacts off": (base, False, True),
         "contacts, sensors off (diagnose)": (base, False, False),
         "command_lag, diagnose's": (lag, False, False),
+        "command_delay, diagnose's": (delay, False, False),
     }
     times: dict[str, list[float]] = {k: [] for k in variants}
     outputs: dict[str, dict[str, np.ndarray]] = {}
@@ -90,7 +94,9 @@ def main() -> None:
         f" reference: {dia / on:.2f}; identical to the bit: {same('contacts, sensors off (diagnose)')}"
     )
     lag_s = med["command_lag, diagnose's"]
+    delay_s = med["command_delay, diagnose's"]
     print(f"command_lag / plain (diagnose's replay): {lag_s / dia:.2f}")
+    print(f"command_delay / plain (diagnose's replay): {delay_s / dia:.2f}")
 
 
 if __name__ == "__main__":

@@ -405,6 +405,9 @@ def test_command_effect_block_is_n_steps(name: str, values: dict[str, float]) ->
         stepped = np.array([np.array(a.step(u, 0.001)) for _ in range(n)])
         blocked = CommandEffect.block(b, u, 0.001, n) if n == 3 else b.block(u, 0.001, n)
         np.testing.assert_array_equal(blocked, stepped, err_msg=f"{name}, block of {n}")
+        # loop_commands averages a block's rows: summed in step()'s row order (C order)
+        assert blocked.flags.c_contiguous, f"{name}, block of {n}"
+        np.testing.assert_array_equal(blocked.mean(axis=0), stepped.mean(axis=0))
     assert np.any(stepped != u)  # the effect did act (not a pass-through that agrees trivially)
 
 

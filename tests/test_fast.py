@@ -274,3 +274,66 @@ def test_tire_effects_run_on_the_plugin(ext: dict[str, dict[str, float]]) -> Non
     np.testing.assert_allclose(b.F_x, a.F_x, rtol=0, atol=1e-9)
     np.testing.assert_allclose(b.F_y, a.F_y, rtol=0, atol=1e-9)
     assert np.max(np.abs(plain.data.qpos[:3] - fast.data.qpos[:3])) > 1e-4, "effect had no effect"
+
+
+@pytest.mark.parametrize(
+    "ext",
+    [
+        {"command_lag": {"tau": 0.05}},
+        {"command_delay": {"delay": 0.013}},
+        {"command_lag": {"tau": 0.05}, "command_delay": {"delay": 0.013}},
+    ],
+    ids=["lag", "delay", "both"],
+)
+def test_queued_commands_equal_feeding_the_motors_substep_by_substep(
+    ext: dict[str, dict[str, float]],
+) -> None:
+    """Command effects on the plugin: the rows queued in its state (one ``mj_step`` call per
+    ``SCHEDULE_ROWS`` substeps) drive the rover exactly as writing each substep's targets
+    to ``ctrl[vel]`` before a one-substep ``mj_step`` does, across blocks longer than the
+    queue; the effects' own ``step``, chained in the simulator's order, gives the rows."""
+    from rover_env.effects import CommandEffect, build_effects
+    from rover_env.sim.fast.plugin import SCHEDULE_ROWS
+
+    cfg = dataclasses.replace(RoverConfig(), extensions=ext)
+    queued, fed, plain = (
+        RoverSim(cfg, backend="plugin"),
+        RoverSim(backend="plugin"),
+        RoverSim(backend="plugin"),
+    )
+    effects = [e for e in build_effects(ext) if isinstance(e, CommandEffect)]
+    assert len(effects) == len(ext)
+    for e in effects:
+        e.reset(np.zeros(4))
+    m, d = fed.model, fed.data
+    rng = np.random.default_rng(8)
+    for n in (7, SCHEDULE_ROWS + 37, 1, 20):
+        targets = rng.uniform(-4.0, 4.0, 4)
+        for s in (queued, fed, plain):
+            s.set_speed_targets(targets)
+        queued.step(n)
+        plain.step(n)
+        for _ in range(n):
+            u = fed.speed_targets.copy()
+            for e in effects:
+                u = e.step(u, fed.dt)
+            d.ctrl[fed._ctrl_vel] = u
+            mujoco.mj_step(m, d, 1)
+    pv = PluginView(queued.model)
+    assert pv.queued_left(queued.data.plugin_state) == 0
+    np.testing.assert_array_equal(queued.data.qpos, fed.data.qpos)
+    np.testing.assert_array_equal(queued.data.qvel, fed.data.qvel)
+    np.testing.assert_array_equal(queued.data.ctrl, fed.data.ctrl)
+    np.testing.assert_array_equal(queued.wheel_truth().F_x, fed.wheel_truth().F_x)
+    assert np.max(np.abs(plain.data.qpos[:3] - queued.data.qpos[:3])) > 1e-4, "no effect"
+
+
+def test_queue_refuses_rows_it_cannot_hold() -> None:
+    from rover_env.sim.fast.plugin import SCHEDULE_ROWS
+
+    sim = RoverSim(backend="plugin")
+    pv = PluginView(sim.model)
+    for bad in (np.zeros((SCHEDULE_ROWS + 1, 4)), np.zeros((3, 5)), np.zeros((0, 4))):
+        with pytest.raises(ValueError, match="queue_commands"):
+            pv.queue_commands(sim.data.plugin_state, bad)
+    assert pv.queued_left(sim.data.plugin_state) == 0

@@ -368,26 +368,39 @@ class CommandLag(CommandEffect):
 
     def block(self, targets: Array, dt: float, n: int) -> Array:
         u = np.asarray(targets, dtype=np.float64)
-        out = np.empty((n, len(u)))
-        x = self.x
         tau = self["tau"]
-        a = math.exp(-dt / tau) if tau > 0.0 else 0.0
-        for j in range(n):  # the recursion of step(), row by row (bit-identical)
-            x = u + (x - u) * a if tau > 0.0 else u.copy()
-            out[j] = x
-        self.x = np.array(x, dtype=np.float64)
+        if tau <= 0.0:
+            self.x = u.copy()
+            return np.tile(u, (n, 1))
+        a = math.exp(-dt / tau)
+        # step()'s recursion, row by row, on Python floats: the same IEEE operations as
+        # numpy's elementwise ones (bit-identical), without numpy's per-call cost on 4 numbers
+        cols = []
+        for ui, xi in zip(u.tolist(), self.x.tolist(), strict=True):
+            col = []
+            for _ in range(n):
+                xi = ui + (xi - ui) * a
+                col.append(xi)
+            cols.append(col)
+        # C order, as step()'s rows stacked: a caller's mean over rows must sum them in the
+        # same order (a transposed view summed pairwise and moved the last bit)
+        out = np.ascontiguousarray(np.array(cols, dtype=np.float64).T.reshape(n, len(u)))
+        self.x = out[-1].copy() if n else self.x
         return out
 
     def prime(self, t: Array, cmd: Array, t_now: float, dt: float) -> None:
         tau = self["tau"]
-        x = np.zeros(4)
-        for k in range(len(t)):
-            if t[k] >= t_now - 1e-12:
+        x = [0.0, 0.0, 0.0, 0.0]
+        tt = np.asarray(t, dtype=np.float64).tolist()
+        cc = np.asarray(cmd, dtype=np.float64).reshape(-1, 4).tolist()
+        for k in range(len(tt)):  # Python floats: numpy's elementwise results, to the bit
+            if tt[k] >= t_now - 1e-12:
                 break
-            t_end = min(t[k + 1] if k + 1 < len(t) else t_now, t_now)
-            n = round((t_end - t[k]) / dt)
-            x = cmd[k] + (x - cmd[k]) * (math.exp(-n * dt / tau) if tau > 0 else 0.0)
-        self.x = x
+            t_end = min(tt[k + 1] if k + 1 < len(tt) else t_now, t_now)
+            n = round((t_end - tt[k]) / dt)
+            f = math.exp(-n * dt / tau) if tau > 0 else 0.0
+            x = [c + (xi - c) * f for c, xi in zip(cc[k], x, strict=True)]
+        self.x = np.array(x, dtype=np.float64)
 
 
 @register

@@ -42,6 +42,7 @@ from rover_env.effects import (
 )
 from rover_env.rut import check_overflow, refused_writes
 from rover_env.sim.fast import FastBackendError, PluginView, inject_plugin, load_plugin
+from rover_env.sim.fast.plugin import SCHEDULE_ROWS
 from rover_env.sim.model import fill_hfield, hfield_data, scene_xml, static_deflection
 from rover_env.sim.tire_layer import TireLayer, TireState
 from rover_env.soil import SoilParams, load_soil
@@ -525,13 +526,20 @@ class RoverSim:
         tire loads every ``HINGE_EVERY`` substeps (identically on both backends; with hinge
         effects only, the plugin runs the substeps in between in one call)."""
         m, d = self.model, self.data
-        if self._plugin is not None and len(self._cmd_effects) == 1 and not self._hinge_effects:
-            # One command effect on the plugin: its n outputs at once (the targets are held
-            # over the call), then only the motors' input changes between substeps.
+        if self._plugin is not None and not self._hinge_effects:
+            # Command effects on the plugin: their n outputs at once (the targets are held
+            # over the call; each effect takes the last one's rows, as _command() does
+            # substep by substep), queued in the plugin state, which feeds them to the
+            # motors substep by substep inside one mj_step call per SCHEDULE_ROWS.
             rows = self._cmd_effects[0].block(self.speed_targets.copy(), self.dt, n)
-            for row in rows:
-                d.ctrl[self._ctrl_vel] = row
-                mujoco.mj_step(m, d, 1)
+            for ce in self._cmd_effects[1:]:
+                rows = np.array([ce.step(r, self.dt) for r in rows])
+            for j in range(0, n, SCHEDULE_ROWS):
+                chunk = rows[j : j + SCHEDULE_ROWS]
+                self._plugin.queue_commands(d.plugin_state, chunk)
+                mujoco.mj_step(m, d, len(chunk))
+            if self._plugin.queued_left(d.plugin_state):
+                raise SimulationError("the plugin left queued speed targets unused")
             self._substep += n
             self._check()
             return

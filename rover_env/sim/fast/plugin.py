@@ -45,6 +45,9 @@ MIN_PATCH_CAPACITY = 16
 MIN_SOIL_CAPACITY = 4
 """Soil presets a compiled model can take later (set_terrain), at the least."""
 
+SCHEDULE_ROWS = 64
+"""Substeps of speed targets the plugin can queue at once (tire_plugin.c's SCHED_ROWS)."""
+
 _TERRAIN_VERSION = 3
 _HEADER = 19
 _WAVE = 5
@@ -223,8 +226,13 @@ class StateLayout:
         return slice(start, start + self.nw)
 
     @property
+    def schedule(self) -> int:
+        """The command schedule: rows queued, rows used, then ``SCHEDULE_ROWS`` x nd targets."""
+        return self.dig.stop + 7 * self.nw  # after pending dig and the pending rut writes
+
+    @property
     def rut(self) -> slice:
-        start = self.dig.stop + 7 * self.nw  # after pending dig and the pending rut writes
+        start = self.schedule + 2 + SCHEDULE_ROWS * self.nd
         return slice(start, start + self.rut_state)
 
     @property
@@ -296,6 +304,28 @@ class PluginView:
         st = self.state(plugin_state)
         st[..., self.layout.dig] = 0.0
         RutGrid.clear(st[..., self.layout.rut], self.layout.rut_index)
+
+    def queue_commands(self, plugin_state: Array, rows: Array) -> None:
+        """Queue (n, nd) speed targets, one row per coming substep (n <= ``SCHEDULE_ROWS``):
+        the plugin uses them as ``ctrl[vel]`` in order, then ``ctrl[vel]`` again."""
+        r = np.asarray(rows, dtype=np.float64)
+        n = len(r)
+        if r.ndim != 2 or r.shape[1] != self.layout.nd or not 0 < n <= SCHEDULE_ROWS:
+            raise ValueError(
+                f"queue_commands: rows must be (n, {self.layout.nd}) with 0 < n <="
+                f" {SCHEDULE_ROWS}, got {r.shape}"
+            )
+        st = self.state(plugin_state)
+        q = self.layout.schedule
+        st[q + 2 : q + 2 + n * self.layout.nd] = r.reshape(-1)
+        st[q + 1] = 0.0
+        st[q] = float(n)
+
+    def queued_left(self, plugin_state: Array) -> int:
+        """Queued command rows not used yet."""
+        st = self.state(plugin_state)
+        q = self.layout.schedule
+        return int(st[q] - st[q + 1])
 
     def rut_state(self, plugin_state: Array) -> Array:
         """The rut map's block (rover_env.rut's layout): a view."""

@@ -37,6 +37,12 @@
 //   next 6 nw          pending rut writes: the footprint's centre x, y, its across
 //                                direction x, y, the depth (0: none) and the strip's
 //                                length along the track, per wheel
+//   next 2 + SCHED_ROWS nd  command schedule: rows queued, rows used, then the queued
+//                                speed targets (a row of nd per substep). While rows used <
+//                                rows queued, compute() takes the next row as ctrl[vel] (and
+//                                writes it there, for the actuators) and advance() counts it
+//                                used: a command effect's per-substep targets (lag, delay) run
+//                                in one mj_step call (RoverSim._step_commanded)
 //   next rut_state     rut       the rut map (rover_env/rut.py): tiles used, writes refused,
 //                                the tile index (capacity rut_state - 2 - pool), the pool of
 //                                RUT_POOL_TILES tiles of RUT_TILE^2 cells: compacted depth
@@ -111,6 +117,7 @@
 #define RUT_WRITE_EVERY 4    // rover_env.rut.RUT_WRITE_EVERY
 #define RUT_MAX_SAMPLES 512  // rover_env.rut.MAX_RUT_SAMPLES (RutGrid.samples refuses more)
 #define RUT_POOL_SIZE (RUT_POOL_TILES*RUT_TILE*RUT_TILE)
+#define SCHED_ROWS 64         // rover_env.sim.fast.plugin.SCHEDULE_ROWS
 
 // tire parameter indices (TireParams field order)
 enum { MU_X, MU_Y, C_S, C_ALPHA, C_Z, D_Z, V_EPS, SIGMA_X, SIGMA_Y, D_X, D_Y, K_RE, V_FLOOR };
@@ -160,7 +167,7 @@ typedef struct {
 } Config;
 
 typedef struct {
-  int ux, uy, sp, nstep, truth, pux, puy, psp, ptruth, dig, pdig, pwrite, rut, total;
+  int ux, uy, sp, nstep, truth, pux, puy, psp, ptruth, dig, pdig, pwrite, sched, rut, total;
 } Layout;
 
 static Layout layout_of(int nw, int nd, int rut_state) {
@@ -177,7 +184,8 @@ static Layout layout_of(int nw, int nd, int rut_state) {
   L.dig = L.ptruth + NTRUTH*nw;
   L.pdig = L.dig + nw;
   L.pwrite = L.pdig + nw;
-  L.rut = L.pwrite + 6*nw;
+  L.sched = L.pwrite + 6*nw;
+  L.rut = L.sched + 2 + SCHED_ROWS*nd;
   L.total = L.rut + rut_state;
   return L;
 }
@@ -1044,6 +1052,13 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
   const double dt = m->opt.timestep;
   const double* tp = c->tire;
 
+  // a queued command row replaces ctrl[vel] for this substep (the actuators read it too)
+  const double queued = st[L.sched], used = st[L.sched + 1];
+  if (used < queued && used >= 0 && queued <= SCHED_ROWS) {
+    const mjtNum* row = st + L.sched + 2 + nd*(int)used;
+    for (int k = 0; k < nd; k++) d->ctrl[c->ctrl_vel[k]] = row[k];
+  }
+
   // speed loop: integrate the angle setpoints with anti-windup (RoverSim.step,
   // simulator.advance_setpoints, operation by operation)
   for (int k = 0; k < nd; k++) {
@@ -1278,6 +1293,7 @@ static void tire_advance(const mjModel* m, mjData* d, int instance) {
       }
     }
   }
+  if (st[L.sched + 1] < st[L.sched]) st[L.sched + 1] += 1.0;  // the queued row is used
   st[L.nstep] += 1.0;
 }
 
