@@ -24,7 +24,9 @@ Why it can run with no Python per substep (verified against MuJoCo 4.0.0):
   they do with the numpy layer, which only runs inside ``RoverSim.step``.
 * In this backend the setpoints are plugin state: write them with
   :meth:`PluginView.set_setpoints`; ``ctrl[pos]`` is overwritten on every ``mj_forward``.
-  The speed targets stay in ``ctrl[vel]``.
+  The speed targets stay in ``ctrl[vel]``; a command effect's per-substep targets are
+  queued in the state instead (:meth:`PluginView.queue_commands`), and the plugin writes
+  each to ``ctrl[vel]`` in its substep, so one ``mj_step`` call runs them all.
 * Everything per rover lives in ``plugin_state`` (layout in ``tire_plugin.c`` and
   :class:`StateLayout`), so copies of MjData, ``mj_getState``/``mj_setState`` and
   ``mujoco.batch`` rows carry it; the plugin's ``plugin_data`` is only its parsed
