@@ -353,7 +353,7 @@ def _bins(rows: list[dict[str, Any]], name: str) -> list[str]:
         label = f"{lo:g}–{hi:g}" if math.isfinite(hi) else f"≥ {lo:g}"
         out.append(
             f"| {name} | {label} | {named}/{len(sel)} |"
-            f" {np.median(ratio) if ratio else float('nan'):.2f} | {cov}/{len(ratio)} |"
+            f" {f'{np.median(ratio):.2f}' if ratio else '—'} | {cov}/{len(ratio)} |"
             f" {np.median([f['threshold'] for _, _, f in sel]):.3g} |"
         )
     return out
@@ -420,7 +420,8 @@ def _acceptance(rows: list[dict[str, Any]], gen: str) -> list[str]:
         f" {share(pair_cov)}",
         "- Outside the catalogue (passes only when nothing is named and a gap is reported):"
         f" {share(outside)}",
-        f"- Seconds per case: diagnose {np.mean(secs) if secs else float('nan'):.0f} s"
+        f"- Seconds per case: diagnose median {np.median(secs) if secs else float('nan'):.0f} s,"
+        f" mean {np.mean(secs) if secs else float('nan'):.0f} s"
         f" (min {min(secs, default=float('nan')):.0f}, max {max(secs, default=float('nan')):.0f}),"
         f" logs {np.mean(logs_s) if logs_s else float('nan'):.0f} s",
         "",
