@@ -370,7 +370,8 @@ class CommandLag(CommandEffect):
         u = np.asarray(targets, dtype=np.float64)
         tau = self["tau"]
         if tau <= 0.0:
-            self.x = u.copy()
+            if n:
+                self.x = u.copy()
             return np.tile(u, (n, 1))
         a = math.exp(-dt / tau)
         # step()'s recursion, row by row, on Python floats: the same IEEE operations as

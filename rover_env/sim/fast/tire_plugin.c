@@ -14,8 +14,9 @@
 //
 // Pipeline: compute() runs inside mj_passive (mj_fwdVelocity, i.e. in mj_forward
 // before mj_fwdActuation). It is a pure function of (qpos, qvel, ctrl[vel],
-// committed plugin state): it writes this substep's setpoints into ctrl[pos]
-// (read by the actuators later in the same mj_forward), adds the tire forces to
+// committed plugin state): it writes this substep's setpoints into ctrl[pos], and a
+// queued command row, if any, into ctrl[vel] (both read by the actuators later in the
+// same mj_forward), adds the tire forces to
 // qfrc_passive, and stores everything it computed in a *pending* block of
 // plugin_state. advance() (called by mj_advance after integration) commits the
 // pending block. Repeated mj_forward calls are therefore idempotent, exactly as
