@@ -45,7 +45,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rover_env.config import JOINTS, WHEELS, MotorSpec, RoverConfig, to_dict
-from rover_env.effects import CommandEffect, build_effects
+from rover_env.effects import CommandEffect, build_effects, command_rows
 from rover_env.executor import die_with_parent
 from rover_env.logs import DriveLog
 from rover_env.sim.simulator import RoverSim, advance_setpoints, physical_config
@@ -157,9 +157,7 @@ def loop_commands(log: DriveLog, cfg: RoverConfig) -> Array:
         n = int(step_of[k + 1] - step_of[k])
         if n <= 0:
             continue
-        rows = effects[0].block(cmd[k], dt, n)
-        for e in effects[1:]:  # the simulator's order: each effect takes the last one's output
-            rows = np.array([e.step(r, dt) for r in rows])
+        rows = command_rows(effects, cmd[k], dt, n)
         out[k] = rows.mean(axis=0)
     return out
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -50,6 +50,7 @@ __all__ = [
     "Param",
     "TireEffect",
     "build_effects",
+    "command_rows",
     "effect_class",
     "validate_extensions",
 ]
@@ -160,6 +161,16 @@ class CommandEffect(Effect):
         Used to start a replay window mid-drive with the effect's memory filled.
         """
         raise NotImplementedError
+
+
+def command_rows(effects: Sequence[CommandEffect], targets: Array, dt: float, n: int) -> Array:
+    """(n, 4) what the motors get over ``n`` substeps with ``targets`` held, through command
+    effects in the simulator's order (each takes the last one's output, substep by substep):
+    the first's :meth:`CommandEffect.block`, then the others' ``step`` row by row."""
+    rows = effects[0].block(targets, dt, n)
+    for e in effects[1:]:
+        rows = np.array([e.step(r, dt) for r in rows])
+    return rows
 
 
 class TireEffect(Effect):
@@ -386,7 +397,8 @@ class CommandLag(CommandEffect):
         # C order, as step()'s rows stacked: a caller's mean over rows must sum them in the
         # same order (a transposed view summed pairwise and moved the last bit)
         out = np.ascontiguousarray(np.array(cols, dtype=np.float64).T.reshape(n, len(u)))
-        self.x = out[-1].copy() if n else self.x
+        if n:
+            self.x = out[-1].copy()
         return out
 
     def prime(self, t: Array, cmd: Array, t_now: float, dt: float) -> None:

@@ -38,6 +38,7 @@ from rover_env.effects import (
     HingeEffect,
     TireEffect,
     build_effects,
+    command_rows,
     plugin_refusals,
 )
 from rover_env.rut import check_overflow, refused_writes
@@ -528,18 +529,13 @@ class RoverSim:
         m, d = self.model, self.data
         if self._plugin is not None and not self._hinge_effects:
             # Command effects on the plugin: their n outputs at once (the targets are held
-            # over the call; each effect takes the last one's rows, as _command() does
-            # substep by substep), queued in the plugin state, which feeds them to the
-            # motors substep by substep inside one mj_step call per SCHEDULE_ROWS.
-            rows = self._cmd_effects[0].block(self.speed_targets.copy(), self.dt, n)
-            for ce in self._cmd_effects[1:]:
-                rows = np.array([ce.step(r, self.dt) for r in rows])
+            # over the call), queued in the plugin state, which feeds them to the motors
+            # substep by substep inside one mj_step call per SCHEDULE_ROWS.
+            rows = command_rows(self._cmd_effects, self.speed_targets.copy(), self.dt, n)
             for j in range(0, n, SCHEDULE_ROWS):
                 chunk = rows[j : j + SCHEDULE_ROWS]
                 self._plugin.queue_commands(d.plugin_state, chunk)
                 mujoco.mj_step(m, d, len(chunk))
-            if self._plugin.queued_left(d.plugin_state):
-                raise SimulationError("the plugin left queued speed targets unused")
             self._substep += n
             self._check()
             return
