@@ -63,6 +63,7 @@ from rover_env.calibration.fit import (
     stack_fits,
     widen_by_groups,
 )
+from rover_env.calibration.ground import common_ground
 from rover_env.calibration.model_form import (
     FormFit,
     fit_anti_windup,
@@ -294,7 +295,8 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
     if len(rovers) > 1:
         raise LogError(f"the logs name different rovers ({', '.join(sorted(rovers))})", files[0])
     base = _rover_of(logs[0])
-    st = opts.settings
+    # The ground the logs declare (flat, a uniform slope or soil), or one clear refusal.
+    st = replace(opts.settings, terrain=common_ground(logs))
     prepared = [prepare(lg, base, f.name, st) for lg, f in zip(logs, files, strict=True)]
     all_w = make_windows(prepared, st)
     if len(logs) >= 2:
@@ -496,6 +498,8 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
     if winner is not None and ru is not None:
         p_diff = _p_improved(ru.held_losses, winner.held_losses)
         if p_diff > opts.tie_alpha:
+            from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
+
             plan, why = separating_plan(winner.fit.name, ru.fit.name)
             tie = {
                 "effects": [winner.fit.name, ru.fit.name],
@@ -503,6 +507,9 @@ def _diagnose(paths: list[str | Path], out: str | Path, opts: Options) -> dict[s
                 "held_gain": [winner.gain, ru.gain],
                 "plan": plan,
                 "why": why,
+                # The schedule the rover must drive (rover-env drive-plan), as for evidence.
+                "seed": PLAN_SEED,
+                "duration": PLAN_DURATION,
             }
             say(
                 f"tie: {winner.fit.name} vs {ru.fit.name} (p={p_diff:.2g}); separate with plan {plan!r}"

@@ -44,7 +44,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from rover_env.config import JOINTS, WHEELS, MotorSpec, RoverConfig, to_dict
+from rover_env.config import JOINTS, WHEELS, MotorSpec, RoverConfig, TerrainConfig, to_dict
 from rover_env.effects import CommandEffect, build_effects, command_rows
 from rover_env.executor import die_with_parent
 from rover_env.logs import DriveLog
@@ -82,6 +82,10 @@ class ReplaySettings:
     a soil looser than the fit's form (k_phi 4e5, phi 28, n0 1.1), the truth's replay cost 1.51 x
     the best k_phi's without a lead, 1.16 x with 2 s and 1.55 x with 5 s (docs/calibration,
     stop 28: on soil that loose the replay stays noisy)."""
+    terrain: TerrainConfig | None = None
+    """The ground every window is replayed on; None: flat hard ground. ``diagnose`` sets it
+    from the logs' declared terrain (:func:`rover_env.calibration.ground.common_ground`),
+    which refuses a ground the replay cannot honour."""
 
 
 @dataclass
@@ -343,12 +347,13 @@ class Replayer:
         self.settings = settings
         self.contacts = contacts
         self.sensors = sensors
-        # Flat ground: the chassis never touches it and the tire layer is the wheels' contact,
+        # Flat ground (or the uniform ground a log declares): the chassis never touches it and the tire layer is the wheels' contact,
         # so MuJoCo's collision pass is skipped (the same replay to the bit, ~15 % faster;
         # benchmarks/bench_replay.py).
         # The replay reads the state only (qpos, the segments' poses), so MuJoCo's sensor
         # stage is off by default: the same replay to the bit, faster (bench_replay.py).
-        self.sim = RoverSim(cfg, "flat", backend=backend, contacts=contacts, sensors=sensors)
+        ground = "flat" if settings.terrain is None else settings.terrain
+        self.sim = RoverSim(cfg, ground, backend=backend, contacts=contacts, sensors=sensors)
         self.backend = self.sim.backend
         s = self.sim
         m = s.model

@@ -104,13 +104,16 @@ TwinStates = tuple[Array, Array, Array]
 
 
 def twin_states(p: PreparedLog, cfg: RoverConfig) -> TwinStates:
-    """The model driven from rest by ``p``'s logged commands: its true angles and pose at
+    """The model driven from rest by ``p``'s logged commands on the log's declared ground
+    (:func:`rover_env.calibration.ground.log_ground`): its true angles and pose at
     the log's sample times (:func:`twin_log` reads them through sensors)."""
     from rover_env.sim.recorder import relative_pose
     from rover_env.sim.simulator import RoverSim
 
+    from rover_env.calibration.ground import log_ground
+
     log = p.log
-    sim = RoverSim(cfg, "flat", backend="auto")
+    sim = RoverSim(cfg, log_ground(log), backend="auto")
     sim.reset()
     step_of = np.round(log.t / sim.dt).astype(np.int64)
     phi, theta, pos, quat = [], [], [], []
