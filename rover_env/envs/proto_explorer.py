@@ -883,14 +883,6 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
         self._renderer: mujoco.Renderer | None = None
         self._viewer: Any = None
 
-    # ------------------------------------------------------------------ terrain randomisation
-    def _envelope_terrain(self, base: TerrainConfig) -> TerrainConfig:
-        """The steepest terrain the randomiser can draw: sizes the compiled heightfield."""
-        return self.settings.envelope_terrain(base)
-
-    def _random_terrain(self, rng: np.random.Generator) -> TerrainConfig:
-        return self.settings.random_terrain(rng)
-
     # ------------------------------------------------------------------ gym API
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
