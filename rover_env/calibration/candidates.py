@@ -260,7 +260,7 @@ SEPARATING_PLANS: dict[frozenset[str], tuple[str, str]] = {
 
 
 def separating_plan(a: str, b: str) -> tuple[str, str]:
-    """(make-logs plan, why) for a drive that separates effects a and b."""
+    """(drive plan, why) for a drive that separates effects a and b (rover-env drive-plan)."""
     return SEPARATING_PLANS.get(
         frozenset({a, b}),
         ("test", "a longer test drive with a new seed: more turns, reversals and speed steps"),

@@ -4,13 +4,18 @@ A candidate can improve the training drives while the held-out drive cannot conf
 effect is not excited there (a torque limit the drive never reaches), or only a sparse
 signal carries it (a rolling radius changed on all wheels alike leaves every wheel and
 joint angle as it was; only the 1 Hz pose sees it). Then the report says so and proposes
-the drive that would decide (:data:`EVIDENCE_PLANS`, ``make-logs --plan``), and shows by
-simulation that it separates the hypotheses: the model with the fitted effect drives the
-proposed plan and logs it; that log is replayed (the same multiple shooting as diagnose)
-by both the current model and the model with the effect, and the change of every replayed
-signal is measured in units of that signal's own replay floor (each signal weighed by its
-own noise). Through the replay, not open loop: the replay starts each window from the free
+the drive that would decide (:data:`EVIDENCE_PLANS`), and shows by simulation that it
+separates the hypotheses: the model with the fitted effect drives the proposed plan and
+logs it; that log is replayed (the same multiple shooting as diagnose) by both the current
+model and the model with the effect, and the change of every replayed signal is measured in
+units of that signal's own replay floor (each signal weighed by its own noise). Through the replay, not open loop: the replay starts each window from the free
 wheels, so what it can see differs from what an open-loop run shows.
+
+Each proposal records its seed and duration (:data:`PLAN_SEED`, :data:`PLAN_DURATION`): the
+real rover must DRIVE that very schedule (``rover-env drive-plan --report OUT --out DIR``
+writes it as commands), be logged, imported (``rover-env import-bag``) and added last to
+``diagnose``. Never simulate it: ``make-logs`` drives the nominal model, and its log added
+to a real rover's would corrupt the diagnosis.
 """
 
 from __future__ import annotations
@@ -55,11 +60,19 @@ EVIDENCE_PLANS: dict[str, tuple[str, str]] = {
 }
 
 
+PLAN_SEED = 0
+"""Seed of every proposed drive (evidence and ties): ``drive_schedule``'s draw of the plan."""
+PLAN_DURATION = 50.0
+"""Duration (s) of every proposed drive (evidence and ties)."""
+
+
 def evidence_plan(name: str) -> tuple[str, str]:
     return EVIDENCE_PLANS.get(name, ("test", "a longer test drive with a new seed"))
 
 
-def simulate_plan(cfg: RoverConfig, plan: str, seed: int = 0, duration: float = 50.0) -> DriveLog:
+def simulate_plan(
+    cfg: RoverConfig, plan: str, seed: int = PLAN_SEED, duration: float = PLAN_DURATION
+) -> DriveLog:
     """The drive ``plan`` as ``cfg`` would log it (exact sensors, pose at 1 Hz)."""
     sim = RoverSim(cfg, "flat", backend="auto")
     sim.reset()
@@ -143,8 +156,8 @@ def propose(
     ext: Extensions,
     floor: dict[str, float],
     held_change: dict[str, float],
-    seed: int = 0,
-    duration: float = 50.0,
+    seed: int = PLAN_SEED,
+    duration: float = PLAN_DURATION,
 ) -> dict[str, Any]:
     """The drive that would decide candidate ``name`` (fitted ``ext``), shown by simulation."""
     from dataclasses import replace
@@ -160,6 +173,8 @@ def propose(
         "effect": name,
         "plan": plan,
         "why": why,
+        "seed": seed,  # what the real rover must drive: drive_schedule(plan, seed, duration)
+        "duration": duration,
         "separation": sep,
         "best_signal": best,
         "best_floor_units": sep.get(best, 0.0),
@@ -172,6 +187,8 @@ def propose(
 
 __all__ = [
     "EVIDENCE_PLANS",
+    "PLAN_DURATION",
+    "PLAN_SEED",
     "evidence_plan",
     "propose",
     "replay_separation",

@@ -144,83 +144,13 @@ def _sig(s: Scored) -> str:
     return "yes" if s.test in ("", "windows") else f"yes, {s.test}"
 
 
-def write_report(
-    out: Path,
-    *,
-    result: dict[str, Any],
-    ranked: list[Scored],
-    tried: list[Scored],
-    chosen: list[Scored],
-    tie: dict[str, Any] | None,
-    demoted: list[Scored] | None = None,
-    opts: Options,
-    table_before: dict[str, dict[str, Cell]],
-    table_held_before: dict[str, dict[str, Cell]],
-    table_held_after: dict[str, dict[str, Cell]],
-    noise: dict[str, float],
-    sensor_noise: dict[str, float],
-    prepared: list[PreparedLog],
-    base_held: list[WindowResult],
-    final_held: list[WindowResult],
-    base: RoverConfig,
-) -> Path:
+def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str]:
+    """The report's "Data and method" section."""
     st = opts.settings
-    figs = _figures(out, ranked, table_before, prepared, base_held, final_held)
-    L: list[str] = ["# Model-discrepancy diagnosis", ""]
-    named = result["named"]
-    if named:
-        L.append(f"**Named:** {' + '.join(named)} — {'; '.join(_phys(s) for s in chosen)}.")
-    elif result.get("not_named"):
-        nn = result["not_named"]
-        worse = "; ".join(
-            f"{k} {v['rms_ratio']:.2f}x its RMS before (one-sided Wilcoxon over {v['windows']}"
-            f" windows, p {_p(v['p'])})"
-            for k, v in nn["worse"].items()
-        )
-        L.append(
-            f"**Nothing named with confidence.** The best fit, {' + '.join(nn['effects'])}"
-            f" ({'; '.join(_phys(s) for s in demoted or [])}), improves the held-out drive but"
-            f" makes signals it leaves above their floor worse: {worse}. An effect of the"
-            " catalogue that trades one signal for another is standing in for something"
-            " outside it (a mass, a spring, a tire stiffness); the configuration is left as it was."
-        )
-    else:
-        L.append("**No candidate explains the gap significantly.**")
-    if tie:
-        a, b = tie["effects"]
-        L.append(
-            f"\n**Tie:** {a} is not shown better than {b} on the held-out drive (held-out reduction "
-            f"{100 * tie['held_gain'][0]:.0f} % vs {100 * tie['held_gain'][1]:.0f} %; one-sided"
-            f" Wilcoxon p that {a} is better: {_p(tie['p_winner_better'])}). The data cannot separate them."
-            f" Separating drive: {tie['why']}. Generate it with\n\n"
-            f"    rover-env make-logs --plan {tie['plan']} --drives 1 --first-index 9 ... --out DIR\n\n"
-            "and diagnose again with that log added."
-        )
-    un = result["unexplained"]
-    if un:
-        L.append(
-            f"\n**A significant gap remains unexplained** in: {', '.join(un)} (held-out residual"
-            " more than 1.5 times the replay floor, p < 0.001 after the named effects)."
-        )
-    else:
-        L.append(
-            "\nAfter the named effects no held-out signal exceeds 1.5 times its replay floor significantly."
-        )
-    L += [
-        "",
-        f"Main residual ({result['main_signal']}, largest held-out ratio to noise): RMS "
-        f"{_f(result['main_rms_before'])} → {_f(result['main_rms_after'])} "
-        f"({100 * result['main_reduction']:.0f} % reduction; {100 * (1 - result['main_reduction']):.0f} % of it remains);"
-        f" median over held-out windows {_f(result['main_median_window_rms_before'])} →"
-        f" {_f(result['main_median_window_rms_after'])} ({100 * result['main_reduction_median_window']:.0f} % reduction)."
-        f" Gap above the replay floor (RMS² minus floor², floor {_f(result['main_floor_before'])} before,"
-        f" {_f(result['main_floor_after'])} after): {100 * result['main_gap_reduction']:.0f} % closed.",
-        "",
-        f"Updated configuration: `{Path(result['config']).name}` (loads in `RoverSim` and the environments as is).",
-        "",
+    return [
         "## Data and method",
         "",
-        f"- Logs: {', '.join(Path(p).name for p in result['logs'])}; rover `{prepared[0].log.meta.rover}`.",
+        f"- Logs: {', '.join(Path(p).name for p in result['logs'])}; rover `{rover}`.",
         f"- Split: {result['split']}.",
         f"- Replay: multiple shooting, windows of {st.window:g} s re-initialised from the log (joint"
         " angles and rates, wheel rates, segment 3's motion from the free wheels, controller"
@@ -266,6 +196,88 @@ def write_report(
         f" {opts.alpha:g}): an effect that trades one signal for another stands in for"
         " something outside the catalogue.",
         f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay, {result['seconds']:.0f} s in all.",
+    ]
+
+
+def _headline(
+    result: dict[str, Any],
+    chosen: list[Scored],
+    demoted: list[Scored] | None,
+    tie: dict[str, Any] | None,
+) -> list[str]:
+    """What was named (or why not), the tie and what is left unexplained."""
+    L: list[str] = []
+    named = result["named"]
+    if named:
+        L.append(f"**Named:** {' + '.join(named)} — {'; '.join(_phys(s) for s in chosen)}.")
+    elif result.get("not_named"):
+        nn = result["not_named"]
+        worse = "; ".join(
+            f"{k} {v['rms_ratio']:.2f}x its RMS before (one-sided Wilcoxon over {v['windows']}"
+            f" windows, p {_p(v['p'])})"
+            for k, v in nn["worse"].items()
+        )
+        L.append(
+            f"**Nothing named with confidence.** The best fit, {' + '.join(nn['effects'])}"
+            f" ({'; '.join(_phys(s) for s in demoted or [])}), improves the held-out drive but"
+            f" makes signals it leaves above their floor worse: {worse}. An effect of the"
+            " catalogue that trades one signal for another is standing in for something"
+            " outside it (a mass, a spring, a tire stiffness); the configuration is left as it was."
+        )
+    else:
+        L.append("**No candidate explains the gap significantly.**")
+    if tie:
+        L.append("\n" + tie_text(tie))
+    un = result["unexplained"]
+    if un:
+        L.append(
+            f"\n**A significant gap remains unexplained** in: {', '.join(un)} (held-out residual"
+            " more than 1.5 times the replay floor, p < 0.001 after the named effects)."
+        )
+    else:
+        L.append(
+            "\nAfter the named effects no held-out signal exceeds 1.5 times its replay floor significantly."
+        )
+    return L
+
+
+def write_report(
+    out: Path,
+    *,
+    result: dict[str, Any],
+    ranked: list[Scored],
+    tried: list[Scored],
+    chosen: list[Scored],
+    tie: dict[str, Any] | None,
+    demoted: list[Scored] | None = None,
+    opts: Options,
+    table_before: dict[str, dict[str, Cell]],
+    table_held_before: dict[str, dict[str, Cell]],
+    table_held_after: dict[str, dict[str, Cell]],
+    noise: dict[str, float],
+    sensor_noise: dict[str, float],
+    prepared: list[PreparedLog],
+    base_held: list[WindowResult],
+    final_held: list[WindowResult],
+    base: RoverConfig,
+) -> Path:
+    figs = _figures(out, ranked, table_before, prepared, base_held, final_held)
+    L: list[str] = ["# Model-discrepancy diagnosis", ""]
+    named = result["named"]
+    L += _headline(result, chosen, demoted, tie)
+    L += [
+        "",
+        f"Main residual ({result['main_signal']}, largest held-out ratio to noise): RMS "
+        f"{_f(result['main_rms_before'])} → {_f(result['main_rms_after'])} "
+        f"({100 * result['main_reduction']:.0f} % reduction; {100 * (1 - result['main_reduction']):.0f} % of it remains);"
+        f" median over held-out windows {_f(result['main_median_window_rms_before'])} →"
+        f" {_f(result['main_median_window_rms_after'])} ({100 * result['main_reduction_median_window']:.0f} % reduction)."
+        f" Gap above the replay floor (RMS² minus floor², floor {_f(result['main_floor_before'])} before,"
+        f" {_f(result['main_floor_after'])} after): {100 * result['main_gap_reduction']:.0f} % closed.",
+        "",
+        f"Updated configuration: `{Path(result['config']).name}` (loads in `RoverSim` and the environments as is).",
+        "",
+        *_method_lines(result, opts, prepared[0].log.meta.rover),
         "",
         "## Where the disagreement is (current model)",
         "",
@@ -320,33 +332,7 @@ def write_report(
             + ". See the regime table above for where they concentrate.",
             "",
         ]
-    ev_list = result.get("evidence") or []
-    if ev_list:
-        L += [
-            "## Evidence the drives lack",
-            "",
-            "These candidates improve the training drives but the held-out drive cannot confirm"
-            " them. Each proposed drive was simulated with the fitted effect and replayed by"
-            " both models; the change of each replayed signal is given in units of that"
-            " signal's own replay floor, per window and over the whole drive (one degree of"
-            " freedom per window; ≥ 3 over the drive: it separates the hypotheses).",
-            "",
-            "| effect | why unconfirmed | proposed drive (`make-logs --plan`) | largest change on it"
-            " (per window; drive) | on the held-out drive (per window) | separates |",
-            "|---|---|---|---|---|---|",
-        ]
-        for e in ev_list:
-            L.append(
-                f"| {e['effect']} | {e['reason']} | `{e['plan']}`: {e['why']} |"
-                f" {e['best_signal']} {e['best_per_window']:.1f}×; {e['best_floor_units']:.1f}× |"
-                f" {e['held_out_best_signal']} {e['held_out_floor_units']:.1f}× |"
-                f" {'yes' if e['separates'] else 'no'} |"
-            )
-        L += [
-            "",
-            "Drive the proposed plan, add its log (last, so it is held out) and diagnose again.",
-            "",
-        ]
+    L += evidence_lines(result.get("evidence") or [])
     L += ["## Held-out drive before / after (RMS residual / replay floor)", "", "Before:", ""]
     L += _ratio_table(table_held_before, SIGNALS)
     L += ["", "After:", ""]
@@ -357,6 +343,81 @@ def write_report(
     path = out / "report.md"
     path.write_text("\n".join(L) + "\n")
     return path
+
+
+def _seed_duration(proposal: dict[str, Any]) -> tuple[int, float]:
+    """The seed and duration a proposal was drawn with (reports from before they were
+    recorded used diagnose's convention, :data:`~rover_env.calibration.evidence.PLAN_SEED`)."""
+    from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
+
+    return int(proposal.get("seed", PLAN_SEED)), float(proposal.get("duration", PLAN_DURATION))
+
+
+def drive_it_text(plans: list[tuple[str, int, float]]) -> str:
+    """How to get a proposed drive: DRIVE it on the rover, record, import, diagnose again.
+
+    Never by simulation (``make-logs`` drives the nominal model: its log added to a real
+    rover's would corrupt the diagnosis)."""
+    cmds = "".join(
+        f"    rover-env drive-plan --plan {plan} --seed {seed} --duration {duration:g} --out DIR\n"
+        for plan, seed, duration in plans
+    )
+    return (
+        "Drive it on the rover (not in simulation: a simulated log would corrupt the"
+        " diagnosis of a real one). Write its commands (a CSV and a ROS 2 bag of wheel-speed"
+        " targets, and a note of the ground it needs) with\n\n"
+        f"{cmds}\n"
+        "(or `rover-env drive-plan --report OUT --out DIR`, OUT this diagnosis's folder, for"
+        " every drive it proposes), drive it with the rover's usual recording running, import"
+        " the recording with `rover-env import-bag` and run `rover-env diagnose` again with"
+        " the new log added LAST, so that it is the held-out drive."
+    )
+
+
+def tie_text(tie: dict[str, Any]) -> str:
+    """The report's paragraph on a tie and the drive that would separate it."""
+    a, b = tie["effects"]
+    seed, duration = _seed_duration(tie)
+    return (
+        f"**Tie:** {a} is not shown better than {b} on the held-out drive (held-out reduction "
+        f"{100 * tie['held_gain'][0]:.0f} % vs {100 * tie['held_gain'][1]:.0f} %; one-sided"
+        f" Wilcoxon p that {a} is better: {_p(tie['p_winner_better'])}). The data cannot separate"
+        f" them. Separating drive: plan `{tie['plan']}` (seed {seed}, {duration:g} s):"
+        f" {tie['why']}. " + drive_it_text([(tie["plan"], seed, duration)])
+    )
+
+
+def evidence_lines(ev_list: list[dict[str, Any]]) -> list[str]:
+    """The report's section on candidates the held-out drive cannot confirm."""
+    if not ev_list:
+        return []
+    L = [
+        "## Evidence the drives lack",
+        "",
+        "These candidates improve the training drives but the held-out drive cannot confirm"
+        " them. Each proposed drive was simulated with the fitted effect and replayed by"
+        " both models; the change of each replayed signal is given in units of that"
+        " signal's own replay floor, per window and over the whole drive (one degree of"
+        " freedom per window; ≥ 3 over the drive: it separates the hypotheses).",
+        "",
+        "| effect | why unconfirmed | proposed drive (plan, seed, duration) | largest change on it"
+        " (per window; drive) | on the held-out drive (per window) | separates |",
+        "|---|---|---|---|---|---|",
+    ]
+    plans: list[tuple[str, int, float]] = []
+    for e in ev_list:
+        seed, duration = _seed_duration(e)
+        if (e["plan"], seed, duration) not in plans:
+            plans.append((e["plan"], seed, duration))
+        L.append(
+            f"| {e['effect']} | {e['reason']} | `{e['plan']}` (seed {seed}, {duration:g} s):"
+            f" {e['why']} |"
+            f" {e['best_signal']} {e['best_per_window']:.1f}×; {e['best_floor_units']:.1f}× |"
+            f" {e['held_out_best_signal']} {e['held_out_floor_units']:.1f}× |"
+            f" {'yes' if e['separates'] else 'no'} |"
+        )
+    L += ["", drive_it_text(plans), ""]
+    return L
 
 
 def _model_form_line(

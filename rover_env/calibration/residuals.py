@@ -107,10 +107,9 @@ def twin_states(p: PreparedLog, cfg: RoverConfig) -> TwinStates:
     """The model driven from rest by ``p``'s logged commands on the log's declared ground
     (:func:`rover_env.calibration.ground.log_ground`): its true angles and pose at
     the log's sample times (:func:`twin_log` reads them through sensors)."""
+    from rover_env.calibration.ground import log_ground
     from rover_env.sim.recorder import relative_pose
     from rover_env.sim.simulator import RoverSim
-
-    from rover_env.calibration.ground import log_ground
 
     log = p.log
     sim = RoverSim(cfg, log_ground(log), backend="auto")
