@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import pytest
 
 from rover_env.calibration.evidence import propose, separation, simulate_plan
-from rover_env.calibration.replay import SIGNALS
+from rover_env.calibration.replay import SIGNALS, ReplaySettings
 from rover_env.config import RoverConfig
 
 # Replay floors of a typical case (make-logs sensors): wheels, joints, pose.
@@ -57,7 +59,7 @@ def test_a_leaning_held_out_drive_asks_for_the_deciding_drive(monkeypatch) -> No
     monkeypatch.setattr(
         evidence,
         "propose",
-        lambda base, name, ext, noise, held: {
+        lambda base, name, ext, noise, held, **kw: {
             "effect": name,
             "plan": "x",
             "best_signal": "wheel_2R",
@@ -76,10 +78,11 @@ def test_a_leaning_held_out_drive_asks_for_the_deciding_drive(monkeypatch) -> No
         return Scored(f, 1.0, np.ones(16), gain, p, -6.0, -6.0, 32)
 
     opts = Options(progress=False)
+    ev = SimpleNamespace(settings=ReplaySettings())  # only its ground is read here
     ranked = [scored("torque_limit", 0.41, 0.018), scored("command_lag", 0.05, 0.3)]
-    out = missing_evidence(None, ranked, [], {}, RoverConfig(), opts, lambda m: None)  # type: ignore[arg-type]
+    out = missing_evidence(ev, ranked, [], {}, RoverConfig(), opts, lambda m: None)  # type: ignore[arg-type]
     assert [e["effect"] for e in out] == ["torque_limit"]
     assert "leans towards it (41 % better)" in out[0]["reason"]
     # Confirmed at alpha: the held-out drive judged it, nothing to ask.
     ranked = [scored("torque_limit", 0.41, 0.001)]
-    assert missing_evidence(None, ranked, [], {}, RoverConfig(), opts, lambda m: None) == []  # type: ignore[arg-type]
+    assert missing_evidence(ev, ranked, [], {}, RoverConfig(), opts, lambda m: None) == []  # type: ignore[arg-type]

@@ -108,3 +108,15 @@ def test_a_log_replays_on_its_declared_ground(tmp_path: Path, terrain: str | dic
     # The floor's twin drives the declared ground too: it reproduces the log's free wheels.
     twin_phi = rs.twin_states(prepare(log, cfg, path.name, ReplaySettings()), cfg)[0]
     assert np.abs((twin_phi - twin_phi[0])[:, 4:] - log.phi[:, 4:]).max() < 0.05
+
+
+def test_a_proposed_drive_is_simulated_on_the_declared_ground() -> None:
+    """The evidence stage judges a proposed drive on the logs' ground, not on flat."""
+    from rover_env.calibration.evidence import simulate_plan
+
+    cfg = load_rover("proto_explorer")
+    slope = log_ground(_log("slope10"))
+    on_slope = simulate_plan(cfg, "accel", duration=4.0, ground=slope)
+    flat = simulate_plan(cfg, "accel", duration=4.0)
+    assert log_ground(on_slope).slope_deg == (10.0, 0.0)  # the log says where it was driven
+    assert np.abs(on_slope.phi[:, 4:] - flat.phi[:, 4:]).max() > 0.1

@@ -965,7 +965,7 @@ def missing_evidence(
             )
         else:
             why = "the held-out drive does not excite it"
-        p = propose(base, name, s.fit.ext, noise, held)
+        p = propose(base, name, s.fit.ext, noise, held, ground=ev.settings.terrain)
         p["reason"] = why
         out.append(p)
         say(

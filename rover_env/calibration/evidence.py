@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from rover_env.calibration.candidates import Extensions
 from rover_env.calibration.drives import drive_schedule
 from rover_env.calibration.replay import SIGNALS, Replayer, ReplaySettings, make_windows, prepare
-from rover_env.config import JOINTS, WHEELS, RoverConfig
+from rover_env.config import JOINTS, WHEELS, RoverConfig, TerrainConfig, to_dict
 from rover_env.logs import DriveLog
 from rover_env.sim.recorder import run_drive
 from rover_env.sim.simulator import RoverSim
@@ -71,14 +71,20 @@ def evidence_plan(name: str) -> tuple[str, str]:
 
 
 def simulate_plan(
-    cfg: RoverConfig, plan: str, seed: int = PLAN_SEED, duration: float = PLAN_DURATION
+    cfg: RoverConfig,
+    plan: str,
+    seed: int = PLAN_SEED,
+    duration: float = PLAN_DURATION,
+    ground: TerrainConfig | None = None,
 ) -> DriveLog:
-    """The drive ``plan`` as ``cfg`` would log it (exact sensors, pose at 1 Hz)."""
-    sim = RoverSim(cfg, "flat", backend="auto")
+    """The drive ``plan`` as ``cfg`` would log it (exact sensors, pose at 1 Hz), on the
+    logs' declared ``ground`` (None: flat hard ground)."""
+    sim = RoverSim(cfg, "flat" if ground is None else ground, backend="auto")
     sim.reset()
     sched = drive_schedule(plan, np.random.default_rng(seed), duration, cfg.motor.max_wheel_speed)
     rec = run_drive(sim, sched, duration)
-    return rec.to_log("proposed", terrain="flat", pose_rate_hz=1.0)
+    terrain = "flat" if ground is None else to_dict(ground)
+    return rec.to_log("proposed", terrain=terrain, pose_rate_hz=1.0)
 
 
 def separation(
@@ -158,15 +164,17 @@ def propose(
     held_change: dict[str, float],
     seed: int = PLAN_SEED,
     duration: float = PLAN_DURATION,
+    ground: TerrainConfig | None = None,
 ) -> dict[str, Any]:
-    """The drive that would decide candidate ``name`` (fitted ``ext``), shown by simulation."""
+    """The drive that would decide candidate ``name`` (fitted ``ext``), shown by simulation
+    on the logs' declared ``ground`` (None: flat hard ground)."""
     from dataclasses import replace
 
     plan, why = evidence_plan(name)
     with_effect = replace(base, extensions={**base.extensions, **ext})
-    per_window, sep = replay_separation(
-        base, with_effect, simulate_plan(with_effect, plan, seed, duration), floor
-    )
+    log = simulate_plan(with_effect, plan, seed, duration, ground)
+    st = ReplaySettings(terrain=ground)
+    per_window, sep = replay_separation(base, with_effect, log, floor, st)
     best = max(sep, key=lambda k: sep[k]) if sep else ""
     held_best = max(held_change, key=lambda k: held_change[k]) if held_change else ""
     return {
