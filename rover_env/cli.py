@@ -132,6 +132,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_make_logs_cli(sub)
     add_diagnose_cli(sub)
+    from rover_env.bags import add_cli as add_import_bag_cli
+    from rover_env.calibration.drive_plan import add_cli as add_drive_plan_cli
+
+    add_import_bag_cli(sub)
+    add_drive_plan_cli(sub)
     return parser
 
 

@@ -19,6 +19,7 @@ RANKS = {
     "rover_env.kinematics": 0,
     "rover_env.config": 0,
     "rover_env.logs": 0,
+    "rover_env.bags": 0,  # ROS bags <-> SPEC §6 logs (rosbags, numpy)
     "rover_env.effects": 0,
     "rover_env.seeds": 0,
     "rover_env.executor": 0,
