@@ -1,7 +1,7 @@
 """Golden outputs: what a refactor must leave the same to the bit.
 
-    python benchmarks/golden.py write OUT [--skip-diagnose]   # record at one commit
-    python benchmarks/golden.py compare A B                   # every number, to the bit
+    python benchmarks/golden.py write OUT [--only env,vec,benchmark,diagnose]  # at one commit
+    python benchmarks/golden.py compare A B     # every number of what both hold, to the bit
 
 Writes, into OUT:
 - ``env_<backend>.npz``: 1,000 steps of ``rover_env/ProtoExplorer-v0`` (and 1,000 of the rough
@@ -136,19 +136,24 @@ def _diagnose(out: Path) -> None:
             diagnose(paths, out / f"diagnose_{name}", Options(workers=2, progress=False))
 
 
-def write(out: Path, skip_diagnose: bool) -> None:
+PARTS = ("env", "vec", "benchmark", "diagnose")
+
+
+def write(out: Path, parts: tuple[str, ...] = PARTS) -> None:
     out.mkdir(parents=True, exist_ok=True)
-    for backend in ("numpy", "plugin"):
+    for backend in ("numpy", "plugin") if "env" in parts else ():
         data = _env_run("rover_env/ProtoExplorer-v0", backend, 1000)
         data |= {f"rough.{k}": v for k, v in _env_run(
             "rover_env/ProtoExplorerRough-v0", backend, 1000).items()}  # fmt: skip
         np.savez(out / f"env_{backend}.npz", **data)
         print(f"env {backend}: {len(data)} arrays", flush=True)
-    np.savez(out / "vec_plugin.npz", **_vec_run(250))
-    print("vector env written", flush=True)
-    _benchmark(out)
-    print("benchmark written", flush=True)
-    if not skip_diagnose:
+    if "vec" in parts:
+        np.savez(out / "vec_plugin.npz", **_vec_run(250))
+        print("vector env written", flush=True)
+    if "benchmark" in parts:
+        _benchmark(out)
+        print("benchmark written", flush=True)
+    if "diagnose" in parts:
         _diagnose(out)
         print("diagnose written", flush=True)
 
@@ -174,8 +179,7 @@ def compare(a: Path, b: Path) -> int:
         rel = fa.relative_to(a)
         fb = b / rel
         if not fb.is_file():
-            print(f"MISSING {rel}")
-            bad += 1
+            print(f"only in {a}: {rel}")
             continue
         if fa.suffix == ".npz":
             za, zb = np.load(fa), np.load(fb)
@@ -205,13 +209,13 @@ def main(argv: list[str] | None = None) -> int:
     sub = p.add_subparsers(dest="cmd", required=True)
     w = sub.add_parser("write")
     w.add_argument("out")
-    w.add_argument("--skip-diagnose", action="store_true")
+    w.add_argument("--only", default=",".join(PARTS), help=f"comma list of {', '.join(PARTS)}")
     c = sub.add_parser("compare")
     c.add_argument("a")
     c.add_argument("b")
     args = p.parse_args(argv)
     if args.cmd == "write":
-        write(Path(args.out), args.skip_diagnose)
+        write(Path(args.out), tuple(x.strip() for x in args.only.split(",") if x.strip()))
         return 0
     return compare(Path(args.a), Path(args.b))
 
