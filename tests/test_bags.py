@@ -262,6 +262,27 @@ def test_round_trip(drive: dict[str, Any], variant: str, tmp_path: Path) -> None
     assert "imported from bag bag" in (log.meta.notes or "")
 
 
+def test_a_sparse_pose_reference_stays_sparse(drive: dict[str, Any], tmp_path: Path) -> None:
+    """A 1 Hz external reference (as make-logs writes, SPEC §6) keeps its fixes at their
+    samples and leaves the rest empty: interpolating it would invent a path between fixes."""
+    m = Msgs()
+    topics = _drive_topics(drive, m, "ticks_deg_array_odom_mcap")
+    odom_type, odom = topics["/odom"]
+    topics["/odom"] = (odom_type, odom[::50])  # 1 Hz: t = 0, 1, 2, 3 s
+
+    def sparse_map(data: dict[str, Any]) -> None:
+        _variant_map(data)
+        data["pose"].update(min_rate_hz=0.5, max_gap_s=1.5)
+
+    log = import_bag(
+        write_bag(tmp_path / "bag", topics, m), write_map(tmp_path / "m.yaml", sparse_map)
+    )
+    have = np.flatnonzero(np.isfinite(log.pose[:, 0]))
+    assert have.tolist() == [0, 50, 100, 150]
+    np.testing.assert_allclose(log.pose[have], drive["log"].pose[have], rtol=0, atol=1e-9)
+    assert np.all(np.isnan(log.pose[np.isnan(log.pose[:, 0])]))
+
+
 def test_ros1_bag_reads_like_ros2(tmp_path: Path) -> None:
     """The same synthetic drive as a ROS 1 .bag and a ROS 2 bag imports to the same log."""
     logs = []

@@ -20,6 +20,7 @@ RANKS = {
     "rover_env.config": 0,
     "rover_env.logs": 0,
     "rover_env.bags": 0,  # ROS bags <-> SPEC §6 logs (rosbags, numpy)
+    "rover_env.bag_map": 0,  # import-bag's topic map
     "rover_env.effects": 0,
     "rover_env.seeds": 0,
     "rover_env.executor": 0,
