@@ -239,7 +239,21 @@ def run(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     cfg = rover if isinstance(rover, RoverConfig) else load_rover(rover)
-    rng = np.random.default_rng(seed)
+    results = _drives(cfg, duration, np.random.default_rng(seed), progress)
+    dr_md = _dead_reckoning_table(results, out)
+    slip_md = _slip_tables(results, out)
+    turn_md = _turn_table(results)
+    _plot_trajectories(results, out)
+    slip_figs = [_plot_slip(r, out) for r in results]
+    summary = _summary(duration, seed, dr_md, slip_md, turn_md, slip_figs)
+    (out / "summary.md").write_text("\n".join(summary))
+    return out
+
+
+def _drives(
+    cfg: RoverConfig, duration: float, rng: np.random.Generator, progress: bool
+) -> list[DriveResult]:
+    """The three weaves, each read through every sensor set and estimated per radius model."""
     results: list[DriveResult] = []
     for weave in WEAVES:
         if progress:
@@ -252,8 +266,11 @@ def run(
                     r.logs[sname], cfg, estimator_config(model, cfg)
                 )
         results.append(r)
+    return results
 
-    # ---- dead-reckoning table
+
+def _dead_reckoning_table(results: list[DriveResult], out: Path) -> list[str]:
+    """End-point errors: dead_reckoning.csv and .md; returns the table's markdown lines."""
     rows: list[dict[str, Any]] = []
     for r in results:
         tp = r.truth["pose"]
@@ -292,8 +309,11 @@ def run(
         + "\n".join(dr_md)
         + "\n"
     )
+    return dr_md
 
-    # ---- slip statistics and figures
+
+def _slip_tables(results: list[DriveResult], out: Path) -> list[str]:
+    """Slip-ratio errors per sensor set and radius model: slip.csv; returns markdown lines."""
     slip_md: list[str] = []
     slip_rows: list[dict[str, Any]] = []
     for sname in SENSORS:
@@ -343,7 +363,11 @@ def run(
         w = csv.DictWriter(fh, fieldnames=list(slip_rows[0]))
         w.writeheader()
         w.writerows(slip_rows)
+    return slip_md
 
+
+def _turn_table(results: list[DriveResult]) -> list[str]:
+    """Outer vs inner wheels' mean slip in turns (paper Fig. 7), as markdown lines."""
     turn_md = [
         "| drive | sensors, radius | segment | outer: est. | outer: true | inner: est. "
         "| inner: true |",
@@ -358,12 +382,19 @@ def run(
                     + " | ".join(f"{v:+.3f}" for v in vals)
                     + " |"
                 )
+    return turn_md
 
-    _plot_trajectories(results, out)
-    slip_figs = [_plot_slip(r, out) for r in results]
 
+def _summary(
+    duration: float,
+    seed: int,
+    dr_md: list[str],
+    slip_md: list[str],
+    turn_md: list[str],
+    slip_figs: list[Path],
+) -> list[str]:
     est_default = EstimatorConfig()
-    summary = [
+    return [
         "# Dead reckoning and slip estimation on flat ground (paper section 6)\n",
         f"Three {duration:g} s drives from rest, speed target {CRUISE} rad/s on every driven "
         f"wheel, left/right difference 2·A·sin(2πt/{WEAVE_PERIOD:g} s) with A = "
@@ -396,8 +427,6 @@ def run(
         *turn_md,
         "",
     ]
-    (out / "summary.md").write_text("\n".join(summary))
-    return out
 
 
 def _cli(args: argparse.Namespace) -> int:

@@ -375,6 +375,19 @@ def run(out_dir: str | Path, quick: bool = False, figures: str | Path | None = N
     t1 = time.perf_counter()
     pngs = plot_curves(rows, fig_dir)
     write_rows(rows, fig_dir / "rig.csv")
+    lines = _rig_lines(rows, quick)
+    lines += ["", "## Curves", ""]
+    for p in pngs:
+        lines.append(f"![{p.stem}]({p.relative_to(out) if p.is_relative_to(out) else p})")
+    parked, parking_wall = _parked_lines(quick, t1 - t0)
+    lines += parked + _endurance_lines(quick, parking_wall)
+    report = out / "soil.md"
+    report.write_text("\n".join(lines) + "\n")
+    return report
+
+
+def _rig_lines(rows: list[dict[str, Any]], quick: bool) -> list[str]:
+    """The rig against SOIL.md's steady state, and the timestep halving, as markdown."""
     dtc = timestep_change(rows)
     dt0 = max(r["dt"] for r in rows)
     lines = [
@@ -435,12 +448,15 @@ def run(out_dir: str | Path, quick: bool = False, figures: str | Path | None = N
         lines += ["", f"Largest change from {a * 1e3:g} ms to {z * 1e3:g} ms per preset:", ""]
         for soil, e in worst_dt.items():
             lines.append(f"- {soil}: {100 * e:.1e} % ({_pf(e < DT_TOL)}: < {100 * DT_TOL:g} %)")
-    lines += ["", "## Curves", ""]
-    for p in pngs:
-        lines.append(f"![{p.stem}]({p.relative_to(out) if p.is_relative_to(out) else p})")
-    lines += [
+    return lines
+
+
+def _parked_lines(quick: bool, rig_wall: float) -> tuple[list[str], float]:
+    """Parked on a 10 degree loose slope (creep and jitter bounds) as markdown, and its wall
+    time."""
+    lines = [
         "",
-        f"Rig wall time {t1 - t0:.0f} s.",
+        f"Rig wall time {rig_wall:.0f} s.",
         "",
         "## Parked on a 10 degree loose slope",
         "",
@@ -483,11 +499,16 @@ def run(out_dir: str | Path, quick: bool = False, figures: str | Path | None = N
         " free wheels' F_x flipped by +-0.42 N (regolith) every substep; docs/soil.md, 3.2.",
         "",
     ]
+    return lines, time.perf_counter() - t2
+
+
+def _endurance_lines(quick: bool, parking_wall: float) -> list[str]:
+    """Random driving on rough soil (no warning, no NaN), as markdown."""
     t3 = time.perf_counter()
     end = soil_endurance(20.0 if quick else 300.0)
     t4 = time.perf_counter()
-    lines += [
-        f"Parking wall time {t3 - t2:.0f} s.",
+    return [
+        f"Parking wall time {parking_wall:.0f} s.",
         "",
         "## Random driving on rough soil",
         "",
@@ -505,6 +526,3 @@ def run(out_dir: str | Path, quick: bool = False, figures: str | Path | None = N
         "- max sinkage per wheel (mm): " + ", ".join(f"{x * 1e3:.1f}" for x in end["max_sinkage"]),
         f"- wall time {t4 - t3:.0f} s.",
     ]
-    report = out / "soil.md"
-    report.write_text("\n".join(lines) + "\n")
-    return report
