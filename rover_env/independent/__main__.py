@@ -24,12 +24,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--duration", type=float, default=50.0)
     ap.add_argument("--out", required=True)
-    ap.add_argument("--no-nuisance", action="store_true", help="the nominal rover, built to drawing")
+    ap.add_argument(
+        "--no-nuisance", action="store_true", help="the nominal rover, built to drawing"
+    )
     a = ap.parse_args(argv)
     try:
         effects = dict(parse_cli(s) for s in a.effect)
         paths = make_independent_logs(
-            a.out, effects, drives=a.drives, seed=a.seed, duration=a.duration, nuisance=not a.no_nuisance
+            a.out,
+            effects,
+            drives=a.drives,
+            seed=a.seed,
+            duration=a.duration,
+            nuisance=not a.no_nuisance,
         )
     except EffectError as exc:
         print(f"error: {exc}", file=sys.stderr)

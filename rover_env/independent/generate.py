@@ -15,7 +15,8 @@ from typing import Any
 import numpy as np
 import yaml
 
-from rover_env.independent import drive, nuisance, sensors
+from rover_env.independent import drive, sensors
+from rover_env.independent import nuisance as nuisance_mod
 from rover_env.independent.effects import resolve
 from rover_env.independent.model import RoverParams
 from rover_env.independent.simulate import simulate
@@ -36,8 +37,8 @@ def make_independent_logs(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     eff = resolve(effects)
-    draw = nuisance_draw(seed) if nuisance else _nominal_draw()
-    params = _nuisance_apply(RoverParams(), draw)
+    draw = nuisance_mod.draw(seed) if nuisance else nuisance_mod.nominal()
+    params = nuisance_mod.apply(RoverParams(), draw)
     t = np.round(np.arange(0.0, duration + 0.5 / SAMPLE_HZ, 1.0 / SAMPLE_HZ), 9)
     paths: list[Path] = []
     plans: list[dict[str, Any]] = []
@@ -47,7 +48,7 @@ def make_independent_logs(
         cmd = drive.targets(manoeuvres, t)
         truth = simulate(params, eff, t, cmd)
         rng = np.random.default_rng([47, 3, seed, i])
-        phi = sensors.encoder_angles(truth.phi, params.encoder_cpr)
+        phi = sensors.encoder_angles(truth.phi, params.encoder_cpr, rng.uniform(0.0, 1.0, 6))
         theta = sensors.potentiometers(
             truth.theta, np.array(params.pot_gain), np.array(draw["pot_offset_rad"]), rng
         )
@@ -60,7 +61,9 @@ def make_independent_logs(
         )
         log = DriveLog(t=t, cmd=cmd, phi=phi, theta=theta, pose=pose, meta=meta)
         paths.append(write_log(log, out / f"drive_{i:02d}.csv", overwrite=True))
-        plans.append({"file": paths[-1].name, "kind": kind, "manoeuvres": [list(m) for m in manoeuvres]})
+        plans.append(
+            {"file": paths[-1].name, "kind": kind, "manoeuvres": [list(m) for m in manoeuvres]}
+        )
     truth_doc = {
         "generator": "rover_env.independent",
         "seed": seed,
@@ -71,15 +74,3 @@ def make_independent_logs(
     }
     (out / "truth.yaml").write_text(yaml.safe_dump(truth_doc, sort_keys=False), encoding="utf-8")
     return paths
-
-
-def nuisance_draw(seed: int) -> dict[str, Any]:
-    return nuisance.draw(seed)
-
-
-def _nominal_draw() -> dict[str, Any]:
-    return nuisance.nominal()
-
-
-def _nuisance_apply(p: RoverParams, d: dict[str, Any]) -> RoverParams:
-    return nuisance.apply(p, d)

@@ -106,8 +106,11 @@ def apply(p: RoverParams, d: dict[str, Any]) -> RoverParams:
 
 def within_tolerance(d: dict[str, Any]) -> list[str]:
     """Names of the draws outside their band (empty when the build is in tolerance)."""
-    bad = [k for k, tol in TOL.items() if k in d and k != "seg_com" and
-           any(abs(v - 1.0) > tol + 1e-12 for v in d[k])]
+    bad = [
+        k
+        for k, tol in TOL.items()
+        if k in d and k != "seg_com" and any(abs(v - 1.0) > tol + 1e-12 for v in d[k])
+    ]
     for row in d["seg_com_offset_m"]:
         if any(abs(v) > TOL["seg_com"] * s + 1e-12 for v, s in zip(row, SEG_DIMS, strict=True)):
             bad.append("seg_com")

@@ -2,7 +2,7 @@
 
 - Wheel angles: an incremental encoder on each wheel shaft, ``cpr`` counts per turn (the
   nuisance draw picks the part), counted from the start of the log; the logged angle is
-  ``count * 2 pi / cpr`` (truncation toward -inf, as a counter does).
+  ``count * 2 pi / cpr``; the shaft's position between two edges at zeroing is random per drive.
 - Joint angles: potentiometers read by a 12-bit ADC over a 340 degree electrical span, each with
   its own gain error (nuisance), a fixed offset of up to +-0.2 degrees after a zeroing
   calibration, and white noise 0.05 degrees RMS; the quantisation is applied after the noise.
@@ -28,9 +28,12 @@ POSE_YAW_NOISE = math.radians(0.3)
 POSE_RATE_HZ = 1.0
 
 
-def encoder_angles(phi: Array, cpr: int) -> Array:
-    """(N, 6) true wheel angles since the start -> logged angles."""
-    counts = np.floor(phi * cpr / (2 * math.pi))
+def encoder_angles(phi: Array, cpr: int, phase: Array) -> Array:
+    """(N, 6) true wheel angles since the start -> logged angles.
+
+    ``phase`` (6,) in [0, 1): where the shaft sat between two edges when the counter was zeroed.
+    """
+    counts = np.floor(phi * cpr / (2 * math.pi) + phase[None, :]) - np.floor(phase)[None, :]
     return counts * (2 * math.pi / cpr)
 
 

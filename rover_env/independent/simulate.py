@@ -149,7 +149,7 @@ def simulate(
         if step % CONTROL_EVERY == 0:
             now = (step - n_settle) * DT
             td = now - eff.delay
-            idx = int(math.floor(td / ts + 1e-9)) if td >= 0 else -1
+            idx = math.floor(td / ts + 1e-9) if td >= 0 else -1
             raw = cmd[min(idx, n - 1)] if idx >= 0 else np.zeros(4)
             lagged = lagged + lag_a * (raw - lagged)
             drives.control(lagged, d.qpos[drv_qadr], dt_c)
@@ -175,7 +175,8 @@ def simulate(
         vx = np.einsum("ij,ij->i", v_c, xc)
         vy = np.einsum("ij,ij->i", v_c, yc)
         vn = v_c @ nrm
-        r_e = tire.rolling_radius(radius, delta) * eff.radius_scale
+        # a deflected tire rolls on d - delta/3; a rigid wheel in soil on d (SOIL.md's v_w = r w)
+        r_e = (radius if on_soil else tire.rolling_radius(radius, delta)) * eff.radius_scale
         vw = r_e * spin
         ux, uy = tire.step_states(ux, uy, vx, vy, vw, DT)
         travel = np.where(vx + vw >= 0.0, 1.0, -1.0)
@@ -200,8 +201,12 @@ def simulate(
             torque_axle = -travel * tq
             ground = hub
             dig = np.maximum(
-                dig + DT * (soil.DIG * np.maximum(s_wong - soil.S_DIG, 0.0) * np.abs(vw)
-                            - np.abs(vx) * dig / soil.L_DIG),
+                dig
+                + DT
+                * (
+                    soil.DIG * np.maximum(s_wong - soil.S_DIG, 0.0) * np.abs(vw)
+                    - np.abs(vx) * dig / soil.L_DIG
+                ),
                 0.0,
             )
         if eff.c_rr > 0.0:
@@ -215,4 +220,6 @@ def simulate(
         d.qfrc_applied[:] = 0.0
         d.qfrc_applied[drv_dadr] = drives.wheel_torque(d.qvel[drv_dadr])
         mujoco.mj_step2(m, d)
-    return Truth(t=t.copy(), phi=out_phi, theta=out_theta, pose=out_pose, slip=out_slip, omega=out_omega)
+    return Truth(
+        t=t.copy(), phi=out_phi, theta=out_theta, pose=out_pose, slip=out_slip, omega=out_omega
+    )

@@ -95,7 +95,9 @@ def wheel_forces(
     th_m = np.clip((soil.a0 + soil.a1 * s) * th_f, th_r, th_f)
     n = soil.n0 + soil.n1 * np.abs(s)
     ks = soil.k_c / b + soil.k_phi
-    tan_phi = np.broadcast_to(math.tan(math.radians(soil.phi_deg)) * np.asarray(tan_phi_scale), r.shape)[:, None]
+    tan_phi = np.broadcast_to(
+        math.tan(math.radians(soil.phi_deg)) * np.asarray(tan_phi_scale), r.shape
+    )[:, None]
     th_a, w_a = _nodes(th_r, th_m)  # rear region
     th_b, w_b = _nodes(th_m, th_f)  # front region
     th = np.concatenate([th_a, th_b], axis=1)
@@ -119,7 +121,12 @@ def wheel_forces(
     fy = -rb * np.sum(w * tau_y, axis=1)
     tq = r * rb * np.sum(w * tau_x, axis=1)
     z = np.zeros_like(fx)
-    return (np.where(live, fx, z), np.where(live, fy, z), np.where(live, fz, z), np.where(live, tq, z))
+    return (
+        np.where(live, fx, z),
+        np.where(live, fy, z),
+        np.where(live, fz, z),
+        np.where(live, tq, z),
+    )
 
 
 def wong_slip(vx: Array, vw: Array) -> tuple[Array, Array]:

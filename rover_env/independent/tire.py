@@ -59,9 +59,7 @@ def step_states(
     return ux, uy
 
 
-def _grip(
-    slip: Array, c: float, mu: Array, fz: Array
-) -> Array:
+def _grip(slip: Array, c: float, mu: Array, fz: Array) -> Array:
     """(13)/(14) magnitude for a slip magnitude ``slip`` (>= 0)."""
     safe_fz = np.maximum(fz, 1e-9)
     s_crit = 3.0 * mu * safe_fz / c  # (15)/(16)

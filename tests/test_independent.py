@@ -1,0 +1,180 @@
+"""The independent (SPEC-only) log generator, issue 47 item 1: reproducibility, physical sanity
+of the nominal rover, each effect against the nominal, nuisance tolerances, and independence.
+
+Drives are kept short (5 s: 1 s at rest, then a 4 s step) so the file runs well under a minute.
+"""
+
+from __future__ import annotations
+
+import ast
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from rover_env.independent import effects, model, nuisance
+from rover_env.independent.generate import make_independent_logs
+from rover_env.independent.simulate import Truth, simulate
+from rover_env.logs import read_log
+
+PKG = Path(__file__).resolve().parents[1] / "rover_env" / "independent"
+T = np.round(np.arange(0.0, 5.0 + 1e-9, 0.02), 9)
+STEADY = T >= 3.5  # the step starts at 1 s; the speed loops settle within ~0.3 s
+W = 2.0  # rad/s, about 0.15 m/s: the paper's pace
+
+
+def _cmd(left: float, right: float) -> np.ndarray:
+    c = np.zeros((T.size, 4))
+    c[T >= 1.0] = [left, right, left, right]
+    return c
+
+
+@cache
+def _run(
+    eff_items: tuple[tuple[str, tuple[tuple[str, float], ...]], ...], left: float, right: float
+) -> Truth:
+    eff = effects.resolve({k: dict(v) for k, v in eff_items})
+    return simulate(model.RoverParams(), eff, T, _cmd(left, right))
+
+
+def run(eff: dict[str, dict[str, float]] | None = None, left: float = W, right: float = W) -> Truth:
+    items = tuple(sorted((k, tuple(sorted(v.items()))) for k, v in (eff or {}).items()))
+    return _run(items, left, right)
+
+
+def _free_over_driven(tr: Truth) -> float:
+    om = tr.omega[STEADY].mean(axis=0)
+    return float(om[4:].mean() / om[:4].mean())
+
+
+# --------------------------------------------------------------------------- (a) reproducibility
+
+
+def test_same_seed_same_logs_to_the_bit_and_another_seed_differs(tmp_path: Path) -> None:
+    a = make_independent_logs(tmp_path / "a", {}, drives=1, seed=3, duration=3.0)
+    b = make_independent_logs(tmp_path / "b", {}, drives=1, seed=3, duration=3.0)
+    c = make_independent_logs(tmp_path / "c", {}, drives=1, seed=4, duration=3.0)
+    assert a[0].read_bytes() == b[0].read_bytes()
+    assert a[0].with_suffix(".yaml").read_bytes() == b[0].with_suffix(".yaml").read_bytes()
+    ta = yaml.safe_load((tmp_path / "a" / "truth.yaml").read_text())
+    tc = yaml.safe_load((tmp_path / "c" / "truth.yaml").read_text())
+    assert ta["nuisance"] != tc["nuisance"]  # another rover
+    la, lc = read_log(a[0]), read_log(c[0])
+    assert not np.array_equal(la.cmd, lc.cmd)  # another drive plan
+    assert la.meta.rover == "proto_explorer" and la.meta.terrain == "flat"
+    assert np.isfinite(la.pose[0]).all() and np.isnan(la.pose[1]).all()  # fixes at 1 Hz
+
+
+# --------------------------------------------------------------------------- (b) nominal sanity
+
+
+def test_straight_drive_free_wheels_roll_at_the_driven_wheels_rate() -> None:
+    """On flat ground at constant speed nothing resists but bearing drag (mN): with SPEC's
+    C_s = 100 N per unit slip, 1 % slip would need 1 N of traction per driven wheel, i.e. a
+    4 N (2.5 % of the weight) resistance that flat ground does not supply. So the free wheels
+    (3L/3R) turn within 1 % of the driven wheels' rate, and every |S| < 0.01."""
+    tr = run()
+    assert abs(_free_over_driven(tr) - 1.0) < 0.01
+    assert np.abs(tr.slip[STEADY]).max() < 0.01
+    assert np.allclose(tr.omega[STEADY, :4], W, atol=0.02)
+
+
+def test_joint_angles_stay_near_zero_on_flat_ground() -> None:
+    tr = run()
+    assert np.abs(tr.theta).max() < np.radians(3.0)  # a pitch nod at the step
+    assert np.abs(tr.theta[STEADY]).max() < np.radians(0.5)
+
+
+def test_left_turn_yaws_positive_with_paper_slip_signs() -> None:
+    tr = run(left=1.5, right=2.5)
+    assert tr.pose[-1, 2] > 0.1
+    s = tr.slip[STEADY].mean(axis=0)
+    assert (s[[1, 3]] < 0).all() and (s[[0, 2]] > 0).all()  # outer spins, inner skids (SPEC §4)
+
+
+def test_rover_at_rest_stays_at_rest() -> None:
+    tr = run(left=0.0, right=0.0)
+    assert np.abs(tr.pose[-1]).max() < 1e-4
+    assert np.abs(tr.phi).max() < 1e-3
+
+
+# --------------------------------------------------------------------------- (c) effects
+
+
+def test_rolling_resistance_slows_the_free_wheels_against_the_driven() -> None:
+    base, rr = (
+        _free_over_driven(run()),
+        _free_over_driven(run({"rolling_resistance": {"c_rr": 0.1}})),
+    )
+    assert rr < base - 0.02
+
+
+def test_torque_limit_caps_acceleration() -> None:
+    def peak_acc(tr: Truth) -> float:
+        return float(np.max(np.diff(tr.omega[:, 0]) / np.diff(T)))
+
+    base, capped = run(), run({"torque_limit": {"fraction": -0.8}})
+    assert peak_acc(capped) < 0.5 * peak_acc(base)
+
+
+def test_command_lag_delays_the_response() -> None:
+    def t63(tr: Truth) -> float:
+        return float(T[np.argmax(tr.omega[:, 0] > 0.63 * W)]) - 1.0
+
+    assert t63(run({"command_lag": {"tau": 1.0}})) > t63(run()) + 0.5
+
+
+def test_uphill_drive_slips_more() -> None:
+    base, up = run(), run({"slope": {"deg": 10.0}})
+    assert up.slip[STEADY, :4].mean() < base.slip[STEADY, :4].mean() - 0.03  # spinning: S < 0
+    assert _free_over_driven(up) < _free_over_driven(base) - 0.03
+
+
+# --------------------------------------------------------------------------- (d) nuisance
+
+
+@pytest.mark.parametrize("seed", range(50))
+def test_nuisance_draws_stay_within_tolerance(seed: int) -> None:
+    d = nuisance.draw(seed)
+    assert nuisance.within_tolerance(d) == []
+    p = nuisance.apply(model.RoverParams(), d)
+    assert abs(p.total_mass() / model.RoverParams().total_mass() - 1) <= 0.05
+
+
+def test_nuisance_check_catches_an_out_of_band_draw() -> None:
+    d = nuisance.draw(0)
+    d["wheel_radius"][2] = 1.02
+    assert nuisance.within_tolerance(d) == ["wheel_radius"]
+
+
+# --------------------------------------------------------------------------- (e) independence
+
+
+def test_imports_nothing_from_rover_env_but_logs() -> None:
+    bad = []
+    for path in sorted(PKG.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names: list[str] = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    bad.append(f"{path.name}: relative import")
+                names = [node.module or ""]
+            for n in names:
+                top = n.split(".")[0]
+                if top == "rover_env" and not (
+                    n == "rover_env.logs" or n.startswith("rover_env.independent")
+                ):
+                    bad.append(f"{path.name}: {n}")
+                if (
+                    top not in {"rover_env", "mujoco", "numpy", "scipy", "yaml", "__future__"}
+                    and top not in _STDLIB
+                ):
+                    bad.append(f"{path.name}: third-party {n}")
+    assert not bad, bad
+
+
+_STDLIB = {"argparse", "ast", "dataclasses", "functools", "math", "pathlib", "sys", "typing"}
