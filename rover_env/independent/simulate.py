@@ -42,6 +42,13 @@ SETTLE_S = 1.0
 RR_SMOOTH = 0.01  # m/s of rim speed over which the rolling-resistance moment builds up
 
 
+def _cross(a: Array, b: Array) -> Array:
+    """Row-wise cross product of (W, 3) arrays (np.cross's overhead dominates at six rows)."""
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
+
+
 @dataclass
 class Truth:
     """True signals at the log's sample times."""
@@ -52,6 +59,7 @@ class Truth:
     pose: Array  # (N, 3) segment 3 in its frame at t = 0
     slip: Array  # (N, 6) SPEC's S per wheel (tire state)
     omega: Array  # (N, 6) wheel rates
+    sink: Array  # (N, 6) tire compression (flat) or sinkage below the undisturbed surface (soil)
 
 
 def _static_height(p: RoverParams, eff: Effects) -> float:
@@ -112,6 +120,8 @@ def simulate(
     out_pose = np.zeros((n, 3))
     out_slip = np.zeros((n, 6))
     out_omega = np.zeros((n, 6))
+    out_sink = np.zeros((n, 6))
+    sink_now = np.zeros(6)
     phi0 = np.zeros(6)
     p30 = np.zeros(3)
     r30 = np.eye(3)
@@ -135,6 +145,7 @@ def simulate(
         out_pose[k] = (rel[0], rel[1], yaw + yaw_turns)
         out_slip[k] = s_travel
         out_omega[k] = d.qvel[w_dadr]
+        out_sink[k] = sink_now
 
     for step in range(total + 1):
         k_log = (step - n_settle) // sample_every if step >= n_settle else -1
@@ -161,17 +172,18 @@ def simulate(
         down = -(nrm[None, :] - (axis @ nrm)[:, None] * axis)
         down /= np.linalg.norm(down, axis=1, keepdims=True)
         rim = hub + radius[:, None] * down
-        xc = np.cross(axis, nrm[None, :])
+        xc = _cross(axis, np.broadcast_to(nrm, axis.shape))
         xc /= np.linalg.norm(xc, axis=1, keepdims=True)
-        yc = np.cross(nrm[None, :], xc)
+        yc = _cross(np.broadcast_to(nrm, xc.shape), xc)
         spin = d.qvel[w_dadr]
         cv = d.cvel[wid]
         ang_w = cv[:, :3]
         ang_c = ang_w - spin[:, None] * axis
-        lin_hub = cv[:, 3:] + np.cross(ang_w, hub - d.subtree_com[root][None, :])
+        lin_hub = cv[:, 3:] + _cross(ang_w, hub - d.subtree_com[root][None, :])
         delta = -rim[:, 2] if not on_soil else (-dig) - rim[:, 2]
+        sink_now = -rim[:, 2]
         ground = hub + (radius - np.clip(delta, 0.0, None))[:, None] * down
-        v_c = lin_hub + np.cross(ang_c, ground - hub)
+        v_c = lin_hub + _cross(ang_c, ground - hub)
         vx = np.einsum("ij,ij->i", v_c, xc)
         vy = np.einsum("ij,ij->i", v_c, yc)
         vn = v_c @ nrm
@@ -214,12 +226,18 @@ def simulate(
             torque_axle = torque_axle - eff.c_rr * fz * lever * np.tanh(vw / RR_SMOOTH)
         fz_prev = fz
         force = fx[:, None] * xc + fy[:, None] * yc + fz[:, None] * nrm[None, :]
-        torque = np.cross(ground - hub, force) + torque_axle[:, None] * axis
+        torque = _cross(ground - hub, force) + torque_axle[:, None] * axis
         d.xfrc_applied[wid, :3] = force
         d.xfrc_applied[wid, 3:] = torque
         d.qfrc_applied[:] = 0.0
         d.qfrc_applied[drv_dadr] = drives.wheel_torque(d.qvel[drv_dadr])
         mujoco.mj_step2(m, d)
     return Truth(
-        t=t.copy(), phi=out_phi, theta=out_theta, pose=out_pose, slip=out_slip, omega=out_omega
+        t=t.copy(),
+        phi=out_phi,
+        theta=out_theta,
+        pose=out_pose,
+        slip=out_slip,
+        omega=out_omega,
+        sink=out_sink,
     )
