@@ -217,3 +217,28 @@ def test_imports_nothing_from_rover_env_but_logs() -> None:
 
 
 _STDLIB = {"argparse", "ast", "dataclasses", "functools", "math", "pathlib", "sys", "typing"}
+
+
+# --------------------------------------------------------------------------- entry point
+
+
+def test_cli_writes_logs_and_truth(tmp_path: Path) -> None:
+    from rover_env.independent.__main__ import main
+
+    args = "--effect slope=5,heading_deg=90 --drives 1 --duration 1.0 --no-nuisance --out"
+    rc = main([*args.split(), str(tmp_path)])
+    assert rc == 0
+    truth = yaml.safe_load((tmp_path / "truth.yaml").read_text())
+    assert truth["effects"] == {"slope": {"deg": 5.0, "heading_deg": 90.0}}
+    assert truth["nuisance"] is None
+    assert len(read_log(tmp_path / "drive_00.csv")) == 51
+    assert main(["--effect", "friction=2", "--out", str(tmp_path)]) == 2  # out of range
+
+
+def test_effect_parsing_and_ranges() -> None:
+    assert effects.parse_cli("rolling_resistance=0.05") == ("rolling_resistance", {"c_rr": 0.05})
+    assert effects.resolve({"torque_limit": {"fraction": -0.5}}).current_limit_scale == 0.5
+    with pytest.raises(effects.EffectError):
+        effects.resolve({"command_lag": {"tau": 3.0}})
+    with pytest.raises(effects.EffectError):
+        effects.resolve({"wheel_wobble": {"x": 1.0}})
