@@ -7,6 +7,17 @@ It shares no model, configuration, formula or code with the rest of ``rover_env`
 from ``rover_env`` is the log writer's format, :mod:`rover_env.logs`.
 """
 
-from rover_env.independent.generate import make_independent_logs
+from __future__ import annotations
+
+from typing import Any
 
 __all__ = ["make_independent_logs"]
+
+
+def __getattr__(name: str) -> Any:
+    # Lazy, so the submodules' ``from rover_env.independent import ...`` makes no import circle.
+    if name == "make_independent_logs":
+        from rover_env.independent.generate import make_independent_logs
+
+        return make_independent_logs
+    raise AttributeError(name)

@@ -15,8 +15,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from rover_env.independent import drive, sensors
-from rover_env.independent import nuisance as nuisance_mod
+import rover_env.independent.drive as drive
+import rover_env.independent.nuisance as nuisance_mod
+import rover_env.independent.sensors as sensors
 from rover_env.independent.effects import resolve
 from rover_env.independent.model import RoverParams
 from rover_env.independent.simulate import simulate

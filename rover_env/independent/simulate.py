@@ -23,7 +23,9 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from rover_env.independent import motor, soil, tire
+import rover_env.independent.motor as motor
+import rover_env.independent.soil as soil
+import rover_env.independent.tire as tire
 from rover_env.independent.effects import Effects
 from rover_env.independent.model import (
     DRIVEN,
