@@ -16,11 +16,13 @@ import numpy as np
 import yaml
 
 import rover_env.independent.drive as drive
+import rover_env.independent.motor as motor
 import rover_env.independent.nuisance as nuisance_mod
 import rover_env.independent.sensors as sensors
+import rover_env.independent.tire as tire
 from rover_env.independent.effects import resolve
 from rover_env.independent.model import RoverParams
-from rover_env.independent.simulate import simulate
+from rover_env.independent.simulate import CONTROL_EVERY, DT, SETTLE_S, simulate
 from rover_env.logs import DriveLog, LogMeta, write_log
 
 SAMPLE_HZ = 50.0
@@ -71,6 +73,16 @@ def make_independent_logs(
         "duration_s": duration,
         "effects": {k: {kk: float(vv) for kk, vv in v.items()} for k, v in effects.items()},
         "nuisance": draw if nuisance else None,
+        "forms": {
+            "physics_step_s": DT,
+            "integrator": "implicitfast",
+            "speed_loop_hz": 1.0 / (DT * CONTROL_EVERY),
+            "log_rate_hz": SAMPLE_HZ,
+            "settle_s": SETTLE_S,
+            "rolling_radius": "d - delta/3 (tire), d (soil)",
+            "tire_relaxation_length_m": tire.SIGMA,
+            "anti_windup": f"back-calculation, T_t {motor.T_TRACK} s",
+        },
         "drives": plans,
     }
     (out / "truth.yaml").write_text(yaml.safe_dump(truth_doc, sort_keys=False), encoding="utf-8")
