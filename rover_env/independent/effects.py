@@ -9,6 +9,10 @@ the one ``--effect name=value`` sets. Each is applied where it physically lives:
   ``c_rr F_z`` of ground force (obtained through slip) to keep turning. On all six wheels.
 - ``slope`` (``deg`` in [-20, 20], ``heading_deg`` default 0): the ground rises at ``deg`` toward
   ``heading_deg`` from the rover's initial heading (counter-clockwise); applied by tilting gravity.
+  With SPEC's mu_x = 0.4 and only the four driven wheels held (segment 3's wheels roll freely)
+  the rover stands on at most about atan(0.4 * 2/3) = 15 degrees along its heading: on steeper
+  slopes it slides during the settling second and the drive (physics, kept on purpose). On a
+  side slope the tire state's 2 mm/s floor lets a parked rover creep about 1 mm/s sideways.
 - ``rolling_radius`` (``fraction`` in [-0.2, 0.1]): the effective rolling radius of every wheel
   (``d - delta/3`` at its load) times ``1 + fraction``; geometry and deflection unchanged.
 - ``torque_limit`` (``fraction`` in [-0.8, 1]): the motor drivers' current limit times
