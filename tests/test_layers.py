@@ -25,6 +25,7 @@ RANKS = {
     "rover_env.seeds": 0,
     "rover_env.executor": 0,
     "rover_env.sim": 1,
+    "rover_env.independent": 1,  # the SPEC-only log generator (issue 47): rover_env.logs only
     "rover_env.estimation": 2,
     "rover_env.control": 2,
     "rover_env.calibration": 2,

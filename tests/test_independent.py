@@ -1,0 +1,244 @@
+"""The independent (SPEC-only) log generator, issue 47 item 1: reproducibility, physical sanity
+of the nominal rover, each effect against the nominal, nuisance tolerances, and independence.
+
+Drives are kept short (0.5 s settling, then 3.5 s logged: 1 s at rest and a 2.5 s step) so the file runs well under a minute.
+"""
+
+from __future__ import annotations
+
+import ast
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from rover_env.independent import effects, model, nuisance
+from rover_env.independent.generate import make_independent_logs
+from rover_env.independent.simulate import Truth, simulate
+from rover_env.logs import read_log
+
+PKG = Path(__file__).resolve().parents[1] / "rover_env" / "independent"
+T = np.round(np.arange(0.0, 3.5 + 1e-9, 0.02), 9)
+STEADY = T >= 2.5  # the step starts at 1 s; the speed loops settle within ~0.3 s
+W = 2.0  # rad/s, about 0.15 m/s: the paper's pace
+
+
+def _cmd(left: float, right: float) -> np.ndarray:
+    c = np.zeros((T.size, 4))
+    c[T >= 1.0] = [left, right, left, right]
+    return c
+
+
+@cache
+def _run(
+    eff_items: tuple[tuple[str, tuple[tuple[str, float], ...]], ...], left: float, right: float
+) -> Truth:
+    eff = effects.resolve({k: dict(v) for k, v in eff_items})
+    return simulate(model.RoverParams(), eff, T, _cmd(left, right), settle=0.5)
+
+
+def run(eff: dict[str, dict[str, float]] | None = None, left: float = W, right: float = W) -> Truth:
+    items = tuple(sorted((k, tuple(sorted(v.items()))) for k, v in (eff or {}).items()))
+    return _run(items, left, right)
+
+
+def _free_over_driven(tr: Truth) -> float:
+    om = tr.omega[STEADY].mean(axis=0)
+    return float(om[4:].mean() / om[:4].mean())
+
+
+# --------------------------------------------------------------------------- (a) reproducibility
+
+
+def test_same_seed_same_logs_to_the_bit_and_another_seed_differs(tmp_path: Path) -> None:
+    a = make_independent_logs(tmp_path / "a", {}, drives=1, seed=3, duration=3.0)
+    b = make_independent_logs(tmp_path / "b", {}, drives=1, seed=3, duration=3.0)
+    c = make_independent_logs(tmp_path / "c", {}, drives=1, seed=4, duration=3.0)
+    assert a[0].read_bytes() == b[0].read_bytes()
+    assert a[0].with_suffix(".yaml").read_bytes() == b[0].with_suffix(".yaml").read_bytes()
+    ta = yaml.safe_load((tmp_path / "a" / "truth.yaml").read_text())
+    tc = yaml.safe_load((tmp_path / "c" / "truth.yaml").read_text())
+    assert ta["nuisance"] != tc["nuisance"]  # another rover
+    la, lc = read_log(a[0]), read_log(c[0])
+    assert not np.array_equal(la.cmd, lc.cmd)  # another drive plan
+    assert la.meta.rover == "proto_explorer" and la.meta.terrain == "flat"
+    assert np.isfinite(la.pose[0]).all() and np.isnan(la.pose[1]).all()  # fixes at 1 Hz
+
+
+# --------------------------------------------------------------------------- (b) nominal sanity
+
+
+def test_straight_drive_free_wheels_roll_at_the_driven_wheels_rate() -> None:
+    """On flat ground at constant speed nothing resists but bearing drag (mN): with SPEC's
+    C_s = 100 N per unit slip, 1 % slip would need 1 N of traction per driven wheel, i.e. a
+    4 N (2.5 % of the weight) resistance that flat ground does not supply. So the free wheels
+    (3L/3R) turn within 1 % of the driven wheels' rate, and every |S| < 0.01."""
+    tr = run()
+    assert abs(_free_over_driven(tr) - 1.0) < 0.01
+    assert np.abs(tr.slip[STEADY]).max() < 0.01
+    assert np.allclose(tr.omega[STEADY, :4], W, atol=0.02)
+
+
+def test_joint_angles_stay_near_zero_on_flat_ground() -> None:
+    tr = run()
+    assert np.abs(tr.theta).max() < np.radians(3.0)  # a pitch nod at the step
+    assert np.abs(tr.theta[STEADY]).max() < np.radians(0.5)
+
+
+def test_left_turn_yaws_positive_with_paper_slip_signs() -> None:
+    tr = run(left=1.5, right=2.5)
+    assert tr.pose[-1, 2] > 0.05
+    s = tr.slip[STEADY].mean(axis=0)
+    assert (s[[1, 3]] < 0).all() and (s[[0, 2]] > 0).all()  # outer spins, inner skids (SPEC §4)
+
+
+def test_rover_at_rest_stays_at_rest() -> None:
+    tr = run(left=0.0, right=0.0)
+    assert np.abs(tr.pose[-1]).max() < 1e-4
+    assert np.abs(tr.phi).max() < 1e-3
+
+
+# --------------------------------------------------------------------------- (c) effects
+
+
+def test_rolling_resistance_slows_the_free_wheels_against_the_driven() -> None:
+    base, rr = (
+        _free_over_driven(run()),
+        _free_over_driven(run({"rolling_resistance": {"c_rr": 0.1}})),
+    )
+    assert rr < base - 0.02
+
+
+def test_torque_limit_caps_acceleration() -> None:
+    def peak_acc(tr: Truth) -> float:
+        return float(np.max(np.diff(tr.omega[:, 0]) / np.diff(T)))
+
+    base, capped = run(), run({"torque_limit": {"fraction": -0.8}})
+    assert peak_acc(capped) < 0.5 * peak_acc(base)
+
+
+def test_command_lag_delays_the_response() -> None:
+    def t63(tr: Truth) -> float:
+        return float(T[np.argmax(tr.omega[:, 0] > 0.63 * W)]) - 1.0
+
+    assert t63(run({"command_lag": {"tau": 1.0}})) > t63(run()) + 0.5
+
+
+def test_uphill_drive_slips_more() -> None:
+    base, up = run(), run({"slope": {"deg": 10.0}})
+    assert up.slip[STEADY, :4].mean() < base.slip[STEADY, :4].mean() - 0.03  # spinning: S < 0
+    assert _free_over_driven(up) < _free_over_driven(base) - 0.03
+
+
+def test_command_delay_shifts_the_response() -> None:
+    def onset(tr: Truth) -> float:
+        return float(T[np.argmax(tr.omega[:, 0] > 0.2 * W)])
+
+    assert 0.4 < onset(run({"command_delay": {"delay": 0.5}})) - onset(run()) < 0.6
+
+
+def test_rolling_radius_shortens_the_travel_per_wheel_turn() -> None:
+    def per_rad(tr: Truth) -> float:
+        return float(tr.pose[-1, 0] / tr.phi[-1, 4:].mean())
+
+    ratio = per_rad(run({"rolling_radius": {"fraction": -0.1}})) / per_rad(run())
+    assert abs(ratio - 0.9) < 0.01
+
+
+@pytest.mark.parametrize(
+    "eff",
+    [{"friction": {"fraction": -0.7}}, {"load_dependent_friction": {"fall": 0.8, "range": 10.0}}],
+    ids=["friction", "load_dependent_friction"],
+)
+def test_less_friction_slips_more_in_a_turn(eff: dict[str, dict[str, float]]) -> None:
+    base, low = run(left=1.5, right=2.5), run(eff, left=1.5, right=2.5)
+    slip = lambda tr: float(np.abs(tr.slip[STEADY, :4]).mean())  # noqa: E731
+    assert slip(low) > slip(base) + 0.05
+
+
+def test_loose_soil_sinks_slips_and_drags_the_free_wheels() -> None:
+    base, sand = run(), run({"loose_soil": {"k_phi": 1.0}})
+    assert 0.010 < sand.sink[0].mean() < 0.020  # SOIL.md: 14-17 mm static at 27 N (lambda 0.9-0.3)
+    assert sand.slip[STEADY, :4].mean() < -0.05  # driven wheels spin
+    assert sand.slip[STEADY, 4:].mean() > 0.02  # free wheels are dragged (skid)
+    assert _free_over_driven(sand) < _free_over_driven(base) - 0.05
+
+
+def test_sustained_spin_buries_a_wheel_in_loose_soil() -> None:
+    tr = run({"loose_soil": {"k_phi": 1.0}}, left=-3.0, right=3.0)  # a pivot: all spin, no travel
+    assert tr.sink[-1, :4].min() > 1.5 * tr.sink[0, :4].max()
+
+
+# --------------------------------------------------------------------------- (d) nuisance
+
+
+@pytest.mark.parametrize("seed", range(50))
+def test_nuisance_draws_stay_within_tolerance(seed: int) -> None:
+    d = nuisance.draw(seed)
+    assert nuisance.within_tolerance(d) == []
+    p = nuisance.apply(model.RoverParams(), d)
+    assert abs(p.total_mass() / model.RoverParams().total_mass() - 1) <= 0.05
+
+
+def test_nuisance_check_catches_an_out_of_band_draw() -> None:
+    d = nuisance.draw(0)
+    d["wheel_radius"][2] = 1.02
+    assert nuisance.within_tolerance(d) == ["wheel_radius"]
+
+
+# --------------------------------------------------------------------------- (e) independence
+
+
+def test_imports_nothing_from_rover_env_but_logs() -> None:
+    bad = []
+    for path in sorted(PKG.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names: list[str] = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    bad.append(f"{path.name}: relative import")
+                names = [node.module or ""]
+            for n in names:
+                top = n.split(".")[0]
+                if top == "rover_env" and not (
+                    n == "rover_env.logs" or n.startswith("rover_env.independent")
+                ):
+                    bad.append(f"{path.name}: {n}")
+                if (
+                    top not in {"rover_env", "mujoco", "numpy", "scipy", "yaml", "__future__"}
+                    and top not in _STDLIB
+                ):
+                    bad.append(f"{path.name}: third-party {n}")
+    assert not bad, bad
+
+
+_STDLIB = {"argparse", "ast", "dataclasses", "functools", "math", "pathlib", "sys", "typing"}
+
+
+# --------------------------------------------------------------------------- entry point
+
+
+def test_cli_writes_logs_and_truth(tmp_path: Path) -> None:
+    from rover_env.independent.__main__ import main
+
+    args = "--effect slope=5,heading_deg=90 --drives 1 --duration 1.0 --no-nuisance --out"
+    rc = main([*args.split(), str(tmp_path)])
+    assert rc == 0
+    truth = yaml.safe_load((tmp_path / "truth.yaml").read_text())
+    assert truth["effects"] == {"slope": {"deg": 5.0, "heading_deg": 90.0}}
+    assert truth["nuisance"] is None
+    assert len(read_log(tmp_path / "drive_00.csv")) == 51
+    assert main(["--effect", "friction=2", "--out", str(tmp_path)]) == 2  # out of range
+
+
+def test_effect_parsing_and_ranges() -> None:
+    assert effects.parse_cli("rolling_resistance=0.05") == ("rolling_resistance", {"c_rr": 0.05})
+    assert effects.resolve({"torque_limit": {"fraction": -0.5}}).current_limit_scale == 0.5
+    with pytest.raises(effects.EffectError):
+        effects.resolve({"command_lag": {"tau": 3.0}})
+    with pytest.raises(effects.EffectError):
+        effects.resolve({"wheel_wobble": {"x": 1.0}})
