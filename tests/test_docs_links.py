@@ -56,7 +56,11 @@ def test_the_checker_finds_a_broken_link_and_passes_a_good_one(tmp_path: Path) -
         "[gone](old/run.csv) `docs/a/table.md` `docs/a/missing.png` [up](../../../outside.md)\n"
         "```bash\nrover-env benchmark --out docs/a/new-run [x](nowhere.md)\n```\n"
     )
-    assert broken_links(md, tmp_path) == ["old/run.csv", "../../../outside.md", "docs/a/missing.png"]
+    assert broken_links(md, tmp_path) == [
+        "old/run.csv",
+        "../../../outside.md",
+        "docs/a/missing.png",
+    ]
 
 
 @pytest.mark.parametrize("md", markdown_files(REPO), ids=lambda p: str(p.relative_to(REPO)))
