@@ -36,10 +36,17 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
 
-from rover_env.config import DRIVEN_WHEELS, JOINTS, WHEELS, ConfigError, configs_dir, load_rover
+from rover_env.config import (
+    DRIVEN_WHEELS,
+    JOINTS,
+    WHEELS,
+    ConfigError,
+    configs_dir,
+    load_rover,
+    load_yaml,
+)
 from rover_env.logs import DriveLog, LogError, LogMeta, write_log
 
 Array = NDArray[np.float64]
@@ -326,9 +333,9 @@ def load_topic_map(path: str | Path) -> TopicMap:
     if not file.is_file():
         raise BagError("topic map file not found", file)
     try:
-        data = yaml.safe_load(file.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise BagError(f"malformed YAML: {exc}", file) from None
+        data = load_yaml(file)
+    except ConfigError as exc:
+        raise BagError(str(exc).removeprefix(f"{file}: "), file) from None
     k = _Keys(data, file, "")
     terrain = k.get("terrain", None)
     if terrain is not None and not isinstance(terrain, str | dict):

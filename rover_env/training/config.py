@@ -14,9 +14,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from rover_env.config import ConfigError, configs_dir
+from rover_env.config import ConfigError, configs_dir, load_yaml
 
 ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu", "gelu", "silu")
 VEC_ENVS = ("subproc", "dummy", "batch")
@@ -507,18 +505,26 @@ def resolve_config_path(config: str | Path) -> Path:
     return shipped
 
 
-def read_entry(config: str | Path, env_id: str) -> tuple[Path, Any]:
-    """(file, raw entry for ``env_id``) of a hyperparameter file (path or shipped name)."""
+def entries(config: str | Path) -> tuple[Path, Mapping[str, Any]]:
+    """(file, env id -> raw entry) of a hyperparameter file, its ``base:`` chain merged in;
+    ``.``-prefixed keys (shared YAML blocks) are left out."""
     path = resolve_config_path(config)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: malformed YAML: {exc}") from None
+    data = load_yaml(path)
     if not isinstance(data, Mapping):
         raise ConfigError(f"{path}: expected a mapping of env ids to hyperparameters")
+    return path, {str(k): v for k, v in data.items() if not str(k).startswith(".")}
+
+
+def env_ids(config: str | Path) -> list[str]:
+    """The env ids a hyperparameter file has entries for."""
+    return list(entries(config)[1])
+
+
+def read_entry(config: str | Path, env_id: str) -> tuple[Path, Any]:
+    """(file, raw entry for ``env_id``) of a hyperparameter file (path or shipped name)."""
+    path, data = entries(config)
     if env_id not in data:
-        ids = sorted(str(k) for k in data if not str(k).startswith("."))
-        raise ConfigError(f"{path}: no entry for env id {env_id!r}; have {ids}")
+        raise ConfigError(f"{path}: no entry for env id {env_id!r}; have {sorted(data)}")
     return path, data[env_id]
 
 

@@ -40,7 +40,7 @@ from stable_baselines3.common.logger import (
 from stable_baselines3.common.utils import set_random_seed
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
-from rover_env.config import ConfigError
+from rover_env.config import ConfigError, load_yaml
 from rover_env.training.algos import algo_class, build_model
 from rover_env.training.callbacks import (
     EpisodeLog,
@@ -128,7 +128,7 @@ def _resolve_resume(
     cfg_file = run_dir / "config.yaml"
     if not cfg_file.is_file():
         raise ConfigError(f"cannot resume {run_dir}: no config.yaml (not a training run dir)")
-    ids = list(yaml.safe_load(cfg_file.read_text()) or {})
+    ids = list(load_yaml(cfg_file) or {})
     if len(ids) != 1:
         raise ConfigError(f"{cfg_file}: expected exactly one env id, got {ids}")
     run_env = str(ids[0])
