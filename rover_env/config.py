@@ -492,8 +492,31 @@ def _base_path(name: Any, child: Path) -> Path:
     raise ConfigError(f"{child}: {BASE_KEY}: {name!r} is neither beside it nor in configs/")
 
 
+class Replace(dict[Any, Any]):
+    """A mapping tagged ``!replace``: it replaces its base's mapping whole (keys and order)
+    instead of merging into it, e.g. a scenario mix whose order sets which one is drawn."""
+
+
+class _Loader(yaml.SafeLoader):
+    """PyYAML's safe loader plus the ``!replace`` tag."""
+
+
+def _construct_replace(loader: yaml.SafeLoader, node: yaml.Node) -> Replace:
+    if not isinstance(node, yaml.MappingNode):
+        raise yaml.constructor.ConstructorError(
+            None, None, "!replace takes a mapping", node.start_mark
+        )
+    return Replace(loader.construct_mapping(node, deep=True))
+
+
+_Loader.add_constructor("!replace", _construct_replace)
+
+
 def merge(base: Any, over: Any) -> Any:
-    """``over`` on top of ``base``: mappings merge key by key, anything else (lists too) replaces."""
+    """``over`` on top of ``base``: mappings merge key by key (the base's order, new keys
+    after) unless tagged ``!replace``; anything else, lists too, replaces."""
+    if isinstance(over, Replace):
+        return dict(over)
     if isinstance(base, Mapping) and isinstance(over, Mapping):
         out = dict(base)
         for k, v in over.items():
@@ -515,7 +538,7 @@ def load_yaml(path: str | Path, _chain: tuple[Path, ...] = ()) -> Any:
         raise ConfigError(f"{path}: {BASE_KEY}: circular chain {names}")
     try:
         with path.open(encoding="utf-8") as fh:
-            data = yaml.safe_load(fh)
+            data = yaml.load(fh, Loader=_Loader)  # a SafeLoader plus !replace
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read: {exc.strerror or exc}") from None
     except (yaml.YAMLError, UnicodeDecodeError) as exc:
