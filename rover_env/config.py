@@ -479,7 +479,7 @@ BASE_KEY = "base"
 """A YAML file's top-level ``base: FILE`` names the file it states differences from."""
 
 
-def _base_path(name: Any, child: Path) -> Path:
+def base_path(name: Any, child: Path) -> Path:
     """``base:`` is a path relative to the file that names it, or a file in ``configs/``."""
     if not isinstance(name, str) or not name:
         raise ConfigError(f"{child}: {BASE_KEY}: expected a file name, got {name!r}")
@@ -525,6 +525,19 @@ def merge(base: Any, over: Any) -> Any:
     return over
 
 
+def read_yaml(path: str | Path) -> Any:
+    """One YAML file as written: ``base:`` not followed, ``!replace`` mappings kept as
+    :class:`Replace` (errors name the file)."""
+    path = Path(path)
+    try:
+        with path.open(encoding="utf-8") as fh:
+            return yaml.load(fh, Loader=_Loader)  # a SafeLoader plus !replace
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: malformed YAML: {exc}") from None
+
+
 def load_yaml(path: str | Path, _chain: tuple[Path, ...] = ()) -> Any:
     """A YAML file's data with its ``base:`` chain merged in (errors name the file).
 
@@ -536,17 +549,11 @@ def load_yaml(path: str | Path, _chain: tuple[Path, ...] = ()) -> Any:
     if key in _chain:
         names = " -> ".join(str(p) for p in (*_chain, key))
         raise ConfigError(f"{path}: {BASE_KEY}: circular chain {names}")
-    try:
-        with path.open(encoding="utf-8") as fh:
-            data = yaml.load(fh, Loader=_Loader)  # a SafeLoader plus !replace
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: malformed YAML: {exc}") from None
+    data = read_yaml(path)
     if not isinstance(data, Mapping) or BASE_KEY not in data:
         return data
     over = {k: v for k, v in data.items() if k != BASE_KEY}
-    return merge(load_yaml(_base_path(data[BASE_KEY], path), (*_chain, key)), over)
+    return merge(load_yaml(base_path(data[BASE_KEY], path), (*_chain, key)), over)
 
 
 def load_config(cls: type[T], name_or_path: str | Path, kind: str, drop: tuple[str, ...] = ()) -> T:
