@@ -94,8 +94,8 @@ def test_a_variant_equals_the_full_file_it_abbreviates(tmp_path: Path) -> None:
 
     full.write_text(yaml.safe_dump({env_id: load_yaml(ft)[env_id]}))
     assert load_algo_config("ppo", ft, env_id) == load_algo_config("ppo", full, env_id)
-    assert load_algo_config("ppo", ft, env_id).learning_rate.start == 1e-4  # the variant's own
-    assert load_algo_config("ppo", ft, env_id).gamma == 0.97  # from its base
+    assert load_algo_config("ppo", ft, env_id)["learning_rate"].start == 1e-4  # the variant's own
+    assert load_algo_config("ppo", ft, env_id)["gamma"] == 0.97  # from its base
 
 
 def _leaves(over: object, base: object, path: str) -> list[str]:

@@ -52,7 +52,7 @@ from rover_env.training.callbacks import (
     set_rng_state,
     trim_csv,
 )
-from rover_env.training.config import AlgoConfig, OffPolicyConfig, check_algo, load_algo_config
+from rover_env.training.config import AlgoConfig, check_algo, load_algo_config
 from rover_env.training.envs import (
     check_env_kwargs,
     make_vec_env,
@@ -106,7 +106,7 @@ def _normalized(venv: VecEnv, cfg: AlgoConfig, training: bool) -> VecNormalize:
         norm_reward=training and n.enabled and n.norm_reward,
         clip_obs=n.clip_obs,
         clip_reward=n.clip_reward,
-        gamma=cfg.gamma,
+        gamma=cfg["gamma"],
         epsilon=n.epsilon,
     )
 
@@ -250,7 +250,7 @@ def train(
             # seed=None: loading must not reseed; the checkpoint's RNG states are restored instead.
             model = algo_cls.load(str(model_p), env=vn, device="cpu", seed=None)
             model.seed = seed
-            if isinstance(cfg, OffPolicyConfig):
+            if cfg.off_policy:
                 rb_p = replay_buffer_path(ckpt_dir, start_step, algo)
                 if not rb_p.is_file():
                     raise ConfigError(
