@@ -13,21 +13,8 @@ from typing import Any
 from rover_env.config import ConfigError
 
 RUNNER_SET = frozenset(
-    {
-        "policy",
-        "env",
-        "policy_kwargs",
-        "action_noise",
-        "seed",
-        "device",
-        "verbose",
-        "tensorboard_log",
-        "_init_setup_model",
-        "rollout_buffer_class",
-        "rollout_buffer_kwargs",
-        "replay_buffer_class",
-        "replay_buffer_kwargs",
-    }
+    "policy env policy_kwargs action_noise seed device verbose tensorboard_log _init_setup_model"
+    " rollout_buffer_class rollout_buffer_kwargs replay_buffer_class replay_buffer_kwargs".split()
 )
 """Arguments the runner sets (or a config states in its own typed form), not a config key."""
 
