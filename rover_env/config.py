@@ -550,10 +550,19 @@ def load_yaml(path: str | Path, _chain: tuple[Path, ...] = ()) -> Any:
         names = " -> ".join(str(p) for p in (*_chain, key))
         raise ConfigError(f"{path}: {BASE_KEY}: circular chain {names}")
     data = read_yaml(path)
-    if not isinstance(data, Mapping) or BASE_KEY not in data:
-        return data
-    over = {k: v for k, v in data.items() if k != BASE_KEY}
-    return merge(load_yaml(base_path(data[BASE_KEY], path), (*_chain, key)), over)
+    if isinstance(data, Mapping) and BASE_KEY in data:
+        over = {k: v for k, v in data.items() if k != BASE_KEY}
+        data = merge(load_yaml(base_path(data[BASE_KEY], path), (*_chain, key)), over)
+    return _plain_maps(data)
+
+
+def _plain_maps(obj: Any) -> Any:
+    """``!replace`` mappings, merged, become plain dicts (YAML-dumpable like any other)."""
+    if isinstance(obj, dict):
+        return {k: _plain_maps(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_plain_maps(v) for v in obj]
+    return obj
 
 
 def load_config(cls: type[T], name_or_path: str | Path, kind: str, drop: tuple[str, ...] = ()) -> T:

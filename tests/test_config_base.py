@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+import yaml
 
 from rover_env.config import (
     BASE_KEY,
@@ -34,15 +35,16 @@ def test_base_deep_merges_mappings_and_replaces_lists(tmp_path: Path) -> None:
     f = _files(
         tmp_path,
         a="x: {p: 1, q: [1, 2], r: {s: 1, t: 2}}\nmix: {u: 1.0, v: 2.0}\n",
-        b="base: a.yaml\nx: {q: [3], r: {t: 5}}\nmix: !replace {v: 2.0, u: 1.0}\nnew: 1\n",
+        b="base: a.yaml\nx: {q: [3], r: {t: 5}}\nmix: !replace {v: 2.0, u: 1.0}\nnew: !replace {w: 1}\n",
     )
     data = load_yaml(f["b"])
     assert data == {
         "x": {"p": 1, "q": [3], "r": {"s": 1, "t": 5}},
         "mix": {"v": 2.0, "u": 1.0},
-        "new": 1,
+        "new": {"w": 1},
     }
     assert list(data["mix"]) == ["v", "u"]  # !replace keeps the variant's order
+    assert type(data["new"]) is dict and yaml.safe_dump(data)  # plain, dumpable mappings
     assert BASE_KEY not in data
 
 
@@ -90,8 +92,6 @@ def test_a_variant_equals_the_full_file_it_abbreviates(tmp_path: Path) -> None:
     ft = configs_dir() / "agents_mobility" / "ppo_rr_ft.yaml"
     env_id = env_ids(ft)[0]
     full = tmp_path / "full.yaml"
-    import yaml
-
     full.write_text(yaml.safe_dump({env_id: load_yaml(ft)[env_id]}))
     assert load_algo_config("ppo", ft, env_id) == load_algo_config("ppo", full, env_id)
     assert load_algo_config("ppo", ft, env_id)["learning_rate"].start == 1e-4  # the variant's own
