@@ -15,9 +15,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from rover_env.benchmark.run import ScenarioWrapper
+from rover_env.config import load_yaml
 from rover_env.envs.proto_explorer import ProtoExplorerEnv
 from rover_env.policies.specs import make_controller
 from rover_env.seeds import split_of
@@ -28,7 +28,7 @@ CONFIG = Path(__file__).resolve().parent.parent / "configs/agents_mobility/ppo_r
 
 def reward_weights(config: Path) -> dict[str, Any]:
     """``env_kwargs.reward_weights`` of a one-entry training config (rl-zoo layout)."""
-    data = yaml.safe_load(config.read_text())
+    data = load_yaml(config)
     ((_, entry),) = data.items()
     return dict(entry["env_kwargs"]["reward_weights"])
 

@@ -24,7 +24,7 @@ import yaml
 
 from rover_env.benchmark.run import Job, run_jobs
 from rover_env.benchmark.seeds import seeds as split_seeds
-from rover_env.config import configs_dir
+from rover_env.config import configs_dir, load_yaml
 
 SCENARIOS = ("sand-slope", "soft-patch", "sand-turns")
 
@@ -45,7 +45,7 @@ def main() -> None:
     args = ap.parse_args()
     seeds = split_seeds("tuning", args.seeds)
     scenarios = args.scenarios.split(",")
-    base = yaml.safe_load((configs_dir() / "control" / "slip_pi.yaml").read_text())
+    base = load_yaml(configs_dir() / "control" / "slip_pi.yaml")
     tmp = Path(tempfile.mkdtemp(prefix="setpoint-"))
     specs = {"open-loop": "open-loop", "slip-pi": "slip-pi"}
     caps = [float(x) for x in args.max_corrections.split(",") if x.strip()] or [None]

@@ -13,8 +13,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
-
 from rover_env.config import DRIVEN_WHEELS, JOINTS, WHEELS, configs_dir
 from rover_env.logs import LogError
 
@@ -298,9 +296,9 @@ def load_topic_map(path: str | Path) -> TopicMap:
     if not file.is_file():
         raise BagError("topic map file not found", file)
     try:
-        data = yaml.safe_load(file.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise BagError(f"malformed YAML: {exc}", file) from None
+        data = load_yaml(file)
+    except ConfigError as exc:
+        raise BagError(str(exc).removeprefix(f"{file}: "), file) from None
     k = _Keys(data, file, "")
     terrain = k.get("terrain", None)
     if terrain is not None and not isinstance(terrain, str | dict):

@@ -461,7 +461,8 @@ def assets_dir() -> Path:
     return _shipped("assets")
 
 
-def _resolve(name_or_path: str | Path, kind: str) -> Path:
+def resolve_path(name_or_path: str | Path, kind: str) -> Path:
+    """A YAML path as given, or the shipped ``configs/<kind>/<name>.yaml``."""
     p = Path(name_or_path)
     if p.suffix in (".yaml", ".yml") or p.exists():
         if not p.is_file():
@@ -474,27 +475,117 @@ def _resolve(name_or_path: str | Path, kind: str) -> Path:
     return shipped
 
 
-def _load_yaml(path: Path) -> Any:
+BASE_KEY = "base"
+"""A YAML file's top-level ``base: FILE`` names the file it states differences from."""
+
+
+def base_path(name: Any, child: Path) -> Path:
+    """``base:`` is a path relative to the file that names it, or a file in ``configs/``."""
+    if not isinstance(name, str) or not name:
+        raise ConfigError(f"{child}: {BASE_KEY}: expected a file name, got {name!r}")
+    here = child.parent / name
+    if here.is_file():
+        return here
+    shipped = configs_dir() / (name if Path(name).suffix else f"{name}.yaml")
+    if shipped.is_file():
+        return shipped
+    raise ConfigError(f"{child}: {BASE_KEY}: {name!r} is neither beside it nor in configs/")
+
+
+class Replace(dict[Any, Any]):
+    """A mapping tagged ``!replace``: it replaces its base's mapping whole (keys and order)
+    instead of merging into it, e.g. a scenario mix whose order sets which one is drawn."""
+
+
+class _Loader(yaml.SafeLoader):
+    """PyYAML's safe loader plus the ``!replace`` tag."""
+
+
+def _construct_replace(loader: yaml.SafeLoader, node: yaml.Node) -> Replace:
+    if not isinstance(node, yaml.MappingNode):
+        raise yaml.constructor.ConstructorError(
+            None, None, "!replace takes a mapping", node.start_mark
+        )
+    return Replace(loader.construct_mapping(node, deep=True))
+
+
+_Loader.add_constructor("!replace", _construct_replace)
+
+
+def merge(base: Any, over: Any) -> Any:
+    """``over`` on top of ``base``: mappings merge key by key (the base's order, new keys
+    after) unless tagged ``!replace``; anything else, lists too, replaces."""
+    if isinstance(over, Replace):
+        return dict(over)
+    if isinstance(base, Mapping) and isinstance(over, Mapping):
+        out = dict(base)
+        for k, v in over.items():
+            out[k] = merge(base[k], v) if k in base else v
+        return out
+    return over
+
+
+def read_yaml(path: str | Path) -> Any:
+    """One YAML file as written: ``base:`` not followed, ``!replace`` mappings kept as
+    :class:`Replace` (errors name the file)."""
+    path = Path(path)
     try:
-        with path.open() as fh:
-            return yaml.safe_load(fh)
-    except yaml.YAMLError as exc:
+        with path.open(encoding="utf-8") as fh:
+            return yaml.load(fh, Loader=_Loader)  # a SafeLoader plus !replace
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: malformed YAML: {exc}") from None
+
+
+def load_yaml(path: str | Path, _chain: tuple[Path, ...] = ()) -> Any:
+    """A YAML file's data with its ``base:`` chain merged in (errors name the file).
+
+    A file whose top level says ``base: OTHER.yaml`` states only what differs from OTHER
+    (which may name its own base); a file reached twice in one chain is refused.
+    """
+    path = Path(path)
+    key = path.resolve()
+    if key in _chain:
+        names = " -> ".join(str(p) for p in (*_chain, key))
+        raise ConfigError(f"{path}: {BASE_KEY}: circular chain {names}")
+    data = read_yaml(path)
+    if isinstance(data, Mapping) and BASE_KEY in data:
+        over = {k: v for k, v in data.items() if k != BASE_KEY}
+        data = merge(load_yaml(base_path(data[BASE_KEY], path), (*_chain, key)), over)
+    return _plain_maps(data)
+
+
+def _plain_maps(obj: Any) -> Any:
+    """``!replace`` mappings, merged, become plain dicts (YAML-dumpable like any other)."""
+    if isinstance(obj, dict):
+        return {k: _plain_maps(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_plain_maps(v) for v in obj]
+    return obj
+
+
+def load_config(cls: type[T], name_or_path: str | Path, kind: str, drop: tuple[str, ...] = ()) -> T:
+    """Dataclass ``cls`` from a shipped name in ``configs/<kind>/`` or a YAML path.
+
+    Top-level keys in ``drop`` are documentation and are not kept; every error names the
+    file and the dotted key.
+    """
+    path = resolve_path(name_or_path, kind)
+    data = load_yaml(path)
+    if drop and isinstance(data, Mapping):
+        data = {k: v for k, v in data.items() if k not in drop}
+    try:
+        return from_dict(cls, data)
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
 
 
 def load_rover(name_or_path: str | Path = "proto_explorer") -> RoverConfig:
     """Load a rover configuration by shipped name or path."""
-    path = _resolve(name_or_path, "rover")
-    try:
-        return from_dict(RoverConfig, _load_yaml(path))
-    except ConfigError as exc:
-        raise ConfigError(f"{path}: {exc}") from None
+    return load_config(RoverConfig, name_or_path, "rover")
 
 
 def load_terrain(name_or_path: str | Path = "flat") -> TerrainConfig:
     """Load a terrain configuration by shipped name or path."""
-    path = _resolve(name_or_path, "terrain")
-    try:
-        return from_dict(TerrainConfig, _load_yaml(path))
-    except ConfigError as exc:
-        raise ConfigError(f"{path}: {exc}") from None
+    return load_config(TerrainConfig, name_or_path, "terrain")

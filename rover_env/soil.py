@@ -36,12 +36,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
-from rover_env.config import ConfigError, _load_yaml, _resolve, from_dict
+from rover_env.config import ConfigError, load_config
 
 __all__ = [
     "NODES",
@@ -159,15 +159,7 @@ def load_soil(name_or_path: str | Path) -> SoilParams:
     The preset files carry ``description`` and ``source`` (the literature behind the
     numbers) beside the fields; those two keys are documentation and are not kept.
     """
-    path = _resolve(name_or_path, "soil")
-    data: Any = _load_yaml(path)
-    if not isinstance(data, dict):
-        raise ConfigError(f"{path}: expected a mapping of soil parameters")
-    data = {k: v for k, v in data.items() if k not in ("description", "source")}
-    try:
-        return from_dict(SoilParams, data)
-    except ConfigError as exc:
-        raise ConfigError(f"{path}: {exc}") from None
+    return load_config(SoilParams, name_or_path, "soil", drop=("description", "source"))
 
 
 def soil_variant(name_or_path: str | Path, changes: dict[str, float], folder: Path) -> Path:

@@ -126,3 +126,12 @@ def test_cycle_finder_finds_a_circle() -> None:
     assert find_cycles(graph) == [["b.controllers", "b.mixture", "b.policy", "b.run"]]
     graph["b.run"] = {"envs"}
     assert find_cycles(graph) == []
+
+
+def test_effects_does_not_import_config_even_for_annotations() -> None:
+    # config validates extensions against the effects catalogue; effects states what it reads
+    # of a rover configuration as a Protocol, so the two are not a circle even in annotations.
+    tree = ast.parse((PKG / "effects" / "__init__.py").read_text())
+    mods = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    mods |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+    assert "rover_env.config" not in mods and "rover_env" not in mods

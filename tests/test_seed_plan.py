@@ -127,10 +127,10 @@ def test_vector_env_seed_block_stays_in_its_split() -> None:
 
 def test_training_envs_keep_their_split(tmp_path: Path) -> None:
     pytest.importorskip("stable_baselines3")
-    from rover_env.training.config import PPOConfig
+    from rover_env.training.config import AlgoConfig
     from rover_env.training.envs import SeedSchedule, make_env, make_vec_env
 
-    cfg = PPOConfig()
+    cfg = AlgoConfig()
     env = make_env(MIX, cfg, [SPLITS["validation"].start], split="validation")
     _, info = env.reset()
     assert info["seed_split"] == "validation"

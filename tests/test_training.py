@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 import pytest
 import yaml
@@ -20,6 +21,7 @@ pytest.importorskip("stable_baselines3")
 
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import DummyVecEnv
 
 from rover_env.config import ConfigError
 from rover_env.envs.registration import ENV_IDS
@@ -63,8 +65,8 @@ def _rows(path: Path) -> list[dict[str, str]]:
 def test_shipped_config_has_both_env_ids() -> None:
     for env_id in ENV_IDS:
         cfg = load_config(REPO / "configs" / "ppo.yaml", env_id)
-        assert cfg.learning_rate.linear and cfg.learning_rate.start == pytest.approx(3e-4)
-        assert cfg.batch_size <= cfg.rollout_size
+        assert cfg["learning_rate"].linear and cfg["learning_rate"].start == pytest.approx(3e-4)
+        assert cfg["batch_size"] <= cfg.rollout_size
     assert load_config("ppo", ENV) == load_config(REPO / "configs" / "ppo.yaml", ENV)
 
 
@@ -75,7 +77,7 @@ def test_resolved_config_round_trips(tmp_path: Path, name: str) -> None:
     path = tmp_path / "resolved.yaml"
     path.write_text(yaml.safe_dump({env: cfg.to_dict()}))
     assert load_config(path, env) == cfg
-    assert cfg.use_sde == (name == "ppo_gsde.yaml")
+    assert cfg["use_sde"] == (name == "ppo_gsde.yaml")
 
 
 @pytest.mark.parametrize(
@@ -91,6 +93,11 @@ def test_resolved_config_round_trips(tmp_path: Path, name: str) -> None:
         ({"policy_kwargs": {"activation": "sigmoid"}}, r"activation: expected one of"),
         ({"use_sde": "yes"}, r"use_sde: expected true or false"),
         ({"sde_sample_freq": -2}, r"sde_sample_freq: must be >= -1"),
+        # names and types come from SB3's PPO signature, not from a list kept here
+        ({"buffer_size": 1000}, r"unknown key\(s\) buffer_size; allowed: .*normalize_advantage"),
+        ({"normalize_advantage": "no"}, r"normalize_advantage: expected true or false"),
+        ({"stats_window_size": 2.5}, r"stats_window_size: expected an integer"),
+        ({"device": "cuda"}, r"unknown key\(s\) device"),
     ],
 )
 def test_config_errors_name_key_and_file(tmp_path: Path, over: dict[str, Any], match: str) -> None:
@@ -98,6 +105,21 @@ def test_config_errors_name_key_and_file(tmp_path: Path, over: dict[str, Any], m
     with pytest.raises(ConfigError, match=match) as exc:
         load_config(path, ENV)
     assert str(path) in str(exc.value) and ENV in str(exc.value)
+
+
+def test_any_sb3_argument_is_taken_and_passed_on(tmp_path: Path) -> None:
+    """An SB3 argument no config had used before is valid and reaches the model."""
+    from rover_env.training.algos import build_model
+    from rover_env.training.signature import parameters
+
+    cfg = load_config(_config(tmp_path, normalize_advantage=False, clip_range_vf=0.3), ENV)
+    assert cfg["normalize_advantage"] is False and cfg["clip_range_vf"].start == 0.3
+    assert set(cfg.hyperparams) == set(parameters("ppo"))  # every other one at SB3's default
+    assert cfg["stats_window_size"] == parameters("ppo")["stats_window_size"].default
+    venv = DummyVecEnv([lambda: gym.make(ENV, max_episode_steps=8)])
+    model = build_model(cfg, venv)
+    assert model.normalize_advantage is False and model.clip_range_vf(1.0) == 0.3
+    venv.close()
 
 
 def test_missing_env_id_and_file(tmp_path: Path) -> None:

@@ -218,10 +218,10 @@ def test_obs_layout() -> None:
 def test_training_batch_vec_env(tmp_path: Any) -> None:
     """``vec_env: batch`` in a PPO config: all rovers in one vector env, episodes monitored."""
     pytest.importorskip("stable_baselines3")
-    from rover_env.training.config import PPOConfig
+    from rover_env.training.config import AlgoConfig
     from rover_env.training.envs import make_vec_env
 
-    cfg = PPOConfig(vec_env="batch", max_episode_steps=3, env_kwargs={"sensor_noise": "none"})
+    cfg = AlgoConfig(vec_env="batch", max_episode_steps=3, env_kwargs={"sensor_noise": "none"})
     venv = make_vec_env(ID, cfg, 2, [[5], [6]], tmp_path, "train")
     obs = venv.reset()
     assert obs.shape == (2, len(OBS_NAMES))

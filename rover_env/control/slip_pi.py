@@ -108,7 +108,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rover_env import kinematics as kin
-from rover_env.config import ConfigError, RoverConfig, configs_dir, from_dict
+from rover_env.config import ConfigError, RoverConfig, load_config
 from rover_env.control.base import Controller, ControllerInput
 from rover_env.control.open_loop import OpenLoop
 from rover_env.estimation.estimator import (
@@ -228,22 +228,7 @@ class SlipPIConfig:
 
 def load_slip_pi_config(name_or_path: str | Path = "slip_pi") -> SlipPIConfig:
     """A shipped name (``configs/control/<name>.yaml``) or a YAML path."""
-    import yaml
-
-    p = Path(name_or_path)
-    if p.suffix not in (".yaml", ".yml") and not p.exists():
-        p = configs_dir() / "control" / f"{name_or_path}.yaml"
-    if not p.is_file():
-        raise ConfigError(f"slip PI configuration file not found: {p}")
-    try:
-        with p.open() as fh:
-            data = yaml.safe_load(fh)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{p}: malformed YAML: {exc}") from None
-    try:
-        return from_dict(SlipPIConfig, data)
-    except ConfigError as exc:
-        raise ConfigError(f"{p}: {exc}") from None
+    return load_config(SlipPIConfig, name_or_path, "control")
 
 
 def _deadzone(x: Array, width: Array) -> Array:

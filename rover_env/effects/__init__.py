@@ -30,13 +30,12 @@ import math
 from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-if TYPE_CHECKING:  # pragma: no cover
-    from rover_env.config import RoverConfig
+from rover_env.tire import TireParams
 
 Array = NDArray[np.float64]
 GRAVITY = 9.81
@@ -54,6 +53,43 @@ __all__ = [
     "effect_class",
     "validate_extensions",
 ]
+
+
+class _Dataclass(Protocol):
+    __dataclass_fields__: ClassVar[dict[str, Any]]
+
+
+class _Masses(Protocol):
+    @property
+    def total(self) -> float: ...
+
+
+class _Geometry(Protocol):
+    @property
+    def wheel_radius(self) -> float: ...
+
+
+class _Motor(_Dataclass, Protocol):
+    @property
+    def torque_limit(self) -> float: ...
+
+
+class RoverLike(_Dataclass, Protocol):
+    """What effects read of a rover configuration (:class:`rover_env.config.RoverConfig`),
+    stated here so the catalogue that the configuration validates against needs no import
+    of it."""
+
+    @property
+    def masses(self) -> _Masses: ...
+    @property
+    def geometry(self) -> _Geometry: ...
+    @property
+    def motor(self) -> _Motor: ...
+    @property
+    def tire(self) -> TireParams: ...
+
+
+Cfg = TypeVar("Cfg", bound=RoverLike)
 
 
 class EffectError(ValueError):
@@ -120,11 +156,11 @@ class Effect:
     def is_off(self) -> bool:
         return all(self.values[p.name] == p.off for p in self.params)
 
-    def apply_config(self, cfg: RoverConfig) -> RoverConfig:
+    def apply_config(self, cfg: Cfg) -> Cfg:
         """The configuration the physics is built from (default: unchanged)."""
         return cfg
 
-    def apply_model(self, model: Any, cfg: RoverConfig) -> None:
+    def apply_model(self, model: Any, cfg: RoverLike) -> None:
         """Change compiled-model arrays after compilation (default: nothing)."""
 
     def soil_changes(self) -> dict[str, float]:
@@ -179,7 +215,7 @@ class TireEffect(Effect):
 
     plugin_ok: ClassVar[bool] = False
 
-    def plugin_values(self, cfg: RoverConfig) -> dict[str, float]:
+    def plugin_values(self, cfg: RoverLike) -> dict[str, float]:
         """The plugin's ``effects`` numbers this effect sets (``rover_env.sim.fast``)."""
         raise NotImplementedError(f"{self.name}: no compiled implementation")
 
@@ -228,7 +264,7 @@ def effect_class(name: str) -> type[Effect]:
         ) from None
 
 
-def _static_wheel_load(cfg: RoverConfig) -> float:
+def _static_wheel_load(cfg: RoverLike) -> float:
     return cfg.masses.total * GRAVITY / 6
 
 
@@ -285,7 +321,7 @@ class Slope(Effect):
             ]
         )
 
-    def apply_model(self, model: Any, cfg: RoverConfig) -> None:
+    def apply_model(self, model: Any, cfg: RoverLike) -> None:
         if self["deg"] != 0.0:
             model.opt.gravity[:] = self.gravity()
 
@@ -304,7 +340,7 @@ class RollingRadius(Effect):
         Param("fraction", "-", -0.2, 0.1, 0.0, "change of r_e at static load", moderate=-0.08),
     )
 
-    def apply_config(self, cfg: RoverConfig) -> RoverConfig:
+    def apply_config(self, cfg: Cfg) -> Cfg:
         f = self["fraction"]
         if f == 0.0:
             return cfg
@@ -326,7 +362,7 @@ class TorqueLimit(Effect):
         Param("fraction", "-", -0.8, 1.0, 0.0, "change of motor.torque_limit", moderate=-0.5),
     )
 
-    def apply_config(self, cfg: RoverConfig) -> RoverConfig:
+    def apply_config(self, cfg: Cfg) -> Cfg:
         f = self["fraction"]
         if f == 0.0:
             return cfg
@@ -345,7 +381,7 @@ class Friction(Effect):
     name = "friction"
     params = (Param("fraction", "-", -0.7, 1.0, 0.0, "change of mu_x and mu_y", moderate=-0.3),)
 
-    def apply_config(self, cfg: RoverConfig) -> RoverConfig:
+    def apply_config(self, cfg: Cfg) -> Cfg:
         f = self["fraction"]
         if f == 0.0:
             return cfg
@@ -476,7 +512,7 @@ class CombinedSlip(TireEffect):
     )
     plugin_ok = True
 
-    def plugin_values(self, cfg: RoverConfig) -> dict[str, float]:
+    def plugin_values(self, cfg: RoverLike) -> dict[str, float]:
         return {"combined_on": self["on"]}
 
     def forces(
@@ -520,14 +556,14 @@ class LoadDependentFriction(TireEffect):
     def is_off(self) -> bool:
         return self["fall"] == 0.0
 
-    def _loads(self, cfg: RoverConfig) -> tuple[float, float]:
+    def _loads(self, cfg: RoverLike) -> tuple[float, float]:
         fz0 = _static_wheel_load(cfg)
         return fz0, 2.0 * self["range"] * fz0
 
-    def apply_model(self, model: Any, cfg: RoverConfig) -> None:
+    def apply_model(self, model: Any, cfg: RoverLike) -> None:
         self.fz0, self.span = self._loads(cfg)
 
-    def plugin_values(self, cfg: RoverConfig) -> dict[str, float]:
+    def plugin_values(self, cfg: RoverLike) -> dict[str, float]:
         fz0, span = self._loads(cfg)
         return {"load_fall": self["fall"], "load_fz0": fz0, "load_span": span}
 

@@ -28,6 +28,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
+from rover_env.config import load_yaml
 from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
 from rover_env.policies.memory import StallClock, stall_clock_from
 from rover_env.policies.residual import Residual, Schedule
@@ -105,7 +106,7 @@ class SB3Controller:
         self._first = True
         cfg_file = self.model_path.parent / "config.yaml"
         if cfg_file.is_file():
-            data = yaml.safe_load(cfg_file.read_text()) or {}
+            data = load_yaml(cfg_file) or {}
             entry: dict[str, Any] = next(iter(data.values()), {}) or {}
             kw = entry.get("env_kwargs") or {}
             self.clock = stall_clock_from(kw.get("stall_clock"), f"{cfg_file}: stall_clock")

@@ -17,13 +17,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from rover_env.config import (
     ConfigError,
     TerrainConfig,
     configs_dir,
     from_dict,
+    load_config,
     load_terrain,
 )
 from rover_env.control.base import CommandSchedule
@@ -178,15 +178,9 @@ def load_scenario(name_or_path: str | Path) -> ScenarioConfig:
             raise ConfigError(
                 f"no shipped scenario named {name_or_path!r}; have {scenario_names()}"
             )
-    if not p.is_file():
-        raise ConfigError(f"scenario file not found: {p}")
+    cfg = load_config(ScenarioConfig, p, "scenarios")
     try:
-        with p.open() as fh:
-            data = yaml.safe_load(fh)
-        cfg = from_dict(ScenarioConfig, data)
         cfg.terrain_config()  # fail early on a bad ground
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{p}: malformed YAML: {exc}") from None
     except ConfigError as exc:
         raise ConfigError(f"{p}: {exc}") from None
     return cfg

@@ -11,9 +11,7 @@ from __future__ import annotations
 
 from rover_env.training.config import (
     ALGOS,
-    PPOConfig,
-    SACConfig,
-    TD3Config,
+    AlgoConfig,
     load_algo_config,
     load_config,
 )
@@ -21,9 +19,7 @@ from rover_env.training.run import TrainResult, train
 
 __all__ = [
     "ALGOS",
-    "PPOConfig",
-    "SACConfig",
-    "TD3Config",
+    "AlgoConfig",
     "TrainResult",
     "load_algo_config",
     "load_config",

@@ -19,11 +19,9 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from rover_env.training.config import (
     AlgoConfig,
-    OffPolicyConfig,
-    PPOConfig,
-    SACConfig,
+    OffPolicyKwargs,
+    PolicyKwargs,
     Schedule,
-    TD3Config,
     check_algo,
 )
 
@@ -53,7 +51,7 @@ def _net_arch(arch: Any) -> Any:
     return {k: list(v) for k, v in arch.items()} if isinstance(arch, dict) else list(arch)
 
 
-def _action_noise(cfg: OffPolicyConfig, n_actions: int) -> ActionNoise | None:
+def _action_noise(cfg: AlgoConfig, n_actions: int) -> ActionNoise | None:
     """Gaussian or Ornstein-Uhlenbeck noise; it draws from numpy's global generator, whose
     state the checkpoints keep."""
     n = cfg.action_noise
@@ -65,74 +63,32 @@ def _action_noise(cfg: OffPolicyConfig, n_actions: int) -> ActionNoise | None:
     return OrnsteinUhlenbeckActionNoise(mean, sigma)
 
 
+def _policy_kwargs(cfg: AlgoConfig) -> dict[str, Any]:
+    pk = cfg.policy_kwargs
+    assert isinstance(pk, PolicyKwargs | OffPolicyKwargs)  # filled in by the config
+    out: dict[str, Any] = {
+        "net_arch": _net_arch(pk.net_arch),
+        "activation_fn": _ACTIVATIONS[pk.activation],
+    }
+    if isinstance(pk, PolicyKwargs):
+        return {**out, "log_std_init": pk.log_std_init, "ortho_init": pk.ortho_init}
+    out["n_critics"] = pk.n_critics
+    if pk.log_std_init is not None:
+        out["log_std_init"] = pk.log_std_init
+    return out
+
+
 def build_model(cfg: AlgoConfig, env: VecEnv) -> BaseAlgorithm:
-    """A fresh model of the config's algorithm on ``env`` (CPU, unseeded: the caller seeds)."""
-    if isinstance(cfg, PPOConfig):
-        pk = cfg.policy_kwargs
-        return PPO(
-            cfg.policy,
-            env,
-            learning_rate=_schedule(cfg.learning_rate),
-            n_steps=cfg.n_steps,
-            batch_size=cfg.batch_size,
-            n_epochs=cfg.n_epochs,
-            gamma=cfg.gamma,
-            gae_lambda=cfg.gae_lambda,
-            clip_range=_schedule(cfg.clip_range),
-            ent_coef=cfg.ent_coef,
-            vf_coef=cfg.vf_coef,
-            max_grad_norm=cfg.max_grad_norm,
-            target_kl=cfg.target_kl,
-            use_sde=cfg.use_sde,
-            sde_sample_freq=cfg.sde_sample_freq,
-            policy_kwargs={
-                "net_arch": _net_arch(pk.net_arch),
-                "activation_fn": _ACTIVATIONS[pk.activation],
-                "log_std_init": pk.log_std_init,
-                "ortho_init": pk.ortho_init,
-            },
-            device="cpu",
-            seed=None,
-        )
-    opk = cfg.policy_kwargs
-    policy_kwargs: dict[str, Any] = {
-        "net_arch": _net_arch(opk.net_arch),
-        "activation_fn": _ACTIVATIONS[opk.activation],
-        "n_critics": opk.n_critics,
+    """A fresh model of the config's algorithm on ``env`` (CPU, unseeded: the caller seeds):
+    the config's SB3 arguments as they are, schedules made callables."""
+    kwargs: dict[str, Any] = {
+        k: _schedule(v) if isinstance(v, Schedule) else v for k, v in cfg.hyperparams.items()
     }
-    if opk.log_std_init is not None:
-        policy_kwargs["log_std_init"] = opk.log_std_init
-    shape = env.action_space.shape or (1,)
-    common: dict[str, Any] = {
-        "learning_rate": _schedule(cfg.learning_rate),
-        "buffer_size": cfg.buffer_size,
-        "learning_starts": cfg.learning_starts,
-        "batch_size": cfg.batch_size,
-        "tau": cfg.tau,
-        "gamma": cfg.gamma,
-        "train_freq": (cfg.train_freq, "step"),
-        "gradient_steps": cfg.gradient_steps,
-        "action_noise": _action_noise(cfg, int(np.prod(shape))),
-        "policy_kwargs": policy_kwargs,
-        "device": "cpu",
-        "seed": None,
-    }
-    if isinstance(cfg, SACConfig):
-        return SAC(
-            cfg.policy,
-            env,
-            ent_coef=cfg.ent_coef,
-            target_entropy=cfg.target_entropy,
-            use_sde=cfg.use_sde,
-            sde_sample_freq=cfg.sde_sample_freq,
-            **common,
-        )
-    assert isinstance(cfg, TD3Config)
-    return TD3(
-        cfg.policy,
-        env,
-        policy_delay=cfg.policy_delay,
-        target_policy_noise=cfg.target_policy_noise,
-        target_noise_clip=cfg.target_noise_clip,
-        **common,
+    if cfg.off_policy:
+        kwargs["train_freq"] = (kwargs["train_freq"], "step")
+        shape = env.action_space.shape or (1,)
+        kwargs["action_noise"] = _action_noise(cfg, int(np.prod(shape)))
+    cls = ALGO_CLASSES[cfg.algo]
+    return cls(
+        cfg.policy, env, policy_kwargs=_policy_kwargs(cfg), device="cpu", seed=None, **kwargs
     )

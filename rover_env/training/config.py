@@ -9,14 +9,12 @@ env_id)`` reads an entry of any algorithm (``ALGOS``); ``load_config`` is the PP
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from rover_env.config import ConfigError, configs_dir
+from rover_env.config import ConfigError, configs_dir, load_yaml
+from rover_env.training.signature import check_hyperparams, defaults, number, parameters
 
 ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu", "gelu", "silu")
 VEC_ENVS = ("subproc", "dummy", "batch")
@@ -57,46 +55,6 @@ class NormalizeConfig:
 
 
 @dataclasses.dataclass(frozen=True)
-class PPOConfig:
-    n_timesteps: int = 1_000_000
-    n_envs: int = 1
-    policy: str = "MlpPolicy"
-    learning_rate: Schedule = Schedule(3e-4)
-    n_steps: int = 2048
-    batch_size: int = 64
-    n_epochs: int = 10
-    gamma: float = 0.99
-    gae_lambda: float = 0.95
-    clip_range: Schedule = Schedule(0.2)
-    ent_coef: float = 0.0
-    vf_coef: float = 0.5
-    max_grad_norm: float = 0.5
-    target_kl: float | None = None
-    use_sde: bool = False
-    """Generalized state-dependent exploration (SB3's gSDE): smooth noise, a function of the
-    state, redrawn every ``sde_sample_freq`` steps (-1: once per rollout)."""
-    sde_sample_freq: int = -1
-    policy_kwargs: PolicyKwargs = PolicyKwargs()
-    normalize: NormalizeConfig = NormalizeConfig()
-    env_kwargs: dict[str, Any] = dataclasses.field(default_factory=dict)
-    max_episode_steps: int | None = None
-    eval_freq: int = 10_000
-    n_eval_episodes: int = 5
-    n_eval_envs: int = 1
-    checkpoint_freq: int = 50_000
-    vec_env: str = "subproc"
-
-    @property
-    def rollout_size(self) -> int:
-        """Env steps per PPO update: checkpoints fall on multiples of it."""
-        return self.n_steps * self.n_envs
-
-    def to_dict(self) -> dict[str, Any]:
-        """The YAML form; ``load_config`` reads it back to an equal config."""
-        return _to_dict(self)
-
-
-@dataclasses.dataclass(frozen=True)
 class OffPolicyKwargs:
     """SAC/TD3 networks: one layer list for actor and critics, or ``{pi: [...], qf: [...]}``."""
 
@@ -117,27 +75,23 @@ class ActionNoise:
 
 
 @dataclasses.dataclass(frozen=True)
-class OffPolicyConfig:
-    """What SAC and TD3 share (SB3's off-policy algorithms, replay buffer)."""
+class AlgoConfig:
+    """One env id's entry: the run's own settings, typed here, and the algorithm's arguments
+    (``hyperparams``, read with ``cfg["gamma"]``), checked against its stable-baselines3
+    signature (:mod:`rover_env.training.signature`) rather than declared a second time."""
 
+    algo: str = "ppo"
+    hyperparams: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    """Every argument of the SB3 class a config may set: the stated value, else SB3's
+    default (schedules as :class:`Schedule`)."""
     n_timesteps: int = 1_000_000
     n_envs: int = 1
     policy: str = "MlpPolicy"
-    learning_rate: Schedule = Schedule(3e-4)
-    buffer_size: int = 1_000_000
-    learning_starts: int = 100
-    """Env steps of uniformly random actions before the first update."""
-    batch_size: int = 256
-    tau: float = 0.005
-    gamma: float = 0.99
-    train_freq: int = 1
-    """Env steps per env between updates (rl-zoo's ``[n, "episode"]`` form is not taken, so
-    checkpoints stay on a step grid)."""
-    gradient_steps: int = 1
-    """Gradient steps per update; -1: as many as env steps collected (train_freq * n_envs)."""
-    action_noise: ActionNoise | None = None
-    policy_kwargs: OffPolicyKwargs = OffPolicyKwargs()
+    policy_kwargs: PolicyKwargs | OffPolicyKwargs | None = None
+    """None: the algorithm's default network (PPO's or SAC/TD3's)."""
     normalize: NormalizeConfig = NormalizeConfig()
+    action_noise: ActionNoise | None = None
+    """SAC/TD3 only: exploration noise added to the actor's action."""
     env_kwargs: dict[str, Any] = dataclasses.field(default_factory=dict)
     max_episode_steps: int | None = None
     eval_freq: int = 10_000
@@ -146,66 +100,64 @@ class OffPolicyConfig:
     checkpoint_freq: int = 50_000
     vec_env: str = "subproc"
 
+    def __post_init__(self) -> None:
+        check_algo(self.algo)
+        given = {**defaults(self.algo), **self.hyperparams}
+        hp = check_hyperparams(self.algo, given, self.algo.upper(), _schedule)
+        hp = {k: _range(self.algo, k, v, k) for k, v in hp.items()}
+        object.__setattr__(self, "hyperparams", hp)
+        if self.policy_kwargs is None:
+            pk = PolicyKwargs() if self.algo == "ppo" else OffPolicyKwargs()
+            object.__setattr__(self, "policy_kwargs", pk)
+
+    def __getitem__(self, name: str) -> Any:
+        """The SB3 argument ``name`` (stated or SB3's default)."""
+        return self.hyperparams[name]
+
+    @property
+    def off_policy(self) -> bool:
+        return self.algo != "ppo"
+
     @property
     def rollout_size(self) -> int:
-        """Env steps per collection between updates: checkpoints fall on multiples of it."""
-        return self.train_freq * self.n_envs
+        """Env steps per update (PPO: n_steps * n_envs; SAC/TD3: train_freq * n_envs):
+        checkpoints fall on multiples of it."""
+        return int(self["train_freq" if self.off_policy else "n_steps"]) * self.n_envs
 
     def to_dict(self) -> dict[str, Any]:
-        """The YAML form; ``load_algo_config`` reads it back to an equal config."""
-        return _to_dict(self)
+        """The YAML form, every SB3 argument resolved; ``load_algo_config`` reads it back to
+        an equal config."""
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if f.name == "hyperparams":
+                out.update({k: x.to_yaml() if isinstance(x, Schedule) else x for k, x in v.items()})
+            elif f.name == "action_noise":
+                if self.off_policy:
+                    out[f.name] = None if v is None else {"type": v.type, "sigma": v.sigma}
+            elif f.name == "policy_kwargs":
+                out[f.name] = _policy_kwargs_yaml(v)
+            elif f.name == "normalize":
+                norm = {g.name: getattr(v, g.name) for g in dataclasses.fields(v)}
+                out[f.name] = (
+                    {k: x for k, x in norm.items() if k != "enabled"} if v.enabled else False
+                )
+            elif f.name == "env_kwargs":
+                out[f.name] = _plain(v)
+            elif f.name != "algo":
+                out[f.name] = v
+        return out
 
 
-@dataclasses.dataclass(frozen=True)
-class SACConfig(OffPolicyConfig):
-    ent_coef: str | float = "auto"
-    """Entropy weight: a number, ``auto`` (learnt, from 1) or ``auto_<start>``."""
-    target_entropy: str | float = "auto"
-    use_sde: bool = False
-    sde_sample_freq: int = -1
-
-
-@dataclasses.dataclass(frozen=True)
-class TD3Config(OffPolicyConfig):
-    learning_rate: Schedule = Schedule(1e-3)
-    policy_delay: int = 2
-    target_policy_noise: float = 0.2
-    target_noise_clip: float = 0.5
-
-
-AlgoConfig = PPOConfig | SACConfig | TD3Config
-
-
-def _to_dict(cfg: Any) -> dict[str, Any]:
-    """The YAML form of any algorithm's config (networks as lists, normalisation as a mapping
-    or false, None-valued network options left out)."""
+def _policy_kwargs_yaml(pk: Any) -> dict[str, Any]:
+    """Networks as lists, None-valued options left out."""
     out: dict[str, Any] = {}
-    for f in dataclasses.fields(cfg):
-        v = getattr(cfg, f.name)
-        if isinstance(v, Schedule):
-            v = v.to_yaml()
-        out[f.name] = v
-    pk = cfg.policy_kwargs
-    pk_out: dict[str, Any] = {}
     for f in dataclasses.fields(pk):
         v = getattr(pk, f.name)
         if f.name == "net_arch":
             v = {k: list(a) for k, a in v.items()} if isinstance(v, dict) else list(v)
         if v is not None:
-            pk_out[f.name] = v
-    out["policy_kwargs"] = pk_out
-    norm: Any = (
-        {f.name: getattr(cfg.normalize, f.name) for f in dataclasses.fields(NormalizeConfig)}
-        if cfg.normalize.enabled
-        else False
-    )
-    if norm:
-        del norm["enabled"]
-    out["normalize"] = norm
-    if "action_noise" in out:
-        n = out["action_noise"]
-        out["action_noise"] = None if n is None else {"type": n.type, "sigma": n.sigma}
-    out["env_kwargs"] = _plain(cfg.env_kwargs)
+            out[f.name] = v
     return out
 
 
@@ -221,22 +173,8 @@ def _plain(value: Any) -> Any:
 # --------------------------------------------------------------------------- field checks
 
 
-def _number(v: Any, where: str) -> float:
-    # PyYAML reads 3e-4 (no dot) as a string, so numeric strings are accepted.
-    if isinstance(v, bool):
-        raise ConfigError(f"{where}: expected a number, got {v!r}")
-    if isinstance(v, str):
-        try:
-            v = float(v)
-        except ValueError:
-            raise ConfigError(f"{where}: expected a number, got {v!r}") from None
-    if not isinstance(v, int | float) or not math.isfinite(v):
-        raise ConfigError(f"{where}: expected a finite number, got {v!r}")
-    return float(v)
-
-
 def _int(v: Any, where: str, lo: int) -> int:
-    x = _number(v, where)
+    x = number(v, where)
     if x != int(x):
         raise ConfigError(f"{where}: expected an integer, got {v!r}")
     if x < lo:
@@ -245,21 +183,21 @@ def _int(v: Any, where: str, lo: int) -> int:
 
 
 def _positive(v: Any, where: str) -> float:
-    x = _number(v, where)
+    x = number(v, where)
     if x <= 0:
         raise ConfigError(f"{where}: must be > 0, got {v!r}")
     return x
 
 
 def _nonneg(v: Any, where: str) -> float:
-    x = _number(v, where)
+    x = number(v, where)
     if x < 0:
         raise ConfigError(f"{where}: must be >= 0, got {v!r}")
     return x
 
 
 def _unit(v: Any, where: str) -> float:
-    x = _number(v, where)
+    x = number(v, where)
     if not 0 < x <= 1:
         raise ConfigError(f"{where}: must be in (0, 1], got {v!r}")
     return x
@@ -278,6 +216,8 @@ def _choice(v: Any, where: str, allowed: tuple[str, ...]) -> str:
 
 
 def _schedule(v: Any, where: str) -> Schedule:
+    if isinstance(v, Schedule):
+        return v
     if isinstance(v, str) and v.startswith("lin_"):
         return Schedule(_positive(v[4:], where), linear=True)
     return Schedule(_positive(v, where))
@@ -318,7 +258,7 @@ def _policy_kwargs(v: Any, where: str) -> PolicyKwargs:
     if "activation" in m:
         out["activation"] = _choice(m["activation"], f"{where}.activation", ACTIVATIONS)
     if "log_std_init" in m:
-        out["log_std_init"] = _number(m["log_std_init"], f"{where}.log_std_init")
+        out["log_std_init"] = number(m["log_std_init"], f"{where}.log_std_init")
     if "ortho_init" in m:
         out["ortho_init"] = _bool(m["ortho_init"], f"{where}.ortho_init")
     return PolicyKwargs(**out)
@@ -335,7 +275,7 @@ def _off_policy_kwargs(v: Any, where: str, sac: bool) -> OffPolicyKwargs:
     if "activation" in m:
         out["activation"] = _choice(m["activation"], f"{where}.activation", ACTIVATIONS)
     if m.get("log_std_init") is not None:
-        out["log_std_init"] = _number(m["log_std_init"], f"{where}.log_std_init")
+        out["log_std_init"] = number(m["log_std_init"], f"{where}.log_std_init")
     if "n_critics" in m:
         out["n_critics"] = _int(m["n_critics"], f"{where}.n_critics", 1)
     return OffPolicyKwargs(**out)
@@ -357,7 +297,7 @@ def _auto_or_number(v: Any, where: str, nonneg: bool) -> str | float:
         return "auto"
     if isinstance(v, str) and v.startswith("auto_") and nonneg:
         return f"auto_{_positive(v[5:], where)!r}"
-    return _nonneg(v, where) if nonneg else _number(v, where)
+    return _nonneg(v, where) if nonneg else number(v, where)
 
 
 def _normalize(v: Any, where: str) -> NormalizeConfig:
@@ -375,13 +315,55 @@ def _normalize(v: Any, where: str) -> NormalizeConfig:
     return NormalizeConfig(**out)
 
 
-_COMMON: dict[str, Any] = {
+def _gradient_steps(v: Any, where: str) -> int:
+    x = _int(v, where, -1)
+    if x == 0:
+        raise ConfigError(f"{where}: must be -1 (as many as env steps) or >= 1, got {v!r}")
+    return x
+
+
+_INT_MIN = {
+    "batch_size": 2,
+    "n_epochs": 1,
+    "n_steps": 1,
+    "buffer_size": 1,
+    "learning_starts": 0,
+    "train_freq": 1,
+    "sde_sample_freq": -1,
+    "policy_delay": 1,
+    "stats_window_size": 1,
+    "target_update_interval": 1,
+}
+_FLOAT_RANGE: dict[str, Any] = {
+    "gamma": _unit,
+    "gae_lambda": _unit,
+    "tau": _unit,
+    "vf_coef": _nonneg,
+    "max_grad_norm": _positive,
+    "target_kl": _positive,
+    "target_policy_noise": _nonneg,
+    "target_noise_clip": _nonneg,
+    "gradient_steps": _gradient_steps,
+    "ent_coef": lambda v, w: _auto_or_number(v, w, nonneg=True),
+    "target_entropy": lambda v, w: _auto_or_number(v, w, nonneg=False),
+}
+"""What SB3's signature does not say: the ranges a value must lie in (its name and type it does)."""
+
+
+def _range(algo: str, key: str, v: Any, where: str) -> Any:
+    """``v`` checked against the range of ``key`` (and ``auto_<x>`` written as ``auto_<float>``)."""
+    if v is None or isinstance(v, Schedule):
+        return v
+    lo = 2 if (algo, key) == ("ppo", "n_steps") else _INT_MIN.get(key)
+    if lo is not None:
+        return _int(v, where, lo)
+    return _FLOAT_RANGE[key](v, where) if key in _FLOAT_RANGE else v
+
+
+_RUN_KEYS: dict[str, Any] = {
     "n_timesteps": lambda v, w: _int(v, w, 1),
     "n_envs": lambda v, w: _int(v, w, 1),
     "policy": lambda v, w: _choice(v, w, POLICIES),
-    "learning_rate": _schedule,
-    "batch_size": lambda v, w: _int(v, w, 2),
-    "gamma": _unit,
     "normalize": _normalize,
     "env_kwargs": lambda v, w: dict(_mapping(v, w, set(map(str, v or {})))),
     "max_episode_steps": lambda v, w: None if v is None else _int(v, w, 1),
@@ -391,62 +373,7 @@ _COMMON: dict[str, Any] = {
     "checkpoint_freq": lambda v, w: _int(v, w, 1),
     "vec_env": lambda v, w: _choice(v, w, VEC_ENVS),
 }
-
-_CHECKS: dict[str, Any] = {
-    **_COMMON,
-    "n_steps": lambda v, w: _int(v, w, 2),
-    "n_epochs": lambda v, w: _int(v, w, 1),
-    "gae_lambda": _unit,
-    "clip_range": _schedule,
-    "ent_coef": _nonneg,
-    "vf_coef": _nonneg,
-    "max_grad_norm": _positive,
-    "target_kl": lambda v, w: None if v is None else _positive(v, w),
-    "use_sde": lambda v, w: _bool(v, w),
-    "sde_sample_freq": lambda v, w: _int(v, w, -1),
-    "policy_kwargs": _policy_kwargs,
-}
-assert set(_CHECKS) == {f.name for f in dataclasses.fields(PPOConfig)}
-
-
-def _gradient_steps(v: Any, where: str) -> int:
-    x = _int(v, where, -1)
-    if x == 0:
-        raise ConfigError(f"{where}: must be -1 (as many as env steps) or >= 1, got {v!r}")
-    return x
-
-
-_OFF_POLICY: dict[str, Any] = {
-    **_COMMON,
-    "buffer_size": lambda v, w: _int(v, w, 1),
-    "learning_starts": lambda v, w: _int(v, w, 0),
-    "tau": _unit,
-    "train_freq": lambda v, w: _int(v, w, 1),
-    "gradient_steps": _gradient_steps,
-    "action_noise": _action_noise,
-}
-_SAC_CHECKS: dict[str, Any] = {
-    **_OFF_POLICY,
-    "policy_kwargs": lambda v, w: _off_policy_kwargs(v, w, sac=True),
-    "ent_coef": lambda v, w: _auto_or_number(v, w, nonneg=True),
-    "target_entropy": lambda v, w: _auto_or_number(v, w, nonneg=False),
-    "use_sde": lambda v, w: _bool(v, w),
-    "sde_sample_freq": lambda v, w: _int(v, w, -1),
-}
-_TD3_CHECKS: dict[str, Any] = {
-    **_OFF_POLICY,
-    "policy_kwargs": lambda v, w: _off_policy_kwargs(v, w, sac=False),
-    "policy_delay": lambda v, w: _int(v, w, 1),
-    "target_policy_noise": _nonneg,
-    "target_noise_clip": _nonneg,
-}
-assert set(_SAC_CHECKS) == {f.name for f in dataclasses.fields(SACConfig)}
-assert set(_TD3_CHECKS) == {f.name for f in dataclasses.fields(TD3Config)}
-_ALGO: dict[str, tuple[type, dict[str, Any]]] = {
-    "ppo": (PPOConfig, _CHECKS),
-    "sac": (SACConfig, _SAC_CHECKS),
-    "td3": (TD3Config, _TD3_CHECKS),
-}
+"""The run's own settings (not SB3 arguments) and their checks."""
 
 
 def check_algo(algo: str) -> str:
@@ -457,17 +384,30 @@ def check_algo(algo: str) -> str:
 
 def parse_algo_config(algo: str, data: Any, where: str = "") -> AlgoConfig:
     """Validate one env id's entry for ``algo``; every error names ``where`` and the key."""
-    cls, checks = _ALGO[check_algo(algo)]
-    m = _mapping(data, where or f"{algo.upper()} config", set(checks))
-    kwargs = {k: checks[k](v, f"{where}.{k}" if where else k) for k, v in m.items()}
-    cfg: AlgoConfig = cls(**kwargs)
-    if isinstance(cfg, PPOConfig) and cfg.batch_size > cfg.rollout_size:
-        raise ConfigError(
-            f"{where}.batch_size: {cfg.batch_size} exceeds n_steps * n_envs = {cfg.rollout_size}"
+    check_algo(algo)
+    own = {**_RUN_KEYS, "policy_kwargs": None} | ({"action_noise": None} if algo != "ppo" else {})
+    m = _mapping(data, where or f"{algo.upper()} config", set(own) | set(parameters(algo)))
+    key = lambda k: f"{where}.{k}" if where else k  # noqa: E731
+    kwargs: dict[str, Any] = {k: _RUN_KEYS[k](v, key(k)) for k, v in m.items() if k in _RUN_KEYS}
+    if "policy_kwargs" in m:
+        pk = m["policy_kwargs"]
+        kwargs["policy_kwargs"] = (
+            _policy_kwargs(pk, key("policy_kwargs"))
+            if algo == "ppo"
+            else _off_policy_kwargs(pk, key("policy_kwargs"), sac=algo == "sac")
         )
-    if isinstance(cfg, OffPolicyConfig) and cfg.batch_size > cfg.buffer_size:
+    if "action_noise" in m:
+        kwargs["action_noise"] = _action_noise(m["action_noise"], key("action_noise"))
+    hp = check_hyperparams(algo, {k: v for k, v in m.items() if k not in own}, where, _schedule)
+    hp = {k: _range(algo, k, v, key(k)) for k, v in hp.items()}
+    cfg = AlgoConfig(algo=algo, hyperparams=hp, **kwargs)
+    if not cfg.off_policy and cfg["batch_size"] > cfg.rollout_size:
         raise ConfigError(
-            f"{where}.batch_size: {cfg.batch_size} exceeds buffer_size = {cfg.buffer_size}"
+            f"{where}.batch_size: {cfg['batch_size']} exceeds n_steps * n_envs = {cfg.rollout_size}"
+        )
+    if cfg.off_policy and cfg["batch_size"] > cfg["buffer_size"]:
+        raise ConfigError(
+            f"{where}.batch_size: {cfg['batch_size']} exceeds buffer_size = {cfg['buffer_size']}"
         )
     if cfg.n_eval_envs > cfg.n_eval_episodes:
         raise ConfigError(
@@ -476,11 +416,9 @@ def parse_algo_config(algo: str, data: Any, where: str = "") -> AlgoConfig:
     return cfg
 
 
-def parse_config(data: Any, where: str = "") -> PPOConfig:
+def parse_config(data: Any, where: str = "") -> AlgoConfig:
     """Validate one env id's PPO entry; every error names ``where`` (file and env id) and the key."""
-    cfg = parse_algo_config("ppo", data, where)
-    assert isinstance(cfg, PPOConfig)
-    return cfg
+    return parse_algo_config("ppo", data, where)
 
 
 def config_for(config: str | Path, algo: str) -> str | Path:
@@ -507,18 +445,26 @@ def resolve_config_path(config: str | Path) -> Path:
     return shipped
 
 
-def read_entry(config: str | Path, env_id: str) -> tuple[Path, Any]:
-    """(file, raw entry for ``env_id``) of a hyperparameter file (path or shipped name)."""
+def entries(config: str | Path) -> tuple[Path, Mapping[str, Any]]:
+    """(file, env id -> raw entry) of a hyperparameter file, its ``base:`` chain merged in;
+    ``.``-prefixed keys (shared YAML blocks) are left out."""
     path = resolve_config_path(config)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: malformed YAML: {exc}") from None
+    data = load_yaml(path)
     if not isinstance(data, Mapping):
         raise ConfigError(f"{path}: expected a mapping of env ids to hyperparameters")
+    return path, {str(k): v for k, v in data.items() if not str(k).startswith(".")}
+
+
+def env_ids(config: str | Path) -> list[str]:
+    """The env ids a hyperparameter file has entries for."""
+    return list(entries(config)[1])
+
+
+def read_entry(config: str | Path, env_id: str) -> tuple[Path, Any]:
+    """(file, raw entry for ``env_id``) of a hyperparameter file (path or shipped name)."""
+    path, data = entries(config)
     if env_id not in data:
-        ids = sorted(str(k) for k in data if not str(k).startswith("."))
-        raise ConfigError(f"{path}: no entry for env id {env_id!r}; have {ids}")
+        raise ConfigError(f"{path}: no entry for env id {env_id!r}; have {sorted(data)}")
     return path, data[env_id]
 
 
@@ -529,7 +475,7 @@ def load_algo_config(algo: str, config: str | Path, env_id: str) -> AlgoConfig:
     return parse_algo_config(algo, entry, f"{path}: {env_id}")
 
 
-def load_config(config: str | Path, env_id: str) -> PPOConfig:
+def load_config(config: str | Path, env_id: str) -> AlgoConfig:
     """The PPO entry for ``env_id`` in a hyperparameter file (path or shipped name)."""
     path, entry = read_entry(config, env_id)
     return parse_config(entry, f"{path}: {env_id}")

@@ -15,11 +15,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from rover_env.benchmark.scenarios import load_scenario, scenario_names
 from rover_env.benchmark.suite import run_benchmark
-from rover_env.config import ConfigError
+from rover_env.config import ConfigError, load_yaml
 from rover_env.policies.ppo import resolve_model_path
 from rover_env.policies.specs import parse_specs
 
@@ -55,7 +53,7 @@ def agent_spec(run_dir: str | Path, which: str = "best") -> str:
         return f"{algo}:{run / 'model.zip'}"
     if which != "best":
         raise ConfigError(f"which must be 'best' or 'final', got {which!r}")
-    data = yaml.safe_load((run / "config.yaml").read_text()) or {}
+    data = load_yaml(run / "config.yaml") or {}
     entry: dict[str, Any] = next(iter(data.values()), {}) or {}
     other = sorted(set(entry.get("env_kwargs") or {}) - _REWARD_ONLY)
     if other:

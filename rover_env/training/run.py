@@ -40,7 +40,7 @@ from stable_baselines3.common.logger import (
 from stable_baselines3.common.utils import set_random_seed
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
-from rover_env.config import ConfigError
+from rover_env.config import ConfigError, load_yaml
 from rover_env.training.algos import algo_class, build_model
 from rover_env.training.callbacks import (
     EpisodeLog,
@@ -52,7 +52,7 @@ from rover_env.training.callbacks import (
     set_rng_state,
     trim_csv,
 )
-from rover_env.training.config import AlgoConfig, OffPolicyConfig, check_algo, load_algo_config
+from rover_env.training.config import AlgoConfig, check_algo, load_algo_config
 from rover_env.training.envs import (
     check_env_kwargs,
     make_vec_env,
@@ -106,7 +106,7 @@ def _normalized(venv: VecEnv, cfg: AlgoConfig, training: bool) -> VecNormalize:
         norm_reward=training and n.enabled and n.norm_reward,
         clip_obs=n.clip_obs,
         clip_reward=n.clip_reward,
-        gamma=cfg.gamma,
+        gamma=cfg["gamma"],
         epsilon=n.epsilon,
     )
 
@@ -128,7 +128,7 @@ def _resolve_resume(
     cfg_file = run_dir / "config.yaml"
     if not cfg_file.is_file():
         raise ConfigError(f"cannot resume {run_dir}: no config.yaml (not a training run dir)")
-    ids = list(yaml.safe_load(cfg_file.read_text()) or {})
+    ids = list(load_yaml(cfg_file) or {})
     if len(ids) != 1:
         raise ConfigError(f"{cfg_file}: expected exactly one env id, got {ids}")
     run_env = str(ids[0])
@@ -250,7 +250,7 @@ def train(
             # seed=None: loading must not reseed; the checkpoint's RNG states are restored instead.
             model = algo_cls.load(str(model_p), env=vn, device="cpu", seed=None)
             model.seed = seed
-            if isinstance(cfg, OffPolicyConfig):
+            if cfg.off_policy:
                 rb_p = replay_buffer_path(ckpt_dir, start_step, algo)
                 if not rb_p.is_file():
                     raise ConfigError(

@@ -50,7 +50,7 @@ import yaml
 from optuna.trial import TrialState
 from stable_baselines3.common.callbacks import BaseCallback
 
-from rover_env.config import ConfigError
+from rover_env.config import ConfigError, load_yaml
 from rover_env.training.config import (
     check_algo,
     config_for,
@@ -126,11 +126,7 @@ class SearchResult:
 def load_space(path: str | Path, where: str | None = None) -> dict[str, dict[str, Any]]:
     """A search space from YAML ``{key: {choices: [...]} | {low, high, log?, int?}}``."""
     p = Path(path)
-    try:
-        data = yaml.safe_load(p.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f"{p}: cannot read the search space: {exc}") from None
-    return check_space(data, where or str(p))
+    return check_space(load_yaml(p), where or str(p))
 
 
 def check_space(data: Any, where: str) -> dict[str, dict[str, Any]]:

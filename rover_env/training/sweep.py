@@ -18,8 +18,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from rover_env.config import ConfigError
 from rover_env.executor import make_executor, run_study
 
@@ -53,11 +51,10 @@ def parse_seeds(text: str) -> list[int]:
 
 def default_env_id(config: str | Path) -> str:
     """The env id of a hyperparameter file with exactly one entry (else an error naming them)."""
-    from rover_env.training.config import resolve_config_path
+    from rover_env.training.config import entries
 
-    path = resolve_config_path(config)
-    data = yaml.safe_load(path.read_text()) or {}
-    ids = [str(k) for k in data if not str(k).startswith(".")]
+    path, data = entries(config)
+    ids = list(data)
     if len(ids) != 1:
         raise ConfigError(f"{path}: entries for {ids}; choose one with --env-id")
     return ids[0]

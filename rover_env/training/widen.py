@@ -32,7 +32,7 @@ import torch
 import yaml
 from stable_baselines3 import PPO
 
-from rover_env.config import ConfigError
+from rover_env.config import ConfigError, load_yaml
 
 __all__ = ["add_stall_clock", "widen_residual"]
 
@@ -40,10 +40,7 @@ __all__ = ["add_stall_clock", "widen_residual"]
 def _agent_config(src: Path) -> tuple[Path, str, dict[str, Any]]:
     """(config file, env id, its entry) of an agent or run folder's ``config.yaml``."""
     cfg_file = src / "config.yaml"
-    try:
-        data = yaml.safe_load(cfg_file.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f"{cfg_file}: cannot read the agent's config: {exc}") from None
+    data = load_yaml(cfg_file)
     if not isinstance(data, dict) or len(data) != 1:
         raise ConfigError(f"{cfg_file}: expected one env id entry")
     ((env_id, entry),) = data.items()
