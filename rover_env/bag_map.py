@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from rover_env.config import DRIVEN_WHEELS, JOINTS, WHEELS, configs_dir
+from rover_env.config import DRIVEN_WHEELS, JOINTS, WHEELS, ConfigError, configs_dir, load_yaml
 from rover_env.logs import LogError
 
 __all__ = [
