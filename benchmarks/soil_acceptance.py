@@ -8,7 +8,7 @@ only (Holm), and adds the exact McNemar test of the paired successes (a binary o
 which the Student-t interval is an approximation). Reads ``OUT/episodes.csv`` of
 ``rover-env benchmark --controllers open-loop,slip-pi:slip_pi_soil ... --out OUT``.
 
-    python benchmarks/soil_acceptance.py docs/benchmark-soil/test60
+    python benchmarks/soil_acceptance.py out/benchmark-soil-test
 """
 
 from __future__ import annotations
