@@ -150,7 +150,7 @@ class FastSampleLoop(_CoreCall):
         sensors: SensorConfig,
         timing: tuple[int, int, float, float],
     ) -> None:
-        super().__init__("env_step_samples", [_P] * 10, index, sensors, timing, sim._ctrl_vel)
+        super().__init__("env_step_samples", [_P] * 10, index, sensors, timing, sim.index.ctrl_vel)
         self.noise = np.zeros((self.samples, 11))
         self.theta = np.zeros(5)
         self.sums = np.zeros(13)
@@ -183,7 +183,7 @@ class FastSampleLoop(_CoreCall):
         if err == 0:
             return
         if err in (1, 2):
-            sim._check()  # raises with the warning's name
+            sim.check()  # raises with the warning's name
             raise SimulationError(f"non-finite state at t={sim.data.time:.3f}s")
         raise ValueError(f"slip estimator refused a sample at t={sim.data.time!r} (code {err})")
 
@@ -214,7 +214,7 @@ class FastBatchSampler(_CoreCall):
             "subtree_com": b.field("subtree_com"),
             "force": b.field("actuator_force"),
             "qvel": b.qvel,
-            "time": b._time,
+            "time": b.time_view,
         }
         v = BatchView()
         for name, a in arrays.items():

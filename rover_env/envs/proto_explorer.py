@@ -25,16 +25,8 @@ from rover_env.config import (
     load_terrain,
 )
 from rover_env.envs.fast_step import FastSampleLoop
-from rover_env.estimation.estimator import (
-    _WINDOW_SLACK,
-    FLAG_WARMUP,
-    EstimatorConfig,
-    SlipEstimate,
-    SlipEstimator,
-    _kinematic_part,
-    _lsq_slope,
-    _odometry_increments,
-)
+from rover_env.estimation.batch import BatchSlipEstimator
+from rover_env.estimation.estimator import EstimatorConfig, SlipEstimate
 from rover_env.estimation.fast import FastSlipEstimator
 from rover_env.estimation.sensors import SensorConfig, SensorModel
 from rover_env.sim.batch import RoverIndex
@@ -211,139 +203,6 @@ class EnvSettings:
         )
 
 
-# --------------------------------------------------------------------------- estimator
-
-
-class BatchSlipEstimator:
-    """``SlipEstimator.update`` for ``n`` rovers at once, each estimate computed on demand.
-
-    :meth:`push` takes one sample per listed rover (what ``update`` stores: the rate
-    window, the dead-reckoned pose); :meth:`estimate` returns what ``update`` would have
-    returned for each rover's newest sample, with the estimator's own functions
-    (``_lsq_slope``, ``_kinematic_part``) on arrays with a leading rover axis, bit for bit
-    (rovers whose windows hold the same number of samples share a call). Rate samples the
-    env never looks at are therefore never evaluated. Least-squares rates only.
-    """
-
-    def __init__(self, rover_cfg: RoverConfig, n: int, est_cfg: EstimatorConfig | None = None):
-        one = SlipEstimator(rover_cfg, est_cfg)
-        if one.est_cfg.rate_method != "lsq":
-            raise NotImplementedError("BatchSlipEstimator implements rate_method='lsq' only")
-        self.est_cfg = one.est_cfg
-        self.chain = one.chain
-        self.v_eps = one.v_eps
-        self.n = int(n)
-        self._limit = self.est_cfg.rate_window * (1 + _WINDOW_SLACK)
-        cap = 8
-        self._t = np.zeros((n, cap))
-        self._y = np.zeros((n, cap, 11))
-        self._count = np.zeros(n, dtype=np.int64)
-        self._started = np.zeros(n, dtype=bool)
-        self._t0 = np.zeros(n)
-        self._last_theta = np.zeros((n, 5))
-        self._pose = np.zeros((n, 3))
-        self._arange = np.arange(1024)
-
-    def reset(self, ids: ArrayLike | None = None) -> None:
-        """Forget rovers ``ids`` (default all): their next sample starts a new drive."""
-        sel = slice(None) if ids is None else np.asarray(ids, dtype=np.int64).reshape(-1)
-        self._count[sel] = 0
-        self._started[sel] = False
-        self._pose[sel] = 0.0
-
-    def _grow(self) -> None:
-        n, cap = self._t.shape
-        self._t = np.concatenate([np.zeros((n, cap)), self._t], axis=1)
-        self._y = np.concatenate([np.zeros((n, cap, 11)), self._y], axis=1)
-
-    def _rows(self, ids: ArrayLike | None) -> tuple[NDArray[np.int64] | slice, int]:
-        if ids is None:
-            return slice(None), self.n
-        sel = np.asarray(ids, dtype=np.int64).reshape(-1)
-        return sel, sel.size
-
-    def push(self, ids: ArrayLike | None, t: ArrayLike, phi: ArrayLike, theta: ArrayLike) -> None:
-        """One sample for each rover of ``ids`` (None: all): times (k,), wheel angles
-        (k, 6), joint angles (k, 5)."""
-        sel, k = self._rows(ids)
-        if k == 0:
-            return
-        t_a = np.array(t, dtype=np.float64).reshape(k)
-        y = np.empty((k, 11))
-        y[:, :6] = np.reshape(phi, (k, 6))
-        y[:, 6:] = np.reshape(theta, (k, 5))
-        if not (np.isfinite(y).all() and np.isfinite(t_a).all()):
-            raise ValueError("wheel and joint angles and time must be finite")
-        tb, yb, count = self._t, self._y, self._count
-        started = self._started[sel]
-        prev_t = tb[sel, -1]
-        back = started & (t_a <= prev_t)
-        if back.any():
-            i = int(np.flatnonzero(back)[0])
-            raise ValueError(f"time must increase: {prev_t[i]!r} then {t_a[i]!r}")
-        cnt = count[sel] + 1
-        cap = tb.shape[1]
-        if cnt.max() >= cap:
-            self._grow()
-            tb, yb, cap = self._t, self._y, 2 * cap
-        tb[sel, :-1] = tb[sel, 1:]
-        tb[sel, -1] = t_a
-        yb[sel, :-1] = yb[sel, 1:]
-        yb[sel, -1] = y
-        # The streaming window: the newest samples no older than the window (a suffix).
-        inside = (self._arange[:cap] >= cap - cnt[:, None]) & ~(
-            t_a[:, None] - tb[sel] > self._limit
-        )
-        count[sel] = inside.sum(axis=1)
-        # Dead reckoning from the free wheels' angle increments, as SlipEstimator.update.
-        if started.all():
-            rows: Any = sel
-            ds, dpsi = _odometry_increments(y[:, 4:6] - yb[sel, -2, 4:6], self.chain)
-        else:
-            idx = np.arange(self.n)[sel]
-            self._t0[idx[~started]] = t_a[~started]
-            rows = idx[started]
-            ds, dpsi = _odometry_increments(y[started, 4:6] - yb[rows, -2, 4:6], self.chain)
-        if ds.size:
-            pose = self._pose[rows]
-            heading = pose[:, 2] + dpsi / 2.0
-            step = np.empty_like(pose)
-            step[:, 0] = ds * np.array([math.cos(h) for h in heading.tolist()])
-            step[:, 1] = ds * np.array([math.sin(h) for h in heading.tolist()])
-            step[:, 2] = dpsi
-            self._pose[rows] = pose + step
-        self._last_theta[sel] = y[:, 6:]
-        self._started[sel] = True
-
-    def estimate(self, ids: ArrayLike | None = None) -> list[SlipEstimate]:
-        """The estimate at each listed rover's newest sample (as ``SlipEstimator.update``)."""
-        sel = np.arange(self.n) if ids is None else np.asarray(ids, dtype=np.int64).reshape(-1)
-        if not self._started[sel].all():
-            raise RuntimeError("estimate() needs at least one sample since reset")
-        cap = self._t.shape[1]
-        cnt = self._count[sel]
-        t = self._t[sel, -1]
-        y = self._y[sel, -1]
-        rates = np.empty((sel.size, 11))
-        for c in np.unique(cnt).tolist():
-            g = np.flatnonzero(cnt == c)
-            rows = sel[g]
-            tau = self._t[rows, cap - c :] - t[g, None]
-            z = self._y[rows, cap - c :] - y[g, None, :]
-            rates[g] = _lsq_slope(tau, z, np.ones(tau.shape, dtype=bool))
-        part = _kinematic_part(rates, self._last_theta[sel], self.chain, self.est_cfg, self.v_eps)
-        warm = (t - self._t0[sel]) < self.est_cfg.rate_window
-        part["flags"] = np.where(warm[:, None], part["flags"] | FLAG_WARMUP, part["flags"])
-        return [
-            SlipEstimate(
-                t=np.array(t[j]),
-                pose=self._pose[i].copy(),
-                **{name: v[j] for name, v in part.items()},
-            )
-            for j, i in enumerate(sel.tolist())
-        ]
-
-
 # --------------------------------------------------------------------------- step sums
 
 
@@ -402,8 +261,8 @@ class RoverEpisode:
     _command: Array
     _next_command_t: float
     _prev_action: Array
-    _est: SlipEstimate | None
-    _theta_meas: Array
+    last_estimate: SlipEstimate | None
+    theta_meas: Array
     _imu_rng: np.random.Generator
 
     def _configure(self, settings: EnvSettings, dt: float, arena_size: tuple[float, float]) -> None:
@@ -429,7 +288,7 @@ class RoverEpisode:
         self.max_wheel_speed = s.rover_cfg.motor.max_wheel_speed
         motor = s.rover_cfg.motor
         k = motor.voltage / motor.no_load_speed
-        self._copper = (k * motor.voltage / motor.stall_torque) / k**2  # R / K^2
+        self.copper = (k * motor.voltage / motor.stall_torque) / k**2  # R / K^2
         half = np.array(arena_size) / 2
         self._arena_half = half - 0.5
         self._prev_action = np.zeros(4)
@@ -438,14 +297,14 @@ class RoverEpisode:
         self.task: Task = RandomTracking(
             s.max_speed_command, s.max_yaw_rate_command, s.command_interval
         )
-        self._est = None
-        self._theta_meas = np.zeros(5)
+        self.last_estimate = None
+        self.theta_meas = np.zeros(5)
         self._imu_rng = np.random.default_rng(0)
 
-    def _timing(self) -> tuple[int, int, float, float]:
+    def timing(self) -> tuple[int, int, float, float]:
         """What the compiled sample loops need: substeps per sample, samples per step, the
         motors' copper-loss factor R/K^2 and the time a sample stands for."""
-        return self.substeps_per_sample, self.samples_per_step, self._copper, self.sample_dt
+        return self.substeps_per_sample, self.samples_per_step, self.copper, self.sample_dt
 
     @property
     def command(self) -> Array:
@@ -505,10 +364,10 @@ class RoverEpisode:
         v, w, self._next_command_t = self.task.command(rng, t)
         self._command = np.array([v, w])
 
-    def _read_sensors(self, phi: Array, theta: Array) -> tuple[Array, Array]:
+    def read_sensors(self, phi: Array, theta: Array) -> tuple[Array, Array]:
         """The rover's electronics on one sample; the joint reading is kept for controllers."""
         p, th = self.sensor_model.read(phi, theta)
-        self._theta_meas = th
+        self.theta_meas = th
         return p, th
 
     # --- reading one simulator (the single env always, the vector env on reset)
@@ -520,7 +379,7 @@ class RoverEpisode:
         ids: ArrayLike | None,
     ) -> None:
         d = sim.data
-        phi, theta = self._read_sensors(*index.phi_theta(d.sensordata))
+        phi, theta = self.read_sensors(*index.phi_theta(d.sensordata))
         est.push(ids, d.time, phi, theta)
 
     def _info_from(self, sim: RoverSim, index: RoverIndex, vel: Array) -> dict[str, Any]:
@@ -534,9 +393,9 @@ class RoverEpisode:
 
     def _obs_from(self, sim: RoverSim, index: RoverIndex) -> NDArray[np.float32]:
         d = sim.data
-        return self._observation(index.gravity(d.xmat), index.gyro_rates(d.sensordata))
+        return self.observation(index.gravity(d.xmat), index.gyro_rates(d.sensordata))
 
-    def _begin_episode(
+    def begin_episode(
         self,
         sim: RoverSim,
         index: RoverIndex,
@@ -552,12 +411,12 @@ class RoverEpisode:
         self._start_episode(rng)
         est.reset(ids)
         self._push_sample_from(sim, index, est, ids)
-        self._est = est.estimate(ids)[0]
+        self.last_estimate = est.estimate(ids)[0]
         info = self._info_from(sim, index, vel)
         return self._obs_from(sim, index), info
 
     # --- actions
-    def _targets(self, action: NDArray[Any]) -> Array:
+    def wheel_targets(self, action: NDArray[Any]) -> Array:
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         shape = (self.settings.n_act,)
         if a.shape != shape:
@@ -575,7 +434,7 @@ class RoverEpisode:
         return a
 
     # --- end of a step
-    def _finish_step(
+    def finish_step(
         self,
         a4: Array,
         sums: StepSums,
@@ -593,10 +452,10 @@ class RoverEpisode:
         wheel_sinkage: Array,
     ) -> tuple[float, bool, dict[str, Any]]:
         """Reward, termination and info of a step whose sums are ``sums[row]``; draws the next
-        command from ``rng`` when due. ``self._est`` must hold the step's last estimate."""
+        command from ``rng`` when due. ``self.last_estimate`` must hold the step's last estimate."""
         n = self.samples_per_step
         e_v, e_w = math.sqrt(sums.err_v2[row] / n), math.sqrt(sums.err_w2[row] / n)
-        est = self._est
+        est = self.last_estimate
         assert est is not None
         slip_abs_step = sums.slip[row] / n
         x = slip_abs_step.tolist()
@@ -660,7 +519,7 @@ class RoverEpisode:
         wheel_mu: Array,
         wheel_sinkage: Array,
     ) -> dict[str, Any]:
-        est = self._est
+        est = self.last_estimate
         assert est is not None
         return {
             "command": self._command.copy(),
@@ -674,9 +533,9 @@ class RoverEpisode:
             "wheel_sinkage": wheel_sinkage,
         }
 
-    def _observation(self, gravity: Array, gyro: Array) -> NDArray[np.float32]:
+    def observation(self, gravity: Array, gyro: Array) -> NDArray[np.float32]:
         """The observation vector from the IMU's attitude and rates (3, 3) and the estimate."""
-        est = self._est
+        est = self.last_estimate
         assert est is not None
         if self.imu_noise > 0:
             gravity = gravity + self._imu_rng.normal(0.0, self.imu_noise, gravity.shape)
@@ -684,7 +543,7 @@ class RoverEpisode:
         obs = np.concatenate(
             [
                 est.phi_rate,
-                self._theta_meas,
+                self.theta_meas,
                 est.theta_rate,
                 gravity.ravel(),
                 gyro.ravel(),
@@ -872,7 +731,7 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
         if self.sim.backend == "plugin":
             # The compiled fast path: estimator and sample loop in C (rover_env.envs.fast_step).
             self.estimator = FastSlipEstimator(self.rover_cfg, 1, EstimatorConfig())
-            self._fast = FastSampleLoop(self.sim, self._index, self.sensor_cfg, self._timing())
+            self._fast = FastSampleLoop(self.sim, self._index, self.sensor_cfg, self.timing())
         else:
             self.estimator = BatchSlipEstimator(self.rover_cfg, 1, EstimatorConfig())
         self._vel = np.zeros(6)  # scratch of mj_objectVelocity
@@ -888,7 +747,7 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[NDArray[np.float32], dict[str, Any]]:
         super().reset(seed=seed)
-        obs, info = self._begin_episode(
+        obs, info = self.begin_episode(
             self.sim, self._index, self.estimator, None, self.np_random, options, self._vel
         )
         if self._renderer is not None and self.randomize_terrain:
@@ -908,8 +767,8 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
     def step(
         self, action: NDArray[Any]
     ) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
-        a4 = self._targets(action)
-        if self._fast is not None and not self.sim._cmd_effects:
+        a4 = self.wheel_targets(action)
+        if self._fast is not None and not self.sim.has_command_effects:
             return self._step_fast(a4)
         sim, index, est, vel = self.sim, self._index, self.estimator, self._vel
         d = sim.data
@@ -932,12 +791,12 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
                 d.actuator_force[None, :4],
                 d.qvel[None, index.driven_dof],
                 slip[None],
-                self._copper,
+                self.copper,
                 self.sample_dt,
             )
-        self._est = est.estimate()[0]
+        self.last_estimate = est.estimate()[0]
         wt = sim.wheel_truth()
-        reward, terminated, info = self._finish_step(
+        reward, terminated, info = self.finish_step(
             a4,
             sums,
             0,
@@ -964,7 +823,7 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
         sim, index, fast = self.sim, self._index, self._fast
         assert fast is not None and isinstance(self.estimator, FastSlipEstimator)
         d = sim.data
-        # set_speed_targets without its checks: a4 is finite and in [-1, 1] (_targets).
+        # set_speed_targets without its checks: a4 is finite and in [-1, 1] (wheel_targets).
         sim.speed_targets[:] = a4 * self.max_wheel_speed
         pos0 = d.xpos[index.seg_body[1]].copy()
         phi0 = self.sensor_model.counter_zero
@@ -972,11 +831,11 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
             raise RuntimeError("step() before reset()")
         fast.draw_noise(self.sensor_model)
         fast.run(sim, self.estimator, sim.speed_targets, phi0, self._command)
-        self._theta_meas = fast.theta.copy()
+        self.theta_meas = fast.theta.copy()
         s = fast.sums
-        self._est = self.estimator.estimate_one(0)
+        self.last_estimate = self.estimator.estimate_one(0)
         f_z, contact = index.wheel_load(d.plugin_state)
-        reward, terminated, info = self._finish_step(
+        reward, terminated, info = self.finish_step(
             a4,
             StepSums.of_rows(s[None]),
             0,
@@ -1007,14 +866,14 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
         """The ``rover_env.control.ControllerInput`` a controller on the rover would see now.
 
         Built from the newest noisy sensor samples only: the estimator's last output
-        (``self._est``), the joint angles as the potentiometers read them and the current task
+        (``self.last_estimate``), the joint angles as the potentiometers read them and the current task
         command; never the simulator's truth. The IMU is taken from ``obs``, the observation
         the env just returned, when given (else left out): the env draws IMU noise when it
         builds an observation, and drawing again here would shift that noise stream.
         """
         from rover_env.control.base import ControllerInput
 
-        est = self._est
+        est = self.last_estimate
         assert est is not None
         gyro = gravity = None
         if obs is not None:
@@ -1024,7 +883,7 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
         return ControllerInput(
             t=float(est.t),
             estimate=est,
-            theta=self._theta_meas.copy(),
+            theta=self.theta_meas.copy(),
             speed_command=float(self._command[0]),
             yaw_rate_command=float(self._command[1]),
             imu_gyro=gyro,

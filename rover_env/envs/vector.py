@@ -179,7 +179,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         self.episodes = [_Episode(settings, self.sim.dt, arena) for _ in range(n)]
         e0 = self.episodes[0]
         self._sampler: FastBatchSampler | None = FastBatchSampler(
-            self.batch, self.index, settings.sensor_cfg, e0._timing()
+            self.batch, self.index, settings.sensor_cfg, e0.timing()
         )
         """The 50 Hz sample loop in C; None runs the numpy loop (the reference, same bits)."""
         self.terrains: list[Terrain] = [self.sim.terrain] * n
@@ -213,7 +213,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         ep = self.episodes[i]
         ep.seed(seed)
         sim = self.sim
-        obs, info = ep._begin_episode(
+        obs, info = ep.begin_episode(
             sim, self.index, self.estimator, [i], ep.np_random, options, self._vel
         )
         if self._models is not None:
@@ -318,11 +318,13 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         k = active.size
         every = k == self.num_envs
         rows = None if every else active
-        a4 = np.stack([ep._targets(acts[i]) for ep, i in zip(eps, active.tolist(), strict=True)])
+        a4 = np.stack(
+            [ep.wheel_targets(acts[i]) for ep, i in zip(eps, active.tolist(), strict=True)]
+        )
         lim = self.settings.rover_cfg.motor.max_wheel_speed
         b.speed_targets[active] = np.clip(a4 * eps[0].max_wheel_speed, -lim, lim)
         pos0 = self._pos[active]
-        command = np.stack([ep._command for ep in eps])
+        command = np.stack([ep.command for ep in eps])
         ep0 = eps[0]
         sums: StepSums
         if self._sampler is not None:
@@ -332,7 +334,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
                 self._sampler.sample(smp, est, bufs)
             theta_meas, s = bufs[5], bufs[6]
             for j, ep in enumerate(eps):
-                ep._theta_meas = theta_meas[j].copy()
+                ep.theta_meas = theta_meas[j].copy()
             sums = StepSums.of_rows(s)
             speed, yaw_rate, slip = s[:, 7], s[:, 8], s[:, 9:13]
         else:
@@ -345,11 +347,11 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         sinkage = ix.wheel_sinkage(b.plugin_state[active])
         gravity = ix.gravity(xmat)
         gyro = ix.gyro_rates(b.sensordata[active])
-        t = b._time[active]
+        t = b.time_view[active]
         infos: dict[int, dict[str, Any]] = {}
         for j, (i, ep) in enumerate(zip(active.tolist(), eps, strict=True)):
-            ep._est = estimates[j]
-            reward, terminated, info = ep._finish_step(
+            ep.last_estimate = estimates[j]
+            reward, terminated, info = ep.finish_step(
                 a4[j],
                 sums,
                 j,
@@ -367,7 +369,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
             )
             rewards[i] = reward
             terminations[i] = terminated
-            self._observations[i] = ep._observation(gravity[j], gyro[j])
+            self._observations[i] = ep.observation(gravity[j], gyro[j])
             infos[i] = info
         self._pos[active] = pos
         return infos
@@ -384,7 +386,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         ep0 = eps[0]
         k = active.size
         sums = StepSums(k)
-        sensordata, time, qvel, plugin_state = b.sensordata, b._time, b.qvel, b.plugin_state
+        sensordata, time, qvel, plugin_state = b.sensordata, b.time_view, b.qvel, b.plugin_state
         cvel, xipos, ximat = b.field("cvel"), b.field("xipos"), b.field("ximat")
         subtree_com, force = b.field("subtree_com"), b.field("actuator_force")
         slip = np.zeros((k, 4))
@@ -394,7 +396,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
             sd = sensordata[active]
             phi, theta = ix.phi_theta(sd)
             for j, ep in enumerate(eps):
-                phi[j], theta[j] = ep._read_sensors(phi[j], theta[j])
+                phi[j], theta[j] = ep.read_sensors(phi[j], theta[j])
             est.push(rows, time[active], phi, theta)
             speed, yaw_rate = ix.segment_velocity(
                 cvel[active], xipos[active], ximat[active], subtree_com[active]
@@ -407,7 +409,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
                 force[active, : ix.n_driven],
                 qvel[active][:, ix.driven_dof],
                 slip,
-                ep0._copper,
+                ep0.copper,
                 ep0.sample_dt,
             )
         return sums, speed, yaw_rate, slip
@@ -448,7 +450,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
 
     # ------------------------------------------------------------------ per-rover access
     def get_attr(self, name: str) -> tuple[Any, ...]:
-        """An attribute of every rover's episode (``np_random``, ``_command``, ...), as
+        """An attribute of every rover's episode (``np_random``, ``command``, ...), as
         ``SyncVectorEnv.get_attr`` gives the sub-envs'."""
         return tuple(getattr(ep, name) for ep in self.episodes)
 

@@ -48,10 +48,11 @@ class RoverIndex:
 
     def __init__(self, sim: RoverSim) -> None:
         m = sim.model
-        self.seg_body = sim._seg_body.copy()
-        self.seg_root = m.body_rootid[self.seg_body].copy()
-        self.driven_dof = sim._driven_dof.copy()
-        s = sim._sensor
+        ix = sim.index
+        self.seg_body = ix.seg_body.copy()
+        self.seg_root = ix.seg_root.copy()
+        self.driven_dof = ix.driven_dof.copy()
+        s = ix.sensor
         self.phi = np.array([s[f"phi_{w}"].start for w in WHEELS])
         self.theta = np.array([s[j].start for j in JOINTS])
         self.gyro = np.concatenate(
@@ -164,13 +165,14 @@ class BatchRoverSim:
         if self.batch.nstate != mujoco.mj_stateSize(self.model, _INTEGRATION):
             raise RuntimeError("mujoco.batch rows are not mjSTATE_INTEGRATION states")
         self._plugin = PluginView(self.model)
-        self._ctrl_vel = self.template._ctrl_vel
+        self._ctrl_vel = self.template.index.ctrl_vel
         self.qpos = self.batch.bind("qpos")
         """(n, nq) live view of the state rows."""
         self.qvel = self.batch.bind("qvel")
         self.ctrl = self.batch.bind("ctrl")
         self.plugin_state = self.batch.bind("plugin_state")
-        self._time = self.batch.bind("time")
+        self.time_view = self.batch.bind("time")
+        """(n,) live view of the rows' simulation times (:attr:`time` is a copy)."""
         self.sensordata = self.batch.bind("sensordata")
         """(n, nsensordata), read-only: refreshed by each call, one substep behind as with mj_step."""
         self._fields = {name: self.batch.bind(name) for name in derived}
@@ -203,7 +205,7 @@ class BatchRoverSim:
 
     @property
     def time(self) -> Array:
-        return self._time.copy()
+        return self.time_view.copy()
 
     def reset(
         self,
