@@ -1,10 +1,13 @@
-"""The single env's sample loop in C (``rover_env/sim/fast/env_core.c``: ``env_step_samples``).
+"""The compiled sample loop (``rover_env/sim/fast/env_core.c``) bound to the envs.
 
 One control step samples the rover ``samples_per_step`` times (50 Hz): physics, sensor
-model, estimator push, true speed, slip and energy sums. In numpy that cost twice the
-physics; here it is one C call per step. The arithmetic repeats the numpy loop's operation
-by operation (the vector env runs that loop and its tests compare the two bit for bit);
-sensor noise is drawn in numpy from the episode's generator in the same order as
+model, estimator push, true speed, slip and energy sums (:class:`rover_env.sim.sample.StepSample`).
+In numpy (:func:`rover_env.sim.sample.run_samples`) that cost twice the physics. In C one
+function, ``vec_sample``, is a sample of any rows; :class:`FastSampleLoop` runs a whole step
+of the single env in one call (``env_step_samples``: physics, then ``vec_sample`` on the
+MjData as one row), :class:`FastBatchSampler` one sample of the vector env's batch rows.
+The arithmetic repeats the numpy loop's operation by operation (tests compare the two bit for
+bit); sensor noise is drawn in numpy from the episode's generator in the same order as
 ``SensorModel.read`` draws it, so the numbers are those of the numpy loop.
 """
 
