@@ -19,7 +19,7 @@ from rover_env.envs.proto_explorer import OBS_NAMES
 from rover_env.envs.vector import ProtoExplorerVectorEnv
 from rover_env.estimation.batch import BatchSlipEstimator
 from rover_env.estimation.estimator import SlipEstimator
-from rover_env.sim.batch import RoverIndex
+from rover_env.sim.readers import RoverIndex
 from rover_env.sim.simulator import RoverSim
 
 pytestmark = pytest.mark.skipif(

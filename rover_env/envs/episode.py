@@ -15,7 +15,7 @@ from rover_env.estimation.batch import BatchSlipEstimator
 from rover_env.estimation.estimator import SlipEstimate
 from rover_env.estimation.fast import FastSlipEstimator
 from rover_env.estimation.sensors import SensorModel
-from rover_env.sim.batch import RoverIndex
+from rover_env.sim.readers import RoverIndex
 from rover_env.sim.sample import SimRows, StepSample, wheel_friction
 from rover_env.sim.simulator import RoverSim
 from rover_env.tasks.base import Task

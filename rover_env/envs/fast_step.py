@@ -22,8 +22,9 @@ from numpy.typing import NDArray
 
 from rover_env.estimation.fast import FastSlipEstimator
 from rover_env.estimation.sensors import SensorConfig
-from rover_env.sim.batch import BatchRoverSim, RoverIndex
+from rover_env.sim.batch import BatchRoverSim
 from rover_env.sim.fast.build import load_core
+from rover_env.sim.readers import RoverIndex
 from rover_env.sim.simulator import RoverSim, SimulationError
 
 if TYPE_CHECKING:

@@ -17,7 +17,7 @@ from rover_env.estimation.batch import BatchSlipEstimator
 from rover_env.estimation.estimator import EstimatorConfig
 from rover_env.estimation.fast import FastSlipEstimator
 from rover_env.estimation.sensors import SensorModel
-from rover_env.sim.batch import RoverIndex
+from rover_env.sim.readers import RoverIndex
 from rover_env.sim.sample import SimRows, StepSample, run_samples
 from rover_env.sim.simulator import RoverSim
 

@@ -13,11 +13,11 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Protocol
 
-import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from rover_env.sim.batch import BatchRoverSim, RoverIndex
+from rover_env.sim.batch import BatchRoverSim
+from rover_env.sim.readers import RoverIndex
 from rover_env.sim.simulator import RoverSim
 from rover_env.terrain import Terrain
 
@@ -139,7 +139,6 @@ class SimRows:
 
     def __init__(self, sim: RoverSim, index: RoverIndex) -> None:
         self.sim, self.index = sim, index
-        self._vel = np.zeros(6)  # scratch of mj_objectVelocity
 
     def position(self) -> Array:
         return self.sim.data.xpos[self.index.seg_body[1]][None].copy()
@@ -155,11 +154,11 @@ class SimRows:
         return phi[None], theta[None]
 
     def segment_velocity(self) -> tuple[Array, Array]:
-        """As ``sim.segment_truth()`` has them (``mj_objectVelocity``, local frame)."""
-        sim, vel = self.sim, self._vel
-        seg2 = int(self.index.seg_body[1])
-        mujoco.mj_objectVelocity(sim.model, sim.data, mujoco.mjtObj.mjOBJ_BODY, seg2, vel, 1)
-        return np.array([vel[3]]), np.array([vel[2]])
+        """:meth:`RoverIndex.segment_velocity` (``mj_objectVelocity``'s arithmetic)."""
+        d = self.sim.data
+        return self.index.segment_velocity(
+            d.cvel[None], d.xipos[None], d.ximat[None], d.subtree_com[None]
+        )
 
     def driven_slip(self) -> Array:
         if self.index.plugin is not None:
