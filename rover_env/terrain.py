@@ -32,6 +32,26 @@ class WheelContact(NamedTuple):
     """Tire compression along the normal (m); negative when the wheel is off the ground."""
 
 
+class TerrainArrays(NamedTuple):
+    """The numbers that define a :class:`Terrain`'s surface and patches (what the compiled
+    tire plugin's terrain block carries; read-only by convention)."""
+
+    gx: float
+    """Slope gradient dh/dx."""
+    gy: float
+    amp: Array
+    """Relief wave components: amplitude, wave vector (k, 2), phase, start of each wave."""
+    k: Array
+    phase: Array
+    start: Array
+    patch_lo: Array
+    """Friction/soil patches: lower and upper corners (p, 2), (mu_x, mu_y) (p, 2), soil
+    index (p,) (0: no soil, i: ``soils[i - 1]``)."""
+    patch_hi: Array
+    patch_mu: Array
+    patch_soil: NDArray[np.int64]
+
+
 class Terrain:
     """Ground surface h(x, y), its normal, and per-point friction."""
 
@@ -116,6 +136,21 @@ class Terrain:
     @property
     def has_soil(self) -> bool:
         return bool(self.soils)
+
+    def arrays(self) -> TerrainArrays:
+        """The surface's defining numbers (the compiled plugin's copy of this terrain)."""
+        return TerrainArrays(
+            self._gx,
+            self._gy,
+            self._amp,
+            self._k,
+            self._phase,
+            self._start,
+            self._patch_lo,
+            self._patch_hi,
+            self._patch_mu,
+            self._patch_soil,
+        )
 
     # ------------------------------------------------------------------ surface
     def height_and_gradient(self, x: Array, y: Array) -> tuple[Array, Array, Array]:

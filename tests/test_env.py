@@ -13,8 +13,9 @@ from gymnasium.utils.env_checker import check_env
 
 import rover_env
 from rover_env.config import FrictionPatch, TerrainConfig
-from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv, RewardWeights
+from rover_env.envs.proto_explorer import OBS_NAMES, ProtoExplorerEnv
 from rover_env.tasks import Task
+from rover_env.tasks.reward import RewardWeights
 
 gym.register_envs(rover_env)
 ID = "rover_env/ProtoExplorer-v0"

@@ -13,7 +13,8 @@ from _compare import same
 
 import rover_env
 from rover_env.config import FrictionPatch, TerrainConfig, load_rover
-from rover_env.envs.proto_explorer import BatchSlipEstimator, ProtoExplorerEnv
+from rover_env.envs.proto_explorer import ProtoExplorerEnv
+from rover_env.estimation.batch import BatchSlipEstimator
 from rover_env.estimation.fast import FastSlipEstimator
 from rover_env.estimation.sensors import SensorConfig
 

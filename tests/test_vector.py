@@ -15,10 +15,11 @@ from _compare import same
 
 import rover_env
 from rover_env.config import TerrainConfig, load_rover, load_terrain
-from rover_env.envs.proto_explorer import OBS_NAMES, BatchSlipEstimator
+from rover_env.envs.proto_explorer import OBS_NAMES
 from rover_env.envs.vector import ProtoExplorerVectorEnv
+from rover_env.estimation.batch import BatchSlipEstimator
 from rover_env.estimation.estimator import SlipEstimator
-from rover_env.sim.batch import RoverIndex
+from rover_env.sim.readers import RoverIndex
 from rover_env.sim.simulator import RoverSim
 
 pytestmark = pytest.mark.skipif(

@@ -128,7 +128,7 @@ def wrapper_for(scenario: str, layout: str, episode: Episode) -> ScenarioWrapper
     """This process's env for ``scenario`` with the given action layout (built once)."""
     key = (scenario, layout)
     if key not in _ENVS:
-        env = ProtoExplorerEnv(terrain=episode.terrain, action_layout=layout)  # type: ignore[arg-type]
+        env = ProtoExplorerEnv(terrain=episode.terrain, action_layout=layout)
         _ENVS[key] = ScenarioWrapper(env)
     return _ENVS[key]
 

@@ -52,7 +52,7 @@ def play(
     episode = load_scenario(scenario).episode(seed, duration)
     env = ProtoExplorerEnv(
         terrain=episode.terrain,
-        action_layout=ctrl.action_layout,  # type: ignore[arg-type]
+        action_layout=ctrl.action_layout,
         render_mode="rgb_array",
         width=width,
         height=height,

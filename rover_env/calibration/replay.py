@@ -359,7 +359,7 @@ class Replayer:
         m = s.model
         self.lead = settings.soil_lead if s.terrain.has_soil else 0.0
         """Unscored lead of every window (s): :attr:`ReplaySettings.soil_lead` on soil."""
-        self._seg3 = int(s._seg_body[2])
+        self._seg3 = int(s.index.seg_body[2])
         self._root_dofs = np.arange(6)
         self._nv = m.nv
 
@@ -377,8 +377,8 @@ class Replayer:
         s.reset(0.0, 0.0, yaw1, settle=0.0, theta=th)
         d.time = float(log.t[k0])
         qv = np.zeros(self._nv)
-        qv[s._wheel_dof] = p.phi_rate[k0]
-        qv[s._joint_dof] = p.theta_rate[k0]
+        qv[s.index.wheel_dof] = p.phi_rate[k0]
+        qv[s.index.joint_dof] = p.theta_rate[k0]
         # Segment 3's twist from its free wheels (no sideways, vertical, roll or pitch motion).
         g = s.phys_cfg.geometry
         r3 = _free_radius(s.phys_cfg)
@@ -395,7 +395,7 @@ class Replayer:
         rhs = target - jac @ qv
         qv[self._root_dofs] = np.linalg.solve(jac[:, self._root_dofs], rhs)
         d.qvel[:] = qv
-        s.set_setpoints(d.qpos[s._driven_qpos] + p.setpoint_err[k0])
+        s.set_setpoints(d.qpos[s.index.driven_qpos] + p.setpoint_err[k0])
         s.prime_commands(log.t[: k0 + 1], log.cmd[: k0 + 1])
         mujoco.mj_forward(m, d)
 
@@ -419,7 +419,7 @@ class Replayer:
         poses: dict[int, Array] = {}
         for k in range(w.k0, w.k1 + 1):
             if k in want:
-                rows[k] = np.concatenate([d.qpos[s._wheel_qpos], d.qpos[s._joint_qpos]])
+                rows[k] = np.concatenate([d.qpos[s.index.wheel_qpos], d.qpos[s.index.joint_qpos]])
                 if k in pose_k:
                     poses[k] = np.concatenate([d.xpos[self._seg3], d.xmat[self._seg3].reshape(9)])
             if k == w.k1:

@@ -80,7 +80,7 @@ def motor_power(sim: RoverSim) -> float:
     k = motor.voltage / motor.no_load_speed
     copper = (k * motor.voltage / motor.stall_torque) / k**2  # R / K^2
     tau = sim.motor_torque()
-    omega = sim.data.qvel[sim._driven_dof]
+    omega = sim.data.qvel[sim.index.driven_dof]
     return float(np.sum(np.maximum(tau * omega + copper * tau**2, 0.0)))
 
 

@@ -1,10 +1,13 @@
-"""The single env's sample loop in C (``rover_env/sim/fast/env_core.c``: ``env_step_samples``).
+"""The compiled sample loop (``rover_env/sim/fast/env_core.c``) bound to the envs.
 
 One control step samples the rover ``samples_per_step`` times (50 Hz): physics, sensor
-model, estimator push, true speed, slip and energy sums. In numpy that cost twice the
-physics; here it is one C call per step. The arithmetic repeats the numpy loop's operation
-by operation (the vector env runs that loop and its tests compare the two bit for bit);
-sensor noise is drawn in numpy from the episode's generator in the same order as
+model, estimator push, true speed, slip and energy sums (:class:`rover_env.sim.sample.StepSample`).
+In numpy (:func:`rover_env.sim.sample.run_samples`) that cost twice the physics. In C one
+function, ``vec_sample``, is a sample of any rows; :class:`FastSampleLoop` runs a whole step
+of the single env in one call (``env_step_samples``: physics, then ``vec_sample`` on the
+MjData as one row), :class:`FastBatchSampler` one sample of the vector env's batch rows.
+The arithmetic repeats the numpy loop's operation by operation (tests compare the two bit for
+bit); sensor noise is drawn in numpy from the episode's generator in the same order as
 ``SensorModel.read`` draws it, so the numbers are those of the numpy loop.
 """
 
@@ -19,8 +22,9 @@ from numpy.typing import NDArray
 
 from rover_env.estimation.fast import FastSlipEstimator
 from rover_env.estimation.sensors import SensorConfig
-from rover_env.sim.batch import BatchRoverSim, RoverIndex
+from rover_env.sim.batch import BatchRoverSim
 from rover_env.sim.fast.build import load_core
+from rover_env.sim.readers import RoverIndex
 from rover_env.sim.simulator import RoverSim, SimulationError
 
 if TYPE_CHECKING:
@@ -150,7 +154,7 @@ class FastSampleLoop(_CoreCall):
         sensors: SensorConfig,
         timing: tuple[int, int, float, float],
     ) -> None:
-        super().__init__("env_step_samples", [_P] * 10, index, sensors, timing, sim._ctrl_vel)
+        super().__init__("env_step_samples", [_P] * 10, index, sensors, timing, sim.index.ctrl_vel)
         self.noise = np.zeros((self.samples, 11))
         self.theta = np.zeros(5)
         self.sums = np.zeros(13)
@@ -183,7 +187,7 @@ class FastSampleLoop(_CoreCall):
         if err == 0:
             return
         if err in (1, 2):
-            sim._check()  # raises with the warning's name
+            sim.check()  # raises with the warning's name
             raise SimulationError(f"non-finite state at t={sim.data.time:.3f}s")
         raise ValueError(f"slip estimator refused a sample at t={sim.data.time!r} (code {err})")
 
@@ -214,7 +218,7 @@ class FastBatchSampler(_CoreCall):
             "subtree_com": b.field("subtree_com"),
             "force": b.field("actuator_force"),
             "qvel": b.qvel,
-            "time": b._time,
+            "time": b.time_view,
         }
         v = BatchView()
         for name, a in arrays.items():

@@ -2,714 +2,28 @@
 
 from __future__ import annotations
 
-import dataclasses
-import math
-from collections.abc import Sequence
-from pathlib import Path
-from typing import Any, ClassVar, Literal
+from typing import Any, Literal
 
 import gymnasium as gym
 import mujoco
 import numpy as np
 from gymnasium import spaces
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
-from rover_env.config import (
-    DRIVEN_WHEELS,
-    FrictionPatch,
-    Obstacle,
-    Roughness,
-    RoverConfig,
-    TerrainConfig,
-    load_rover,
-    load_terrain,
-)
+from rover_env.envs.episode import OBS_NAMES, RoverEpisode
 from rover_env.envs.fast_step import FastSampleLoop
-from rover_env.estimation.estimator import (
-    _WINDOW_SLACK,
-    FLAG_WARMUP,
-    EstimatorConfig,
-    SlipEstimate,
-    SlipEstimator,
-    _kinematic_part,
-    _lsq_slope,
-    _odometry_increments,
-)
+from rover_env.envs.settings import EnvOptions, EnvSettings
+from rover_env.estimation.batch import BatchSlipEstimator
+from rover_env.estimation.estimator import EstimatorConfig
 from rover_env.estimation.fast import FastSlipEstimator
-from rover_env.estimation.sensors import SensorConfig, SensorModel
-from rover_env.sim.batch import RoverIndex
+from rover_env.estimation.sensors import SensorModel
+from rover_env.sim.readers import RoverIndex
+from rover_env.sim.sample import SimRows, StepSample, run_samples
 from rover_env.sim.simulator import RoverSim
-from rover_env.tasks.base import Task
-from rover_env.tasks.reward import RewardWeights
-from rover_env.tasks.tracking import RandomTracking
-from rover_env.terrain import Terrain
+
+__all__ = ["OBS_NAMES", "EnvSettings", "ProtoExplorerEnv"]
 
 Array = NDArray[np.float64]
-
-OBS_NAMES: tuple[str, ...] = (
-    *(f"wheel_rate_{w}" for w in ("1L", "1R", "2L", "2R", "3L", "3R")),
-    *(f"theta_{i}" for i in range(1, 6)),
-    *(f"theta_{i}_rate" for i in range(1, 6)),
-    *(f"gravity_seg{s}_{a}" for s in (1, 2, 3) for a in "xyz"),
-    *(f"gyro_seg{s}_{a}" for s in (1, 2, 3) for a in "xyz"),
-    *(f"slip_estimate_{w}" for w in DRIVEN_WHEELS),
-    "speed_estimate",
-    "yaw_rate_estimate",
-    "command_speed",
-    "command_yaw_rate",
-    *(f"previous_action_{i}" for i in range(4)),
-)
-
-
-# --------------------------------------------------------------------------- settings
-
-
-@dataclasses.dataclass(frozen=True)
-class EnvSettings:
-    """The validated constructor arguments of the env, shared by its single and vector forms."""
-
-    rover_cfg: RoverConfig
-    base_terrain: TerrainConfig
-    randomize_terrain: bool
-    control_frequency: float
-    reward_weights: RewardWeights
-    slip_source: str
-    sensor_cfg: SensorConfig
-    imu_noise: float
-    action_layout: str
-    max_speed_command: float
-    max_yaw_rate_command: float
-    command_interval: tuple[float, float]
-    estimator_rate: float
-
-    MAX_SLOPE_DEG: ClassVar[float] = 5.0
-
-    @classmethod
-    def build(
-        cls,
-        rover: RoverConfig | str | Path = "proto_explorer",
-        terrain: TerrainConfig | str | Path = "flat",
-        control_frequency: float = 10.0,
-        reward_weights: RewardWeights | dict[str, float] | None = None,
-        slip_source: Literal["true", "estimate"] = "true",
-        sensor_noise: Literal["default", "none"] | SensorConfig = "default",
-        action_layout: Literal["wheels", "sides"] = "wheels",
-        max_speed_command: float = 0.2,
-        max_yaw_rate_command: float = 0.3,
-        command_interval: tuple[float, float] = (4.0, 8.0),
-        randomize_terrain: bool = False,
-        estimator_rate: float = 50.0,
-        imu_noise: float | None = None,
-        render_mode: str | None = None,
-        render_modes: Sequence[str] = (),
-    ) -> EnvSettings:
-        rover_cfg = rover if isinstance(rover, RoverConfig) else load_rover(rover)
-        base_terrain = terrain if isinstance(terrain, TerrainConfig) else load_terrain(terrain)
-        if randomize_terrain and base_terrain.is_flat:
-            raise ValueError("randomize_terrain needs a non-flat terrain (e.g. 'rough')")
-        if slip_source not in ("true", "estimate"):
-            raise ValueError(f"slip_source must be 'true' or 'estimate', got {slip_source!r}")
-        if action_layout not in ("wheels", "sides"):
-            raise ValueError(f"action_layout must be 'wheels' or 'sides', got {action_layout!r}")
-        if not (math.isfinite(control_frequency) and control_frequency > 0):
-            raise ValueError(f"control_frequency must be > 0, got {control_frequency!r}")
-        if render_mode is not None and render_mode not in render_modes:
-            raise ValueError(f"render_mode must be one of {list(render_modes)}")
-        weights = (
-            reward_weights
-            if isinstance(reward_weights, RewardWeights)
-            else RewardWeights(**(reward_weights or {}))
-        )
-        sensor_cfg = (
-            sensor_noise
-            if isinstance(sensor_noise, SensorConfig)
-            else {"default": SensorConfig(), "none": SensorConfig.ideal()}[sensor_noise]
-        )
-        # IMU white noise (rad/s on rates, and on the unit gravity vector): MEMS-class.
-        imu = (0.0 if sensor_noise == "none" else 0.002) if imu_noise is None else imu_noise
-        if not (math.isfinite(imu) and imu >= 0):
-            raise ValueError(f"imu_noise must be finite and >= 0, got {imu_noise!r}")
-        interval = (float(command_interval[0]), float(command_interval[1]))
-        if not 0 < interval[0] <= interval[1]:
-            raise ValueError(f"command_interval must be 0 < min <= max, got {command_interval}")
-        return cls(
-            rover_cfg=rover_cfg,
-            base_terrain=base_terrain,
-            randomize_terrain=bool(randomize_terrain),
-            control_frequency=control_frequency,
-            reward_weights=weights,
-            slip_source=slip_source,
-            sensor_cfg=sensor_cfg,
-            imu_noise=imu,
-            action_layout=action_layout,
-            max_speed_command=float(max_speed_command),
-            max_yaw_rate_command=float(max_yaw_rate_command),
-            command_interval=interval,
-            estimator_rate=estimator_rate,
-        )
-
-    @property
-    def n_act(self) -> int:
-        return 4 if self.action_layout == "wheels" else 2
-
-    def first_terrain(self) -> TerrainConfig:
-        """The terrain the simulator is compiled with (the envelope when randomising)."""
-        base = self.base_terrain
-        return self.envelope_terrain(base) if self.randomize_terrain else base
-
-    def envelope_terrain(self, base: TerrainConfig) -> TerrainConfig:
-        """The steepest terrain the randomiser can draw: sizes the compiled heightfield."""
-        rough = dataclasses.replace(base.roughness, rms=0.04)
-        return dataclasses.replace(
-            base, slope_deg=(self.MAX_SLOPE_DEG, self.MAX_SLOPE_DEG), roughness=rough
-        )
-
-    def random_terrain(self, rng: np.random.Generator) -> TerrainConfig:
-        base = self.base_terrain
-        sx, sy = base.size
-        patches = []
-        for i in range(int(rng.integers(2, 5))):
-            mu_x = float(rng.uniform(0.1, 0.45))
-            patches.append(
-                FrictionPatch(
-                    name=f"patch{i}",
-                    center=(
-                        float(rng.uniform(-sx / 3, sx / 3)),
-                        float(rng.uniform(-sy / 3, sy / 3)),
-                    ),
-                    size=(float(rng.uniform(1.0, 4.0)), float(rng.uniform(1.0, 4.0))),
-                    mu_x=mu_x,
-                    mu_y=mu_x * 1.25,
-                )
-            )
-        obstacles = []
-        for ob in base.obstacles:
-            r = float(rng.uniform(2.0, min(sx, sy) / 2 - 1.0))
-            a = float(rng.uniform(-np.pi, np.pi))
-            obstacles.append(
-                Obstacle(
-                    name=ob.name,
-                    pos=(r * math.cos(a), r * math.sin(a), ob.pos[2]),
-                    size=ob.size,
-                    yaw_deg=float(rng.uniform(-180, 180)),
-                )
-            )
-        return dataclasses.replace(
-            base,
-            slope_deg=(
-                float(rng.uniform(-self.MAX_SLOPE_DEG, self.MAX_SLOPE_DEG)),
-                float(rng.uniform(-self.MAX_SLOPE_DEG, self.MAX_SLOPE_DEG)),
-            ),
-            roughness=Roughness(
-                rms=float(rng.uniform(0.005, 0.04)),
-                correlation_length=base.roughness.correlation_length,
-                modes=base.roughness.modes,
-                seed=int(rng.integers(2**31)),
-            ),
-            patches=tuple(patches),
-            obstacles=tuple(obstacles),
-        )
-
-
-# --------------------------------------------------------------------------- estimator
-
-
-class BatchSlipEstimator:
-    """``SlipEstimator.update`` for ``n`` rovers at once, each estimate computed on demand.
-
-    :meth:`push` takes one sample per listed rover (what ``update`` stores: the rate
-    window, the dead-reckoned pose); :meth:`estimate` returns what ``update`` would have
-    returned for each rover's newest sample, with the estimator's own functions
-    (``_lsq_slope``, ``_kinematic_part``) on arrays with a leading rover axis, bit for bit
-    (rovers whose windows hold the same number of samples share a call). Rate samples the
-    env never looks at are therefore never evaluated. Least-squares rates only.
-    """
-
-    def __init__(self, rover_cfg: RoverConfig, n: int, est_cfg: EstimatorConfig | None = None):
-        one = SlipEstimator(rover_cfg, est_cfg)
-        if one.est_cfg.rate_method != "lsq":
-            raise NotImplementedError("BatchSlipEstimator implements rate_method='lsq' only")
-        self.est_cfg = one.est_cfg
-        self.chain = one.chain
-        self.v_eps = one.v_eps
-        self.n = int(n)
-        self._limit = self.est_cfg.rate_window * (1 + _WINDOW_SLACK)
-        cap = 8
-        self._t = np.zeros((n, cap))
-        self._y = np.zeros((n, cap, 11))
-        self._count = np.zeros(n, dtype=np.int64)
-        self._started = np.zeros(n, dtype=bool)
-        self._t0 = np.zeros(n)
-        self._last_theta = np.zeros((n, 5))
-        self._pose = np.zeros((n, 3))
-        self._arange = np.arange(1024)
-
-    def reset(self, ids: ArrayLike | None = None) -> None:
-        """Forget rovers ``ids`` (default all): their next sample starts a new drive."""
-        sel = slice(None) if ids is None else np.asarray(ids, dtype=np.int64).reshape(-1)
-        self._count[sel] = 0
-        self._started[sel] = False
-        self._pose[sel] = 0.0
-
-    def _grow(self) -> None:
-        n, cap = self._t.shape
-        self._t = np.concatenate([np.zeros((n, cap)), self._t], axis=1)
-        self._y = np.concatenate([np.zeros((n, cap, 11)), self._y], axis=1)
-
-    def _rows(self, ids: ArrayLike | None) -> tuple[NDArray[np.int64] | slice, int]:
-        if ids is None:
-            return slice(None), self.n
-        sel = np.asarray(ids, dtype=np.int64).reshape(-1)
-        return sel, sel.size
-
-    def push(self, ids: ArrayLike | None, t: ArrayLike, phi: ArrayLike, theta: ArrayLike) -> None:
-        """One sample for each rover of ``ids`` (None: all): times (k,), wheel angles
-        (k, 6), joint angles (k, 5)."""
-        sel, k = self._rows(ids)
-        if k == 0:
-            return
-        t_a = np.array(t, dtype=np.float64).reshape(k)
-        y = np.empty((k, 11))
-        y[:, :6] = np.reshape(phi, (k, 6))
-        y[:, 6:] = np.reshape(theta, (k, 5))
-        if not (np.isfinite(y).all() and np.isfinite(t_a).all()):
-            raise ValueError("wheel and joint angles and time must be finite")
-        tb, yb, count = self._t, self._y, self._count
-        started = self._started[sel]
-        prev_t = tb[sel, -1]
-        back = started & (t_a <= prev_t)
-        if back.any():
-            i = int(np.flatnonzero(back)[0])
-            raise ValueError(f"time must increase: {prev_t[i]!r} then {t_a[i]!r}")
-        cnt = count[sel] + 1
-        cap = tb.shape[1]
-        if cnt.max() >= cap:
-            self._grow()
-            tb, yb, cap = self._t, self._y, 2 * cap
-        tb[sel, :-1] = tb[sel, 1:]
-        tb[sel, -1] = t_a
-        yb[sel, :-1] = yb[sel, 1:]
-        yb[sel, -1] = y
-        # The streaming window: the newest samples no older than the window (a suffix).
-        inside = (self._arange[:cap] >= cap - cnt[:, None]) & ~(
-            t_a[:, None] - tb[sel] > self._limit
-        )
-        count[sel] = inside.sum(axis=1)
-        # Dead reckoning from the free wheels' angle increments, as SlipEstimator.update.
-        if started.all():
-            rows: Any = sel
-            ds, dpsi = _odometry_increments(y[:, 4:6] - yb[sel, -2, 4:6], self.chain)
-        else:
-            idx = np.arange(self.n)[sel]
-            self._t0[idx[~started]] = t_a[~started]
-            rows = idx[started]
-            ds, dpsi = _odometry_increments(y[started, 4:6] - yb[rows, -2, 4:6], self.chain)
-        if ds.size:
-            pose = self._pose[rows]
-            heading = pose[:, 2] + dpsi / 2.0
-            step = np.empty_like(pose)
-            step[:, 0] = ds * np.array([math.cos(h) for h in heading.tolist()])
-            step[:, 1] = ds * np.array([math.sin(h) for h in heading.tolist()])
-            step[:, 2] = dpsi
-            self._pose[rows] = pose + step
-        self._last_theta[sel] = y[:, 6:]
-        self._started[sel] = True
-
-    def estimate(self, ids: ArrayLike | None = None) -> list[SlipEstimate]:
-        """The estimate at each listed rover's newest sample (as ``SlipEstimator.update``)."""
-        sel = np.arange(self.n) if ids is None else np.asarray(ids, dtype=np.int64).reshape(-1)
-        if not self._started[sel].all():
-            raise RuntimeError("estimate() needs at least one sample since reset")
-        cap = self._t.shape[1]
-        cnt = self._count[sel]
-        t = self._t[sel, -1]
-        y = self._y[sel, -1]
-        rates = np.empty((sel.size, 11))
-        for c in np.unique(cnt).tolist():
-            g = np.flatnonzero(cnt == c)
-            rows = sel[g]
-            tau = self._t[rows, cap - c :] - t[g, None]
-            z = self._y[rows, cap - c :] - y[g, None, :]
-            rates[g] = _lsq_slope(tau, z, np.ones(tau.shape, dtype=bool))
-        part = _kinematic_part(rates, self._last_theta[sel], self.chain, self.est_cfg, self.v_eps)
-        warm = (t - self._t0[sel]) < self.est_cfg.rate_window
-        part["flags"] = np.where(warm[:, None], part["flags"] | FLAG_WARMUP, part["flags"])
-        return [
-            SlipEstimate(
-                t=np.array(t[j]),
-                pose=self._pose[i].copy(),
-                **{name: v[j] for name, v in part.items()},
-            )
-            for j, i in enumerate(sel.tolist())
-        ]
-
-
-# --------------------------------------------------------------------------- step sums
-
-
-class StepSums:
-    """What a control step accumulates over its estimator samples, for ``n`` rovers."""
-
-    def __init__(self, n: int) -> None:
-        self.err_v2 = np.zeros(n)
-        self.err_w2 = np.zeros(n)
-        self.energy = np.zeros(n)
-        self.slip = np.zeros((n, 4))
-
-    @classmethod
-    def of_rows(cls, rows: Array) -> StepSums:
-        """Sums viewing ``rows`` (n, 7+) = (err_v2, err_w2, energy, slip x 4, ...) per rover."""
-        out = cls.__new__(cls)
-        out.err_v2, out.err_w2, out.energy = rows[:, 0], rows[:, 1], rows[:, 2]
-        out.slip = rows[:, 3:7]
-        return out
-
-    def add(
-        self,
-        command: Array,
-        speed: Array,
-        yaw_rate: Array,
-        tau: Array,
-        omega: Array,
-        slip: Array,
-        copper: float,
-        h: float,
-    ) -> None:
-        """One sample: commands (n, 2), true speed and yaw rate (n,), motor torque and speed
-        (n, 4), true slip of the driven wheels (n, 4); h the time the sample stands for."""
-        dv = command[:, 0] - speed
-        dw = command[:, 1] - yaw_rate
-        # Scalar powers, as the single env has always squared (libm pow, not x * x).
-        for i in range(dv.shape[0]):
-            self.err_v2[i] += dv[i] ** 2
-            self.err_w2[i] += dw[i] ** 2
-        power = np.sum(np.maximum(tau * omega + copper * tau**2, 0.0), axis=-1)
-        self.energy += power * h
-        self.slip += np.abs(slip)
-
-
-# --------------------------------------------------------------------------- per-rover logic
-
-
-class RoverEpisode:
-    """One rover's episode state and the env's logic on it: commands, actions, reward, info
-    and observation from values read off the simulation. ``ProtoExplorerEnv`` is one; the
-    vector env keeps one per rover, so both compute the same numbers the same way.
-    """
-
-    settings: EnvSettings
-    sensor_model: SensorModel
-    _command: Array
-    _next_command_t: float
-    _prev_action: Array
-    _est: SlipEstimate | None
-    _theta_meas: Array
-    _imu_rng: np.random.Generator
-
-    def _configure(self, settings: EnvSettings, dt: float, arena_size: tuple[float, float]) -> None:
-        """Everything that follows from the settings and the simulator's timestep."""
-        s = self.settings = settings
-        self.rover_cfg = s.rover_cfg
-        self.base_terrain = s.base_terrain
-        self.randomize_terrain = s.randomize_terrain
-        self.slip_source = s.slip_source
-        self.action_layout = s.action_layout
-        self.reward_weights = s.reward_weights
-        self.sensor_cfg = s.sensor_cfg
-        self.imu_noise = s.imu_noise
-        self.max_speed_command = s.max_speed_command
-        self.max_yaw_rate_command = s.max_yaw_rate_command
-        self.command_interval = s.command_interval
-        self.substeps_per_sample = max(1, round(1.0 / (s.estimator_rate * dt)))
-        self.samples_per_step = max(
-            1, round(1.0 / (s.control_frequency * dt * self.substeps_per_sample))
-        )
-        self.control_dt = self.samples_per_step * self.substeps_per_sample * dt
-        self.sample_dt = self.substeps_per_sample * dt
-        self.max_wheel_speed = s.rover_cfg.motor.max_wheel_speed
-        motor = s.rover_cfg.motor
-        k = motor.voltage / motor.no_load_speed
-        self._copper = (k * motor.voltage / motor.stall_torque) / k**2  # R / K^2
-        half = np.array(arena_size) / 2
-        self._arena_half = half - 0.5
-        self._prev_action = np.zeros(4)
-        self._command = np.zeros(2)
-        self._next_command_t = 0.0
-        self.task: Task = RandomTracking(
-            s.max_speed_command, s.max_yaw_rate_command, s.command_interval
-        )
-        self._est = None
-        self._theta_meas = np.zeros(5)
-        self._imu_rng = np.random.default_rng(0)
-
-    def _timing(self) -> tuple[int, int, float, float]:
-        """What the compiled sample loops need: substeps per sample, samples per step, the
-        motors' copper-loss factor R/K^2 and the time a sample stands for."""
-        return self.substeps_per_sample, self.samples_per_step, self._copper, self.sample_dt
-
-    @property
-    def command(self) -> Array:
-        """The task's current command (forward speed m/s, yaw rate rad/s), a copy."""
-        return self._command.copy()
-
-    def set_task(self, task: Task) -> None:
-        """The task of the episodes from the next ``reset`` on (:mod:`rover_env.tasks`); its
-        reward weights, when it has its own, replace the env's ``reward_weights``."""
-        if not isinstance(task, Task):
-            raise TypeError(f"set_task needs a rover_env.tasks.Task, got {type(task).__name__}")
-        self.task = task
-
-    # --- episode start
-    def _start_pose(
-        self,
-        rng: np.random.Generator,
-        options: dict[str, Any] | None,
-        default: tuple[float, float, float] | None = None,
-    ) -> tuple:
-        opts = options or {}
-        unknown = set(opts) - {"x", "y", "yaw"}
-        if unknown:
-            raise ValueError(f"reset options: unknown key(s) {sorted(unknown)}; allowed x, y, yaw")
-        x0, y0, yaw0 = default if default is not None else (0.0, 0.0, None)
-        if "yaw" in opts:
-            yaw = float(opts["yaw"])
-        elif yaw0 is not None:
-            yaw = float(yaw0)
-        else:
-            yaw = float(rng.uniform(-np.pi, np.pi))
-        return float(opts.get("x", x0)), float(opts.get("y", y0)), yaw
-
-    def _reset_sim(
-        self, sim: RoverSim, rng: np.random.Generator, options: dict[str, Any] | None
-    ) -> None:
-        """This episode's terrain and start pose (the task's, else drawn) and ``sim`` there."""
-        self.reward_weights = self.task.reward_weights or self.settings.reward_weights
-        setup = self.task.setup(rng)
-        if setup.terrain is not None:
-            if sim.terrain_cfg != setup.terrain:
-                sim.set_terrain(setup.terrain)
-        elif self.randomize_terrain:
-            sim.set_terrain(self.settings.random_terrain(rng))
-        x, y, yaw = self._start_pose(rng, options, setup.start)
-        sim.reset(x=x, y=y, yaw=yaw)
-
-    def _start_episode(self, rng: np.random.Generator) -> None:
-        """Sensors, IMU noise stream, previous action and first command of a new episode."""
-        sensor_seed = int(rng.integers(2**63))
-        self.sensor_model = SensorModel(self.sensor_cfg, np.random.default_rng(sensor_seed))
-        self._imu_rng = np.random.default_rng(sensor_seed + 1)
-        self._prev_action = np.zeros(4)
-        self._new_command(rng, 0.0)
-
-    def _new_command(self, rng: np.random.Generator, t: float) -> None:
-        v, w, self._next_command_t = self.task.command(rng, t)
-        self._command = np.array([v, w])
-
-    def _read_sensors(self, phi: Array, theta: Array) -> tuple[Array, Array]:
-        """The rover's electronics on one sample; the joint reading is kept for controllers."""
-        p, th = self.sensor_model.read(phi, theta)
-        self._theta_meas = th
-        return p, th
-
-    # --- reading one simulator (the single env always, the vector env on reset)
-    def _push_sample_from(
-        self,
-        sim: RoverSim,
-        index: RoverIndex,
-        est: BatchSlipEstimator | FastSlipEstimator,
-        ids: ArrayLike | None,
-    ) -> None:
-        d = sim.data
-        phi, theta = self._read_sensors(*index.phi_theta(d.sensordata))
-        est.push(ids, d.time, phi, theta)
-
-    def _info_from(self, sim: RoverSim, index: RoverIndex, vel: Array) -> dict[str, Any]:
-        """The info of a new episode, read off ``sim`` (``vel``: scratch of 6)."""
-        speed, yaw_rate = segment_velocity(sim, index, vel)
-        wt = sim.wheel_truth()
-        mu = wheel_friction(sim.terrain, wt.contact_point)
-        return self._static_info(
-            speed, yaw_rate, sim.data.xpos[index.seg_body[1]], wt.F_z.copy(), mu, wt.sinkage.copy()
-        )
-
-    def _obs_from(self, sim: RoverSim, index: RoverIndex) -> NDArray[np.float32]:
-        d = sim.data
-        return self._observation(index.gravity(d.xmat), index.gyro_rates(d.sensordata))
-
-    def _begin_episode(
-        self,
-        sim: RoverSim,
-        index: RoverIndex,
-        est: BatchSlipEstimator | FastSlipEstimator,
-        ids: ArrayLike | None,
-        rng: np.random.Generator,
-        options: dict[str, Any] | None,
-        vel: Array,
-    ) -> tuple[NDArray[np.float32], dict[str, Any]]:
-        """A new episode on ``sim`` (rows ``ids`` of ``est``): terrain, start pose,
-        sensors, first command and sample; returns the first observation and info."""
-        self._reset_sim(sim, rng, options)
-        self._start_episode(rng)
-        est.reset(ids)
-        self._push_sample_from(sim, index, est, ids)
-        self._est = est.estimate(ids)[0]
-        info = self._info_from(sim, index, vel)
-        return self._obs_from(sim, index), info
-
-    # --- actions
-    def _targets(self, action: NDArray[Any]) -> Array:
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
-        shape = (self.settings.n_act,)
-        if a.shape != shape:
-            raise ValueError(f"action must have shape {shape}, got {a.shape}")
-        bad = ~np.isfinite(a)
-        if bad.any():
-            names = DRIVEN_WHEELS if self.action_layout == "wheels" else ("left", "right")
-            raise ValueError(
-                "action has non-finite entries: "
-                + ", ".join(f"{names[i]}={a[i]}" for i in np.flatnonzero(bad))
-            )
-        a = np.clip(a, -1.0, 1.0)
-        if self.action_layout == "sides":
-            a = np.array([a[0], a[1], a[0], a[1]])
-        return a
-
-    # --- end of a step
-    def _finish_step(
-        self,
-        a4: Array,
-        sums: StepSums,
-        row: int,
-        slip_true: Array,
-        pos0: Array,
-        pos: Array,
-        flipped: bool,
-        t: float,
-        rng: np.random.Generator,
-        speed: float,
-        yaw_rate: float,
-        wheel_F_z: Array,
-        wheel_mu: Array,
-        wheel_sinkage: Array,
-    ) -> tuple[float, bool, dict[str, Any]]:
-        """Reward, termination and info of a step whose sums are ``sums[row]``; draws the next
-        command from ``rng`` when due. ``self._est`` must hold the step's last estimate."""
-        n = self.samples_per_step
-        e_v, e_w = math.sqrt(sums.err_v2[row] / n), math.sqrt(sums.err_w2[row] / n)
-        est = self._est
-        assert est is not None
-        slip_abs_step = sums.slip[row] / n
-        x = slip_abs_step.tolist()
-        slip_mean = (((x[0] + x[1]) + x[2]) + x[3]) / 4  # np.mean's sum and division, cheaper
-        mean_abs_slip = (
-            slip_mean if self.slip_source == "true" else float(np.mean(np.abs(est.slip_ratio)))
-        )
-        w = self.reward_weights
-        k_w = math.exp(-((e_w / w.sigma_yaw_rate) ** 2))
-        r_track = w.tracking * 0.5 * (math.exp(-((e_v / w.sigma_speed) ** 2)) + k_w)
-        if w.yaw_tracking:
-            r_track += w.yaw_tracking * k_w
-        r_slip = -w.slip * w.slip_penalty(mean_abs_slip)
-        energy = float(sums.energy[row])
-        r_energy = -w.energy * energy / self.control_dt
-        path = float(np.linalg.norm(pos[:2] - pos0[:2]))
-        reward = r_track + r_slip + r_energy
-        extra: dict[str, float] = {}
-        against = speed * float(self._command[0]) < 0
-        if w.progress:
-            # The benchmark's progress: a step moving against the command counts negative.
-            extra["reward_progress"] = w.progress * (-path if against else path) / self.control_dt
-            reward += extra["reward_progress"]
-        if w.stall_energy:
-            v_cmd = abs(float(self._command[0]))
-            p = (-path if against else path) / self.control_dt
-            idle = min(max(1.0 - p / v_cmd, 0.0), 1.0) if v_cmd > 1e-6 else 0.0
-            extra["reward_stall_energy"] = -w.stall_energy * idle * energy / self.control_dt
-            reward += extra["reward_stall_energy"]
-        if w.sinkage:
-            extra["reward_sinkage"] = -w.sinkage * 1000.0 * float(np.mean(wheel_sinkage))
-            reward += extra["reward_sinkage"]
-        self._prev_action = a4
-        out = bool(abs(pos[0]) > self._arena_half[0] or abs(pos[1]) > self._arena_half[1])
-        if t >= self._next_command_t:
-            self._new_command(rng, t)
-        info = self._static_info(speed, yaw_rate, pos, wheel_F_z, wheel_mu, wheel_sinkage)
-        info.update(
-            reward_tracking=r_track,
-            reward_slip=r_slip,
-            reward_energy=r_energy,
-            tracking_error_speed=e_v,
-            tracking_error_yaw_rate=e_w,
-            slip_true=slip_true,
-            slip_true_mean_abs=slip_mean,
-            slip_abs_step=slip_abs_step,
-            energy=energy,
-            distance=path,
-            flipped=flipped,
-            out_of_arena=out,
-            **extra,
-        )
-        return float(reward), bool(flipped or out), info
-
-    def _static_info(
-        self,
-        speed: float,
-        yaw_rate: float,
-        position: Array,
-        wheel_F_z: Array,
-        wheel_mu: Array,
-        wheel_sinkage: Array,
-    ) -> dict[str, Any]:
-        est = self._est
-        assert est is not None
-        return {
-            "command": self._command.copy(),
-            "slip_estimate": est.slip_ratio.copy(),
-            "slip_estimate_reliable": est.reliable.copy(),
-            "speed": float(speed),
-            "yaw_rate": float(yaw_rate),
-            "position": position.copy(),
-            "wheel_F_z": wheel_F_z,
-            "wheel_mu": wheel_mu,
-            "wheel_sinkage": wheel_sinkage,
-        }
-
-    def _observation(self, gravity: Array, gyro: Array) -> NDArray[np.float32]:
-        """The observation vector from the IMU's attitude and rates (3, 3) and the estimate."""
-        est = self._est
-        assert est is not None
-        if self.imu_noise > 0:
-            gravity = gravity + self._imu_rng.normal(0.0, self.imu_noise, gravity.shape)
-            gyro = gyro + self._imu_rng.normal(0.0, self.imu_noise, gyro.shape)
-        obs = np.concatenate(
-            [
-                est.phi_rate,
-                self._theta_meas,
-                est.theta_rate,
-                gravity.ravel(),
-                gyro.ravel(),
-                est.slip_ratio,
-                [est.seg_velocity[1, 0], est.seg_yaw_rate[1]],
-                self._command,
-                self._prev_action,
-            ]
-        )
-        return obs.astype(np.float32)
-
-
-def segment_velocity(sim: RoverSim, index: RoverIndex, vel: Array) -> tuple[Any, Any]:
-    """Forward speed and yaw rate of the middle segment, as ``sim.segment_truth()`` has them
-    (``vel``: a scratch array of 6)."""
-    seg2 = int(index.seg_body[1])
-    mujoco.mj_objectVelocity(sim.model, sim.data, mujoco.mjtObj.mjOBJ_BODY, seg2, vel, 1)
-    return vel[3], vel[2]
-
-
-def wheel_friction(terrain: Terrain, contact_point: Array) -> Array:
-    """Ground friction (mu_x, mu_y) under each wheel's contact point, (..., 2)."""
-    out = np.empty((*contact_point.shape[:-1], 2))
-    out[..., 0], out[..., 1], _ = terrain.friction(contact_point[..., 0], contact_point[..., 1])
-    return out
 
 
 class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.float32]]):
@@ -750,21 +64,14 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
     contact forces, ground friction under each wheel) is only in ``info``.
 
     ## Rewards
-    Each step: ``reward = reward_tracking + reward_slip + reward_energy`` with
-    ``reward_tracking = w_track * (exp(-(e_v/0.05)^2) + exp(-(e_w/0.1)^2)) / 2``,
-    ``reward_slip = -w_slip * mean |S|`` over the driven wheels (the simulator's true slip,
-    or the estimate with ``slip_source="estimate"``; with ``slip_scale`` s > 0 the penalty is
-    ``-w_slip * s * ln(1 + mean |S| / s)``, linear below s and logarithmic above) and
-    ``reward_energy = -w_energy * P``
-    with P the motors' electrical power (W). With non-zero ``progress``, ``yaw_tracking`` or
-    ``sinkage`` weights (the *mobility* reward, :class:`rover_env.tasks.RewardWeights`) the
-    reward adds ``w_yaw * exp(-(e_w/0.1)^2)``, ``reward_progress = w_progress * p`` (p the
-    step's path speed, m/s, negative against the command) and ``reward_sinkage = -w_sink *``
-    mean sinkage (mm); these two terms are then in ``info``. ``stall_energy`` adds
-    ``reward_stall_energy = -w_stall * P * clip(1 - p / |v_cmd|, 0, 1)``: the power not
-    turned into progress at the commanded pace (zero for a command without speed). e_v, e_w: RMS over the step of
-    commanded minus actual forward speed (m/s) and yaw rate (rad/s) of the middle segment. Weights:
-    ``reward_weights`` (``RewardWeights``, default 1, 1, 0.02; slip_scale 0: linear).
+    Each step the task's reward of what the step did (:class:`rover_env.tasks.reward.StepResult`):
+    ``reward_tracking`` (speed and yaw-rate tracking errors e_v, e_w, RMS over the step of
+    commanded minus actual, middle segment), ``reward_slip`` (mean |S| of the driven wheels,
+    the simulator's true slip or the estimate with ``slip_source="estimate"``) and
+    ``reward_energy`` (the motors' electrical power), plus ``reward_progress``,
+    ``reward_stall_energy`` and ``reward_sinkage`` when their weights are non-zero (the
+    *mobility* reward); each term is one function of :mod:`rover_env.tasks.reward`, whose
+    :class:`~rover_env.tasks.RewardWeights` (``reward_weights``) documents the formula.
 
     ## Starting state
     At rest at the arena centre, heading uniform in [-pi, pi), joints straight, after 0.5 s
@@ -827,55 +134,30 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
 
     def __init__(
         self,
-        rover: RoverConfig | str | Path = "proto_explorer",
-        terrain: TerrainConfig | str | Path = "flat",
-        control_frequency: float = 10.0,
-        reward_weights: RewardWeights | dict[str, float] | None = None,
-        slip_source: Literal["true", "estimate"] = "true",
-        sensor_noise: Literal["default", "none"] | SensorConfig = "default",
-        action_layout: Literal["wheels", "sides"] = "wheels",
-        max_speed_command: float = 0.2,
-        max_yaw_rate_command: float = 0.3,
-        command_interval: tuple[float, float] = (4.0, 8.0),
-        randomize_terrain: bool = False,
-        estimator_rate: float = 50.0,
-        imu_noise: float | None = None,
         backend: Literal["auto", "plugin", "numpy"] = "auto",
         render_mode: str | None = None,
         width: int = 640,
         height: int = 480,
+        **options: Any,
     ) -> None:
+        """``options``: :class:`~rover_env.envs.settings.EnvOptions` (## Arguments)."""
         settings = EnvSettings.build(
-            rover=rover,
-            terrain=terrain,
-            control_frequency=control_frequency,
-            reward_weights=reward_weights,
-            slip_source=slip_source,
-            sensor_noise=sensor_noise,
-            action_layout=action_layout,
-            max_speed_command=max_speed_command,
-            max_yaw_rate_command=max_yaw_rate_command,
-            command_interval=command_interval,
-            randomize_terrain=randomize_terrain,
-            estimator_rate=estimator_rate,
-            imu_noise=imu_noise,
-            render_mode=render_mode,
-            render_modes=self.metadata["render_modes"],
+            EnvOptions(**options), render_mode, self.metadata["render_modes"]
         )
         self.sim = RoverSim(settings.rover_cfg, settings.first_terrain(), backend=backend)
         self._configure(settings, self.sim.dt, self.sim.terrain_cfg.size)
         self.metadata = {**self.metadata, "render_fps": round(1.0 / self.control_dt)}
         self.sensor_model = SensorModel(self.sensor_cfg, np.random.default_rng(0))
         self._index = RoverIndex(self.sim)
+        self._rows = SimRows(self.sim, self._index)
         self.estimator: BatchSlipEstimator | FastSlipEstimator
         self._fast: FastSampleLoop | None = None
         if self.sim.backend == "plugin":
             # The compiled fast path: estimator and sample loop in C (rover_env.envs.fast_step).
             self.estimator = FastSlipEstimator(self.rover_cfg, 1, EstimatorConfig())
-            self._fast = FastSampleLoop(self.sim, self._index, self.sensor_cfg, self._timing())
+            self._fast = FastSampleLoop(self.sim, self._index, self.sensor_cfg, self.timing())
         else:
             self.estimator = BatchSlipEstimator(self.rover_cfg, 1, EstimatorConfig())
-        self._vel = np.zeros(6)  # scratch of mj_objectVelocity
         self.action_space = spaces.Box(-1.0, 1.0, (settings.n_act,), dtype=np.float32)
         self.observation_space = spaces.Box(-np.inf, np.inf, (len(OBS_NAMES),), dtype=np.float32)
         self.render_mode = render_mode
@@ -888,133 +170,71 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[NDArray[np.float32], dict[str, Any]]:
         super().reset(seed=seed)
-        obs, info = self._begin_episode(
-            self.sim, self._index, self.estimator, None, self.np_random, options, self._vel
+        obs, info = self.begin_episode(
+            self.sim, self._index, self.estimator, None, self.np_random, options
         )
         if self._renderer is not None and self.randomize_terrain:
             self._upload_terrain()
         return obs, info
 
-    def _sample(self) -> SlipEstimate:
-        """Read the sensors now, feed the estimator and return its estimate."""
-        self._push_sample_from(self.sim, self._index, self.estimator, None)
-        return self.estimator.estimate()[0]
-
-    def _driven_slip(self) -> Array:
-        if self._index.plugin is not None:
-            return self._index.driven_slip(self.sim.data.plugin_state)
-        return self.sim.wheel_truth().S[:4]
-
     def step(
         self, action: NDArray[Any]
     ) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
-        a4 = self._targets(action)
-        if self._fast is not None and not self.sim._cmd_effects:
-            return self._step_fast(a4)
-        sim, index, est, vel = self.sim, self._index, self.estimator, self._vel
-        d = sim.data
-        sim.set_speed_targets(a4 * self.max_wheel_speed)
-        seg2 = index.seg_body[1]
-        pos0 = d.xpos[seg2].copy()
-        sums = StepSums(1)
-        command = self._command[None]
-        speed = yaw_rate = np.float64(0.0)
-        slip = np.zeros(4)
-        for _ in range(self.samples_per_step):
-            sim.step(self.substeps_per_sample)
-            self._push_sample_from(sim, index, est, None)
-            speed, yaw_rate = segment_velocity(sim, index, vel)
-            slip = self._driven_slip()
-            sums.add(
-                command,
-                np.array([speed]),
-                np.array([yaw_rate]),
-                d.actuator_force[None, :4],
-                d.qvel[None, index.driven_dof],
-                slip[None],
-                self._copper,
+        a4 = self.wheel_targets(action)
+        sim, rows = self.sim, self._rows
+        pos0 = rows.position()
+        if self._fast is not None and not sim.has_command_effects:
+            sample = self._samples_in_c(a4, pos0)
+        else:
+            sim.set_speed_targets(a4 * self.max_wheel_speed)
+            sample = run_samples(
+                rows,
+                pos0,
+                self.samples_per_step,
+                self.substeps_per_sample,
+                self._command[None],
+                [self.sensor_model],
+                self.estimator,
+                None,
+                self.copper,
                 self.sample_dt,
             )
-        self._est = est.estimate()[0]
-        wt = sim.wheel_truth()
-        reward, terminated, info = self._finish_step(
-            a4,
-            sums,
-            0,
-            slip.copy(),
-            pos0,
-            d.xpos[seg2].copy(),
-            sim.flipped(),
-            sim.time,
-            self.np_random,
-            speed,
-            yaw_rate,
-            wt.F_z.copy(),
-            wheel_friction(sim.terrain, wt.contact_point),
-            wt.sinkage.copy(),
-        )
+            self.last_estimate = self.estimator.estimate()[0]
+        self.theta_meas = sample.theta[0].copy()
+        rows.finish(sample)
+        reward, terminated, info = self.finish_step(a4, sample, 0, self.np_random)
         if self.render_mode == "human":
             self.render()
-        return self._obs(), reward, terminated, self.task.truncated(sim.time), info
+        obs = self._obs_from(sim, self._index)
+        return obs, reward, terminated, self.task.truncated(sim.time), info
 
-    def _step_fast(
-        self, a4: Array
-    ) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
-        """``step`` after the action, with the sample loop in C (same numbers, see fast_step)."""
-        sim, index, fast = self.sim, self._index, self._fast
+    def _samples_in_c(self, a4: Array, pos0: Array) -> StepSample:
+        """The step's samples by the compiled loop (same numbers, see fast_step)."""
+        sim, fast = self.sim, self._fast
         assert fast is not None and isinstance(self.estimator, FastSlipEstimator)
-        d = sim.data
-        # set_speed_targets without its checks: a4 is finite and in [-1, 1] (_targets).
+        # set_speed_targets without its checks: a4 is finite and in [-1, 1] (wheel_targets).
         sim.speed_targets[:] = a4 * self.max_wheel_speed
-        pos0 = d.xpos[index.seg_body[1]].copy()
         phi0 = self.sensor_model.counter_zero
         if phi0 is None:
             raise RuntimeError("step() before reset()")
         fast.draw_noise(self.sensor_model)
         fast.run(sim, self.estimator, sim.speed_targets, phi0, self._command)
-        self._theta_meas = fast.theta.copy()
-        s = fast.sums
-        self._est = self.estimator.estimate_one(0)
-        f_z, contact = index.wheel_load(d.plugin_state)
-        reward, terminated, info = self._finish_step(
-            a4,
-            StepSums.of_rows(s[None]),
-            0,
-            s[9:13].copy(),
-            pos0,
-            d.xpos[index.seg_body[1]].copy(),
-            bool((d.xmat[index.seg_body, 8] < index.max_tilt_cos).any()),
-            sim.time,
-            self.np_random,
-            s[7],
-            s[8],
-            f_z,
-            wheel_friction(sim.terrain, contact),
-            index.wheel_sinkage(d.plugin_state),
-        )
-        if self.render_mode == "human":
-            self.render()
-        return self._obs(), reward, terminated, self.task.truncated(sim.time), info
-
-    def _info_static(self) -> dict[str, Any]:
-        return self._info_from(self.sim, self._index, self._vel)
-
-    def _obs(self) -> NDArray[np.float32]:
-        return self._obs_from(self.sim, self._index)
+        self.last_estimate = self.estimator.estimate_one(0)
+        return StepSample.of_rows(fast.sums[None], fast.theta[None], pos0)
 
     # --- controller adapter (issue 6)
     def controller_input(self, obs: NDArray[np.floating[Any]] | None = None) -> Any:
         """The ``rover_env.control.ControllerInput`` a controller on the rover would see now.
 
         Built from the newest noisy sensor samples only: the estimator's last output
-        (``self._est``), the joint angles as the potentiometers read them and the current task
+        (``self.last_estimate``), the joint angles as the potentiometers read them and the current task
         command; never the simulator's truth. The IMU is taken from ``obs``, the observation
         the env just returned, when given (else left out): the env draws IMU noise when it
         builds an observation, and drawing again here would shift that noise stream.
         """
         from rover_env.control.base import ControllerInput
 
-        est = self._est
+        est = self.last_estimate
         assert est is not None
         gyro = gravity = None
         if obs is not None:
@@ -1024,7 +244,7 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
         return ControllerInput(
             t=float(est.t),
             estimate=est,
-            theta=self._theta_meas.copy(),
+            theta=self.theta_meas.copy(),
             speed_command=float(self._command[0]),
             yaw_rate_command=float(self._command[1]),
             imu_gyro=gyro,

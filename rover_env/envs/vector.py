@@ -12,7 +12,7 @@ How:
 * Physics: one :class:`~rover_env.sim.batch.BatchRoverSim` steps every running rover on a
   thread pool (the tire plugin inside each ``mj_step``), one estimator sample at a time.
 * Everything per episode (terrain draw, start pose, settling, sensor and IMU noise streams,
-  commands, reward, info, observation) is :class:`~rover_env.envs.proto_explorer.RoverEpisode`
+  commands, reward, info, observation) is :class:`~rover_env.envs.episode.RoverEpisode`
   logic, the very code ``ProtoExplorerEnv`` runs, one object per rover. Resets run on one
   template ``RoverSim`` whose settled state (plugin state included) is copied into the
   rover's batch row; with per-episode terrain (``randomize_terrain``, the rough variant)
@@ -28,7 +28,6 @@ How:
 from __future__ import annotations
 
 import copy
-from pathlib import Path
 from typing import Any, Literal
 
 import mujoco
@@ -39,21 +38,16 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from rover_env.config import RoverConfig, TerrainConfig
+from rover_env.envs.episode import OBS_NAMES, RoverEpisode
 from rover_env.envs.fast_step import FastBatchSampler
-from rover_env.envs.proto_explorer import (
-    OBS_NAMES,
-    EnvSettings,
-    RewardWeights,
-    RoverEpisode,
-    StepSums,
-    wheel_friction,
-)
+from rover_env.envs.settings import EnvOptions, EnvSettings
 from rover_env.estimation.estimator import EstimatorConfig
 from rover_env.estimation.fast import FastSlipEstimator
-from rover_env.estimation.sensors import SensorConfig, SensorModel
+from rover_env.estimation.sensors import SensorModel
 from rover_env.seeds import check_split, split_of
-from rover_env.sim.batch import BatchRoverSim, RoverIndex
+from rover_env.sim.batch import BatchRoverSim
+from rover_env.sim.readers import RoverIndex
+from rover_env.sim.sample import BatchRows, StepSample, run_samples
 from rover_env.sim.simulator import RoverSim, resolve_auto_backend
 from rover_env.terrain import Terrain
 
@@ -103,8 +97,8 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         backend: ``"auto"`` or ``"plugin"``: ``mujoco.batch`` needs the compiled tire plugin
             (Python physics callbacks are refused there), so ``"numpy"`` is refused.
         render_mode: None only.
-        **kwargs: ``ProtoExplorerEnv``'s arguments (rover, terrain, control_frequency,
-            reward_weights, slip_source, sensor_noise, action_layout, ...).
+        **options: :class:`~rover_env.envs.settings.EnvOptions`, the single env's (rover, terrain,
+            control_frequency, reward_weights, slip_source, sensor_noise, ...).
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}  # noqa: RUF012
@@ -114,23 +108,11 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         num_envs: int = 1,
         max_episode_steps: int | None = None,
         nthread: int = 0,
-        rover: RoverConfig | str | Path = "proto_explorer",
-        terrain: TerrainConfig | str | Path = "flat",
-        control_frequency: float = 10.0,
-        reward_weights: RewardWeights | dict[str, float] | None = None,
-        slip_source: Literal["true", "estimate"] = "true",
-        sensor_noise: Literal["default", "none"] | SensorConfig = "default",
-        action_layout: Literal["wheels", "sides"] = "wheels",
-        max_speed_command: float = 0.2,
-        max_yaw_rate_command: float = 0.3,
-        command_interval: tuple[float, float] = (4.0, 8.0),
-        randomize_terrain: bool = False,
-        estimator_rate: float = 50.0,
-        imu_noise: float | None = None,
         backend: Literal["auto", "plugin"] = "auto",
         render_mode: str | None = None,
         width: int = 640,
         height: int = 480,
+        **options: Any,
     ) -> None:
         if int(num_envs) < 1:
             raise ValueError(f"num_envs must be >= 1, got {num_envs}")
@@ -138,21 +120,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
             raise ValueError(f"max_episode_steps must be >= 1 or None, got {max_episode_steps}")
         del width, height  # rendering is not supported here
         settings = EnvSettings.build(
-            rover=rover,
-            terrain=terrain,
-            control_frequency=control_frequency,
-            reward_weights=reward_weights,
-            slip_source=slip_source,
-            sensor_noise=sensor_noise,
-            action_layout=action_layout,
-            max_speed_command=max_speed_command,
-            max_yaw_rate_command=max_yaw_rate_command,
-            command_interval=command_interval,
-            randomize_terrain=randomize_terrain,
-            estimator_rate=estimator_rate,
-            imu_noise=imu_noise,
-            render_mode=render_mode,
-            render_modes=self.metadata["render_modes"],
+            EnvOptions(**options), render_mode, self.metadata["render_modes"]
         )
         if backend not in ("auto", "plugin"):
             raise ValueError(
@@ -179,7 +147,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         self.episodes = [_Episode(settings, self.sim.dt, arena) for _ in range(n)]
         e0 = self.episodes[0]
         self._sampler: FastBatchSampler | None = FastBatchSampler(
-            self.batch, self.index, settings.sensor_cfg, e0._timing()
+            self.batch, self.index, settings.sensor_cfg, e0.timing()
         )
         """The 50 Hz sample loop in C; None runs the numpy loop (the reference, same bits)."""
         self.terrains: list[Terrain] = [self.sim.terrain] * n
@@ -202,7 +170,6 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         self._elapsed = np.zeros(n, dtype=np.int64)
         self._autoreset = np.zeros(n, dtype=bool)
         self._pos = np.zeros((n, 3))
-        self._vel = np.zeros(6)
         self._ran_reset = False
 
     # ------------------------------------------------------------------ reset
@@ -213,9 +180,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         ep = self.episodes[i]
         ep.seed(seed)
         sim = self.sim
-        obs, info = ep._begin_episode(
-            sim, self.index, self.estimator, [i], ep.np_random, options, self._vel
-        )
+        obs, info = ep.begin_episode(sim, self.index, self.estimator, [i], ep.np_random, options)
         if self._models is not None:
             self._models[i] = copy.copy(sim.model)
             self.terrains[i] = sim.terrain
@@ -317,100 +282,46 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         eps = [self.episodes[i] for i in active.tolist()]
         k = active.size
         every = k == self.num_envs
-        rows = None if every else active
-        a4 = np.stack([ep._targets(acts[i]) for ep, i in zip(eps, active.tolist(), strict=True)])
+        a4 = np.stack(
+            [ep.wheel_targets(acts[i]) for ep, i in zip(eps, active.tolist(), strict=True)]
+        )
         lim = self.settings.rover_cfg.motor.max_wheel_speed
         b.speed_targets[active] = np.clip(a4 * eps[0].max_wheel_speed, -lim, lim)
         pos0 = self._pos[active]
-        command = np.stack([ep._command for ep in eps])
+        command = np.stack([ep.command for ep in eps])
         ep0 = eps[0]
-        sums: StepSums
+        rows = BatchRows(b, ix, active, every)
         if self._sampler is not None:
             bufs = self._sampler.begin(active, [ep.sensor_model for ep in eps], command)
             for smp in range(ep0.samples_per_step):
-                b.step(ep0.substeps_per_sample, ids=rows)
+                b.step(ep0.substeps_per_sample, ids=rows.ids)
                 self._sampler.sample(smp, est, bufs)
-            theta_meas, s = bufs[5], bufs[6]
-            for j, ep in enumerate(eps):
-                ep._theta_meas = theta_meas[j].copy()
-            sums = StepSums.of_rows(s)
-            speed, yaw_rate, slip = s[:, 7], s[:, 8], s[:, 9:13]
+            sample = StepSample.of_rows(bufs[6], bufs[5], pos0)
         else:
-            sums, speed, yaw_rate, slip = self._numpy_samples(active, rows, eps, command)
-        estimates = est.estimate(active)
-        xpos, xmat = b.field("xpos")[active], b.field("xmat")[active]
-        pos = xpos[:, ix.seg_body[1]]
-        flipped = ix.flipped(xmat)
-        f_z, contact = ix.wheel_load(b.plugin_state[active])
-        sinkage = ix.wheel_sinkage(b.plugin_state[active])
-        gravity = ix.gravity(xmat)
-        gyro = ix.gyro_rates(b.sensordata[active])
-        t = b._time[active]
-        infos: dict[int, dict[str, Any]] = {}
-        for j, (i, ep) in enumerate(zip(active.tolist(), eps, strict=True)):
-            ep._est = estimates[j]
-            reward, terminated, info = ep._finish_step(
-                a4[j],
-                sums,
-                j,
-                slip[j].copy(),
-                pos0[j],
-                pos[j],
-                bool(flipped[j]),
-                float(t[j]),
-                ep.np_random,
-                speed[j],
-                yaw_rate[j],
-                f_z[j],
-                wheel_friction(self.terrains[i], contact[j]),
-                sinkage[j],
-            )
-            rewards[i] = reward
-            terminations[i] = terminated
-            self._observations[i] = ep._observation(gravity[j], gyro[j])
-            infos[i] = info
-        self._pos[active] = pos
-        return infos
-
-    def _numpy_samples(
-        self,
-        active: NDArray[np.intp],
-        rows: NDArray[np.intp] | None,
-        eps: list[_Episode],
-        command: NDArray[np.float64],
-    ) -> tuple[StepSums, Any, Any, Any]:
-        """The sample loop in numpy: the reference of the C sampler (same bits)."""
-        b, ix, est = self.batch, self.index, self.estimator
-        ep0 = eps[0]
-        k = active.size
-        sums = StepSums(k)
-        sensordata, time, qvel, plugin_state = b.sensordata, b._time, b.qvel, b.plugin_state
-        cvel, xipos, ximat = b.field("cvel"), b.field("xipos"), b.field("ximat")
-        subtree_com, force = b.field("subtree_com"), b.field("actuator_force")
-        slip = np.zeros((k, 4))
-        speed = yaw_rate = np.zeros(k)
-        for _ in range(ep0.samples_per_step):
-            b.step(ep0.substeps_per_sample, ids=rows)
-            sd = sensordata[active]
-            phi, theta = ix.phi_theta(sd)
-            for j, ep in enumerate(eps):
-                phi[j], theta[j] = ep._read_sensors(phi[j], theta[j])
-            est.push(rows, time[active], phi, theta)
-            speed, yaw_rate = ix.segment_velocity(
-                cvel[active], xipos[active], ximat[active], subtree_com[active]
-            )
-            slip = ix.driven_slip(plugin_state[active])
-            sums.add(
+            sample = run_samples(
+                rows,
+                pos0,
+                ep0.samples_per_step,
+                ep0.substeps_per_sample,
                 command,
-                speed,
-                yaw_rate,
-                force[active, : ix.n_driven],
-                qvel[active][:, ix.driven_dof],
-                slip,
-                ep0._copper,
+                [ep.sensor_model for ep in eps],
+                est,
+                rows.ids,
+                ep0.copper,
                 ep0.sample_dt,
             )
-        return sums, speed, yaw_rate, slip
+        rows.finish(sample, [self.terrains[i] for i in active.tolist()])
+        estimates = est.estimate(active)
+        gravity = ix.gravity(b.field("xmat")[active])
+        gyro = ix.gyro_rates(b.sensordata[active])
+        infos: dict[int, dict[str, Any]] = {}
+        for j, (i, ep) in enumerate(zip(active.tolist(), eps, strict=True)):
+            ep.theta_meas = sample.theta[j].copy()
+            ep.last_estimate = estimates[j]
+            rewards[i], terminations[i], infos[i] = ep.finish_step(a4[j], sample, j, ep.np_random)
+            self._observations[i] = ep.observation(gravity[j], gyro[j])
+        self._pos[active] = sample.position
+        return infos
 
     # ------------------------------------------------------------------ infos
     def _merge_infos(self, ids: list[int], infos: list[dict[str, Any]]) -> dict[str, Any]:
@@ -448,7 +359,7 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
 
     # ------------------------------------------------------------------ per-rover access
     def get_attr(self, name: str) -> tuple[Any, ...]:
-        """An attribute of every rover's episode (``np_random``, ``_command``, ...), as
+        """An attribute of every rover's episode (``np_random``, ``command``, ...), as
         ``SyncVectorEnv.get_attr`` gives the sub-envs'."""
         return tuple(getattr(ep, name) for ep in self.episodes)
 

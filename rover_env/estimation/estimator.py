@@ -52,11 +52,15 @@ __all__ = [
     "FLAG_SLOW_WHEEL",
     "FLAG_STANDSTILL",
     "FLAG_WARMUP",
+    "WINDOW_SLACK",
     "EstimatorConfig",
     "SlipEstimate",
     "SlipEstimator",
     "axle_load_radii",
     "estimate_log",
+    "kinematic_part",
+    "lsq_slope",
+    "odometry_increments",
     "static_rolling_radius",
 ]
 
@@ -70,7 +74,7 @@ FLAG_SLOW_WHEEL = 8
 
 # Relative slack on the window length so that a sample exactly rate_window old on a uniform
 # grid is kept whatever the rounding of the time stamps (both forms use the same test).
-_WINDOW_SLACK = 1e-9
+WINDOW_SLACK = 1e-9
 # Rows per block in the batch least-squares filter: bounds memory on long, fast logs.
 _BLOCK = 4096
 
@@ -196,7 +200,7 @@ class SlipEstimate:
 # --------------------------------------------------------------------------- rate filters
 
 
-def _lsq_slope(tau: Array, z: Array, valid: npt.NDArray[np.bool_]) -> Array:
+def lsq_slope(tau: Array, z: Array, valid: npt.NDArray[np.bool_]) -> Array:
     """Least-squares slope over the last axis but one; tau, z relative to the newest sample.
 
     tau (..., M), z (..., M, C), valid (..., M). Fewer than two samples give 0.
@@ -218,7 +222,7 @@ def _lsq_slope(tau: Array, z: Array, valid: npt.NDArray[np.bool_]) -> Array:
 def _lsq_rates_batch(t: Array, y: Array, window: float) -> Array:
     """Causal windowed least-squares slopes of every column of ``y`` (N, C) at every sample."""
     n_samples = t.shape[0]
-    limit = window * (1 + _WINDOW_SLACK)
+    limit = window * (1 + WINDOW_SLACK)
     # A superset of each window (the exact test below decides), to size the index matrix.
     start = np.searchsorted(t, t - 2 * limit, side="left")
     m = int(min(n_samples, np.max(np.arange(n_samples) - start) + 2))
@@ -233,7 +237,7 @@ def _lsq_rates_batch(t: Array, y: Array, window: float) -> Array:
         valid = inside & (tk - t[idx] <= limit)
         tau = t[idx] - tk
         z = y[idx] - y[k][:, None, :]
-        out[k] = _lsq_slope(tau, z, valid)
+        out[k] = lsq_slope(tau, z, valid)
     return out
 
 
@@ -256,7 +260,7 @@ def _lowpass_rates_batch(t: Array, y: Array, tau_c: float) -> Array:
 # --------------------------------------------------------------------------- kinematics
 
 
-def _kinematic_part(
+def kinematic_part(
     rates: Array,
     theta: Array,
     chain: kin.ChainGeometry,
@@ -306,7 +310,7 @@ def _kinematic_part(
     }
 
 
-def _odometry_increments(d_free: Array, chain: kin.ChainGeometry) -> tuple[Array, Array]:
+def odometry_increments(d_free: Array, chain: kin.ChainGeometry) -> tuple[Array, Array]:
     """Travel and heading change of segment 3 from free-wheel angle increments (..., 2).
 
     Dead reckoning integrates the angles themselves, not the filtered rates: increments add
@@ -353,13 +357,13 @@ class SlipEstimator:
     def _rates(self, t: float, y: Array) -> Array:
         est = self.est_cfg
         if est.rate_method == "lsq":
-            limit = est.rate_window * (1 + _WINDOW_SLACK)
+            limit = est.rate_window * (1 + WINDOW_SLACK)
             self._buf.append((t, y))
             while t - self._buf[0][0] > limit:
                 self._buf.popleft()
             tw = np.array([s[0] for s in self._buf])
             yw = np.stack([s[1] for s in self._buf])
-            return _lsq_slope(tw - t, yw - y, np.ones(tw.shape, dtype=bool))
+            return lsq_slope(tw - t, yw - y, np.ones(tw.shape, dtype=bool))
         if self._prev_t is None or self._prev_y is None:
             return np.zeros_like(y)
         dt = t - self._prev_t
@@ -386,13 +390,13 @@ class SlipEstimator:
         if self._t0 is None:
             self._t0 = t
         elif self._prev_y is not None:
-            ds, dpsi = _odometry_increments(y[4:6] - self._prev_y[4:6], self.chain)
+            ds, dpsi = odometry_increments(y[4:6] - self._prev_y[4:6], self.chain)
             heading = self._pose[2] + dpsi / 2.0
             self._pose = self._pose + np.array(
                 [ds * math.cos(heading), ds * math.sin(heading), dpsi]
             )
         self._prev_t, self._prev_y = t, y
-        part = _kinematic_part(rates, theta_a, self.chain, self.est_cfg, self.v_eps)
+        part = kinematic_part(rates, theta_a, self.chain, self.est_cfg, self.v_eps)
         if t - self._t0 < self.est_cfg.rate_window:
             part["flags"] = part["flags"] | FLAG_WARMUP
         return SlipEstimate(t=np.array(t), pose=self._pose.copy(), **part)
@@ -445,10 +449,10 @@ def estimate_log(
         rates = _lsq_rates_batch(t, y, est.rate_window)
     else:
         rates = _lowpass_rates_batch(t, y, est.rate_window)
-    part = _kinematic_part(rates, theta, chain, est, v_eps)
+    part = kinematic_part(rates, theta, chain, est, v_eps)
     part["flags"] = part["flags"] | np.where(t - t[0] < est.rate_window, FLAG_WARMUP, 0)[:, None]
 
-    ds, dpsi = _odometry_increments(np.diff(phi[:, 4:6], axis=0), chain)
+    ds, dpsi = odometry_increments(np.diff(phi[:, 4:6], axis=0), chain)
     pose = np.zeros((t.size, 3))
     # Sequential sums, in the streaming form's order, so both agree to rounding.
     yaw = np.concatenate([[0.0], np.cumsum(dpsi)])

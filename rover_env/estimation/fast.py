@@ -1,7 +1,7 @@
 """The slip estimator for many rovers, compiled: ``rover_env.sim.fast``'s ``env_core.c``.
 
 :class:`FastSlipEstimator` has the interface of the numpy
-``rover_env.envs.proto_explorer.BatchSlipEstimator`` (push one sample per listed rover,
+``rover_env.estimation.batch.BatchSlipEstimator`` (push one sample per listed rover,
 estimate on demand) and returns what :class:`~rover_env.estimation.estimator.SlipEstimator`
 returns to rounding (the C code sums the least-squares window in another order; tests hold
 it to 1e-12). Why: the numpy estimator, called on single samples, cost more than the
@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 from rover_env.config import RoverConfig
 from rover_env.estimation.estimator import (
-    _WINDOW_SLACK,
+    WINDOW_SLACK,
     EstimatorConfig,
     SlipEstimate,
     SlipEstimator,
@@ -85,7 +85,7 @@ class FastSlipEstimator:
         self.n = int(n)
         cfg = np.array(
             [
-                est.rate_window * (1 + _WINDOW_SLACK),
+                est.rate_window * (1 + WINDOW_SLACK),
                 est.rate_window,
                 *self.chain.wheel_radii,
                 self.chain.half_track,

@@ -12,9 +12,8 @@ after :meth:`RoverSim.set_terrain`, which carry the heightfield, the obstacles a
 plugin's terrain block together. :meth:`BatchRoverSim.load` copies a single simulator's
 whole state (plugin state included) into rows, so resets can be done by a ``RoverSim``.
 
-:class:`RoverIndex` reads what an environment needs (encoders, potentiometers, gyros,
-segment velocities, driven-wheel slip) from MjData arrays with any leading axes: one
-``RoverSim.data`` or the ``(n, ...)`` arrays bound from the batch, with the same arithmetic.
+:class:`rover_env.sim.readers.RoverIndex` reads what an environment needs from its bound
+arrays (and from one ``RoverSim.data``) with the same arithmetic.
 """
 
 from __future__ import annotations
@@ -27,7 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from rover_env import tire
-from rover_env.config import DRIVEN_WHEELS, JOINTS, WHEELS, RoverConfig, TerrainConfig
+from rover_env.config import DRIVEN_WHEELS, RoverConfig, TerrainConfig
 from rover_env.rut import check_overflow
 from rover_env.sim.fast import PluginView
 from rover_env.sim.simulator import RoverSim, SimulationError, WheelTruth
@@ -35,94 +34,6 @@ from rover_env.sim.simulator import RoverSim, SimulationError, WheelTruth
 Array = NDArray[np.float64]
 
 _INTEGRATION = mujoco.mjtState.mjSTATE_INTEGRATION
-
-
-class RoverIndex:
-    """Where a compiled rover model keeps what is read from it; reads arrays of any leading shape.
-
-    Every reader takes MjData fields as arrays whose last axes are MjData's (``data.sensordata``
-    of one ``RoverSim``, or ``(n, nsensordata)`` bound from a batch) and repeats the
-    simulator's arithmetic operation by operation, so one rover read either way gives the
-    same bits.
-    """
-
-    def __init__(self, sim: RoverSim) -> None:
-        m = sim.model
-        self.seg_body = sim._seg_body.copy()
-        self.seg_root = m.body_rootid[self.seg_body].copy()
-        self.driven_dof = sim._driven_dof.copy()
-        s = sim._sensor
-        self.phi = np.array([s[f"phi_{w}"].start for w in WHEELS])
-        self.theta = np.array([s[j].start for j in JOINTS])
-        self.gyro = np.concatenate(
-            [np.arange(s[f"imu_seg{i}_gyro"].start, s[f"imu_seg{i}_gyro"].stop) for i in (1, 2, 3)]
-        )
-        self.n_driven = len(DRIVEN_WHEELS)
-        self.v_eps = sim.cfg.tire.v_eps
-        self.plugin = PluginView(m) if sim.backend == "plugin" else None
-        self.max_tilt_cos = float(np.cos(np.radians(75.0)))
-
-    def phi_theta(self, sensordata: Array) -> tuple[Array, Array]:
-        """Wheel angles (..., 6) and joint angles (..., 5), as ``RoverSim.sensors()``."""
-        return sensordata[..., self.phi], sensordata[..., self.theta]
-
-    def gyro_rates(self, sensordata: Array) -> Array:
-        """IMU angular rates (..., 3, 3) [segment, xyz]."""
-        g = sensordata[..., self.gyro]
-        return g.reshape(*g.shape[:-1], 3, 3)
-
-    def gravity(self, xmat: Array) -> Array:
-        """World -z in each segment's axes (..., 3, 3): the IMUs' attitude."""
-        rows = xmat[..., self.seg_body, 6:9]
-        return -rows
-
-    def segment_velocity(
-        self, cvel: Array, xipos: Array, ximat: Array, subtree_com: Array, seg: int = 1
-    ) -> tuple[Array, Array]:
-        """Forward speed and yaw rate of segment ``seg`` in its own axes (…), as
-        ``RoverSim.segment_truth()`` (``mj_objectVelocity`` with ``flg_local``; same operations)."""
-        b = int(self.seg_body[seg])
-        cv = cvel[..., b, :]
-        w0, w1, w2 = cv[..., 0], cv[..., 1], cv[..., 2]
-        com = subtree_com[..., int(self.seg_root[seg]), :]
-        p = xipos[..., b, :]
-        d0, d1, d2 = p[..., 0] - com[..., 0], p[..., 1] - com[..., 1], p[..., 2] - com[..., 2]
-        # mju_transformSpatial: lin - dif x ang, then rotated into the body's axes.
-        t0 = cv[..., 3] - (d1 * w2 - d2 * w1)
-        t1 = cv[..., 4] - (d2 * w0 - d0 * w2)
-        t2 = cv[..., 5] - (d0 * w1 - d1 * w0)
-        r = ximat[..., b, :]
-        forward = r[..., 0] * t0 + r[..., 3] * t1 + r[..., 6] * t2
-        yaw_rate = r[..., 2] * w0 + r[..., 5] * w1 + r[..., 8] * w2
-        return forward, yaw_rate
-
-    def flipped(self, xmat: Array) -> NDArray[np.bool_]:
-        """``RoverSim.flipped()`` (75 deg) over the leading axes."""
-        return np.asarray(np.any(xmat[..., self.seg_body, 8] < self.max_tilt_cos, axis=-1))
-
-    def _truth_part(self, plugin_state: Array, i: int, width: int = 1) -> Array:
-        pv = self.plugin
-        assert pv is not None, "needs the plugin backend"
-        nw = pv.layout.nw
-        start = pv.slice.start + pv.layout.truth + i * nw
-        return plugin_state[..., start : start + width * nw]
-
-    def driven_slip(self, plugin_state: Array) -> Array:
-        """True slip ratio S of the driven wheels (..., 4) from the last committed substep."""
-        nd = self.n_driven
-        v_x = self._truth_part(plugin_state, 0)[..., :nd]
-        v_w = self._truth_part(plugin_state, 2)[..., :nd]
-        return tire.slip_ratio(v_x, v_w, self.v_eps)
-
-    def wheel_sinkage(self, plugin_state: Array) -> Array:
-        """Sinkage into loose soil (..., 6) of every wheel, 0 on hard ground (a copy)."""
-        return self._truth_part(plugin_state, 14).copy()
-
-    def wheel_load(self, plugin_state: Array) -> tuple[Array, Array]:
-        """Normal force (..., 6) and contact point (..., 6, 3) of every wheel (copies)."""
-        f_z = self._truth_part(plugin_state, 5).copy()
-        pt = self._truth_part(plugin_state, 7, 3).copy()
-        return f_z, pt.reshape(*pt.shape[:-1], -1, 3)
 
 
 class BatchRoverSim:
@@ -164,13 +75,14 @@ class BatchRoverSim:
         if self.batch.nstate != mujoco.mj_stateSize(self.model, _INTEGRATION):
             raise RuntimeError("mujoco.batch rows are not mjSTATE_INTEGRATION states")
         self._plugin = PluginView(self.model)
-        self._ctrl_vel = self.template._ctrl_vel
+        self._ctrl_vel = self.template.index.ctrl_vel
         self.qpos = self.batch.bind("qpos")
         """(n, nq) live view of the state rows."""
         self.qvel = self.batch.bind("qvel")
         self.ctrl = self.batch.bind("ctrl")
         self.plugin_state = self.batch.bind("plugin_state")
-        self._time = self.batch.bind("time")
+        self.time_view = self.batch.bind("time")
+        """(n,) live view of the rows' simulation times (:attr:`time` is a copy)."""
         self.sensordata = self.batch.bind("sensordata")
         """(n, nsensordata), read-only: refreshed by each call, one substep behind as with mj_step."""
         self._fields = {name: self.batch.bind(name) for name in derived}
@@ -203,7 +115,7 @@ class BatchRoverSim:
 
     @property
     def time(self) -> Array:
-        return self._time.copy()
+        return self.time_view.copy()
 
     def reset(
         self,

@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 
 import mujoco
 import numpy as np
@@ -57,6 +58,76 @@ HINGE_EVERY = 10
 default step: far faster than the loads change, ~3 Hz tire bounce; per substep it cost ~3x)."""
 FRICTION_DOF = int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF)
 """Constraint type of a dof's dry friction (``frictionloss``) rows in ``efc_*``."""
+
+
+@dataclass(frozen=True, eq=False)
+class SimIndex:
+    """Where a compiled rover model keeps its wheels, joints, segments, motors and sensors.
+
+    Index arrays into ``MjData``/``MjModel`` fields, for code that reads or writes a
+    simulator's arrays directly (batched readers, replays, the compiled sample loops)
+    rather than through :class:`RoverSim`'s methods. Wheels in ``WHEELS`` order, joints in
+    ``JOINTS`` order, segments 1-3; the driven wheels are the first four.
+    """
+
+    wheel_body: NDArray[np.intp]
+    wheel_jnt: NDArray[np.intp]
+    wheel_dof: NDArray[np.intp]
+    """qvel addresses of the six wheel hinges."""
+    wheel_qpos: NDArray[np.intp]
+    joint_dof: NDArray[np.intp]
+    """qvel addresses of the five passive joints."""
+    joint_qpos: NDArray[np.intp]
+    seg_body: NDArray[np.intp]
+    """Body ids of the three segments."""
+    seg_root: NDArray[np.intp]
+    """Root body of each segment (``subtree_com`` row of ``mj_objectVelocity``)."""
+    ctrl_pos: NDArray[np.intp]
+    """ctrl addresses of the driven wheels' angle setpoints."""
+    ctrl_vel: NDArray[np.intp]
+    """ctrl addresses of the driven wheels' speed targets."""
+    sensor: Mapping[str, slice]
+    """sensordata slice of each named sensor."""
+
+    driven_dof: NDArray[np.intp]
+    """qvel addresses of the driven wheels (1L 1R 2L 2R): ``wheel_dof[:4]``."""
+    driven_qpos: NDArray[np.intp]
+
+    @classmethod
+    def of_model(cls, m: mujoco.MjModel) -> SimIndex:
+        """The index of a model built by :func:`rover_env.sim.model.scene_xml`."""
+        wheel_body = np.array([m.body(f"wheel_{w}").id for w in WHEELS])
+        wheel_jnt = np.array([m.joint(f"wheel_{w}").id for w in WHEELS])
+        seg_body = np.array([m.body(f"seg{i}").id for i in (1, 2, 3)])
+        act = [m.actuator(f"motor_{w}").id for w in DRIVEN_WHEELS]
+        ctrl_pos = m.actuator_ctrladr[act]
+        wheel_dof, wheel_qpos = m.jnt_dofadr[wheel_jnt], m.jnt_qposadr[wheel_jnt]
+        nd = len(DRIVEN_WHEELS)
+        out = cls(
+            wheel_body=wheel_body,
+            wheel_jnt=wheel_jnt,
+            wheel_dof=wheel_dof,
+            wheel_qpos=wheel_qpos,
+            joint_dof=np.array([m.jnt_dofadr[m.joint(j).id] for j in JOINTS]),
+            joint_qpos=np.array([m.jnt_qposadr[m.joint(j).id] for j in JOINTS]),
+            seg_body=seg_body,
+            seg_root=m.body_rootid[seg_body].copy(),
+            ctrl_pos=ctrl_pos,
+            ctrl_vel=ctrl_pos + 1,
+            driven_dof=wheel_dof[:nd],
+            driven_qpos=wheel_qpos[:nd],
+            sensor=MappingProxyType(
+                {
+                    m.sensor(i).name: slice(m.sensor_adr[i], m.sensor_adr[i] + m.sensor_dim[i])
+                    for i in range(m.nsensor)
+                }
+            ),
+        )
+        for f in dataclasses.fields(out):
+            v = getattr(out, f.name)
+            if isinstance(v, np.ndarray):
+                v.flags.writeable = False
+        return out
 
 
 class SimulationError(RuntimeError):
@@ -276,30 +347,23 @@ class RoverSim:
             self._load_view = (ps[t0 + 5 * nw : t0 + 6 * nw], ps[t0 + 6 * nw : t0 + 7 * nw])
         m = self.model
         self.dt = float(m.opt.timestep)
-        self._wheel_body = np.array([m.body(f"wheel_{w}").id for w in WHEELS])
-        self._wheel_jnt = np.array([m.joint(f"wheel_{w}").id for w in WHEELS])
-        self._wheel_dof = m.jnt_dofadr[self._wheel_jnt]
-        self._wheel_qpos = m.jnt_qposadr[self._wheel_jnt]
+        ix = self._index = SimIndex.of_model(m)
+        self._wheel_body, self._wheel_jnt = ix.wheel_body, ix.wheel_jnt
+        self._wheel_dof, self._wheel_qpos = ix.wheel_dof, ix.wheel_qpos
         self._carrier = m.body_parentid[self._wheel_body]
         self._carriers = np.unique(self._carrier)
         self._carrier_of_wheel = (self._carriers[:, None] == self._carrier[None, :]).astype(float)
         """(carriers, wheels) incidence: sums the wheels' torques onto their carrier bodies."""
-        self._seg_body = np.array([m.body(f"seg{i}").id for i in (1, 2, 3)])
+        self._seg_body = ix.seg_body
         self._root = int(m.body_rootid[self._seg_body[0]])
-        self._joint_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in JOINTS])
-        self._joint_dof = np.array([m.jnt_dofadr[m.joint(j).id] for j in JOINTS])
-        act = [m.actuator(f"motor_{w}").id for w in DRIVEN_WHEELS]
-        self._ctrl_pos = m.actuator_ctrladr[act]
-        self._ctrl_vel = self._ctrl_pos + 1
-        self._driven_qpos = self._wheel_qpos[:4]
-        self._driven_dof = self._wheel_dof[:4]
+        self._joint_qpos, self._joint_dof = ix.joint_qpos, ix.joint_dof
+        self._ctrl_pos, self._ctrl_vel = ix.ctrl_pos, ix.ctrl_vel
+        self._driven_qpos = ix.driven_qpos
+        self._driven_dof = ix.driven_dof
         self._hinge_friction0 = frictionloss0[self._wheel_dof]
         self._hinge_ground = np.zeros(len(WHEELS))
         """The hinge effects' (the ground's) part of each wheel hinge's dry friction (N m)."""
-        self._sensor = {
-            m.sensor(i).name: slice(m.sensor_adr[i], m.sensor_adr[i] + m.sensor_dim[i])
-            for i in range(m.nsensor)
-        }
+        self._sensor = ix.sensor
         self.radius = self.cfg.geometry.wheel_radius
         self._obstacle_names = {ob.name for ob in self.terrain_cfg.obstacles}
         self.tires = TireLayer(
@@ -457,7 +521,7 @@ class RoverSim:
             # inside mj_step (rover_env.sim.fast), so no Python runs per substep.
             d.ctrl[self._ctrl_vel] = self.speed_targets
             mujoco.mj_step(m, d, n)
-            self._check()
+            self.check()
             return
         for _ in range(n):
             # Speed loop: integrate the angle setpoint (the controller's I-term), with anti-windup.
@@ -466,7 +530,7 @@ class RoverSim:
             mujoco.mj_step1(m, d)
             self.tires.apply(d)
             mujoco.mj_step2(m, d)
-        self._check()
+        self.check()
 
     def _advance_setpoints(self, u: Array) -> None:
         """One substep of the speed loop's setpoints (:func:`advance_setpoints`)."""
@@ -537,7 +601,7 @@ class RoverSim:
                 self._plugin.queue_commands(d.plugin_state, chunk)
                 mujoco.mj_step(m, d, len(chunk))
             self._substep += n
-            self._check()
+            self.check()
             return
         k = HINGE_EVERY
         left = n
@@ -575,7 +639,7 @@ class RoverSim:
             mujoco.mj_step2(m, d)
             if share is not None and self.tires.last is not None:
                 self._react_on_ground(share)
-        self._check()
+        self.check()
 
     def prime_commands(self, t: ArrayLike, cmd: ArrayLike) -> None:
         """Fill the command effects' memory as if ``cmd[k]`` had been sent from ``t[k]``.
@@ -595,7 +659,19 @@ class RoverSim:
         if self._plugin is not None:
             self._plugin.set_setpoints(self.data.plugin_state, sp)
 
-    def _check(self) -> None:
+    @property
+    def index(self) -> SimIndex:
+        """Where the model keeps wheels, joints, segments, motors and sensors."""
+        return self._index
+
+    @property
+    def has_command_effects(self) -> bool:
+        """Whether a model extension shapes the speed targets per substep (lag, delay)."""
+        return bool(self._cmd_effects)
+
+    def check(self) -> None:
+        """Raise :class:`SimulationError` on a MuJoCo warning or a non-finite state (and
+        on a full rut pool): what :meth:`step` checks after its substeps."""
         d = self.data
         if d.warning.number.any():  # one vectorised read; names only when something is wrong
             warned = [

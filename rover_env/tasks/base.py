@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rover_env.config import TerrainConfig
-from rover_env.tasks.reward import RewardWeights
+from rover_env.tasks.reward import RewardWeights, StepResult, reward_terms
 
 __all__ = ["Command", "EpisodeSetup", "Task"]
 
@@ -50,6 +50,14 @@ class Task(abc.ABC):
     @abc.abstractmethod
     def command(self, rng: np.random.Generator, t: float) -> Command:
         """The command from time ``t`` on and when to ask again (``math.inf``: never)."""
+
+    def reward(self, weights: RewardWeights, result: StepResult) -> tuple[float, dict[str, float]]:
+        """The step's reward and its terms by info key (:func:`~rover_env.tasks.reward.reward_terms`)."""
+        return reward_terms(weights, result)
+
+    def terminated(self, result: StepResult) -> bool:
+        """Whether the step ends the episode: a flip or leaving the arena."""
+        return result.terminated
 
     def truncated(self, t: float) -> bool:
         """Whether time ``t`` is past the task's length."""

@@ -1,11 +1,15 @@
-"""The reward weights of a task (the env computes the terms; see ``ProtoExplorerEnv``)."""
+"""The reward of a control step: its weights (:class:`RewardWeights`), what a step did
+(:class:`StepResult`) and one small function per term; the formula is written here only."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
 
-__all__ = ["RewardWeights"]
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["REWARD_TERMS", "RewardWeights", "StepResult", "reward_terms"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -60,3 +64,98 @@ class RewardWeights:
                 raise ValueError(f"reward weight {f.name} must be finite and >= 0, got {v!r}")
         if self.sigma_speed <= 0 or self.sigma_yaw_rate <= 0:
             raise ValueError("reward sigmas must be > 0")
+
+
+@dataclasses.dataclass(frozen=True)
+class StepResult:
+    """What one control step of one rover did, as the reward and termination read it."""
+
+    tracking_error_speed: float
+    """e_v: RMS over the step's samples of commanded minus true forward speed (m/s)."""
+    tracking_error_yaw_rate: float
+    """e_w: the same for the yaw rate (rad/s)."""
+    mean_abs_slip: float
+    """Mean |S| of the driven wheels the reward charges (true, or the estimate's)."""
+    energy: float
+    """Electrical energy of the motors over the step (J)."""
+    distance: float
+    """Path of the middle segment over the step (m)."""
+    against: bool
+    """Whether the rover ended the step moving against the commanded speed."""
+    speed_command: float
+    control_dt: float
+    wheel_sinkage: NDArray[np.float64]
+    """Sinkage of the six wheels into loose soil (m), 0 on hard ground."""
+    flipped: bool
+    out_of_arena: bool
+
+    @property
+    def terminated(self) -> bool:
+        """The episode ends when the rover flips or leaves the arena."""
+        return self.flipped or self.out_of_arena
+
+    @property
+    def signed_distance(self) -> float:
+        """The benchmark's progress: a step moving against the command counts negative."""
+        return -self.distance if self.against else self.distance
+
+
+def tracking(w: RewardWeights, r: StepResult) -> float:
+    """w_track * (exp(-(e_v/sigma_v)^2) + exp(-(e_w/sigma_w)^2)) / 2 + w_yaw * exp(-(e_w/sigma_w)^2)."""
+    k_w = math.exp(-((r.tracking_error_yaw_rate / w.sigma_yaw_rate) ** 2))
+    out = w.tracking * 0.5 * (math.exp(-((r.tracking_error_speed / w.sigma_speed) ** 2)) + k_w)
+    if w.yaw_tracking:
+        out += w.yaw_tracking * k_w
+    return out
+
+
+def slip(w: RewardWeights, r: StepResult) -> float:
+    """-w_slip * g(mean |S|) (:meth:`RewardWeights.slip_penalty`)."""
+    return -w.slip * w.slip_penalty(r.mean_abs_slip)
+
+
+def energy(w: RewardWeights, r: StepResult) -> float:
+    """-w_energy * the motors' mean electrical power (W)."""
+    return -w.energy * r.energy / r.control_dt
+
+
+def progress(w: RewardWeights, r: StepResult) -> float:
+    """w_progress * path speed along the command (m/s)."""
+    return w.progress * r.signed_distance / r.control_dt
+
+
+def stall_energy(w: RewardWeights, r: StepResult) -> float:
+    """-w_stall * P * clip(1 - p / |v_cmd|, 0, 1): power not turned into progress."""
+    v_cmd = abs(r.speed_command)
+    p = r.signed_distance / r.control_dt
+    idle = min(max(1.0 - p / v_cmd, 0.0), 1.0) if v_cmd > 1e-6 else 0.0
+    return -w.stall_energy * idle * r.energy / r.control_dt
+
+
+def sinkage(w: RewardWeights, r: StepResult) -> float:
+    """-w_sink * the six wheels' mean sinkage (mm)."""
+    return -w.sinkage * 1000.0 * float(np.mean(r.wheel_sinkage))
+
+
+REWARD_TERMS = (
+    ("reward_tracking", tracking, None),
+    ("reward_slip", slip, None),
+    ("reward_energy", energy, None),
+    ("reward_progress", progress, "progress"),
+    ("reward_stall_energy", stall_energy, "stall_energy"),
+    ("reward_sinkage", sinkage, "sinkage"),
+)
+"""(info key, term, the weight that switches it on or None: always on), in summation order."""
+
+
+def reward_terms(w: RewardWeights, r: StepResult) -> tuple[float, dict[str, float]]:
+    """The step's reward and its terms by info key (the optional ones when weighted)."""
+    terms: dict[str, float] = {}
+    total = 0.0
+    for key, term, switch in REWARD_TERMS:
+        if switch is not None and not getattr(w, switch):
+            continue
+        value = term(w, r)
+        total = value if not terms else total + value
+        terms[key] = value
+    return total, terms

@@ -27,7 +27,6 @@ from rover_env.config import (
     load_terrain,
 )
 from rover_env.control.base import CommandSchedule
-from rover_env.control.runner import DriveCase
 
 __all__ = [
     "Episode",
@@ -79,17 +78,6 @@ class Episode:
     schedule: CommandSchedule
     duration: float
     goal_fraction: float
-
-    def drive_case(self) -> DriveCase:
-        """The same episode for :func:`rover_env.control.runner.run_on_sim` (bare simulator)."""
-        return DriveCase(
-            terrain=self.terrain,
-            schedule=self.schedule,
-            duration=self.duration,
-            start=self.start,
-            seed=self.seed,
-            goal_fraction=self.goal_fraction,
-        )
 
 
 @dataclass(frozen=True)

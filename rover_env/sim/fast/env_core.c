@@ -409,39 +409,6 @@ static void add_sample(double* sums, const double* command, double speed, double
   for (int k = 0; k < 4; k++) sums[9 + k] = slip[k];
 }
 
-// ProtoExplorerEnv.step's sample loop for one rover with the plugin backend. targets (4):
-// ctrl[vel]; noise (samples * 11, already scaled); phi0 (6): the wheel counters' zero;
-// command (2). Outputs: theta_meas (5), sums (err_v2, err_w2, energy, slip[4], then the last
-// sample's speed, yaw rate, slip[4]). Returns 0, 1 on a MuJoCo warning, 2 on a non-finite
-// state (the caller raises), or the negative est_push error.
-int env_step_samples(const mjModel* m, mjData* d, const StepSpec* sp, Estimator* e,
-                     const double* targets, const double* noise, const double* phi0,
-                     const double* command, double* theta_meas, double* sums) {
-  double vel[6];
-  for (int k = 0; k < 4; k++) d->ctrl[sp->ctrl_vel[k]] = targets[k];
-  for (int k = 0; k < 13; k++) sums[k] = 0.0;
-  for (int smp = 0; smp < sp->samples; smp++) {
-    for (int k = 0; k < sp->substeps; k++) mj_step(m, d);
-    for (int w = 0; w < mjNWARNING; w++)
-      if (d->warning[w].number > 0) return 1;
-    for (int k = 0; k < m->nq; k++)
-      if (!isfinite(d->qpos[k])) return 2;
-    for (int k = 0; k < m->nv; k++)
-      if (!isfinite(d->qvel[k])) return 2;
-    double y[NY];
-    read_sensors(d->sensordata, noise + 11 * smp, phi0, sp, y);
-    memcpy(theta_meas, y + 6, 5 * sizeof(double));
-    int err = est_push(e, 0, d->time, y);
-    if (err) return err;
-    // the middle segment's forward speed and yaw rate; the driven wheels' true slip
-    mj_objectVelocity(m, d, mjOBJ_BODY, sp->seg2_body, vel, 1);
-    double slip[4];
-    driven_slip(d->plugin_state, sp, slip);
-    add_sample(sums, command, vel[3], vel[2], d->actuator_force, d->qvel, sp, slip);
-  }
-  return 0;
-}
-
 // ------------------------------------------------------------------- batch sample (vector env)
 
 // Row-strided views (strides in doubles) of mujoco.batch's bound arrays.
@@ -453,11 +420,12 @@ typedef struct {
   int seg2_root;
 } BatchView;
 
-// One 50 Hz sample of rovers rows[0..k) after mujoco.batch stepped them: the sample loop of
-// ProtoExplorerVectorEnv.step, as env_step_samples does for one MjData, with the middle
-// segment's velocity by rover_env.sim.batch.RoverIndex.segment_velocity's arithmetic (equal
-// to mj_objectVelocity's). noise (k * samples * 11), phi0 (k * 6), command (k * 2),
-// theta_meas (k * 5), sums (k * 13; zeroed by the caller before the first sample).
+// One 50 Hz sample of rovers rows[0..k) after their physics stepped: the sample loop's body,
+// written once for both envs (ProtoExplorerVectorEnv.step calls it on mujoco.batch's rows,
+// env_step_samples on one MjData as a row), as rover_env.sim.sample.run_samples does in
+// numpy; the middle segment's velocity by RoverIndex.segment_velocity's arithmetic (equal to
+// mj_objectVelocity's). noise (k * samples * 11), phi0 (k * 6), command (k * 2), theta_meas
+// (k * 5), sums (k * 13; zeroed by the caller before the first sample).
 int vec_sample(const StepSpec* sp, const BatchView* bv, Estimator* e, int k, const int* rows,
                int smp, const double* noise, const double* phi0, const double* command,
                double* theta_meas, double* sums) {
@@ -486,6 +454,36 @@ int vec_sample(const StepSpec* sp, const BatchView* bv, Estimator* e, int k, con
     driven_slip(bv->plugin_state + r * bv->s_plugin_state, sp, slip);
     add_sample(sums + 13 * j, command + 2 * j, speed, yaw_rate, bv->force + r * bv->s_force,
                bv->qvel + r * bv->s_qvel, sp, slip);
+  }
+  return 0;
+}
+
+// ProtoExplorerEnv.step's samples for one rover with the plugin backend: the physics of each
+// sample, then vec_sample on the MjData as a batch of one row. targets (4): ctrl[vel]; noise
+// (samples * 11, already scaled); phi0 (6): the wheel counters' zero; command (2). Outputs:
+// theta_meas (5), sums (err_v2, err_w2, energy, slip[4], then the last sample's speed, yaw
+// rate, slip[4]). Returns 0, 1 on a MuJoCo warning, 2 on a non-finite state (the caller
+// raises), or the negative est_push error.
+int env_step_samples(const mjModel* m, mjData* d, const StepSpec* sp, Estimator* e,
+                     const double* targets, const double* noise, const double* phi0,
+                     const double* command, double* theta_meas, double* sums) {
+  // One row, stride 0: the pointers stay valid while mj_step runs (MjData never moves them).
+  BatchView one = {d->sensordata, d->plugin_state, d->cvel, d->xipos, d->ximat, d->subtree_com,
+                   d->actuator_force, d->qvel, &d->time, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+                   m->body_rootid[sp->seg2_body]};
+  const int row = 0;
+  for (int k = 0; k < 4; k++) d->ctrl[sp->ctrl_vel[k]] = targets[k];
+  for (int k = 0; k < 13; k++) sums[k] = 0.0;
+  for (int smp = 0; smp < sp->samples; smp++) {
+    for (int k = 0; k < sp->substeps; k++) mj_step(m, d);
+    for (int w = 0; w < mjNWARNING; w++)
+      if (d->warning[w].number > 0) return 1;
+    for (int k = 0; k < m->nq; k++)
+      if (!isfinite(d->qpos[k])) return 2;
+    for (int k = 0; k < m->nv; k++)
+      if (!isfinite(d->qvel[k])) return 2;
+    int err = vec_sample(sp, &one, e, 1, &row, smp, noise, phi0, command, theta_meas, sums);
+    if (err) return err;
   }
   return 0;
 }

@@ -67,8 +67,9 @@ def terrain_block(
 ) -> Array:
     """The plugin's ground description (layout documented in tire_plugin.c)."""
     t = terrain
-    amp, k, phase, start = t._amp, t._k, t._phase, t._start
-    lo, hi, mu = t._patch_lo, t._patch_hi, t._patch_mu
+    a = t.arrays()
+    amp, k, phase, start = a.amp, a.k, a.phase, a.start
+    lo, hi, mu = a.patch_lo, a.patch_hi, a.patch_mu
     nwave, npatch, nsoil = len(amp), len(mu), len(t.soils)
     if nwave > wave_capacity or npatch > patch_capacity or nsoil > soil_capacity:
         raise ValueError(
@@ -84,8 +85,8 @@ def terrain_block(
         _TERRAIN_VERSION,
         1.0 if t.flat else 0.0,
         CONTACT_ITERATIONS,
-        t._gx,
-        t._gy,
+        a.gx,
+        a.gy,
         t.mu_x_default,
         t.mu_y_default,
         nwave,
@@ -105,7 +106,7 @@ def terrain_block(
     waves[:nwave] = np.column_stack([amp, k[:, 0], k[:, 1], phase, start])
     p0 = _HEADER + _WAVE * wave_capacity
     patches = out[p0 : p0 + _PATCH * patch_capacity].reshape(patch_capacity, _PATCH)
-    patches[:npatch] = np.column_stack([lo, hi, mu, t._patch_soil])
+    patches[:npatch] = np.column_stack([lo, hi, mu, a.patch_soil])
     soils = out[p0 + _PATCH * patch_capacity :].reshape(soil_capacity, _SOIL)
     for i, sp in enumerate(t.soils):
         soils[i] = sp.numbers()
@@ -134,10 +135,11 @@ def inject_plugin(
     if terrain.has_soil:  # the footprint read's points must fit the plugin's buffer
         terrain.rut_grid.samples(cfg.geometry.wheel_width)
     tire = cfg.tire
+    shape = terrain.arrays()
     block = terrain_block(
         terrain,
-        len(terrain._amp),
-        max(MIN_PATCH_CAPACITY, len(terrain._patch_mu)),
+        len(shape.amp),
+        max(MIN_PATCH_CAPACITY, len(shape.patch_mu)),
         max(MIN_SOIL_CAPACITY, len(terrain.soils)),
     )
     config = {
