@@ -36,10 +36,10 @@ def _rss_mb() -> dict[str, int]:
 
 
 def _episode_memory(spec: tuple[str, str, int, float]) -> dict[str, Any]:
-    from rover_env.benchmark.run import Job, _run_job
+    from rover_env.benchmark.run import Job, run_job
 
     before = _rss_mb()
-    _run_job(Job(*spec))
+    run_job(Job(*spec))
     return {"pid": os.getpid(), "controller": spec[0], "before": before, "after": _rss_mb()}
 
 

@@ -232,13 +232,13 @@ def test_stopped_benchmark_resumes_without_running_an_episode_twice(
     from rover_env.benchmark.cli import run_benchmark
 
     ran: list[str] = []
-    real = run_mod._run_job
+    real = run_mod.run_job
 
     def counting(job: Any) -> dict[str, Any]:
         ran.append(job.key)
         return real(job)
 
-    monkeypatch.setattr(run_mod, "_run_job", counting)
+    monkeypatch.setattr(run_mod, "run_job", counting)
     run_benchmark(
         ["open-loop", "slip-pi"], ["ice-patch"], 4, out, duration=3.0, workers=1,
         progress=False, plots=False, resume=True,

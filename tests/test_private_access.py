@@ -22,11 +22,6 @@ ALLOWED: dict[tuple[str, str], str] = {
     ("envs/fast_step.py", "_address"): "MuJoCo API",
     # ``os._exit`` is the standard library's documented exit without cleanup (a worker).
     ("executor.py", "_exit"): "standard library API",
-    # Outside issue 48 item 1's files, left to their owners' branches (items 2 and 3):
-    # delete each entry when its module stops importing the private name.
-    ("soil.py", "_load_yaml"): "config loader (issue 48 item 3)",
-    ("soil.py", "_resolve"): "config loader (issue 48 item 3)",
-    ("benchmark/suite.py", "_run_job"): "benchmark runner (outside item 1)",
 }
 
 

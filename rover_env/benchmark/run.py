@@ -133,7 +133,7 @@ def wrapper_for(scenario: str, layout: str, episode: Episode) -> ScenarioWrapper
     return _ENVS[key]
 
 
-def _run_job(job: Job) -> dict[str, Any]:
+def run_job(job: Job) -> dict[str, Any]:
     t0 = time.perf_counter()
     if job.controller not in _CONTROLLERS:
         _CONTROLLERS[job.controller] = make_controller(job.controller)
@@ -172,4 +172,4 @@ def run_jobs(
         )
     ex = executor or make_executor("local", workers, start_method="spawn")
     tick = None if progress is None else (lambda _i, row: progress(row))
-    return ex.map(_run_job, list(jobs), on_result=tick)
+    return ex.map(run_job, list(jobs), on_result=tick)

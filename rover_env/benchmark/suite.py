@@ -43,7 +43,7 @@ def run_benchmark(
     """
     from rover_env.benchmark import ledger as test_ledger
     from rover_env.benchmark.report import write_report
-    from rover_env.benchmark.run import Job, _run_job
+    from rover_env.benchmark.run import Job, run_job
     from rover_env.executor import make_executor, run_study
     from rover_env.seeds import seeds as seed_split
 
@@ -64,7 +64,7 @@ def run_benchmark(
         where = ex.describe()
         rows = run_study(
             ex,
-            _run_job,
+            run_job,
             jobs,
             [job.key for job in jobs],
             Path(out) / "episodes.jsonl",
