@@ -13,8 +13,6 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rover_env.calibration.drives import drive_schedule
-from rover_env.calibration.foreign_logs import ForeignRover
 from rover_env.calibration.model_form import FormFit, with_anti_windup, with_form
 from rover_env.calibration.replay import (
     PreparedLog,
@@ -24,6 +22,8 @@ from rover_env.calibration.replay import (
     prepare,
 )
 from rover_env.config import AntiWindup, ConfigError, RoverConfig, from_dict, load_rover
+from rover_env.generators.drives import drive_schedule
+from rover_env.generators.foreign_logs import ForeignRover
 from rover_env.logs import DriveLog, LogMeta
 from rover_env.sim.simulator import RoverSim
 

@@ -29,10 +29,10 @@ from rover_env.calibration.fit import (
     fit,
     stack_fits,
 )
-from rover_env.calibration.make_logs import make_logs
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
 from rover_env.config import RoverConfig
 from rover_env.effects import CATALOGUE
+from rover_env.generators.make_logs import make_logs
 from rover_env.logs import read_log
 
 

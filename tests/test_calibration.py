@@ -11,11 +11,11 @@ import pytest
 import yaml
 
 from rover_env.calibration.diagnose import Options, _noise_test, diagnose
-from rover_env.calibration.make_logs import make_logs, parse_effects
 from rover_env.calibration.replay import ReplaySettings, replay_config
 from rover_env.cli import main
 from rover_env.config import ConfigError, RoverConfig, load_rover, to_dict
 from rover_env.effects import CATALOGUE, CombinedSlip
+from rover_env.generators.make_logs import make_logs, parse_effects
 from rover_env.logs import LogError, read_log
 from rover_env.sim.simulator import RoverSim
 

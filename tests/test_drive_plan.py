@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from rover_env.calibration import drive_plan as dp
-from rover_env.calibration.drives import _PLANS, drive_schedule
 from rover_env.config import load_rover
+from rover_env.generators.drives import _PLANS, drive_schedule
 
 CFG = load_rover("proto_explorer")
 VMAX = CFG.motor.max_wheel_speed

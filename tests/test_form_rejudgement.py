@@ -26,11 +26,11 @@ from rover_env.calibration.diagnose import (
     join_if_seen,
 )
 from rover_env.calibration.fit import Evaluator, Fit, fit
-from rover_env.calibration.foreign_logs import make_foreign_logs
-from rover_env.calibration.make_logs import make_logs
 from rover_env.calibration.model_form import FormFit, reprepare, with_anti_windup
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
 from rover_env.config import ANTI_WINDUP_FORMS, load_rover
+from rover_env.generators.foreign_logs import make_foreign_logs
+from rover_env.generators.make_logs import make_logs
 from rover_env.logs import read_log
 
 CONDITIONAL = FormFit(

@@ -11,8 +11,6 @@ from pathlib import Path
 import pytest
 
 from rover_env.calibration import residuals as rs
-from rover_env.calibration.foreign_logs import make_foreign_logs
-from rover_env.calibration.make_logs import make_logs
 from rover_env.calibration.model_form import (
     FLOOR_LADDER,
     LADDER,
@@ -27,6 +25,8 @@ from rover_env.calibration.model_form import (
 )
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
 from rover_env.config import RoverConfig
+from rover_env.generators.foreign_logs import make_foreign_logs
+from rover_env.generators.make_logs import make_logs
 from rover_env.logs import read_log
 
 CFG = RoverConfig()
