@@ -12,7 +12,7 @@ over the effect's documented range (``RANGES``), with a random sign where the pa
 one, from a generator seeded by the case seed; nobody picks the values diagnose is tested
 at. The detection curves put each case's magnitude over that effect's noise threshold as
 diagnose reports it for those drives (the magnitude at which the effect moves its most
-sensitive signal by one replay floor, :func:`rover_env.calibration.fit.noise_threshold`).
+sensitive signal by one replay floor, :func:`rover_env.calibration.diagnosis.fit_stage.noise_threshold`).
 
     python benchmarks/bench_diagnose.py --quick   # 8 seeded cases over both generators
     # the full matrix (~110 cases, many hours): one shard per core, resumable, then merge

@@ -13,7 +13,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rover_env.calibration.model_form import FormFit, with_anti_windup, with_form
+from rover_env.calibration.diagnosis.form import with_anti_windup, with_form
+from rover_env.calibration.diagnosis.state import FormFit
 from rover_env.calibration.replay import (
     PreparedLog,
     ReplaySettings,

@@ -1,4 +1,4 @@
-"""The model-form stage of diagnose (rover_env.calibration.model_form), fitted before any
+"""The model-form stage of diagnose (rover_env.calibration.diagnosis.form), fitted before any
 effect: the tire's relaxation length finds the truth's value on this project's logs and a
 much shorter one on the second implementation's, whose tire is steady state; the speed
 loop's anti-windup bound keeps the configuration's on this project's logs and takes a
@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from rover_env.calibration import residuals as rs
-from rover_env.calibration.model_form import (
+from rover_env.calibration.diagnosis.form import (
     FLOOR_LADDER,
     LADDER,
     WINDUP_LADDER,
