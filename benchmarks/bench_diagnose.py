@@ -2,7 +2,7 @@
 
 Each case: a generator writes 3 drives of 50 s (2 training, 1 held out) from a truth model
 with hidden effects; ``diagnose`` sees only the logs. Two generators: ``make-logs`` (this
-project's simulator) and ``foreign`` (:mod:`rover_env.calibration.foreign_logs`, a
+project's simulator) and ``foreign`` (:mod:`rover_env.generators.foreign_logs`, a
 deliberately different implementation of the same rover). The table, the per-effect
 detection curves and the acceptance figures go to ``docs/calibration/matrix.md`` (and
 ``matrix.json``).
@@ -12,7 +12,7 @@ over the effect's documented range (``RANGES``), with a random sign where the pa
 one, from a generator seeded by the case seed; nobody picks the values diagnose is tested
 at. The detection curves put each case's magnitude over that effect's noise threshold as
 diagnose reports it for those drives (the magnitude at which the effect moves its most
-sensitive signal by one replay floor, :func:`rover_env.calibration.fit.noise_threshold`).
+sensitive signal by one replay floor, :func:`rover_env.calibration.diagnosis.fit_stage.noise_threshold`).
 
     python benchmarks/bench_diagnose.py --quick   # 8 seeded cases over both generators
     # the full matrix (~110 cases, many hours): one shard per core, resumable, then merge
@@ -40,10 +40,10 @@ import numpy as np
 from _report import write_report
 
 from rover_env.calibration.diagnose import Options, diagnose
-from rover_env.calibration.foreign_logs import FOREIGN_EFFECTS, make_foreign_logs
-from rover_env.calibration.make_logs import make_logs
 from rover_env.config import JointSpec, RoverConfig
 from rover_env.executor import add_executor_args, make_executor, run_study
+from rover_env.generators.foreign_logs import FOREIGN_EFFECTS, make_foreign_logs
+from rover_env.generators.make_logs import make_logs
 
 # effect -> (parameter, smallest magnitude, largest magnitude, signs drawn from)
 INERT_ON_SOIL = frozenset(
@@ -436,7 +436,7 @@ def summarise(rows: list[dict[str, Any]], total_s: float, quick: bool, planned_n
         f"Run by `benchmarks/bench_diagnose.py{' --quick' if quick else ''}`: each case 3 drives of"
         " 50 s (2 training, 1 held out) with hidden effects at drawn magnitudes (`RANGES`);"
         " `diagnose` sees only the logs. Generators: `own` (make-logs) and `foreign`"
-        " (`rover_env.calibration.foreign_logs`, a deliberately different implementation)."
+        " (`rover_env.generators.foreign_logs`, a deliberately different implementation)."
         f" {len(rows)} of the {planned_n} planned cases run (the full matrix has"
         f" {len(cases(False))}); {total_s / 60:.1f} min summed over cases.",
         "",

@@ -29,7 +29,6 @@ from pathlib import Path
 
 import numpy as np
 
-from rover_env.calibration.make_logs import make_logs
 from rover_env.calibration.replay import (
     Replayer,
     ReplaySettings,
@@ -38,6 +37,7 @@ from rover_env.calibration.replay import (
     replay_arrays,
 )
 from rover_env.config import RoverConfig
+from rover_env.generators.make_logs import make_logs
 from rover_env.logs import read_log
 
 

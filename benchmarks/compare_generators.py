@@ -3,7 +3,7 @@
     python benchmarks/compare_generators.py --k-phi 0,5.6e5,2.2e6
 
 Both implement the same rover (the project's simulator, ``make-logs``, and the second
-generator, :mod:`rover_env.calibration.foreign_logs`); on hard ground they agree closely, and
+generator, :mod:`rover_env.generators.foreign_logs`); on hard ground they agree closely, and
 where they part (loose soil: ruts, dug hole and transient slip in one, none in the other) a
 fit of the one to the other's logs has to absorb the difference. Prints wheel angles (rad,
 1L..3R) and joint angles theta_1..theta_5 (rad) after a 5 s straight at 2 rad/s and a 5 s
@@ -20,8 +20,8 @@ import sys
 
 import numpy as np
 
-from rover_env.calibration.foreign_logs import ForeignRover
 from rover_env.config import RoverConfig
+from rover_env.generators.foreign_logs import ForeignRover
 from rover_env.sim.simulator import RoverSim
 
 LEGS = (

@@ -124,7 +124,7 @@ def _benchmark(out: Path) -> None:
 
 def _diagnose(out: Path) -> None:
     from rover_env.calibration.diagnose import Options, diagnose
-    from rover_env.calibration.make_logs import make_logs
+    from rover_env.generators.make_logs import make_logs
 
     cases = {
         "rolling_resistance": {"rolling_resistance": {"c_rr": 0.05}},

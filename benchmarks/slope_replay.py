@@ -21,7 +21,7 @@ import numpy as np
 import yaml
 
 from rover_env.calibration import residuals as rs
-from rover_env.calibration.diagnose import _rover_of
+from rover_env.calibration.diagnosis.split import rover_of
 from rover_env.calibration.fit import Evaluator
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
 from rover_env.logs import read_log
@@ -40,7 +40,7 @@ def main() -> int:
     truth = yaml.safe_load(truth_file.read_text())["effects"]
     files = sorted((args.case / "logs").glob("drive_*.csv"))
     logs = [read_log(p) for p in files]
-    base = _rover_of(logs[0])
+    base = rover_of(logs[0])
     for burn in args.burn_in:
         st = ReplaySettings(burn_in=burn, window=burn + 2.0)
         prep = [prepare(lg, base, f.name, st) for lg, f in zip(logs, files, strict=True)]

@@ -128,7 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_benchmark_cli(sub)
     add_compare_cli(sub)
     from rover_env.calibration.diagnose import add_cli as add_diagnose_cli
-    from rover_env.calibration.make_logs import add_cli as add_make_logs_cli
+    from rover_env.generators.make_logs import add_cli as add_make_logs_cli
 
     add_make_logs_cli(sub)
     add_diagnose_cli(sub)

@@ -13,9 +13,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rover_env.calibration.drives import drive_schedule
-from rover_env.calibration.foreign_logs import ForeignRover
-from rover_env.calibration.model_form import FormFit, with_anti_windup, with_form
+from rover_env.calibration.diagnosis.form import with_anti_windup, with_form
+from rover_env.calibration.diagnosis.state import FormFit
 from rover_env.calibration.replay import (
     PreparedLog,
     ReplaySettings,
@@ -24,6 +23,8 @@ from rover_env.calibration.replay import (
     prepare,
 )
 from rover_env.config import AntiWindup, ConfigError, RoverConfig, from_dict, load_rover
+from rover_env.generators.drives import drive_schedule
+from rover_env.generators.foreign_logs import ForeignRover
 from rover_env.logs import DriveLog, LogMeta
 from rover_env.sim.simulator import RoverSim
 

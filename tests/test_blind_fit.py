@@ -12,15 +12,14 @@ import pytest
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue, magnitude_ladder
-from rover_env.calibration.diagnose import (
-    Scored,
-    _runner_up,
+from rover_env.calibration.diagnosis.judge import (
     better_worse,
-    first_confident,
     interval_reaches_off,
     interval_text,
     strict_json,
 )
+from rover_env.calibration.diagnosis.select import first_confident, runner_up
+from rover_env.calibration.diagnosis.state import Scored
 from rover_env.calibration.fit import (
     Evaluator,
     Fit,
@@ -29,10 +28,10 @@ from rover_env.calibration.fit import (
     fit,
     stack_fits,
 )
-from rover_env.calibration.make_logs import make_logs
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
 from rover_env.config import RoverConfig
 from rover_env.effects import CATALOGUE
+from rover_env.generators.make_logs import make_logs
 from rover_env.logs import read_log
 
 
@@ -222,7 +221,7 @@ def test_an_effect_whose_interval_reaches_off_is_not_named() -> None:
     assert first_confident(cands[:2], lambda s: None, lambda s: None, lambda m: None) is None
 
 
-def test_a_rival_that_explains_more_is_the_runner_up() -> None:
+def test_a_rival_that_explains_more_is_therunner_up() -> None:
     # Stop 30's case: the delay passes the window test, the lag explains more but does not.
     delay = _scored(_fit_of("command_delay", 0.018, 0.014, 0.024))
     delay.gain = 0.47
@@ -231,14 +230,14 @@ def test_a_rival_that_explains_more_is_the_runner_up() -> None:
     limit = _scored(_fit_of("torque_limit", -0.34, -0.43, -0.28))
     limit.gain = 0.22
     ranked = [lag, delay, limit]
-    assert _runner_up(delay, ranked) is lag
+    assert runner_up(delay, ranked) is lag
     # A rival that does not pay for itself on training, or explains less, is not one.
     lag.d_bic = 1.0
-    assert _runner_up(delay, ranked) is limit
+    assert runner_up(delay, ranked) is limit
     lag.d_bic, lag.gain = -5.0, 0.40
-    assert _runner_up(delay, ranked) is limit
+    assert runner_up(delay, ranked) is limit
     limit.significant = False
-    assert _runner_up(delay, ranked) is None
+    assert runner_up(delay, ranked) is None
 
 
 def test_loose_soil_is_fitted_as_inverse_modulus_and_shown_as_k_phi() -> None:

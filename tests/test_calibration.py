@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 import yaml
 
-from rover_env.calibration.diagnose import Options, _noise_test, diagnose
-from rover_env.calibration.make_logs import make_logs, parse_effects
+from rover_env.calibration.diagnose import Options, diagnose
+from rover_env.calibration.diagnosis.judge import noise_test
 from rover_env.calibration.replay import ReplaySettings, replay_config
 from rover_env.cli import main
 from rover_env.config import ConfigError, RoverConfig, load_rover, to_dict
 from rover_env.effects import CATALOGUE, CombinedSlip
+from rover_env.generators.make_logs import make_logs, parse_effects
 from rover_env.logs import LogError, read_log
 from rover_env.sim.simulator import RoverSim
 
@@ -167,7 +168,7 @@ def _window_results(ms: list[float], signal: int, seed: int) -> list:
 def test_traded_signals_are_those_left_above_the_floor_and_made_worse() -> None:
     """A signal made worse in every window is traded only if it stays above its floor (in
     ``left``); one equal before and after, window by window up to noise, is not."""
-    from rover_env.calibration.diagnose import traded_signals
+    from rover_env.calibration.diagnosis.judge import traded_signals
 
     before = _window_results([1e-4] * 12, 9, 0)
     worse = _window_results([1.5e-4] * 12, 9, 1)
@@ -185,7 +186,7 @@ def test_a_pair_that_trades_keeps_its_winner_if_the_winner_alone_does_not() -> N
     caller); a single winner is never split."""
     from types import SimpleNamespace
 
-    from rover_env.calibration.diagnose import settle_trades
+    from rover_env.calibration.diagnosis.select import settle_trades
 
     def sc(name: str) -> Any:
         return SimpleNamespace(fit=SimpleNamespace(name=name))
@@ -300,11 +301,11 @@ def test_updated_config_reproduces_the_held_out_replay_exactly(rr_case: tuple[Pa
 
 def test_noise_floor_test_needs_a_cleared_signal_and_no_new_one() -> None:
     above = ["wheel_1L", "wheel_2R"]
-    assert _noise_test(above, ["wheel_2R"]) == ["wheel_1L"]
-    assert _noise_test(above, []) == above
-    assert _noise_test(above, above) == []  # nothing cleared
-    assert _noise_test(above, ["theta_2"]) == []  # clears both but breaks another signal
-    assert _noise_test([], []) == []  # a clean reference leaves nothing to clear
+    assert noise_test(above, ["wheel_2R"]) == ["wheel_1L"]
+    assert noise_test(above, []) == above
+    assert noise_test(above, above) == []  # nothing cleared
+    assert noise_test(above, ["theta_2"]) == []  # clears both but breaks another signal
+    assert noise_test([], []) == []  # a clean reference leaves nothing to clear
 
 
 def test_bad_logs_fail_naming_file_column_and_row(
@@ -412,10 +413,11 @@ def test_command_effect_block_is_n_steps(name: str, values: dict[str, float]) ->
 
 
 def test_tasks_handed_out_longest_first_come_back_in_task_order() -> None:
-    """``_map_parallel(order=...)`` (the soil's four forms go to a worker first): the order
+    """``map_parallel(order=...)`` (the soil's four forms go to a worker first): the order
     the tasks are handed out changes where they run, not which result is whose."""
     from rover_env.calibration.candidates import catalogue
-    from rover_env.calibration.diagnose import Scored, _map_parallel
+    from rover_env.calibration.diagnosis.parallel import map_parallel
+    from rover_env.calibration.diagnosis.state import Scored
     from rover_env.calibration.fit import Evaluator, Fit
 
     lag = catalogue(["command_lag"])[0]
@@ -427,7 +429,7 @@ def test_tasks_handed_out_longest_first_come_back_in_task_order() -> None:
         return Scored(f, float(i), z, 0.0, 1.0, 0.0, 0.0, 1)
 
     seen: list[float] = []
-    out = _map_parallel(
+    out = map_parallel(
         task,
         lambda s: seen.append(s.fit.cost),
         3,

@@ -9,8 +9,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from rover_env.calibration.diagnose import Options, diagnose
-from rover_env.calibration.make_logs import make_logs
 from rover_env.config import RoverConfig
+from rover_env.generators.make_logs import make_logs
 
 
 def test_a_heavier_rover_is_not_named_friction_with_confidence(tmp_path: Path) -> None:

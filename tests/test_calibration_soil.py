@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from rover_env.calibration.diagnose import Options, diagnose
-from rover_env.calibration.make_logs import make_logs
+from rover_env.generators.make_logs import make_logs
 
 
 def test_drives_on_loose_soil_name_it_against_rolling_resistance(
@@ -42,7 +42,7 @@ def test_second_generators_soil_is_named_under_the_soil_form_it_has(tmp_path: Pa
     relaxation length alone, the best k_phi replayed worse than hard ground and rolling
     resistance was named (0/4 foreign soil cases, stops 29-31). Under the soil forms the soil
     is named against rolling resistance, in a memoryless form, with k_phi covered."""
-    from rover_env.calibration.foreign_logs import make_foreign_logs
+    from rover_env.generators.foreign_logs import make_foreign_logs
 
     k_phi = 3e5
     paths = make_foreign_logs(

@@ -65,7 +65,7 @@ def test_rolling_resistance_is_the_grounds_moment_not_the_bearings() -> None:
     the wheel. A bearing friction pitches segment 3 by 1.34 x as much."""
     from dataclasses import replace
 
-    from rover_env.calibration.foreign_logs import ForeignRover
+    from rover_env.generators.foreign_logs import ForeignRover
 
     def foreign(c: float) -> np.ndarray:
         r = ForeignRover(CFG, {"rolling_resistance": {"c_rr": c}} if c else {})

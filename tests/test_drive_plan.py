@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from rover_env.calibration import drive_plan as dp
-from rover_env.calibration.drives import _PLANS, drive_schedule
 from rover_env.config import load_rover
+from rover_env.generators.drives import _PLANS, drive_schedule
 
 CFG = load_rover("proto_explorer")
 VMAX = CFG.motor.max_wheel_speed
@@ -190,7 +190,7 @@ def test_evidence_and_tie_record_the_seed_and_duration(monkeypatch: pytest.Monke
     monkeypatch.setattr(evidence, "replay_separation", lambda *a, **k: ({}, {}))
     p = evidence.propose(CFG, "torque_limit", {}, {}, {}, seed=3, duration=7.0)
     assert (p["plan"], p["seed"], p["duration"]) == ("accel", 3, 7.0)
-    src = Path(evidence.__file__).with_name("diagnose.py").read_text()
+    src = (Path(evidence.__file__).parent / "diagnosis" / "select.py").read_text()  # the tie
     assert '"seed": PLAN_SEED' in src and '"duration": PLAN_DURATION' in src
 
 

@@ -50,7 +50,8 @@ def test_a_leaning_held_out_drive_asks_for_the_deciding_drive(monkeypatch) -> No
 
     from rover_env.calibration import evidence, fit
     from rover_env.calibration.candidates import catalogue
-    from rover_env.calibration.diagnose import Options, Scored, missing_evidence
+    from rover_env.calibration.diagnosis.evidence_stage import missing_evidence
+    from rover_env.calibration.diagnosis.state import Options, Scored
     from rover_env.config import RoverConfig
 
     cand = {c.name: c for c in catalogue()}

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import yaml
 
-from rover_env.calibration.foreign_logs import FOREIGN_EFFECTS, ForeignRover, make_foreign_logs
-from rover_env.calibration.make_logs import make_logs
 from rover_env.config import RoverConfig
+from rover_env.generators.foreign_logs import FOREIGN_EFFECTS, ForeignRover, make_foreign_logs
+from rover_env.generators.make_logs import make_logs
 from rover_env.logs import read_log
 from rover_env.sim.simulator import RoverSim
 
@@ -78,7 +78,7 @@ def test_foreign_rolling_resistance_slows_the_free_wheels(tmp_path: Path) -> Non
 def test_foreign_lateral_slip_is_eq_11() -> None:
     """The second implementation's lateral slip is the SPEC's eq. (11), written apart from
     rover_env.tire: same-sign wheel and ground speeds, skidding and spinning alike."""
-    from rover_env.calibration.foreign_logs import lateral_slip
+    from rover_env.generators.foreign_logs import lateral_slip
     from rover_env.tire import lateral_slip as eq11
     from rover_env.tire import slip_ratio
 
@@ -96,9 +96,9 @@ def test_foreign_generator_refuses_an_effect_it_does_not_implement(
 ) -> None:
     """A catalogue effect the second generator lacks is refused by name, nothing written
     (today it implements every one: the check guards the next effect added)."""
-    from rover_env.calibration import foreign_logs
     from rover_env.config import ConfigError
     from rover_env.effects import CATALOGUE
+    from rover_env.generators import foreign_logs
 
     assert FOREIGN_EFFECTS == set(CATALOGUE)
     monkeypatch.setattr(foreign_logs, "FOREIGN_EFFECTS", FOREIGN_EFFECTS - {"command_lag"})
@@ -113,7 +113,7 @@ def test_foreign_soil_is_soil_md_in_its_own_quadrature() -> None:
     angle, driving, braking and reversing (two implementations of one set of equations).
     Both regularise slip below a speed: the reference is given this generator's 5 cm/s
     (the project's own is 1 mm/s, with transient slip below it)."""
-    from rover_env.calibration.foreign_soil import V_EPS, at_spin
+    from rover_env.generators.foreign_soil import V_EPS, at_spin
     from rover_env.soil import load_soil, soil_forces
 
     p = load_soil("mars-sand")
@@ -138,7 +138,7 @@ def test_foreign_spin_solve_uses_the_same_torque_as_the_forces() -> None:
     """The spin solve evaluates the resisting torque alone (no forces, the sinkage's angles
     computed once per step): it must be the torque :func:`wheel_soil` reports, to the bit,
     so that the shortcut changes the second generator's logs in nothing but speed."""
-    from rover_env.calibration import foreign_soil as fs
+    from rover_env.generators import foreign_soil as fs
     from rover_env.soil import load_soil, slip_and_direction
 
     p = load_soil("mars-sand")

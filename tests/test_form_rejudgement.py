@@ -16,21 +16,21 @@ import numpy as np
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue
-from rover_env.calibration.diagnose import (
+from rover_env.calibration.diagnosis.form import (
     FORM_JOIN_BIC,
-    Options,
-    Scored,
-    _gain,
-    _p_improved,
+    form_key,
     form_rejudgement,
     join_if_seen,
+    reprepare,
+    with_anti_windup,
 )
+from rover_env.calibration.diagnosis.judge import gain, p_improved
+from rover_env.calibration.diagnosis.state import FormFit, Options, Scored
 from rover_env.calibration.fit import Evaluator, Fit, fit
-from rover_env.calibration.foreign_logs import make_foreign_logs
-from rover_env.calibration.make_logs import make_logs
-from rover_env.calibration.model_form import FormFit, reprepare, with_anti_windup
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
 from rover_env.config import ANTI_WINDUP_FORMS, load_rover
+from rover_env.generators.foreign_logs import make_foreign_logs
+from rover_env.generators.make_logs import make_logs
 from rover_env.logs import read_log
 
 CONDITIONAL = FormFit(
@@ -74,7 +74,7 @@ def _judge(
     for c in catalogue(list(cands)):
         f = fit(ev, [c], "train", max_nfev=4)
         hl = rs.window_losses(ev.run(f.ext, "held"), noise)
-        s = Scored(f, float(hl.sum()), hl, _gain(held_ref, hl), _p_improved(held_ref, hl), 0, 0, 0)
+        s = Scored(f, float(hl.sum()), hl, gain(held_ref, hl), p_improved(held_ref, hl), 0, 0, 0)
         s.significant = True
         ranked.append(s)
     ranked.sort(key=lambda s: -s.gain)
@@ -181,13 +181,11 @@ def test_forms_beside_the_winner_rerun_only_when_they_change_the_model() -> None
     """The second pass (``Options.forms_beside_winner``) runs only if the forms fitted
     beside the named effect change the model: an adopted value, or which are adopted; a
     different best value of a form kept nominal changes nothing."""
-    from rover_env.calibration.diagnose import _form_key
-    from rover_env.calibration.model_form import FormFit
 
     def form(value: float, adopted: bool) -> FormFit:
         return FormFit("relaxation_length", "m", 0.02, value, {}, 0.1, 0.01, -5.0, adopted)
 
     first = [form(0.00125, False)]
-    assert _form_key([form(0.005, False)]) == _form_key(first)
-    assert _form_key([form(0.00125, True)]) != _form_key(first)
-    assert _form_key([form(0.00152, True)]) != _form_key([form(0.00125, True)])
+    assert form_key([form(0.005, False)]) == form_key(first)
+    assert form_key([form(0.00125, True)]) != form_key(first)
+    assert form_key([form(0.00152, True)]) != form_key([form(0.00125, True)])

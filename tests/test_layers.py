@@ -29,6 +29,7 @@ RANKS = {
     "rover_env.estimation": 2,
     "rover_env.control": 2,
     "rover_env.calibration": 2,
+    "rover_env.generators": 2,  # synthetic drive logs and the drive plans they share
     "rover_env.experiments": 3,
     "rover_env.tasks": 3,  # what an episode asks: commands, setup, reward terms (no gymnasium)
     "rover_env.envs": 4,

@@ -1,4 +1,4 @@
-"""The model-form stage of diagnose (rover_env.calibration.model_form), fitted before any
+"""The model-form stage of diagnose (rover_env.calibration.diagnosis.form), fitted before any
 effect: the tire's relaxation length finds the truth's value on this project's logs and a
 much shorter one on the second implementation's, whose tire is steady state; the speed
 loop's anti-windup bound keeps the configuration's on this project's logs and takes a
@@ -11,9 +11,7 @@ from pathlib import Path
 import pytest
 
 from rover_env.calibration import residuals as rs
-from rover_env.calibration.foreign_logs import make_foreign_logs
-from rover_env.calibration.make_logs import make_logs
-from rover_env.calibration.model_form import (
+from rover_env.calibration.diagnosis.form import (
     FLOOR_LADDER,
     LADDER,
     WINDUP_LADDER,
@@ -27,6 +25,8 @@ from rover_env.calibration.model_form import (
 )
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
 from rover_env.config import RoverConfig
+from rover_env.generators.foreign_logs import make_foreign_logs
+from rover_env.generators.make_logs import make_logs
 from rover_env.logs import read_log
 
 CFG = RoverConfig()

@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 from rover_env.calibration import residuals as rs
-from rover_env.calibration.drives import drive_schedule
 from rover_env.calibration.fit import Evaluator
 from rover_env.calibration.ground import common_ground, log_ground
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
 from rover_env.config import load_rover
+from rover_env.generators.drives import drive_schedule
 from rover_env.logs import DriveLog, LogError, LogMeta, read_log, write_log
 from rover_env.sim.recorder import run_drive
 from rover_env.sim.simulator import RoverSim

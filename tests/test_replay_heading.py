@@ -14,9 +14,9 @@ import numpy as np
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.fit import Evaluator
-from rover_env.calibration.make_logs import make_logs
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
 from rover_env.config import load_rover
+from rover_env.generators.make_logs import make_logs
 from rover_env.logs import read_log
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from rover_env.calibration.diagnose import Options, diagnose
-from rover_env.calibration.foreign_logs import make_foreign_logs
+from rover_env.generators.foreign_logs import make_foreign_logs
 
 DELAY = 0.2244
 

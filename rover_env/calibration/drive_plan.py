@@ -38,9 +38,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rover_env.calibration.candidates import SEPARATING_PLANS
-from rover_env.calibration.drives import PLANS, drive_schedule
 from rover_env.calibration.evidence import EVIDENCE_PLANS, PLAN_DURATION, PLAN_SEED
 from rover_env.config import DRIVEN_WHEELS, Geometry, RoverConfig, load_rover
+from rover_env.generators.drives import PLANS, drive_schedule
 
 Array = NDArray[np.float64]
 

@@ -26,9 +26,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rover_env.calibration.candidates import Extensions
-from rover_env.calibration.drives import drive_schedule
 from rover_env.calibration.replay import SIGNALS, Replayer, ReplaySettings, make_windows, prepare
 from rover_env.config import JOINTS, WHEELS, RoverConfig, TerrainConfig, to_dict
+from rover_env.generators.drives import drive_schedule
 from rover_env.logs import DriveLog
 from rover_env.sim.recorder import run_drive
 from rover_env.sim.simulator import RoverSim

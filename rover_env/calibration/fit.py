@@ -130,7 +130,7 @@ class Fit:
     form_pad: tuple[float, float] = (0.0, 0.0)
     """One parameter: how far forms moved the interval beyond the chosen form's own (below,
     above): the candidate's own forms the windows cannot reject, and the model's forms
-    (:func:`join_form_interval`); carried by fits that keep the forms."""
+    (:func:`~rover_env.calibration.diagnosis.form.join_form_interval`); carried by fits that keep the forms."""
     noise_se: Array | None = None
     """Per free variable: the uncertainty the sensor noise alone puts on it, scatter and
     bias in quadrature, from simulated noise draws
@@ -499,34 +499,6 @@ def _fit_1d(
     )
 
 
-def join_form_interval(f: Fit, other: Fit) -> None:
-    """Widen ``f``'s interval of each one-variable candidate to cover ``other``'s, the same
-    candidates fitted under another model form; the widening goes to :attr:`Fit.form_pad`,
-    so a fit with more effects carries it (:func:`carry_form_pad`).
-
-    Why (issue 16, stop 34): the model forms are implementation choices (the speed loop's
-    anti-windup, the tire's relaxation and slip floor) chosen by the windows among a few; a
-    log from another implementation matches none of them exactly, and the estimate moves
-    with the choice. On the second generator's logs a 0.191 s lag was fitted 0.169 [0.144,
-    0.182] under the adopted forms and 0.177 [0.157, 0.192] under the nominal ones; its lags
-    were fitted low in 7 of 7 matrix cases.
-    """
-    if [c.name for c in f.candidates] != [c.name for c in other.candidates]:
-        raise ValueError(f"{other.name} is not a refit of {f.name}")
-    i = 0
-    for c in f.candidates:
-        n = len(c.labels)
-        if n == 1 and np.isfinite(other.ci_lo[i]) and np.isfinite(other.ci_hi[i]):
-            lo = min(float(f.ci_lo[i]), float(other.ci_lo[i]), float(other.x[i]))
-            hi = max(float(f.ci_hi[i]), float(other.ci_hi[i]), float(other.x[i]))
-            pad = (float(f.ci_lo[i]) - lo, hi - float(f.ci_hi[i]))
-            if len(f.candidates) == 1:
-                f.form_pad = (f.form_pad[0] + pad[0], f.form_pad[1] + pad[1])
-            f.ci_lo[i], f.ci_hi[i] = lo, hi
-            f.se[i] = max(f.se[i], (hi - lo) / (2 * f.tq))
-        i += n
-
-
 def stack_fits(held: Fit, added: Fit) -> Fit:
     """One fit of ``held``'s and ``added``'s candidates, ``added`` fitted with ``held`` held
     at its values (``fit(..., hold=held.ext)``): forward selection stage by stage. Each
@@ -557,7 +529,7 @@ def stack_fits(held: Fit, added: Fit) -> Fit:
 def carry_form_pad(f: Fit, singles: list[Fit]) -> None:
     """Widen ``f``'s interval of each variable of a candidate whose single fit (one of
     ``singles``) was widened for a form (its own soil form, or the model's forms:
-    :func:`join_form_interval`) by that fit's :attr:`Fit.form_pad`: a fit with more effects
+    :func:`~rover_env.calibration.diagnosis.form.join_form_interval`) by that fit's :attr:`Fit.form_pad`: a fit with more effects
     keeps the forms, and knows them no better than the single fit did."""
     i = 0
     for c in f.candidates:
@@ -696,33 +668,9 @@ def fit(
     )
     x = res.x
     r = res.fun
-    jac = res.jac
     results = ev.run(merge(fixed, to_ext(free, x)), which)
-    slices = window_slices(results)
-    g = len(slices)
-    bread = np.linalg.pinv(jac.T @ jac)
-    meat = np.zeros((len(x), len(x)))
-    for s in slices:
-        u = jac[s].T @ r[s]
-        meat += np.outer(u, u)
-    cov = bread @ meat @ bread * (g / max(g - 1, 1))
-    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    tq = float(stats.t.ppf(0.975, max(g - 1, 1)))
     offs = np.concatenate([c.off for c in free])
-    res_ = np.maximum(0.02 * np.abs(x - offs), 0.002 * (hi - lo))
-    se = np.maximum(se, res_ / tq)  # never narrower than the search's resolution
-    ci_lo, ci_hi = x - tq * se, x + tq * se
-    sided = []
-    for k in range(len(x)):
-        t1 = float(stats.t.ppf(0.95, max(g - 1, 1)))
-        if x[k] <= lo[k] + res_[k] or (offs[k] == lo[k] and x[k] <= offs[k] + res_[k]):
-            ci_lo[k], ci_hi[k] = lo[k], max(x[k] + t1 * se[k], x[k] + res_[k])
-            sided.append("upper")
-        elif x[k] >= hi[k] - res_[k] or (offs[k] == hi[k] and x[k] >= offs[k] - res_[k]):
-            ci_lo[k], ci_hi[k] = min(x[k] - t1 * se[k], x[k] - res_[k]), hi[k]
-            sided.append("lower")
-        else:
-            sided.append("")
+    ci_lo, ci_hi, se, sided, tq = _sandwich_interval(x, r, res.jac, results, lo, hi, offs)
     # Pad the free-variable arrays with the discrete candidates' (empty) slots in order.
     xs, los, his, ses = [], [], [], []
     i = 0
@@ -750,6 +698,45 @@ def fit(
     )
 
 
+def _sandwich_interval(
+    x: Array,
+    r: Array,
+    jac: Array,
+    results: list[WindowResult],
+    lo: Array,
+    hi: Array,
+    offs: Array,
+) -> tuple[Array, Array, Array, list[str], float]:
+    """(95 % low, high, standard error, side, t quantile) of a least-squares fit at ``x``:
+    the cluster-robust sandwich covariance with windows as clusters and Student's t, never
+    narrower than the search's resolution, one-sided where ``x`` sits at a bound."""
+    slices = window_slices(results)
+    g = len(slices)
+    bread = np.linalg.pinv(jac.T @ jac)
+    meat = np.zeros((len(x), len(x)))
+    for s in slices:
+        u = jac[s].T @ r[s]
+        meat += np.outer(u, u)
+    cov = bread @ meat @ bread * (g / max(g - 1, 1))
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    tq = float(stats.t.ppf(0.975, max(g - 1, 1)))
+    res_ = np.maximum(0.02 * np.abs(x - offs), 0.002 * (hi - lo))
+    se = np.maximum(se, res_ / tq)  # never narrower than the search's resolution
+    ci_lo, ci_hi = x - tq * se, x + tq * se
+    sided = []
+    for k in range(len(x)):
+        t1 = float(stats.t.ppf(0.95, max(g - 1, 1)))
+        if x[k] <= lo[k] + res_[k] or (offs[k] == lo[k] and x[k] <= offs[k] + res_[k]):
+            ci_lo[k], ci_hi[k] = lo[k], max(x[k] + t1 * se[k], x[k] + res_[k])
+            sided.append("upper")
+        elif x[k] >= hi[k] - res_[k] or (offs[k] == hi[k] and x[k] >= offs[k] - res_[k]):
+            ci_lo[k], ci_hi[k] = min(x[k] - t1 * se[k], x[k] - res_[k]), hi[k]
+            sided.append("lower")
+        else:
+            sided.append("")
+    return ci_lo, ci_hi, se, sided, tq
+
+
 def information_criteria(sum_log_ratio: float, n: int, k: int) -> tuple[float, float]:
     """(delta AIC, delta BIC) against the reference model, windows as the n observations.
 
@@ -764,8 +751,6 @@ def signal_change(
 ) -> dict[str, float]:
     """Per signal: RMS of the change of the replayed signal between two models, in units of
     that signal's replay floor (each signal weighed by its own noise)."""
-    from rover_env.calibration.replay import SIGNALS
-
     ra, rb = ev.run(ext_a, which), ev.run(ext_b, which)
     d_w = np.concatenate([a.resid - b.resid for a, b in zip(ra, rb, strict=True)])
     d_p = np.concatenate([a.pose_resid - b.pose_resid for a, b in zip(ra, rb, strict=True)])
@@ -774,43 +759,4 @@ def signal_change(
         col = d_w[:, j] if j < 11 else d_p[:, j - 11]
         col = col[np.isfinite(col)]
         out[s] = float(np.sqrt(np.mean(col**2)) / floor[s]) if col.size else 0.0
-    return out
-
-
-def noise_threshold(
-    ev: Evaluator, c: Candidate, which: str, floor: dict[str, float]
-) -> dict[str, float]:
-    """Magnitude at which the effect moves its most sensitive signal by one replay floor.
-
-    Per side of "off" ("+": above, "-": below; a slope: "deg"), from the ladder's replays
-    (already in the cache after the fit): each rung k gives m_k / S_k, S_k the largest
-    per-signal RMS change against "off" in floor units (linear response near the
-    threshold); the rung whose S_k is nearest 1 decides. An effect must exceed this to be
-    visible at all on these drives; the benchmark's detection curves are drawn against it.
-    """
-    if c.discrete or not c.ladder:
-        return {}
-    off = c.to_ext(np.array(c.off))
-    groups: dict[str, list[tuple[float, float]]] = {}
-    for p in c.ladder:
-        x = np.array(p, dtype=float)
-        if c.name == "slope":
-            key, mag = "deg", float(np.hypot(x[0], x[1]))
-        else:
-            key = "+" if x[0] > c.off[0] else "-"
-            mag = abs(float(x[0] - c.off[0]))
-        try:
-            s = max(signal_change(ev, c.to_ext(x), off, which, floor).values())
-        except (EffectError, SimulationError):
-            continue
-        if s > 0:
-            groups.setdefault(key, []).append((mag, s))
-    out = {}
-    for key, pts in groups.items():
-        mag, s = min(pts, key=lambda q: abs(math.log(q[1])))
-        if c.name == "slope":  # four directions per magnitude: the median of their estimates
-            near = [m / v for m, v in pts if m == mag]
-            out[key] = float(np.median(near))
-        else:
-            out[key] = mag / s
     return out

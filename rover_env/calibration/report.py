@@ -1,18 +1,16 @@
-"""Markdown report and PNG figures of a diagnosis."""
+"""Markdown report and PNG figures of a diagnosis, written from the finished state
+(:class:`rover_env.calibration.diagnosis.state.Diagnosis`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
 from rover_env.calibration.residuals import REGIMES, Cell
-from rover_env.config import RoverConfig
-
-if TYPE_CHECKING:  # pragma: no cover
-    from rover_env.calibration.diagnose import Options, Scored
 
 
 def _f(x: float, d: int = 3) -> str:
@@ -241,30 +239,17 @@ def _headline(
     return L
 
 
-def write_report(
-    out: Path,
-    *,
-    result: dict[str, Any],
-    ranked: list[Scored],
-    tried: list[Scored],
-    chosen: list[Scored],
-    tie: dict[str, Any] | None,
-    demoted: list[Scored] | None = None,
-    opts: Options,
-    table_before: dict[str, dict[str, Cell]],
-    table_held_before: dict[str, dict[str, Cell]],
-    table_held_after: dict[str, dict[str, Cell]],
-    noise: dict[str, float],
-    sensor_noise: dict[str, float],
-    prepared: list[PreparedLog],
-    base_held: list[WindowResult],
-    final_held: list[WindowResult],
-    base: RoverConfig,
-) -> Path:
+def write_report(d: Diagnosis) -> Path:
+    """``report.md`` and its figures in ``d.out``, from a finished diagnosis (its
+    :attr:`~Diagnosis.result` and the fits, tables and replays behind it)."""
+    out, result, ranked, tried, opts = d.out, d.result, d.ranked, d.tried, d.opts
+    table_before, table_held_before = d.table_before, d.table_held_before
+    table_held_after, noise, sensor_noise = d.table_held_after, d.noise, d.sensor_noise
+    prepared, base_held, final_held, base = d.prepared, d.base_held, d.held_final, d.base
     figs = _figures(out, ranked, table_before, prepared, base_held, final_held)
     L: list[str] = ["# Model-discrepancy diagnosis", ""]
     named = result["named"]
-    L += _headline(result, chosen, demoted, tie)
+    L += _headline(result, d.chosen, d.demoted, d.tie)
     L += [
         "",
         f"Main residual ({result['main_signal']}, largest held-out ratio to noise): RMS "
@@ -426,7 +411,7 @@ def _model_form_line(
     beside: str | None = None,
     refit_beside: bool = True,
 ) -> str:
-    """The model-form stage (rover_env.calibration.model_form) in one bullet."""
+    """The model-form stage (rover_env.calibration.diagnosis.form) in one bullet."""
     if reverted is not None:
         return (
             "- Model form: fitted first, then reverted to the configuration's when judged"

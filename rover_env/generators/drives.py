@@ -1,7 +1,7 @@
 """Drive plans of calibration logs: speed-target schedules of the driven wheels.
 
-Shared by the project's log generator (:mod:`rover_env.calibration.make_logs`), the second,
-deliberately different one (:mod:`rover_env.calibration.foreign_logs`) and the proposed
+Shared by the project's log generator (:mod:`rover_env.generators.make_logs`), the second,
+deliberately different one (:mod:`rover_env.generators.foreign_logs`) and the proposed
 deciding drives (:mod:`rover_env.calibration.evidence`), so none of them imports another.
 """
 

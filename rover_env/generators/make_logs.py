@@ -38,10 +38,10 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from rover_env.calibration.drives import PLANS, drive_schedule
 from rover_env.config import ConfigError, RoverConfig, load_rover, to_dict
 from rover_env.effects import CATALOGUE, EffectError, effect_class
 from rover_env.estimation.sensors import SensorConfig, apply_sensors
+from rover_env.generators.drives import PLANS, drive_schedule
 from rover_env.logs import DriveLog, write_log
 from rover_env.sim.recorder import run_drive
 from rover_env.sim.simulator import RoverSim
@@ -172,7 +172,7 @@ def _cli(args: argparse.Namespace) -> int:
         "first_index": args.first_index,
     }
     if args.generator == "foreign":
-        from rover_env.calibration.foreign_logs import make_foreign_logs
+        from rover_env.generators.foreign_logs import make_foreign_logs
 
         if args.pose_end_only or args.pose_rate != 1.0:
             raise ConfigError("--generator foreign: the pose reference is fixed at 1 Hz")
@@ -214,7 +214,7 @@ def add_cli(sub: Any) -> None:
         choices=("rover_env", "foreign"),
         default="rover_env",
         help="rover_env: this project's simulator; foreign: a deliberately different"
-        " implementation of the same rover (rover_env.calibration.foreign_logs)",
+        " implementation of the same rover (rover_env.generators.foreign_logs)",
     )
     p.add_argument("--out", required=True)
     p.add_argument("--quiet", action="store_true")

@@ -28,7 +28,7 @@ What differs from the project's simulator (``rover_env.sim``), on purpose:
   input at the control rate (the delay quantised to 4 ms, not 1 ms);
 * loose soil (``loose_soil``): SOIL.md's equations in this package's own quadrature on a
   rigid wheel whose sinkage is its penetration of the flat surface, with no sinkage state,
-  dug hole or ruts (:mod:`rover_env.calibration.foreign_soil`); the soil constants are the
+  dug hole or ruts (:mod:`rover_env.generators.foreign_soil`); the soil constants are the
   effect's (:func:`rover_env.sim.simulator.effect_soil`). On soil the tire's effects
   (rolling resistance, rolling radius, friction and its load dependence, the ellipse) do
   not act, as in the project's simulator, where the soil replaces the tire.
@@ -51,10 +51,10 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from rover_env.calibration import foreign_soil
-from rover_env.calibration.drives import drive_schedule
 from rover_env.config import JOINTS, WHEELS, ConfigError, RoverConfig, load_rover, to_dict
 from rover_env.effects import build_effects
+from rover_env.generators import foreign_soil
+from rover_env.generators.drives import drive_schedule
 from rover_env.logs import DriveLog, LogMeta, write_log
 from rover_env.sim.model import scene_xml
 from rover_env.sim.simulator import effect_soil
@@ -465,7 +465,7 @@ def make_foreign_logs(
         log = DriveLog(t, cmd, phi, theta, pose, meta)
         paths.append(write_log(log, out / f"drive_{k:02d}.csv", overwrite=True))
     truth: dict[str, Any] = {
-        "generator": "foreign (rover_env.calibration.foreign_logs)",
+        "generator": "foreign (rover_env.generators.foreign_logs)",
         "effects": effects,
         "seed": seed,
         "drives": [p.name for p in paths],

@@ -17,7 +17,7 @@ but another implementation and another dynamic design, on purpose (issue 16, ite
 * wheel spin: semi-implicit through the resisting torque (bisection on the spin rate after
   the step), as this generator's tire does.
 
-Used by :class:`rover_env.calibration.foreign_logs.ForeignRover` for the ``loose_soil``
+Used by :class:`rover_env.generators.foreign_logs.ForeignRover` for the ``loose_soil``
 effect, with the constants :func:`rover_env.sim.simulator.effect_soil` would use.
 """
 

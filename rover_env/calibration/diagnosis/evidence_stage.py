@@ -1,0 +1,82 @@
+"""Stage 6, evidence: the drives the logs lack.
+
+Owns the candidates the training drives support but the held-out drive cannot confirm (not
+excited, seen in the 1 Hz pose only, or leaning towards it at a p its few windows cannot
+bring under alpha): for each, the drive that would decide is proposed and simulated
+(:func:`rover_env.calibration.evidence.propose`). Why a stage of its own: it names nothing;
+it says what to drive next.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rover_env.calibration import evidence, fit
+from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
+from rover_env.calibration.fit import Evaluator
+from rover_env.config import RoverConfig
+
+
+def seek_evidence(d: Diagnosis) -> None:
+    """Sets :attr:`Diagnosis.evidence`."""
+    d.evidence = missing_evidence(d.ev, d.ranked, d.chosen, d.noise, d.base, d.opts, d.say)
+
+
+def missing_evidence(
+    ev: Evaluator,
+    ranked: list[Scored],
+    chosen: list[Scored],
+    noise: dict[str, float],
+    base: RoverConfig,
+    opts: Options,
+    say: Any,
+) -> list[dict[str, Any]]:
+    """Candidates the training drives support but the held-out drive cannot confirm.
+
+    A candidate qualifies when it is not named, lowers the training BIC, moves some training
+    signal by at least one replay floor, and on the held-out drive either moves no signal
+    by a floor (not excited), or only the 1 Hz pose (a sparse signal), or improves it by the
+    window test's margin at a p the held-out windows cannot bring under alpha (leaning).
+    For each (at most ``opts.evidence``, best training BIC first) the drive that would
+    decide is proposed and simulated (:func:`rover_env.calibration.evidence.propose`).
+    """
+    named = {c.name for s in chosen for c in s.fit.candidates}
+    out: list[dict[str, Any]] = []
+    for s in sorted(ranked, key=lambda s: s.d_bic):
+        if len(out) >= opts.evidence:
+            break
+        name = s.fit.name
+        if name in named or s.d_bic >= 0 or s.fit.x.size == 0:
+            continue
+        if all(v == 0.0 for v in s.fit.x):
+            continue
+        train = fit.signal_change(ev, s.fit.ext, {}, s.fit.which, noise)
+        if max(train.values()) < 1.0:
+            continue
+        held = fit.signal_change(ev, s.fit.ext, {}, "held", noise)
+        strong = [k for k, v in held.items() if v >= 1.0]
+        sparse = bool(strong) and all(k.startswith("pose_") for k in strong)
+        # The held-out drive leans towards it (better by the window test's margin) but its
+        # few windows cannot confirm it at alpha: more of the drive that excites it decides.
+        leaning = s.gain >= opts.min_gain and s.p >= opts.alpha
+        if strong and not sparse and not leaning:
+            continue  # the held-out drive could judge it, and did
+        if sparse:
+            why = "only the 1 Hz pose carries it on the held-out drive"
+        elif strong:
+            why = (
+                f"the held-out drive leans towards it ({100 * s.gain:.0f} % better) but cannot"
+                f" confirm it (p {s.p:.2g} against {opts.alpha:g})"
+            )
+        else:
+            why = "the held-out drive does not excite it"
+        p = evidence.propose(base, name, s.fit.ext, noise, held, ground=ev.settings.terrain)
+        p["reason"] = why
+        out.append(p)
+        say(
+            f"evidence missing for {name} ({why}): propose a drive of plan {p['plan']!r}; in"
+            f" simulation its replay moves {p['best_signal']} by {p['best_per_window']:.1f}x its"
+            f" floor per window, {p['best_floor_units']:.1f}x over the drive (held-out drive:"
+            f" {p['held_out_best_signal']} {p['held_out_floor_units']:.1f}x per window)"
+        )
+    return out

@@ -1,0 +1,58 @@
+"""Stage 1, split: read the logs and the rover they name, prepare them on their declared
+ground, cut them into windows and split those into training and held-out sets.
+
+Owns the split rule: the last log (by file name) is held out, the others train; a single
+log alternates its windows. Why a whole held-out drive: windows of one drive share its
+conditions, so a candidate must explain a drive it was not fitted on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+from rover_env.calibration.diagnosis.state import Diagnosis
+from rover_env.calibration.ground import common_ground
+from rover_env.calibration.replay import Window, make_windows, prepare
+from rover_env.config import RoverConfig, load_rover
+from rover_env.logs import DriveLog, LogError, read_log
+
+
+def rover_of(log: DriveLog) -> RoverConfig:
+    """The rover a log names: a file beside the log, or a configuration name."""
+    name = log.meta.rover
+    p = Path(name)
+    if log.path is not None and not p.is_absolute() and (log.path.parent / p).is_file():
+        return load_rover(log.path.parent / p)
+    return load_rover(name)
+
+
+def split(d: Diagnosis) -> None:
+    """Sets the logs, the rover, the replay settings, the prepared logs and the windows."""
+    if not d.paths:
+        raise LogError("no logs given")
+    files = sorted(Path(p) for p in d.paths)
+    logs = [read_log(p) for p in files]
+    rovers = {lg.meta.rover for lg in logs}
+    if len(rovers) > 1:
+        raise LogError(f"the logs name different rovers ({', '.join(sorted(rovers))})", files[0])
+    base = rover_of(logs[0])
+    # The ground the logs declare (flat, a uniform slope or soil), or one clear refusal.
+    st = replace(d.opts.settings, terrain=common_ground(logs))
+    prepared = [prepare(lg, base, f.name, st) for lg, f in zip(logs, files, strict=True)]
+    all_w = make_windows(prepared, st)
+    if len(logs) >= 2:
+        held_logs = [len(logs) - 1]
+        train_w = [w for w in all_w if w.log_index not in held_logs]
+        held_w = [w for w in all_w if w.log_index in held_logs]
+        text = f"training: {', '.join(f.name for f in files[:-1])}; held out: {files[-1].name}"
+    else:
+        train_w, held_w = all_w[0::2], all_w[1::2]
+        text = f"one log ({files[0].name}): even windows training, odd windows held out"
+    if len(train_w) < 3 or len(held_w) < 3:
+        raise LogError("too little data: need at least 3 training and 3 held-out windows", files[0])
+    sub_w = train_w[:: max(1, d.opts.numpy_every)]
+    sets: dict[str, list[Window]] = {"train": train_w, "train_sub": sub_w, "held": held_w}
+    d.files, d.logs, d.base, d.st, d.prepared, d.split = files, logs, base, st, prepared, text
+    d.all_w, d.train_w, d.held_w, d.sets = all_w, train_w, held_w, sets
+    d.say(f"{len(logs)} log(s), {text}; windows {len(train_w)} training, {len(held_w)} held out")

@@ -1,0 +1,274 @@
+"""The diagnosis's state and result types: what every stage reads and writes.
+
+At the bottom of the diagnosis's imports (it imports no stage, nor the report): each stage
+(:mod:`.pipeline` names them in order) takes a :class:`Diagnosis` and fills its part of it,
+and the report (:mod:`rover_env.calibration.report`) reads the finished one. Why one state
+object: the stages share some twenty values (the windows, the evaluator, the floors, the
+ranked candidates); passed by name, each stage's inputs and outputs are its fields.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rover_env.calibration.candidates import Candidate
+from rover_env.calibration.fit import Evaluator, Fit
+from rover_env.calibration.noise_interval import DRAWS as NOISE_DRAWS
+from rover_env.calibration.replay import PreparedLog, ReplaySettings, Window, WindowResult
+from rover_env.calibration.residuals import Cell
+from rover_env.config import RoverConfig
+from rover_env.logs import DriveLog
+
+Array = NDArray[np.float64]
+Table = dict[str, dict[str, Cell]]
+"""Residual / floor per signal and regime (:func:`rover_env.calibration.residuals.table`)."""
+
+
+@dataclass
+class Options:
+    settings: ReplaySettings = field(default_factory=ReplaySettings)
+    alpha: float = 0.01
+    min_gain: float = 0.10
+    """Smallest relative held-out improvement that can name an effect."""
+    tie_alpha: float = 0.05
+    numpy_every: int = 2
+    """Numpy-only candidates are fitted on every n-th training window (they are ~20x slower)."""
+    max_nfev: int = 4
+    second: int = 4
+    """Partners judged as pairs with the winner in forward selection: those that improve the
+    held-out drive most beside it (``blind_partners``), or alone (otherwise)."""
+    reweigh: int = 2
+    """Refits of each candidate that improves the training drives (BIC), with each signal
+    weighed by its residual after the last fit (iteratively reweighted least squares:
+    per-signal error scales estimated with the parameter; 0: the stage-one scale only).
+    Why: stage one weighs each signal by its residual *before* any effect, so the signals
+    an effect fixes best (a delay: the driven wheels, 0.22 rad before, 3 mrad after) weigh
+    ~1e-4 of the rest afterwards and the estimate is set by signals that carry the model's form difference (stop 37, case 16105: the
+    second generator's joints put the delay at 0.197 s, its driven wheels at 0.226, truth
+    0.2244; the fit at 0.209 and a partner, a lag or a torque limit, to make up the rest)."""
+    polish: int = 12
+    """Evaluations (``least_squares``' ``max_nfev``) to finish a named effect's fit of
+    several parameters (a slope's tilt vector) from where its search stopped, in the scale
+    it was fitted with (0: none), by central differences. Why: the search's budget
+    (:attr:`max_nfev`) is spent across every candidate, from a ladder rung up to a factor 3
+    away, with forward differences (stop 38, own slope 7.19 deg, case 17001: the search
+    7.175 [7.04, 7.31], finished 7.247 [7.05, 7.45]; before the steps were fixed, see
+    :func:`rover_env.calibration.fit.fit`, the search stopped at 6.57)."""
+    noise_draws: int = NOISE_DRAWS
+    """Simulated sensor-noise draws behind each named effect's interval (0: none): the
+    interval is widened to at least what the sensors alone put on the value
+    (:mod:`rover_env.calibration.noise_interval`). Why: both interval methods resample
+    windows, and when one window carries an effect (a torque limit reached once) they
+    cannot see that window's own noise (stop 38: own logs of a torque limit of -0.09, seed
+    19003, one window of 32 reaching it: -0.0968 [-0.150, -0.0932])."""
+    blind_partners: bool = True
+    """Forward selection: every other candidate's magnitude-blind search with the winner held
+    at its fit chooses the partners (False: the candidates that improved held-out alone,
+    from their single fits; the behaviour until stop 34)."""
+    candidates: list[str] | None = None
+    progress: bool = True
+    workers: int = 1
+    """Processes fitting candidates side by side (forked; 1: in this process)."""
+    executor: str = "local"
+    """Where candidate fits run: ``local`` (forked processes) or ``ray`` (rover_env.executor)."""
+    ray_address: str | None = None
+    evidence: int = 2
+    """Candidates for which a deciding drive is proposed and simulated, at most."""
+    model_form: bool = True
+    """Fit the model's own form first, in this order: the speed loop's anti-windup form,
+    the tire's relaxation length and its low-speed slip floor (:mod:`.form`)."""
+    fit_slip_floor: bool = True
+    """Fit the tire's low-speed slip floor (``TireParams.v_floor``) as model form, after the
+    relaxation length (:func:`.form.fit_slip_floor`; stop 30: the second generator's
+    steady-state tire regularises slip below 5 cm/s, and in a slow pivot turn its free
+    wheels turned twice as fast as this model's, -0.22 against -0.11 rad/s; with the floor
+    at 5 cm/s and a 2.5 mm relaxation length, -0.220)."""
+    fit_anti_windup: bool = True
+    """Choose the speed loop's anti-windup form (clamp or conditional integration) as model
+    form, the first stage (:func:`.form.fit_anti_windup`). On by default since stop 30:
+    with the clamp alone, every big command step of the second generator's logs (a
+    conditionally integrating PI) left the driven wheels 0.1-0.2 rad ahead in the replay
+    (the clamp's loop winds up and catches up the angle it lost), and a command lag was
+    named for it on clean logs (stop-29 matrix: 6 foreign cases). Stop 27 had kept it opt-in
+    on 9 cases (docs/calibration, stops 27 and 30). ``--no-fit-anti-windup`` keeps the
+    configuration's form."""
+    rejudge_form: int = 3
+    """After a winner is named under an adopted model form, refit this many of the
+    significant candidates under the nominal form (0: never). When one of them explains the
+    training drives at a lower BIC than the winner and the adopted form together (the
+    form's parameters counted) and passes the held-out window test against the nominal
+    model, the adopted forms are reverted and the diagnosis runs again without them
+    (:func:`.form.form_rejudgement`). Why: a form stage is judged before any effect, so it can
+    absorb part of one (stop 30, case 10005: a 17 ms command delay on the model's own logs;
+    the conditional anti-windup form was adopted at dBIC -1.7, the delay fitted 5 ms under
+    it and a lag was named; under the nominal form the delay fits 18.8 ms at dBIC -17)."""
+    forms_reverted: dict[str, Any] | None = None
+    """Set by the re-judgement when it reverts the forms: what it compared (for the report)."""
+    forms_beside_winner: bool = True
+    """Fit the model's forms again beside the first pass's named effect (one the plugin
+    replays: not the soil) and, if they come out
+    otherwise, run the diagnosis again under them (:attr:`forms_given`). Why: the forms are
+    fitted before any effect, where a large one hides them (stop 38, second generator's
+    delay 0.0831 s, case 17095: before any effect the steady-state tire's short relaxation
+    gains nothing and is kept at 2 cm, and the delay is then fitted 0.0949 [0.0908, 0.0983]
+    with the free wheels at 32 mrad; beside the delay the short relaxation puts the free
+    wheels at 3.7 mrad and the delay's minimum at 0.084)."""
+    forms_given: list[FormFit] | None = None
+    """The forms to use instead of fitting them (set by the second pass)."""
+    forms_beside: str | None = None
+    """The effect the given forms were fitted beside (for the report)."""
+    fit_windup: bool = False
+    """Also fit the speed loop's anti-windup bound (after sigma). Off by default: measured
+    in stop 24, the bound that fits the second generator's loop (15.6 mrad) caps the
+    integral's torque, so a steady load (rolling resistance) shows as droop of the driven
+    wheels that a conditionally integrating PI does not have; the driven wheels' residual
+    scale falls 5-7 x and their weight pulls c_rr to 30 % of the truth (case 2083)."""
+
+
+@dataclass(frozen=True)
+class FormFit:
+    """One form parameter's fit (``name``, in ``unit``)."""
+
+    name: str
+    unit: str
+    nominal: float
+    """The configuration's value."""
+    value: float
+    """The best value found."""
+    ladder: dict[float, float]
+    """value -> mean over training windows of log(loss / nominal loss): < 0 is better."""
+    gain: float
+    """1 - geometric mean of (loss at ``value`` / nominal loss) over the training windows."""
+    p: float
+    """One-sided Wilcoxon signed-rank p that the windows improved at ``value``."""
+    d_bic: float
+    """BIC of ``value`` against the nominal, windows as observations, one parameter: the
+    criterion every catalogue effect must also pass (``fit.information_criteria``)."""
+    adopted: bool
+    """Whether diagnose uses ``value``: it differs from the nominal one and ``d_bic`` < 0."""
+    labels: tuple[str, ...] = ()
+    """A choice's names (``value`` and ``nominal`` index them), empty for a number."""
+
+    def text(self, x: float) -> str:
+        """``x`` in words: a choice's name, or the number with its unit."""
+        return self.labels[int(x)] if self.labels else f"{x:.3g} {self.unit}"
+
+    def _key(self, x: float) -> object:
+        return self.labels[int(x)] if self.labels else x
+
+    def as_json(self) -> dict[str, object]:
+        out = {
+            "value": self._key(self.value if self.adopted else self.nominal),
+            "fitted": self._key(self.value),
+            "nominal": self._key(self.nominal),
+            "unit": self.unit,
+            "adopted": self.adopted,
+            "training_gain": self.gain,
+            "p": self.p,
+            "d_bic": self.d_bic,
+            "ladder": {
+                (self.labels[int(k)] if self.labels else f"{k:.6g}"): v
+                for k, v in self.ladder.items()
+            },
+        }
+        if self.labels:
+            out["choices"] = list(self.labels)
+        return out
+
+
+@dataclass
+class Scored:
+    fit: Fit
+    held_cost: float
+    held_losses: Array
+    gain: float
+    """Relative held-out reduction against the reference model."""
+    p: float
+    """One-sided Wilcoxon p that held-out windows improved."""
+    d_aic: float
+    d_bic: float
+    n_train: int
+    significant: bool = False
+    test: str = ""
+    """Which held-out test named it (the window test, or the noise-floor test and what it cleared)."""
+    threshold: dict[str, float] = field(default_factory=dict)
+    """Noise threshold of the effect on these drives (:func:`rover_env.calibration.diagnosis.fit_stage.noise_threshold`)."""
+    reweighed_from: dict[str, dict[str, list[float]]] | None = None
+    """The fit under the stage's own signal scale, before :attr:`Options.reweigh`'s refits."""
+    fit_scale: dict[str, float] | None = None
+    """The signal scale the fit was made with when it is not the stage's own (a reweighed
+    refit, :attr:`Options.reweigh`): the replay's bias is measured with the same weights."""
+
+
+@dataclass
+class Diagnosis:
+    """One diagnosis as it runs: the inputs, then each stage's results (filled in order;
+    a field is read only by the stages after the one that sets it)."""
+
+    paths: list[str | Path]
+    out: Path
+    opts: Options
+    t_start: float = field(default_factory=time.perf_counter)
+
+    # split (:mod:`.split`)
+    files: list[Path] = field(init=False)
+    logs: list[DriveLog] = field(init=False)
+    base: RoverConfig = field(init=False)
+    """The logs' rover; after the form stage, with the adopted model forms."""
+    st: ReplaySettings = field(init=False)
+    prepared: list[PreparedLog] = field(init=False)
+    all_w: list[Window] = field(init=False)
+    train_w: list[Window] = field(init=False)
+    held_w: list[Window] = field(init=False)
+    sets: dict[str, list[Window]] = field(init=False)
+    split: str = field(init=False)
+    # form (:mod:`.form`)
+    sensor_noise: dict[str, float] = field(init=False)
+    base0: RoverConfig = field(init=False)
+    """The logs' rover under the nominal forms (:attr:`base` before the form stage)."""
+    prepared0: list[PreparedLog] = field(init=False)
+    forms: list[FormFit] = field(init=False)
+    # floor (:mod:`.floor`)
+    ev: Evaluator = field(init=False)
+    noise: dict[str, float] = field(init=False)
+    """The replay floor: what a perfect model leaves, per signal."""
+    base_train: list[WindowResult] = field(init=False)
+    base_held: list[WindowResult] = field(init=False)
+    scale: dict[str, float] = field(init=False)
+    table_before: Table = field(init=False)
+    table_held_before: Table = field(init=False)
+    # fit (:mod:`.fit_stage`)
+    cands: list[Candidate] = field(init=False)
+    held0: Array = field(init=False)
+    """Held-out window losses of the model without effects, in units of the floor."""
+    ranked: list[Scored] = field(init=False)
+    # select (:mod:`.select`)
+    winner: Scored | None = None
+    tie: dict[str, Any] | None = None
+    left: list[str] = field(default_factory=list)
+    """Held-out signals the winner leaves above its floor."""
+    w_floor: dict[str, float] = field(default_factory=dict)
+    partners: list[Scored] = field(default_factory=list)
+    tried: list[Scored] = field(default_factory=list)
+    chosen: list[Scored] = field(default_factory=list)
+    demoted: list[Scored] = field(default_factory=list)
+    traded: dict[str, Any] | None = None
+    dropped: dict[str, Any] | None = None
+    final_floor: dict[str, float] = field(default_factory=dict)
+    # evidence (:mod:`.evidence_stage`)
+    evidence: list[dict[str, Any]] = field(default_factory=list)
+    # write (:mod:`.write`)
+    held_final: list[WindowResult] = field(default_factory=list)
+    table_held_after: Table = field(default_factory=dict)
+    result: dict[str, Any] = field(default_factory=dict)
+
+    def say(self, msg: str) -> None:
+        """Print a progress line (``opts.progress``) with the seconds since the start."""
+        if self.opts.progress:
+            print(f"[diagnose {time.perf_counter() - self.t_start:6.1f}s] {msg}", flush=True)

@@ -1,0 +1,117 @@
+"""Stage 7, write: the diagnosis's outputs.
+
+Owns what a user gets in ``out``: the updated configuration (``rover.yaml``: the logs' rover
+plus the chosen effects with fitted values, loadable by RoverSim and the environments as
+it is), the held-out replay before/after (``replay_heldout.npz``), ``result.json`` (the
+machine-readable summary, :func:`result_of`) and the Markdown report with figures
+(:mod:`rover_env.calibration.report`, which reads the finished :class:`Diagnosis`).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import yaml
+
+from rover_env.calibration import residuals as rs
+from rover_env.calibration.candidates import merge
+from rover_env.calibration.diagnosis.judge import fit_dict, strict_json, unexplained
+from rover_env.calibration.diagnosis.state import Diagnosis
+from rover_env.calibration.replay import SIGNALS, WindowResult, replay_config
+from rover_env.calibration.report import write_report
+from rover_env.config import load_rover, to_dict
+
+
+def write(d: Diagnosis) -> None:
+    """Writes ``rover.yaml``, the held-out replays, ``result.json`` and the report; sets
+    :attr:`Diagnosis.result`."""
+    out, base, st, chosen = d.out, d.base, d.st, d.chosen
+    final_cfg = replace(base, extensions=merge(base.extensions, *(s.fit.ext for s in chosen)))
+    cfg_path = out / "rover.yaml"
+    cfg_path.write_text(
+        "# Written by rover-env diagnose: the logs' rover plus the effects it found.\n"
+        + yaml.safe_dump(to_dict(final_cfg), sort_keys=False)
+    )
+    load_rover(cfg_path)  # must load as is
+    held_log_objs = [d.logs[i] for i in sorted({w.log_index for w in d.held_w})]
+    replay_before = replay_config(base, held_log_objs, st)
+    replay_after = replay_config(cfg_path, held_log_objs, st)
+    arrays: dict[str, Any] = {f"before_{k}": v for k, v in replay_before.items()}
+    arrays.update({f"after_{k}": v for k, v in replay_after.items()})
+    np.savez(out / "replay_heldout.npz", **arrays)
+    d.held_final = d.ev.run(merge(*(s.fit.ext for s in chosen)) if chosen else {}, "held")
+    d.table_held_after = rs.table(rs.stack(d.held_final, d.prepared), d.final_floor)
+    d.result = result_of(d, str(cfg_path))
+    (out / "result.json").write_text(json.dumps(strict_json(d.result), indent=2, allow_nan=False))
+    write_report(d)
+    r = d.result
+    d.say(
+        f"named: {', '.join(r['named']) if r['named'] else 'nothing'}; main residual"
+        f" {r['main_signal']} {r['main_rms_before']:.4g} -> {r['main_rms_after']:.4g};"
+        f" wrote {out}/report.md, rover.yaml ({r['seconds']:.0f}s)"
+    )
+
+
+def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
+    """``result.json``'s content: what was named, every fit, the main residual before and
+    after (with the gap above the floor and the median window), floors and costs."""
+    noise, final_floor, opts = d.noise, d.final_floor, d.opts
+    table_held_before, table_held_after = d.table_held_before, d.table_held_after
+    main_sig = max(SIGNALS, key=lambda s: np.nan_to_num(table_held_before[s]["all"].ratio))
+    rb, ra = table_held_before[main_sig]["all"].rms, table_held_after[main_sig]["all"].rms
+    jm = SIGNALS.index(main_sig)
+    # The gap: what exceeds the floor of each model (the floor is what even a perfect model
+    # leaves; a tilted or lagging model can replay its own twins less exactly).
+    gb = float(np.sqrt(max(rb**2 - noise[main_sig] ** 2, 0.0)))
+    ga = float(np.sqrt(max(ra**2 - final_floor[main_sig] ** 2, 0.0)))
+    mb = median_window_rms(d.base_held, jm)
+    ma = median_window_rms(d.held_final, jm)
+    elapsed = time.perf_counter() - d.t_start
+    named = [n for s in d.chosen for n in (c.name for c in s.fit.candidates)]
+    return {
+        "logs": [str(f) for f in d.files],
+        "split": d.split,
+        "named": named,
+        "tie": d.tie,
+        "fits": {s.fit.name: fit_dict(s) for s in d.ranked},
+        "partners": {s.fit.name: fit_dict(s) for s in d.partners},
+        "second_tried": {s.fit.name: fit_dict(s) for s in d.tried},
+        "final": {s.fit.name: fit_dict(s) for s in d.chosen},
+        "main_signal": main_sig,
+        "main_rms_before": rb,
+        "main_rms_after": ra,
+        "main_reduction": 1.0 - ra / rb if rb > 0 else 0.0,
+        "main_floor_before": noise[main_sig],
+        "main_floor_after": final_floor[main_sig],
+        "main_gap_reduction": 1.0 - ga / gb if gb > 0 else 0.0,
+        "main_median_window_rms_before": mb,
+        "main_median_window_rms_after": ma,
+        "main_reduction_median_window": 1.0 - ma / mb if mb > 0 else 0.0,
+        "noise": noise,
+        "sensor_noise": d.sensor_noise,
+        "seconds": elapsed,
+        "replays": d.ev.replays,
+        "replay_seconds": d.ev.seconds,
+        "config": cfg_path,
+        "unexplained": unexplained(table_held_after, final_floor),
+        "evidence": d.evidence,
+        "not_named": d.traded,
+        "second_dropped": d.dropped,
+        "model_form": None if not opts.model_form else {f.name: f.as_json() for f in d.forms},
+        "model_form_reverted": opts.forms_reverted,
+        "model_form_beside": opts.forms_beside,
+    }
+
+
+def median_window_rms(results: list[WindowResult], j: int) -> float:
+    """Median over windows of one signal's RMS residual (robust to a few chaotic windows)."""
+    vals = []
+    for r in results:
+        col = r.resid[:, j] if j < 11 else r.pose_resid[:, j - 11]
+        if col.size:
+            vals.append(float(np.sqrt(np.mean(col**2))))
+    return float(np.median(vals)) if vals else float("nan")
