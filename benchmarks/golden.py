@@ -15,6 +15,7 @@ Writes, into OUT:
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import shutil
 import sys
@@ -164,11 +165,28 @@ def _strip_times(obj: Any) -> Any:
         return {
             k: _strip_times(v)
             for k, v in obj.items()
-            if not any(w in k for w in ("seconds", "wall", "elapsed", "time_s", "replays"))
+            if not any(w in k for w in ("seconds", "wall", "elapsed", "time_s"))
+            and k not in ("logs", "config")  # paths of the run's temporary logs and output
         }
     if isinstance(obj, list):
         return [_strip_times(v) for v in obj]
     return obj
+
+
+def _text(path: Path) -> object:
+    """A file's content without its wall-clock figures (a CSV's wall_s column, a report's
+    wall-time and cost lines); binary files as bytes."""
+    if path.suffix == ".csv":
+        rows = list(csv.reader(path.read_text().splitlines()))
+        drop = {i for i, name in enumerate(rows[0] if rows else []) if name in ("wall_s",)}
+        return [[c for i, c in enumerate(r) if i not in drop] for r in rows]
+    if path.suffix == ".md":
+        return [
+            line
+            for line in path.read_text().splitlines()
+            if not any(w in line.lower() for w in ("wall time", "cost:", "wall-clock"))
+        ]
+    return path.read_bytes()
 
 
 def compare(a: Path, b: Path) -> int:
@@ -197,7 +215,7 @@ def compare(a: Path, b: Path) -> int:
             if ja != jb:
                 print(f"{rel}: differs")
                 bad += 1
-        elif fa.read_bytes() != fb.read_bytes() and "time" not in fa.name:
+        elif _text(fa) != _text(fb):
             print(f"{rel}: differs")
             bad += 1
     print("identical" if bad == 0 else f"{bad} difference(s)")
