@@ -291,6 +291,31 @@ def _fresh(
     return model, vn
 
 
+def _checkpointer(run_dir: Path, plan: _Plan) -> RolloutCheckpoint:
+    """Checkpoints every ``checkpoint_freq`` steps, counted on from a resumed checkpoint."""
+    ckpt = RolloutCheckpoint(
+        run_dir / "checkpoints",
+        max(plan.cfg.checkpoint_freq, 1),
+        {"algo": plan.algo, "env_id": plan.env_id, "seed": plan.seed},
+        algo=plan.algo,
+    )
+    ckpt.last_saved = plan.start_step or 0
+    return ckpt
+
+
+def _eval_venv(plan: _Plan) -> VecNormalize:
+    """The validation envs (the seed plan's validation seeds), normalised but not updating."""
+    cfg = plan.cfg
+    eval_seeds = split_episodes(validation_seeds(), cfg.n_eval_episodes, cfg.n_eval_envs)
+    return _normalized(
+        make_vec_env(
+            plan.env_id, cfg, cfg.n_eval_envs, eval_seeds, None, "eval", split="validation"
+        ),
+        cfg,
+        training=False,
+    )
+
+
 def _validation(
     run_dir: Path,
     plan: _Plan,
@@ -393,24 +418,11 @@ def train(
         else:
             model, vn = _fresh(plan, venv, init_from)
         model.set_logger(_logger(run_dir, plan.start_step, verbose))
-        ckpt = RolloutCheckpoint(
-            run_dir / "checkpoints",
-            max(cfg.checkpoint_freq, 1),
-            {"algo": plan.algo, "env_id": plan.env_id, "seed": plan.seed},
-            algo=plan.algo,
-        )
-        ckpt.last_saved = plan.start_step or 0
+        ckpt = _checkpointer(run_dir, plan)
         cbs: list[BaseCallback] = [EpisodeLog(run_dir / "episodes.csv"), ckpt]
         eval_cb: ValidationEval | None = None
         if cfg.eval_freq > 0:
-            eval_seeds = split_episodes(validation_seeds(), cfg.n_eval_episodes, cfg.n_eval_envs)
-            eval_venv = _normalized(
-                make_vec_env(
-                    plan.env_id, cfg, cfg.n_eval_envs, eval_seeds, None, "eval", split="validation"
-                ),
-                cfg,
-                training=False,
-            )
+            eval_venv = _eval_venv(plan)
             eval_cb = _validation(run_dir, plan, eval_venv, state, after_eval)
             ckpt.eval_cb = eval_cb
             cbs.append(eval_cb)
