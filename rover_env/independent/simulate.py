@@ -42,6 +42,7 @@ DT = 0.002
 CONTROL_EVERY = 2  # 250 Hz
 SETTLE_S = 1.0
 RR_SMOOTH = 0.01  # m/s of rim speed over which the rolling-resistance moment builds up
+NRM = np.array([0.0, 0.0, 1.0])  # the ground's normal
 
 
 def _cross(a: Array, b: Array) -> Array:
@@ -73,6 +74,240 @@ def _static_height(p: RoverParams, eff: Effects) -> float:
     return d - load / p.c_z
 
 
+@dataclass(frozen=True)
+class _Addr:
+    """Where the wheels, joints and logged segment sit in MuJoCo's arrays."""
+
+    wid: NDArray[np.int_]  # wheel bodies
+    w_qadr: NDArray[np.int_]  # wheel angles in qpos
+    w_dadr: NDArray[np.int_]  # wheel rates in qvel
+    j_qadr: NDArray[np.int_]  # the five chain joints in qpos
+    drv_qadr: NDArray[np.int_]  # the driven wheels' angles
+    drv_dadr: NDArray[np.int_]  # the driven wheels' rates
+    seg3: int
+    root: int
+
+    @classmethod
+    def of(cls, m: mujoco.MjModel) -> _Addr:
+        w_qadr = np.array([m.jnt_qposadr[m.joint(f"phi_{w}").id] for w in WHEELS])
+        w_dadr = np.array([m.jnt_dofadr[m.joint(f"phi_{w}").id] for w in WHEELS])
+        return cls(
+            wid=np.array([m.body(f"w{w}").id for w in WHEELS]),
+            w_qadr=w_qadr,
+            w_dadr=w_dadr,
+            j_qadr=np.array([m.jnt_qposadr[m.joint(j).id] for j in JOINTS]),
+            drv_qadr=w_qadr[: len(DRIVEN)],
+            drv_dadr=w_dadr[: len(DRIVEN)],
+            seg3=m.body("seg3").id,
+            root=m.body("seg1").id,
+        )
+
+
+class _Command:
+    """The targets as the speed loops see them: ``delay`` late, then through the first-order
+    lag (exact discretisation at the control rate)."""
+
+    def __init__(self, eff: Effects, t: Array, cmd: Array) -> None:
+        self.cmd = cmd
+        self.delay = eff.delay
+        self.ts = float(t[1] - t[0])
+        dt_c = DT * CONTROL_EVERY
+        self.lag_a = 1.0 - math.exp(-dt_c / eff.lag_tau) if eff.lag_tau > 0 else 1.0
+        self.lagged = np.zeros(4)
+
+    def at(self, now: float) -> Array:
+        """The lagged target at log time ``now`` (one call per control period)."""
+        n = self.cmd.shape[0]
+        td = now - self.delay
+        idx = math.floor(td / self.ts + 1e-9) if td >= 0 else -1
+        raw = self.cmd[min(idx, n - 1)] if idx >= 0 else np.zeros(4)
+        self.lagged = self.lagged + self.lag_a * (raw - self.lagged)
+        return self.lagged
+
+
+@dataclass
+class _Contact:
+    """Each wheel's contact frame and the carrier's velocity there (one row per wheel)."""
+
+    hub: Array
+    axis: Array  # wheel axle
+    xc: Array  # contact frame x = axle x normal
+    yc: Array  # contact frame y = normal x x
+    ground: Array  # contact point
+    delta: Array  # compression (flat) or depth below the dug surface (soil)
+    depth: Array  # rim depth below z = 0
+    vx: Array
+    vy: Array
+    vn: Array
+    vw: Array  # rim speed on the effective rolling radius
+
+
+class _Ground:
+    """The wheels' ground forces, tire (flat ground) or soil, and the state they carry from
+    step to step: the tire states, the soil dug by slip, the last normal loads."""
+
+    def __init__(self, p: RoverParams, eff: Effects, addr: _Addr) -> None:
+        self.p = p
+        self.eff = eff
+        self.addr = addr
+        self.radius = np.array(p.wheel_radius, dtype=float)
+        self.soil_p: soil.Soil | None = None
+        if eff.soil is not None:
+            base = soil.preset(eff.soil, eff.k_phi_factor)
+            self.soil_p = soil.replace(base, c=base.c * eff.friction_scale)
+        self.ux = np.zeros(6)
+        self.uy = np.zeros(6)
+        self.dig = np.zeros(6)
+        self.fz_prev = np.zeros(6)
+        self.s_travel = np.zeros(6)  # SPEC's S per wheel, as logged
+        self.sink = np.zeros(6)  # rim depth below z = 0, as logged
+
+    def contact(self, d: mujoco.MjData) -> _Contact:
+        """Lowest rim point in the wheel plane, contact frame, carrier velocity at the ground."""
+        a, radius, on_soil = self.addr, self.radius, self.soil_p is not None
+        hub = d.xpos[a.wid]
+        axis = d.xmat[a.wid].reshape(6, 3, 3)[:, :, 1]
+        down = -(NRM[None, :] - (axis @ NRM)[:, None] * axis)
+        down /= np.linalg.norm(down, axis=1, keepdims=True)
+        rim = hub + radius[:, None] * down
+        xc = _cross(axis, np.broadcast_to(NRM, axis.shape))
+        xc /= np.linalg.norm(xc, axis=1, keepdims=True)
+        yc = _cross(np.broadcast_to(NRM, xc.shape), xc)
+        spin = d.qvel[a.w_dadr]
+        cv = d.cvel[a.wid]
+        ang_w = cv[:, :3]
+        ang_c = ang_w - spin[:, None] * axis
+        lin_hub = cv[:, 3:] + _cross(ang_w, hub - d.subtree_com[a.root][None, :])
+        delta = -rim[:, 2] if not on_soil else (-self.dig) - rim[:, 2]
+        ground = hub + (radius - np.clip(delta, 0.0, None))[:, None] * down
+        v_c = lin_hub + _cross(ang_c, ground - hub)
+        vx = np.einsum("ij,ij->i", v_c, xc)
+        vy = np.einsum("ij,ij->i", v_c, yc)
+        vn = v_c @ NRM
+        # a deflected tire rolls on d - delta/3; a rigid wheel in soil on d (SOIL.md's v_w = r w)
+        r_e = (radius if on_soil else tire.rolling_radius(radius, delta)) * self.eff.radius_scale
+        vw = r_e * spin
+        return _Contact(hub, axis, xc, yc, ground, delta, -rim[:, 2], vx, vy, vn, vw)
+
+    def _tire(self, c: _Contact, travel: Array) -> tuple[Array, Array, Array]:
+        """fx, fy, fz of the tire on flat ground (sets the logged slip)."""
+        p, eff = self.p, self.eff
+        fz = tire.normal_force(c.delta, -c.vn, p.c_z, p.d_z)
+        ld = 1.0 - eff.friction_fall * np.tanh(fz / eff.friction_range)
+        mux = p.mu_x * eff.friction_scale * ld
+        muy = p.mu_y * eff.friction_scale * ld
+        fx, fy, self.s_travel = tire.gim_forces(
+            self.ux, self.uy, travel, fz, mux, muy, p.c_s, p.c_alpha
+        )
+        return fx, fy, fz
+
+    def _soil(self, c: _Contact, travel: Array) -> tuple[Array, Array, Array, Array]:
+        """fx, fy, fz and axle torque of the wheel in loose soil (sets the logged slip, digs)."""
+        assert self.soil_p is not None
+        eff = self.eff
+        self.s_travel = np.clip(travel * self.ux / tire.SIGMA, -1.0, 1.0)
+        s_wong = -self.s_travel
+        tan_b = self.uy / tire.SIGMA
+        ld = 1.0 - eff.friction_fall * np.tanh(self.fz_prev / eff.friction_range)
+        fxs, fy, fzs, tq = soil.wheel_forces(
+            self.soil_p,
+            self.radius,
+            self.p.wheel_width,
+            c.delta,
+            s_wong,
+            tan_b,
+            eff.friction_scale * ld,
+        )
+        fz = np.where(c.delta > 0, np.maximum(fzs - soil.C_SOIL * c.vn, 0.0), 0.0)
+        fx = travel * fxs
+        torque_axle = -travel * tq
+        self.dig = np.maximum(
+            self.dig
+            + DT
+            * (
+                soil.DIG * np.maximum(s_wong - soil.S_DIG, 0.0) * np.abs(c.vw)
+                - np.abs(c.vx) * self.dig / soil.L_DIG
+            ),
+            0.0,
+        )
+        return fx, fy, fz, torque_axle
+
+    def apply(self, d: mujoco.MjData) -> None:
+        """Step the ground state and put the wheel forces into ``xfrc_applied`` at the hubs."""
+        c = self.contact(d)
+        self.sink = c.depth
+        self.ux, self.uy = tire.step_states(self.ux, self.uy, c.vx, c.vy, c.vw, DT)
+        travel = np.where(c.vx + c.vw >= 0.0, 1.0, -1.0)
+        ground = c.ground
+        if self.soil_p is None:
+            fx, fy, fz = self._tire(c, travel)
+            torque_axle = np.zeros(6)
+        else:
+            fx, fy, fz, torque_axle = self._soil(c, travel)
+            ground = c.hub
+        if self.eff.c_rr > 0.0:
+            lever = self.radius - np.clip(c.delta, 0.0, 0.5 * self.radius)
+            torque_axle = torque_axle - self.eff.c_rr * fz * lever * np.tanh(c.vw / RR_SMOOTH)
+        self.fz_prev = fz
+        force = fx[:, None] * c.xc + fy[:, None] * c.yc + fz[:, None] * NRM[None, :]
+        torque = _cross(ground - c.hub, force) + torque_axle[:, None] * c.axis
+        d.xfrc_applied[self.addr.wid, :3] = force
+        d.xfrc_applied[self.addr.wid, 3:] = torque
+
+
+class _Log:
+    """The true signals at the log's samples, relative to the rover's state at t = 0."""
+
+    def __init__(self, n: int, addr: _Addr) -> None:
+        self.addr = addr
+        self.phi = np.zeros((n, 6))
+        self.theta = np.zeros((n, 5))
+        self.pose = np.zeros((n, 3))
+        self.slip = np.zeros((n, 6))
+        self.omega = np.zeros((n, 6))
+        self.sink = np.zeros((n, 6))
+        self.phi0 = np.zeros(6)
+        self.p30 = np.zeros(3)
+        self.r30 = np.eye(3)
+        self.yaw_prev = 0.0
+        self.yaw_turns = 0.0
+
+    def start(self, d: mujoco.MjData) -> None:
+        """t = 0: wheel angles and segment 3's pose from here on."""
+        a = self.addr
+        self.phi0 = d.qpos[a.w_qadr].copy()
+        self.p30 = d.xpos[a.seg3].copy()
+        self.r30 = d.xmat[a.seg3].reshape(3, 3).copy()
+
+    def record(self, k: int, d: mujoco.MjData, ground: _Ground) -> None:
+        a = self.addr
+        self.phi[k] = d.qpos[a.w_qadr] - self.phi0
+        self.theta[k] = d.qpos[a.j_qadr]
+        rel = self.r30.T @ (d.xpos[a.seg3] - self.p30)
+        fwd = self.r30.T @ d.xmat[a.seg3].reshape(3, 3)[:, 0]
+        yaw = math.atan2(fwd[1], fwd[0])
+        if yaw - self.yaw_prev > math.pi:
+            self.yaw_turns -= 2 * math.pi
+        elif yaw - self.yaw_prev < -math.pi:
+            self.yaw_turns += 2 * math.pi
+        self.yaw_prev = yaw
+        self.pose[k] = (rel[0], rel[1], yaw + self.yaw_turns)
+        self.slip[k] = ground.s_travel
+        self.omega[k] = d.qvel[a.w_dadr]
+        self.sink[k] = ground.sink
+
+    def truth(self, t: Array) -> Truth:
+        return Truth(
+            t=t.copy(),
+            phi=self.phi,
+            theta=self.theta,
+            pose=self.pose,
+            slip=self.slip,
+            omega=self.omega,
+            sink=self.sink,
+        )
+
+
 def simulate(
     p: RoverParams, eff: Effects, t: Array, cmd: Array, *, settle: float = SETTLE_S
 ) -> Truth:
@@ -82,164 +317,33 @@ def simulate(
     xml = build_mjcf(p, timestep=DT, gravity=grav, z0=z0, rotor_armature=motor.reflected_inertia())
     m = mujoco.MjModel.from_xml_string(xml)
     d = mujoco.MjData(m)
-
-    wid = np.array([m.body(f"w{w}").id for w in WHEELS])
-    w_qadr = np.array([m.jnt_qposadr[m.joint(f"phi_{w}").id] for w in WHEELS])
-    w_dadr = np.array([m.jnt_dofadr[m.joint(f"phi_{w}").id] for w in WHEELS])
-    j_qadr = np.array([m.jnt_qposadr[m.joint(j).id] for j in JOINTS])
-    drv_dadr = w_dadr[: len(DRIVEN)]
-    drv_qadr = w_qadr[: len(DRIVEN)]
-    seg3 = m.body("seg3").id
-    root = m.body("seg1").id
-
-    radius = np.array(p.wheel_radius, dtype=float)
-    nrm = np.array([0.0, 0.0, 1.0])
+    addr = _Addr.of(m)
     drives = motor.Drives.make(p.k_t, p.kp, p.ki, eff.current_limit_scale)
-    on_soil = eff.soil is not None
-    soil_p = None
-    if on_soil:
-        assert eff.soil is not None
-        base = soil.preset(eff.soil, eff.k_phi_factor)
-        soil_p = soil.replace(base, c=base.c * eff.friction_scale)
-    ux = np.zeros(6)
-    uy = np.zeros(6)
-    dig = np.zeros(6)
-    lagged = np.zeros(4)
-    dt_c = DT * CONTROL_EVERY
-    lag_a = 1.0 - math.exp(-dt_c / eff.lag_tau) if eff.lag_tau > 0 else 1.0
+    ground = _Ground(p, eff, addr)
+    command = _Command(eff, t, cmd)
     mujoco.mj_forward(m, d)
-    drives.reset_counts(d.qpos[drv_qadr])
+    drives.reset_counts(d.qpos[addr.drv_qadr])
 
     n = t.shape[0]
-    ts = float(t[1] - t[0])
-    sample_every = round(ts / DT)
-    if abs(sample_every * DT - ts) > 1e-9:
-        raise ValueError(f"sample period {ts} is not a multiple of the {DT} s physics step")
+    sample_every = round(command.ts / DT)
+    if abs(sample_every * DT - command.ts) > 1e-9:
+        raise ValueError(f"sample period {command.ts} is not a multiple of the {DT} s physics step")
     n_settle = round(settle / DT)
-    total = n_settle + (n - 1) * sample_every
-    out_phi = np.zeros((n, 6))
-    out_theta = np.zeros((n, 5))
-    out_pose = np.zeros((n, 3))
-    out_slip = np.zeros((n, 6))
-    out_omega = np.zeros((n, 6))
-    out_sink = np.zeros((n, 6))
-    sink_now = np.zeros(6)
-    phi0 = np.zeros(6)
-    p30 = np.zeros(3)
-    r30 = np.eye(3)
-    yaw_prev = 0.0
-    yaw_turns = 0.0
-    s_travel = np.zeros(6)
-    fz_prev = np.zeros(6)
-
-    def record(k: int) -> None:
-        nonlocal yaw_prev, yaw_turns
-        out_phi[k] = d.qpos[w_qadr] - phi0
-        out_theta[k] = d.qpos[j_qadr]
-        rel = r30.T @ (d.xpos[seg3] - p30)
-        fwd = r30.T @ d.xmat[seg3].reshape(3, 3)[:, 0]
-        yaw = math.atan2(fwd[1], fwd[0])
-        if yaw - yaw_prev > math.pi:
-            yaw_turns -= 2 * math.pi
-        elif yaw - yaw_prev < -math.pi:
-            yaw_turns += 2 * math.pi
-        yaw_prev = yaw
-        out_pose[k] = (rel[0], rel[1], yaw + yaw_turns)
-        out_slip[k] = s_travel
-        out_omega[k] = d.qvel[w_dadr]
-        out_sink[k] = sink_now
-
-    for step in range(total + 1):
-        k_log = (step - n_settle) // sample_every if step >= n_settle else -1
+    log = _Log(n, addr)
+    for step in range(n_settle + (n - 1) * sample_every + 1):
         if step == n_settle:
-            phi0 = d.qpos[w_qadr].copy()
-            p30 = d.xpos[seg3].copy()
-            r30 = d.xmat[seg3].reshape(3, 3).copy()
+            log.start(d)
         if step >= n_settle and (step - n_settle) % sample_every == 0:
-            record(k_log)
+            k_log = (step - n_settle) // sample_every
+            log.record(k_log, d, ground)
             if k_log == n - 1:
                 break
         if step % CONTROL_EVERY == 0:
-            now = (step - n_settle) * DT
-            td = now - eff.delay
-            idx = math.floor(td / ts + 1e-9) if td >= 0 else -1
-            raw = cmd[min(idx, n - 1)] if idx >= 0 else np.zeros(4)
-            lagged = lagged + lag_a * (raw - lagged)
-            drives.control(lagged, d.qpos[drv_qadr], dt_c)
-
+            target = command.at((step - n_settle) * DT)
+            drives.control(target, d.qpos[addr.drv_qadr], DT * CONTROL_EVERY)
         mujoco.mj_step1(m, d)
-        # ---- wheel-ground forces
-        hub = d.xpos[wid]
-        axis = d.xmat[wid].reshape(6, 3, 3)[:, :, 1]
-        down = -(nrm[None, :] - (axis @ nrm)[:, None] * axis)
-        down /= np.linalg.norm(down, axis=1, keepdims=True)
-        rim = hub + radius[:, None] * down
-        xc = _cross(axis, np.broadcast_to(nrm, axis.shape))
-        xc /= np.linalg.norm(xc, axis=1, keepdims=True)
-        yc = _cross(np.broadcast_to(nrm, xc.shape), xc)
-        spin = d.qvel[w_dadr]
-        cv = d.cvel[wid]
-        ang_w = cv[:, :3]
-        ang_c = ang_w - spin[:, None] * axis
-        lin_hub = cv[:, 3:] + _cross(ang_w, hub - d.subtree_com[root][None, :])
-        delta = -rim[:, 2] if not on_soil else (-dig) - rim[:, 2]
-        sink_now = -rim[:, 2]
-        ground = hub + (radius - np.clip(delta, 0.0, None))[:, None] * down
-        v_c = lin_hub + _cross(ang_c, ground - hub)
-        vx = np.einsum("ij,ij->i", v_c, xc)
-        vy = np.einsum("ij,ij->i", v_c, yc)
-        vn = v_c @ nrm
-        # a deflected tire rolls on d - delta/3; a rigid wheel in soil on d (SOIL.md's v_w = r w)
-        r_e = (radius if on_soil else tire.rolling_radius(radius, delta)) * eff.radius_scale
-        vw = r_e * spin
-        ux, uy = tire.step_states(ux, uy, vx, vy, vw, DT)
-        travel = np.where(vx + vw >= 0.0, 1.0, -1.0)
-        torque_axle = np.zeros(6)
-        if not on_soil:
-            fz = tire.normal_force(delta, -vn, p.c_z, p.d_z)
-            ld = 1.0 - eff.friction_fall * np.tanh(fz / eff.friction_range)
-            mux = p.mu_x * eff.friction_scale * ld
-            muy = p.mu_y * eff.friction_scale * ld
-            fx, fy, s_travel = tire.gim_forces(ux, uy, travel, fz, mux, muy, p.c_s, p.c_alpha)
-        else:
-            assert soil_p is not None
-            s_travel = np.clip(travel * ux / tire.SIGMA, -1.0, 1.0)
-            s_wong = -s_travel
-            tan_b = uy / tire.SIGMA
-            ld = 1.0 - eff.friction_fall * np.tanh(fz_prev / eff.friction_range)
-            fxs, fy, fzs, tq = soil.wheel_forces(
-                soil_p, radius, p.wheel_width, delta, s_wong, tan_b, eff.friction_scale * ld
-            )
-            fz = np.where(delta > 0, np.maximum(fzs - soil.C_SOIL * vn, 0.0), 0.0)
-            fx = travel * fxs
-            torque_axle = -travel * tq
-            ground = hub
-            dig = np.maximum(
-                dig
-                + DT
-                * (
-                    soil.DIG * np.maximum(s_wong - soil.S_DIG, 0.0) * np.abs(vw)
-                    - np.abs(vx) * dig / soil.L_DIG
-                ),
-                0.0,
-            )
-        if eff.c_rr > 0.0:
-            lever = radius - np.clip(delta, 0.0, 0.5 * radius)
-            torque_axle = torque_axle - eff.c_rr * fz * lever * np.tanh(vw / RR_SMOOTH)
-        fz_prev = fz
-        force = fx[:, None] * xc + fy[:, None] * yc + fz[:, None] * nrm[None, :]
-        torque = _cross(ground - hub, force) + torque_axle[:, None] * axis
-        d.xfrc_applied[wid, :3] = force
-        d.xfrc_applied[wid, 3:] = torque
+        ground.apply(d)
         d.qfrc_applied[:] = 0.0
-        d.qfrc_applied[drv_dadr] = drives.wheel_torque(d.qvel[drv_dadr])
+        d.qfrc_applied[addr.drv_dadr] = drives.wheel_torque(d.qvel[addr.drv_dadr])
         mujoco.mj_step2(m, d)
-    return Truth(
-        t=t.copy(),
-        phi=out_phi,
-        theta=out_theta,
-        pose=out_pose,
-        slip=out_slip,
-        omega=out_omega,
-        sink=out_sink,
-    )
+    return log.truth(t)

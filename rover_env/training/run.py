@@ -150,6 +150,226 @@ def _resolve_resume(
     return run_env, run_seed, step
 
 
+@dataclasses.dataclass(frozen=True)
+class _Plan:
+    """What a run trains, from the caller's config file (a new run) or the run dir (a resume)."""
+
+    algo: str
+    env_id: str
+    seed: int
+    cfg: AlgoConfig
+    cfg_file: Path
+    config: str
+    """The hyperparameter file as ``command.txt`` records it."""
+    start_step: int | None
+    """The checkpoint a resumed run continues from; None for a new run."""
+
+
+def _plan_resume(run_dir: Path, env_id: str | None, seed: int | None, algo: str | None) -> _Plan:
+    found = run_algo(run_dir)
+    if algo is not None and check_algo(algo) != found:
+        raise ConfigError(f"cannot resume {run_dir} with {algo}: the run trains {found}")
+    run_env, run_seed, start_step = _resolve_resume(run_dir, env_id, seed, found)
+    cfg_file = run_dir / "config.yaml"
+    cfg = load_algo_config(found, cfg_file, run_env)
+    return _Plan(found, run_env, run_seed, cfg, cfg_file, str(cfg_file), start_step)
+
+
+def _plan_new(
+    run_dir: Path,
+    env_id: str | None,
+    config_path: str | Path | None,
+    seed: int | None,
+    algo: str | None,
+) -> _Plan:
+    algo = check_algo(algo or "ppo")
+    if env_id is None or config_path is None or seed is None:
+        raise ConfigError("a new run needs env_id, config_path and seed")
+    if any((run_dir / f).exists() for f in RUN_FILES):
+        raise ConfigError(
+            f"{run_dir} already holds a training run; resume it or choose another directory"
+        )
+    cfg = load_algo_config(algo, config_path, env_id)
+    return _Plan(algo, env_id, seed, cfg, Path(config_path), str(config_path), None)
+
+
+def _plan(
+    run_dir: Path,
+    env_id: str | None,
+    config_path: str | Path | None,
+    seed: int | None,
+    resume: bool,
+    total_timesteps: int | None,
+    algo: str | None,
+    init_from: str | Path | None,
+) -> _Plan:
+    """The run's algorithm, env id, seed and hyperparameters, checked before anything is
+    written (see :func:`train` for the arguments)."""
+    if resume and init_from is not None:
+        raise ConfigError("init_from starts a new run; a resumed run continues its own weights")
+    if resume:
+        plan = _plan_resume(run_dir, env_id, seed, algo)
+    else:
+        plan = _plan_new(run_dir, env_id, config_path, seed, algo)
+    if total_timesteps is not None:
+        if total_timesteps < 1:
+            raise ConfigError(f"total_timesteps must be >= 1, got {total_timesteps}")
+        cfg = dataclasses.replace(plan.cfg, n_timesteps=int(total_timesteps))
+        plan = dataclasses.replace(plan, cfg=cfg)
+    check_env_kwargs(plan.env_id, plan.cfg, f"{plan.cfg_file}: {plan.env_id}")
+    return plan
+
+
+def _record(run_dir: Path, plan: _Plan, init_from: str | Path | None) -> list[int]:
+    """Write the resolved ``config.yaml`` and append this invocation to ``command.txt``;
+    returns the training envs' first-reset seeds."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / "config.yaml").write_text(
+        f"# resolved {plan.algo.upper()} hyperparameters of this run; loadable as --config\n"
+        + yaml.safe_dump({plan.env_id: plan.cfg.to_dict()}, sort_keys=False)
+    )
+    train_seeds = training_env_seeds(plan.seed, plan.cfg.n_envs)
+    record_command(
+        run_dir,
+        {
+            "algo": plan.algo,
+            "env_id": plan.env_id,
+            "seed": plan.seed,
+            "config": plan.config,
+            "total_timesteps": plan.cfg.n_timesteps,
+            "resumed_from_step": plan.start_step,
+            "init_from": None if init_from is None else str(init_from),
+            "training_env_seeds": list(train_seeds),
+        },
+    )
+    return train_seeds
+
+
+def _restore(
+    run_dir: Path, plan: _Plan, venv: VecEnv
+) -> tuple[BaseAlgorithm, VecNormalize, dict[str, Any]]:
+    """The model, statistics, replay buffer and random states of the newest checkpoint."""
+    assert plan.start_step is not None
+    ckpt_dir = run_dir / "checkpoints"
+    model_p, vn_p, state_p = checkpoint_paths(ckpt_dir, plan.start_step, plan.algo)
+    with state_p.open("rb") as fh:
+        state: dict[str, Any] = pickle.load(fh)
+    vn = VecNormalize.load(str(vn_p), venv)
+    vn.training = True
+    # seed=None: loading must not reseed; the checkpoint's RNG states are restored instead.
+    model = algo_class(plan.algo).load(str(model_p), env=vn, device="cpu", seed=None)
+    model.seed = plan.seed
+    if plan.cfg.off_policy:
+        rb_p = replay_buffer_path(ckpt_dir, plan.start_step, plan.algo)
+        if not rb_p.is_file():
+            raise ConfigError(
+                f"cannot resume {run_dir}: no replay buffer {rb_p.name} beside the "
+                "newest checkpoint"
+            )
+        model.load_replay_buffer(str(rb_p))  # type: ignore[attr-defined]
+    set_rng_state(state["rng"])
+    if state.get("action_space_rng") is not None:
+        model.action_space.np_random.bit_generator.state = state["action_space_rng"]
+    for i, s in enumerate(state["env_rng"]):
+        venv.env_method("set_rng_state", s, indices=[i])
+    for name in ("episodes.csv", "evaluations.csv"):
+        trim_csv(run_dir / name, plan.start_step)
+    return model, vn, state
+
+
+def _fresh(
+    plan: _Plan, venv: VecEnv, init_from: str | Path | None
+) -> tuple[BaseAlgorithm, VecNormalize]:
+    """A new model seeded with the run seed, or started from ``init_from``'s weights."""
+    set_random_seed(plan.seed)
+    vn = _normalized(venv, plan.cfg, training=True)
+    model = build_model(plan.cfg, vn)
+    if init_from is not None:
+        _start_from(model, vn, init_from, algo_class(plan.algo))
+    model.action_space.seed(plan.seed)  # off-policy warm-up actions are its samples
+    model.seed = plan.seed
+    return model, vn
+
+
+def _checkpointer(run_dir: Path, plan: _Plan) -> RolloutCheckpoint:
+    """Checkpoints every ``checkpoint_freq`` steps, counted on from a resumed checkpoint."""
+    ckpt = RolloutCheckpoint(
+        run_dir / "checkpoints",
+        max(plan.cfg.checkpoint_freq, 1),
+        {"algo": plan.algo, "env_id": plan.env_id, "seed": plan.seed},
+        algo=plan.algo,
+    )
+    ckpt.last_saved = plan.start_step or 0
+    return ckpt
+
+
+def _eval_venv(plan: _Plan) -> VecNormalize:
+    """The validation envs (the seed plan's validation seeds), normalised but not updating."""
+    cfg = plan.cfg
+    eval_seeds = split_episodes(validation_seeds(), cfg.n_eval_episodes, cfg.n_eval_envs)
+    return _normalized(
+        make_vec_env(
+            plan.env_id, cfg, cfg.n_eval_envs, eval_seeds, None, "eval", split="validation"
+        ),
+        cfg,
+        training=False,
+    )
+
+
+def _validation(
+    run_dir: Path,
+    plan: _Plan,
+    eval_venv: VecNormalize,
+    state: dict[str, Any],
+    after_eval: BaseCallback | None,
+) -> ValidationEval:
+    """The evaluation callback, on the same step grid as an uninterrupted run."""
+    cfg = plan.cfg
+    eval_cb = ValidationEval(
+        eval_venv,
+        run_dir,
+        n_eval_episodes=cfg.n_eval_episodes,
+        eval_freq=max(cfg.eval_freq // cfg.n_envs, 1),
+        callback_after_eval=after_eval,
+    )
+    if state.get("eval"):
+        eval_cb.load_state(state["eval"])
+    # Keep evaluations on the same step grid as an uninterrupted run.
+    eval_cb.n_calls = (plan.start_step or 0) // cfg.n_envs
+    return eval_cb
+
+
+def _learn(
+    model: BaseAlgorithm, cfg: AlgoConfig, cbs: list[BaseCallback], progress: bool
+) -> tuple[int, float]:
+    """Train up to the run's total; returns the step it started from and the wall seconds."""
+    first = model.num_timesteps
+    remaining = cfg.n_timesteps - first
+    t0 = time.perf_counter()
+    if remaining > 0:
+        model.learn(
+            total_timesteps=remaining,
+            callback=CallbackList(cbs),
+            reset_num_timesteps=False,
+            progress_bar=progress,
+        )
+    return first, time.perf_counter() - t0
+
+
+def _save(
+    run_dir: Path, model: BaseAlgorithm, vn: VecNormalize, ckpt: RolloutCheckpoint, cfg: AlgoConfig
+) -> int:
+    """Write the final model and statistics (and a checkpoint at a clean end); returns the
+    step count reached."""
+    done = model.num_timesteps
+    model.save(str(run_dir / "model.zip"))
+    vn.save(str(run_dir / "vecnormalize.pkl"))
+    if done % cfg.rollout_size == 0 and done != ckpt.last_saved:
+        ckpt.save()  # a clean end is a rollout boundary: checkpoint it for later extension
+    model.logger.close()
+    return done
+
+
 def train(
     env_id: str | None,
     config_path: str | Path | None,
@@ -182,149 +402,33 @@ def train(
     run_dir = Path(out_dir)
     torch.set_num_threads(1)
     os.environ.setdefault("OMP_NUM_THREADS", "1")  # inherited by the env subprocesses
-
-    start_step: int | None = None
-    if resume and init_from is not None:
-        raise ConfigError("init_from starts a new run; a resumed run continues its own weights")
-    if resume:
-        found = run_algo(run_dir)
-        if algo is not None and check_algo(algo) != found:
-            raise ConfigError(f"cannot resume {run_dir} with {algo}: the run trains {found}")
-        algo = found
-        env_id, seed, start_step = _resolve_resume(run_dir, env_id, seed, algo)
-        cfg_file = run_dir / "config.yaml"
-        cfg = load_algo_config(algo, cfg_file, env_id)
-    else:
-        algo = check_algo(algo or "ppo")
-        if env_id is None or config_path is None or seed is None:
-            raise ConfigError("a new run needs env_id, config_path and seed")
-        if any((run_dir / f).exists() for f in RUN_FILES):
-            raise ConfigError(
-                f"{run_dir} already holds a training run; resume it or choose another directory"
-            )
-        cfg = load_algo_config(algo, config_path, env_id)
-        cfg_file = Path(config_path)
-    if total_timesteps is not None:
-        if total_timesteps < 1:
-            raise ConfigError(f"total_timesteps must be >= 1, got {total_timesteps}")
-        cfg = dataclasses.replace(cfg, n_timesteps=int(total_timesteps))
-    check_env_kwargs(env_id, cfg, f"{cfg_file}: {env_id}")
-
-    run_dir.mkdir(parents=True, exist_ok=True)
-    (run_dir / "config.yaml").write_text(
-        f"# resolved {algo.upper()} hyperparameters of this run; loadable as --config\n"
-        + yaml.safe_dump({env_id: cfg.to_dict()}, sort_keys=False)
-    )
-    train_seeds = training_env_seeds(seed, cfg.n_envs)
-    val_seeds = validation_seeds()
-    record_command(
-        run_dir,
-        {
-            "algo": algo,
-            "env_id": env_id,
-            "seed": seed,
-            "config": str(config_path if not resume else run_dir / "config.yaml"),
-            "total_timesteps": cfg.n_timesteps,
-            "resumed_from_step": start_step,
-            "init_from": None if init_from is None else str(init_from),
-            "training_env_seeds": list(train_seeds),
-        },
-    )
-
-    monitor_dir = run_dir / "monitor"
+    plan = _plan(run_dir, env_id, config_path, seed, resume, total_timesteps, algo, init_from)
+    cfg = plan.cfg
+    train_seeds = _record(run_dir, plan, init_from)
     # A resumed env continues its own generator (restored below), so no planned seed again.
     env_seeds = [[] for _ in range(cfg.n_envs)] if resume else [[s] for s in train_seeds]
-    venv = make_vec_env(env_id, cfg, cfg.n_envs, env_seeds, monitor_dir, "train", append=resume)
+    venv = make_vec_env(
+        plan.env_id, cfg, cfg.n_envs, env_seeds, run_dir / "monitor", "train", append=resume
+    )
     eval_venv: VecEnv | None = None
-    algo_cls = algo_class(algo)
     try:
         state: dict[str, Any] = {}
-        model: BaseAlgorithm
-        if start_step is not None:
-            ckpt_dir = run_dir / "checkpoints"
-            model_p, vn_p, state_p = checkpoint_paths(ckpt_dir, start_step, algo)
-            with state_p.open("rb") as fh:
-                state = pickle.load(fh)
-            vn = VecNormalize.load(str(vn_p), venv)
-            vn.training = True
-            # seed=None: loading must not reseed; the checkpoint's RNG states are restored instead.
-            model = algo_cls.load(str(model_p), env=vn, device="cpu", seed=None)
-            model.seed = seed
-            if cfg.off_policy:
-                rb_p = replay_buffer_path(ckpt_dir, start_step, algo)
-                if not rb_p.is_file():
-                    raise ConfigError(
-                        f"cannot resume {run_dir}: no replay buffer {rb_p.name} beside the "
-                        "newest checkpoint"
-                    )
-                model.load_replay_buffer(str(rb_p))  # type: ignore[attr-defined]
-            set_rng_state(state["rng"])
-            if state.get("action_space_rng") is not None:
-                model.action_space.np_random.bit_generator.state = state["action_space_rng"]
-            for i, s in enumerate(state["env_rng"]):
-                venv.env_method("set_rng_state", s, indices=[i])
-            for name in ("episodes.csv", "evaluations.csv"):
-                trim_csv(run_dir / name, start_step)
+        if plan.start_step is not None:
+            model, vn, state = _restore(run_dir, plan, venv)
         else:
-            set_random_seed(seed)
-            vn = _normalized(venv, cfg, training=True)
-            model = build_model(cfg, vn)
-            if init_from is not None:
-                _start_from(model, vn, init_from, algo_cls)
-            model.action_space.seed(seed)  # off-policy warm-up actions are its samples
-            model.seed = seed
-        model.set_logger(_logger(run_dir, start_step, verbose))
-
-        ckpt = RolloutCheckpoint(
-            run_dir / "checkpoints",
-            max(cfg.checkpoint_freq, 1),
-            {"algo": algo, "env_id": env_id, "seed": seed},
-            algo=algo,
-        )
-        ckpt.last_saved = start_step or 0
+            model, vn = _fresh(plan, venv, init_from)
+        model.set_logger(_logger(run_dir, plan.start_step, verbose))
+        ckpt = _checkpointer(run_dir, plan)
         cbs: list[BaseCallback] = [EpisodeLog(run_dir / "episodes.csv"), ckpt]
         eval_cb: ValidationEval | None = None
         if cfg.eval_freq > 0:
-            eval_seeds = split_episodes(val_seeds, cfg.n_eval_episodes, cfg.n_eval_envs)
-            eval_venv = _normalized(
-                make_vec_env(
-                    env_id, cfg, cfg.n_eval_envs, eval_seeds, None, "eval", split="validation"
-                ),
-                cfg,
-                training=False,
-            )
-            eval_cb = ValidationEval(
-                eval_venv,
-                run_dir,
-                n_eval_episodes=cfg.n_eval_episodes,
-                eval_freq=max(cfg.eval_freq // cfg.n_envs, 1),
-                callback_after_eval=after_eval,
-            )
-            if state.get("eval"):
-                eval_cb.load_state(state["eval"])
-            # Keep evaluations on the same step grid as an uninterrupted run.
-            eval_cb.n_calls = (start_step or 0) // cfg.n_envs
+            eval_venv = _eval_venv(plan)
+            eval_cb = _validation(run_dir, plan, eval_venv, state, after_eval)
             ckpt.eval_cb = eval_cb
             cbs.append(eval_cb)
         cbs.extend(callbacks)
-
-        first = model.num_timesteps
-        remaining = cfg.n_timesteps - first
-        t0 = time.perf_counter()
-        if remaining > 0:
-            model.learn(
-                total_timesteps=remaining,
-                callback=CallbackList(cbs),
-                reset_num_timesteps=False,
-                progress_bar=progress,
-            )
-        elapsed = time.perf_counter() - t0
-        done = model.num_timesteps
-        model.save(str(run_dir / "model.zip"))
-        vn.save(str(run_dir / "vecnormalize.pkl"))
-        if done % cfg.rollout_size == 0 and done != ckpt.last_saved:
-            ckpt.save()  # a clean end is a rollout boundary: checkpoint it for later extension
-        model.logger.close()
+        first, elapsed = _learn(model, cfg, cbs, progress)
+        done = _save(run_dir, model, vn, ckpt, cfg)
     finally:
         venv.close()
         if eval_venv is not None:
@@ -335,7 +439,7 @@ def train(
         num_timesteps=done,
         best_mean_reward=eval_cb.best_mean_reward if eval_cb is not None else float("-inf"),
         steps_per_second=(done - first) / elapsed if elapsed > 0 else float("nan"),
-        resumed_from=start_step,
+        resumed_from=plan.start_step,
         last_mean_reward=eval_cb.last_mean_reward if eval_cb is not None else float("-inf"),
-        algo=algo,
+        algo=plan.algo,
     )

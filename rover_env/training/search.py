@@ -52,6 +52,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from rover_env.config import ConfigError, load_yaml
 from rover_env.training.config import (
+    AlgoConfig,
     check_algo,
     config_for,
     load_algo_config,
@@ -243,6 +244,168 @@ def _write_csv(study: optuna.Study, path: Path) -> None:
     tmp.replace(path)
 
 
+@dataclasses.dataclass(frozen=True)
+class _Objective:
+    """One trial: the base entry with the sampled values, trained for ``timesteps_per_trial``
+    steps with run seed ``run_seed``; scored by its last validation evaluation."""
+
+    algo: str
+    env_id: str
+    root: Path
+    base: AlgoConfig
+    base_entry: dict[str, Any]
+    space: Mapping[str, Mapping[str, Any]]
+    timesteps_per_trial: int
+    eval_freq: int
+    run_seed: int
+    keep_checkpoints: bool
+    init_from: str | Path | None
+
+    def _prepare(self, number: int, params: Mapping[str, Any]) -> Path:
+        """Write the trial's ``hparams.yaml`` (checked first); returns its empty run dir."""
+        entry = apply_params(self.base_entry, params)
+        entry.update(
+            n_timesteps=self.timesteps_per_trial,
+            eval_freq=self.eval_freq,
+            checkpoint_freq=self.timesteps_per_trial,
+        )
+        tdir = self.root / f"trial_{number:03d}"
+        parse_algo_config(self.algo, entry, f"{tdir}: {self.env_id}")  # fail before any env
+        tdir.mkdir(parents=True, exist_ok=True)
+        hp = tdir / "hparams.yaml"
+        hp.write_text(yaml.safe_dump({self.env_id: entry}, sort_keys=False))
+        run_dir = tdir / "run"
+        if run_dir.exists():
+            shutil.rmtree(run_dir)
+        return run_dir
+
+    def __call__(self, trial: optuna.Trial) -> float:
+        from rover_env.training.run import train
+
+        params = {k: _suggest(trial, k, s) for k, s in self.space.items()}
+        run_dir = self._prepare(trial.number, params)
+        report = _ReportEvaluations(trial)
+        t0 = time.perf_counter()
+        res = train(
+            self.env_id,
+            run_dir.parent / "hparams.yaml",
+            self.run_seed,
+            run_dir,
+            total_timesteps=self.timesteps_per_trial,
+            progress=False,
+            algo=self.algo,
+            after_eval=report,
+            init_from=self.init_from,
+        )
+        trial.set_user_attr("seconds", round(time.perf_counter() - t0, 1))
+        trial.set_user_attr("num_timesteps", res.num_timesteps)
+        trial.set_user_attr("best_mean_reward", res.best_mean_reward)
+        trial.set_user_attr("run_dir", str(run_dir))
+        if not self.keep_checkpoints:
+            shutil.rmtree(run_dir / "checkpoints", ignore_errors=True)
+        if report.pruned:
+            raise optuna.TrialPruned()
+        if not math.isfinite(res.last_mean_reward):
+            raise ConfigError(
+                f"{run_dir.parent}: the run made no validation evaluation (eval_freq)"
+            )
+        return float(res.last_mean_reward)
+
+
+def _fine_tune_origin(init_from: str | Path | None, space: Mapping[str, Any]) -> str:
+    """The agent every trial fine-tunes ("" for none), checked before the study folder and
+    storage exist: a refused search leaves nothing."""
+    origin = "" if init_from is None else str(Path(init_from).resolve())
+    if origin:
+        shaped = sorted(k for k in space if k.startswith("policy_kwargs."))
+        if shaped:
+            raise ConfigError(f"init_from {init_from}: cannot search {shaped} in a fine-tune")
+        if not Path(origin).is_dir():
+            raise ConfigError(f"init_from {init_from}: no such agent folder")
+    return origin
+
+
+def _open_study(
+    storage: str, name: str, seed: int, startup_trials: int, pruner_startup: int, origin: str
+) -> optuna.Study:
+    """The stored study (new or resumed), its killed trials queued again, with a TPE sampler
+    that does not repeat a resumed study's first draws and a median pruner."""
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    prior = optuna.create_study(
+        storage=storage, study_name=name, direction="maximize", load_if_exists=True
+    )
+    for t in prior.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+        prior.tell(t.number, state=TrialState.FAIL)  # left running by a killed search
+        prior.enqueue_trial(t.params, user_attrs={"retry_of": t.number})
+    n_before = len(prior.trials)
+    sampler = optuna.samplers.TPESampler(seed=seed + n_before, n_startup_trials=startup_trials)
+    pruner = optuna.pruners.MedianPruner(n_startup_trials=pruner_startup, n_warmup_steps=0)
+    study = optuna.load_study(study_name=name, storage=storage, sampler=sampler, pruner=pruner)
+    seen = study.user_attrs.get("init_from")
+    if seen is None:
+        study.set_user_attr("init_from", origin)
+    elif seen != origin:
+        raise ConfigError(
+            f"{storage}: the study {name!r} fine-tunes {seen or 'nothing'}, not {origin or 'nothing'}"
+        )
+    return study
+
+
+def _optimize(
+    study: optuna.Study, objective: _Objective, trials: int, budget_minutes: float | None
+) -> None:
+    """Run trials until the study holds ``trials`` finished ones or the budget is spent,
+    rewriting ``trials.csv`` after each."""
+    csv_path = objective.root / "trials.csv"
+    finished = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.PRUNED))
+    remaining = trials - len(finished)
+    try:
+        if remaining > 0:
+            study.optimize(
+                objective,
+                n_trials=remaining,
+                timeout=None if budget_minutes is None else budget_minutes * 60.0,
+                callbacks=[lambda s, _t: _write_csv(s, csv_path)],
+            )
+    finally:
+        _write_csv(study, csv_path)
+
+
+def _best(
+    study: optuna.Study, objective: _Objective, storage: str, cfg_path: Path, seed: int
+) -> SearchResult:
+    """Write ``best.yaml`` (the best trial's entry with the base file's step counts and
+    frequencies) and return the study's result."""
+    root, base, env_id = objective.root, objective.base, objective.env_id
+    complete = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+    n_pruned = len(study.get_trials(deepcopy=False, states=(TrialState.PRUNED,)))
+    if not complete:
+        return SearchResult(root, None, float("-inf"), {}, 0, n_pruned)
+    best = study.best_trial
+    entry = apply_params(objective.base_entry, best.params)
+    entry.update(
+        n_timesteps=base.n_timesteps,
+        eval_freq=base.eval_freq,
+        checkpoint_freq=base.checkpoint_freq,
+    )
+    parse_algo_config(objective.algo, entry, f"{root / 'best.yaml'}: {env_id}")
+    (root / "best.yaml").write_text(
+        f"# best of {len(complete)} complete trials of study {study.study_name!r} ({storage}): "
+        f"trial {best.number}, mean validation return {best.value:.4f} after "
+        f"{objective.timesteps_per_trial} steps\n# base entry: {cfg_path}; run seed "
+        f"{objective.run_seed}; sampler seed {seed}\n"
+        + yaml.safe_dump({env_id: entry}, sort_keys=False)
+    )
+    return SearchResult(
+        root,
+        best.number,
+        float(best.value if best.value is not None else float("nan")),
+        dict(best.params),
+        len(complete),
+        n_pruned,
+    )
+
+
 def search(
     algo: str,
     config: str | Path,
@@ -271,125 +434,25 @@ def search(
     cfg_path = resolve_config_path(config_for(config, algo)).resolve()
     base = load_algo_config(algo, cfg_path, env_id)  # a bad file or env id fails here
     space = check_space(space if space is not None else SPACES[algo], f"{algo} search space")
-    # Checked before the study folder and storage exist: a refused search leaves nothing.
-    origin = "" if init_from is None else str(Path(init_from).resolve())
-    if origin:
-        shaped = sorted(k for k in space if k.startswith("policy_kwargs."))
-        if shaped:
-            raise ConfigError(f"init_from {init_from}: cannot search {shaped} in a fine-tune")
-        if not Path(origin).is_dir():
-            raise ConfigError(f"init_from {init_from}: no such agent folder")
+    origin = _fine_tune_origin(init_from, space)
     root = Path(out)
     root.mkdir(parents=True, exist_ok=True)
     storage = storage or f"sqlite:///{(root / 'study.db').resolve()}"
-    name = study_name or f"{algo}|{env_id}"
-
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    prior = optuna.create_study(
-        storage=storage, study_name=name, direction="maximize", load_if_exists=True
+    study = _open_study(
+        storage, study_name or f"{algo}|{env_id}", seed, startup_trials, pruner_startup, origin
     )
-    for t in prior.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
-        prior.tell(t.number, state=TrialState.FAIL)  # left running by a killed search
-        prior.enqueue_trial(t.params, user_attrs={"retry_of": t.number})
-    n_before = len(prior.trials)
-    sampler = optuna.samplers.TPESampler(seed=seed + n_before, n_startup_trials=startup_trials)
-    pruner = optuna.pruners.MedianPruner(n_startup_trials=pruner_startup, n_warmup_steps=0)
-    study = optuna.load_study(study_name=name, storage=storage, sampler=sampler, pruner=pruner)
-
-    seen = study.user_attrs.get("init_from")
-    if seen is None:
-        study.set_user_attr("init_from", origin)
-    elif seen != origin:
-        raise ConfigError(
-            f"{storage}: the study {name!r} fine-tunes {seen or 'nothing'}, not {origin or 'nothing'}"
-        )
-
-    base_entry = base.to_dict()
-    eval_freq = max(timesteps_per_trial // evaluations, base.n_envs)
-
-    def objective(trial: optuna.Trial) -> float:
-        from rover_env.training.run import train
-
-        params = {k: _suggest(trial, k, s) for k, s in space.items()}
-        entry = apply_params(base_entry, params)
-        entry.update(
-            n_timesteps=timesteps_per_trial,
-            eval_freq=eval_freq,
-            checkpoint_freq=timesteps_per_trial,
-        )
-        tdir = root / f"trial_{trial.number:03d}"
-        parse_algo_config(algo, entry, f"{tdir}: {env_id}")  # fail before any env is built
-        tdir.mkdir(parents=True, exist_ok=True)
-        hp = tdir / "hparams.yaml"
-        hp.write_text(yaml.safe_dump({env_id: entry}, sort_keys=False))
-        run_dir = tdir / "run"
-        if run_dir.exists():
-            shutil.rmtree(run_dir)
-        report = _ReportEvaluations(trial)
-        t0 = time.perf_counter()
-        res = train(
-            env_id,
-            hp,
-            run_seed,
-            run_dir,
-            total_timesteps=timesteps_per_trial,
-            progress=False,
-            algo=algo,
-            after_eval=report,
-            init_from=init_from,
-        )
-        trial.set_user_attr("seconds", round(time.perf_counter() - t0, 1))
-        trial.set_user_attr("num_timesteps", res.num_timesteps)
-        trial.set_user_attr("best_mean_reward", res.best_mean_reward)
-        trial.set_user_attr("run_dir", str(run_dir))
-        if not keep_checkpoints:
-            shutil.rmtree(run_dir / "checkpoints", ignore_errors=True)
-        if report.pruned:
-            raise optuna.TrialPruned()
-        if not math.isfinite(res.last_mean_reward):
-            raise ConfigError(f"{tdir}: the run made no validation evaluation (eval_freq)")
-        return float(res.last_mean_reward)
-
-    def done() -> int:
-        return len(
-            study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.PRUNED))
-        )
-
-    remaining = trials - done()
-    try:
-        if remaining > 0:
-            study.optimize(
-                objective,
-                n_trials=remaining,
-                timeout=None if budget_minutes is None else budget_minutes * 60.0,
-                callbacks=[lambda s, _t: _write_csv(s, root / "trials.csv")],
-            )
-    finally:
-        _write_csv(study, root / "trials.csv")
-
-    complete = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
-    n_pruned = len(study.get_trials(deepcopy=False, states=(TrialState.PRUNED,)))
-    if not complete:
-        return SearchResult(root, None, float("-inf"), {}, 0, n_pruned)
-    best = study.best_trial
-    entry = apply_params(base_entry, best.params)
-    entry.update(
-        n_timesteps=base.n_timesteps,
-        eval_freq=base.eval_freq,
-        checkpoint_freq=base.checkpoint_freq,
+    objective = _Objective(
+        algo=algo,
+        env_id=env_id,
+        root=root,
+        base=base,
+        base_entry=base.to_dict(),
+        space=space,
+        timesteps_per_trial=timesteps_per_trial,
+        eval_freq=max(timesteps_per_trial // evaluations, base.n_envs),
+        run_seed=run_seed,
+        keep_checkpoints=keep_checkpoints,
+        init_from=init_from,
     )
-    parse_algo_config(algo, entry, f"{root / 'best.yaml'}: {env_id}")
-    (root / "best.yaml").write_text(
-        f"# best of {len(complete)} complete trials of study {name!r} ({storage}): trial "
-        f"{best.number}, mean validation return {best.value:.4f} after "
-        f"{timesteps_per_trial} steps\n# base entry: {cfg_path}; run seed {run_seed}; "
-        f"sampler seed {seed}\n" + yaml.safe_dump({env_id: entry}, sort_keys=False)
-    )
-    return SearchResult(
-        root,
-        best.number,
-        float(best.value if best.value is not None else float("nan")),
-        dict(best.params),
-        len(complete),
-        n_pruned,
-    )
+    _optimize(study, objective, trials, budget_minutes)
+    return _best(study, objective, storage, cfg_path, seed)
