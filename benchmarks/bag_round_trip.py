@@ -31,8 +31,8 @@ from rosbags.typesys import Stores, get_typestore
 
 from rover_env.bags import import_bag, load_topic_map
 from rover_env.calibration.diagnose import Options, diagnose
-from rover_env.generators.make_logs import make_logs
 from rover_env.config import JOINTS, WHEELS
+from rover_env.generators.make_logs import make_logs
 from rover_env.logs import DriveLog, read_log, write_log
 
 BASE = 1_700_000_000 * 10**9  # a wall-clock start, as a real bag has
