@@ -120,3 +120,15 @@ def test_a_proposed_drive_is_simulated_on_the_declared_ground() -> None:
     flat = simulate_plan(cfg, "accel", duration=4.0)
     assert log_ground(on_slope).slope_deg == (10.0, 0.0)  # the log says where it was driven
     assert np.abs(on_slope.phi[:, 4:] - flat.phi[:, 4:]).max() > 0.1
+
+
+def test_diagnose_refuses_a_ground_it_cannot_replay_before_any_fit(tmp_path: Path) -> None:
+    """The refusal comes at diagnose's first stage, naming the log's YAML and the key."""
+    from rover_env.calibration.diagnose import Options, diagnose
+
+    paths = [tmp_path / "a.csv", tmp_path / "b.csv"]
+    _log(None, paths[0])
+    _log("rough", paths[1])
+    with pytest.raises(LogError, match="key 'terrain'") as err:
+        diagnose(paths, tmp_path / "out", Options(workers=1, progress=False))
+    assert str(tmp_path / "b.yaml") in str(err.value)
