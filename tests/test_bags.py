@@ -651,18 +651,9 @@ def test_cli_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
     m = Msgs()
     bag = write_bag(tmp_path / "bag_mcap", _synthetic(m), m, "mcap")
     out = tmp_path / "logs"
-    rc = main(
-        [
-            "import-bag",
-            str(bag),
-            "--map",
-            "jointstate_imu_twist",
-            "--out",
-            str(out),
-            "--name",
-            "run1",
-        ]
-    )
+    first = ["import-bag", str(bag), "--map", "jointstate_imu_twist", "--out", str(out)]
+    first += ["--name", "run1"]
+    rc = main(first)
     text = capsys.readouterr().out
     assert rc == 0, text
     log = read_log(out / "run1.csv")
@@ -677,18 +668,7 @@ def test_cli_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
     ):
         assert part in text, text
     # Same again at another rate into the same file: refused without --overwrite.
-    again = [
-        "import-bag",
-        str(bag),
-        "--map",
-        "jointstate_imu_twist",
-        "--out",
-        str(out),
-        "--name",
-        "run1",
-        "--rate",
-        "25",
-    ]
+    again = [*first, "--rate", "25"]
     assert main(again) == 2
     assert main([*again, "--overwrite"]) == 0 and len(read_log(out / "run1.csv")) == 51
     # A bad bag: return code 2, the reason on stderr.
