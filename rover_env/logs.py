@@ -115,6 +115,14 @@ class DriveLog:
         """Whether any pose sample was measured."""
         return bool(np.any(np.isfinite(self.pose)))
 
+    def beside(self, ref: str) -> str | Path:
+        """``ref`` (a configuration the YAML names) as a file beside the log if one is there,
+        else as written: a shipped name or a path from the working directory."""
+        p = Path(ref)
+        if self.path is not None and not p.is_absolute() and (self.path.parent / p).is_file():
+            return self.path.parent / p
+        return ref
+
 
 # --------------------------------------------------------------------------- validation
 

@@ -36,10 +36,7 @@ def _load(log: DriveLog) -> TerrainConfig:
             return FLAT
         if isinstance(spec, dict):
             return from_dict(TerrainConfig, spec, "terrain")
-        p = Path(spec)
-        if log.path is not None and not p.is_absolute() and (log.path.parent / p).is_file():
-            return load_terrain(log.path.parent / p)
-        return load_terrain(spec)
+        return load_terrain(log.beside(spec))
     except ConfigError as exc:
         raise LogError(f"key 'terrain': {exc}", where) from None
 

@@ -160,7 +160,8 @@ def twin_sensed(
     pose = pose0 + rng.normal(0.0, 1.0, pose0.shape) * ps
     pose[~have] = np.nan
     pose[0] = np.where(have[0], 0.0, np.nan)
-    return DriveLog(log.t, log.cmd, ph, th, pose, log.meta)
+    # The source log's path: relative references in its YAML (terrain, rover) resolve alike.
+    return DriveLog(log.t, log.cmd, ph, th, pose, log.meta, path=log.path)
 
 
 @dataclass

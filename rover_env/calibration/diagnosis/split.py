@@ -20,11 +20,7 @@ from rover_env.logs import DriveLog, LogError, read_log
 
 def rover_of(log: DriveLog) -> RoverConfig:
     """The rover a log names: a file beside the log, or a configuration name."""
-    name = log.meta.rover
-    p = Path(name)
-    if log.path is not None and not p.is_absolute() and (log.path.parent / p).is_file():
-        return load_rover(log.path.parent / p)
-    return load_rover(name)
+    return load_rover(log.beside(log.meta.rover))
 
 
 def split(d: Diagnosis) -> None:
