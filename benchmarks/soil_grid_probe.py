@@ -101,10 +101,10 @@ def _main() -> int:
     if not seeds:
         print(f"error: --seeds {args.seeds!r} holds no seed", file=sys.stderr)
         return 2
-    bad = [s for s in seeds if split_of(s) == "test"]
+    bad = [s for s in seeds if split_of(s) in ("test", "spent")]
     if bad:
         print(
-            f"error: seeds {bad[0]}..: test seeds; probe tuning or validation seeds",
+            f"error: seeds {bad[0]}..: test or spent seeds; probe tuning or validation seeds",
             file=sys.stderr,
         )
         return 2

@@ -108,9 +108,9 @@ def main() -> int:
     ap.add_argument("--scenario", default="soft-patch")
     args = ap.parse_args()
     seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
-    bad = [s for s in seeds if split_of(s) == "test"]
+    bad = [s for s in seeds if split_of(s) in ("test", "spent")]
     if bad:
-        print(f"error: seeds {bad} are test seeds; use tuning or validation seeds", file=sys.stderr)
+        print(f"error: seeds {bad} are test or spent seeds; use tuning or validation seeds", file=sys.stderr)
         return 2
     ctrl = make_controller(args.controller)  # one agent load for every episode
     print(f"{args.controller} on {args.scenario}: goal reached / distance (m) / tries / energy (J)")

@@ -68,8 +68,8 @@ def main() -> int:
     ap.add_argument("t", type=float, help="seconds after which the targets are scaled")
     ap.add_argument("--config", type=Path, default=CONFIG, help="training config (its reward)")
     args = ap.parse_args()
-    if split_of(args.seed) == "test":
-        print(f"error: seed {args.seed} is a test seed; probe tuning or validation seeds",
+    if split_of(args.seed) in ("test", "spent"):
+        print(f"error: seed {args.seed} is a test or spent seed; probe tuning or validation seeds",
               file=sys.stderr)  # fmt: skip
         return 2
     weights = reward_weights(args.config)

@@ -42,9 +42,9 @@ def main() -> int:
             print(f"error: --scale-after {args.scale_after!r}: expected T:S, e.g. 7:0.5",
                   file=sys.stderr)  # fmt: skip
             return 2
-    if split_of(args.seed) == "test":
+    if split_of(args.seed) in ("test", "spent"):
         print(
-            f"error: seed {args.seed} is a test seed; trace tuning or validation seeds",
+            f"error: seed {args.seed} is a test or spent seed; trace tuning or validation seeds",
             file=sys.stderr,
         )
         return 2

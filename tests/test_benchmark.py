@@ -30,7 +30,7 @@ def test_seed_plan_is_disjoint() -> None:
         assert not any(s in train for s in sets[a])
         for b in sets:
             assert a == b or not sets[a] & sets[b]
-    assert seed_plan.seeds("test", 3) == [3000, 3001, 3002]
+    assert seed_plan.seeds("test", 3) == [4000, 4001, 4002]
     assert seed_plan.training_seed(2, 5) in train
     with pytest.raises(ValueError):
         seed_plan.seeds("test", 10_000)
@@ -203,7 +203,9 @@ def test_ppo_controller_runs_through_the_env(tmp_path: Path) -> None:
     assert ctrl.normalizer is not None  # type: ignore[attr-defined]
     (row,) = run_jobs([Job(f"ppo:{tmp_path}", "flat-turns", 2000, 1.0)])
     with pytest.raises(ValueError, match="played only by a final run"):
-        run_jobs([Job("open-loop", "flat-turns", 3000, 1.0)])
+        run_jobs([Job("open-loop", "flat-turns", 4000, 1.0)])
+    with pytest.raises(ValueError, match="spent seeds"):
+        run_jobs([Job("open-loop", "flat-turns", 3000, 1.0)], final=True)
     assert set(METRICS) <= set(row) and all(math.isfinite(row[m]) for m in METRICS)
     with pytest.raises(ValueError, match="unknown controller"):
         make_controller("pid")

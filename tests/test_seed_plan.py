@@ -15,12 +15,21 @@ from rover_env.benchmark.mixture import ScenarioMixEnv
 from rover_env.benchmark.run import ScenarioWrapper
 from rover_env.benchmark.scenarios import load_scenario
 from rover_env.envs.proto_explorer import ProtoExplorerEnv
-from rover_env.seeds import SPLITS, check_split, draw_seed, split_of
+from rover_env.seeds import (
+    HELD_OUT,
+    SPLITS,
+    check_split,
+    draw_seed,
+    refuse_final_only,
+    seeds,
+    split_of,
+)
 
 gym.register_envs(rover_env)
 MIX = "rover_env/ProtoExplorerScenarioMix-v0"
 # A few seeds of every split, from both ends of each block.
 SPLIT_SEEDS = {name: [r.start, r.start + 1, r.stop - 1] for name, r in SPLITS.items()}
+USABLE = {name: s for name, s in SPLIT_SEEDS.items() if name != "spent"}
 
 
 def test_split_of_and_checks() -> None:
@@ -28,10 +37,27 @@ def test_split_of_and_checks() -> None:
         assert {split_of(s) for s in (r.start, r.stop - 1)} == {name}
     assert split_of(0) == split_of(1999) == "training"  # outside every block: not held out
     assert check_split([2000, 2099], "validation", "here") == [2000, 2099]
-    with pytest.raises(ValueError, match=r"here: seeds \[3000\] are not validation seeds"):
-        check_split([2000, 3000], "validation", "here")
+    with pytest.raises(ValueError, match=r"here: seeds \[4000\] are not validation seeds"):
+        check_split([2000, 4000], "validation", "here")
     rng = np.random.default_rng(0)
     assert all(split_of(draw_seed("test", rng)) == "test" for _ in range(50))
+
+
+def test_spent_block_takes_no_new_use() -> None:
+    """The old test block 3000-3999 was looked at by the final runs before issue 46."""
+    assert split_of(3000) == split_of(3999) == "spent" and split_of(4000) == "test"
+    assert "spent" in HELD_OUT
+    for use in (
+        lambda: draw_seed("spent", np.random.default_rng(0)),
+        lambda: seeds("spent", 3),
+        lambda: check_split([3000], "spent", "here"),
+        lambda: refuse_final_only([3034], "here", final=True),
+    ):
+        with pytest.raises(ValueError, match="spent seeds 3000..3999"):
+            use()
+    with pytest.raises(ValueError, match="played only by a final run"):
+        refuse_final_only([4000], "here")
+    refuse_final_only([4000, 2000, 100_000], "here", final=True)  # a final run may
 
 
 def _mix_episodes(env: gym.Env[Any, Any], seed: int, follow_ups: int) -> list[Any]:
@@ -49,10 +75,11 @@ def test_scenario_mix_plays_each_seed_in_its_split() -> None:
     mix = env.unwrapped
     assert isinstance(mix, ScenarioMixEnv)
     played: dict[str, set[tuple[str, int]]] = {}
-    for split, seeds in SPLIT_SEEDS.items():
+    for split, seed_list in USABLE.items():
         eps: set[tuple[str, int]] = set()
-        for s in seeds:
-            episodes = _mix_episodes(env, s, follow_ups=2)
+        for s in seed_list:
+            # Test seeds are played seed by seed: no unseeded follow-up (next test).
+            episodes = _mix_episodes(env, s, follow_ups=0 if split == "test" else 2)
             for scen, ep_seed, active in episodes:
                 assert split_of(ep_seed) == split, (split, s, ep_seed)
                 assert active.seed == ep_seed and active.scenario == scen
@@ -68,6 +95,26 @@ def test_scenario_mix_plays_each_seed_in_its_split() -> None:
     for i, a in enumerate(names):
         for b in names[i + 1 :]:
             assert not played[a] & played[b], f"{a} and {b} share episodes"
+    env.close()
+
+
+def test_scenario_mix_never_drifts_into_test_or_spent_seeds() -> None:
+    """Issue 46: unseeded resets after a test seed went on drawing test seeds (3090, 3034)."""
+    env = gym.make(MIX, scenarios=["split-mu", "ice-patch"])
+    _, info = env.reset(seed=SPLITS["test"].start)
+    assert info["episode_seed"] == SPLITS["test"].start  # a final run's own seed plays
+    with pytest.raises(ValueError, match="unseeded reset after a test seed"):
+        env.reset()
+    with pytest.raises(ValueError, match="spent seeds"):
+        env.reset(seed=3090)
+    _, info = env.reset(seed=SPLITS["validation"].start)  # a seeded reset leaves the test block
+    for _ in range(5):
+        _, info = env.reset()
+        assert split_of(info["episode_seed"]) == "validation"
+    _, info = env.reset(seed=100_000)
+    for _ in range(20):
+        _, info = env.reset()
+        assert split_of(info["episode_seed"]) == "training"
     env.close()
 
 

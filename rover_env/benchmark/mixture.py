@@ -11,7 +11,9 @@ is the reset seed itself when that seed is held out (``reset(seed=2000)`` plays 
 validation episode 2000 of the drawn scenario, the one the benchmark plays for seed 2000),
 and otherwise a seed drawn from the split of the last reset seed: the training block after a
 training seed (or none), so training never meets a tuning, validation or test episode, and
-the validation block for unseeded resets after a validation seed. Episodes of training seeds
+the validation block for unseeded resets after a validation seed. An unseeded reset after a
+test seed raises (test episodes are played seed by seed, by a final run only), and a spent
+seed (the old test block 3000-3999) is refused. Episodes of training seeds
 are those the shipped agents were trained on, draw for draw. ``info["seed_split"]`` and
 ``info["episode_seed"]`` say which episode was played.
 

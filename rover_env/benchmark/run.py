@@ -27,7 +27,7 @@ from rover_env.envs.proto_explorer import ProtoExplorerEnv
 from rover_env.executor import Executor, make_executor
 from rover_env.policies.controllers import EnvController
 from rover_env.policies.specs import make_controller
-from rover_env.seeds import split_of
+from rover_env.seeds import refuse_final_only
 from rover_env.tasks.scenario import ScenarioTask
 from rover_env.tasks.scenarios import Episode, load_scenario
 
@@ -160,16 +160,11 @@ def run_jobs(
     """All jobs, in their given order; ``progress`` is called as each one finishes.
 
     Test seeds need ``final=True``: only a final run (``run_benchmark(final=True)``, which
-    the test ledger records) may play them. ``executor`` defaults to ``workers`` spawned local
+    the test ledger records) may play them; spent seeds are refused always. ``executor`` defaults to ``workers`` spawned local
     processes (no MuJoCo or torch state shared through fork); ``workers <= 1`` runs them in
     this process.
     """
-    test = [j.seed for j in jobs if split_of(j.seed) == "test"]
-    if test and not final:
-        raise ValueError(
-            f"jobs on test seeds {sorted(set(test))[:5]}: the test split is played only by a "
-            "final run (rover-env benchmark --final), which the test ledger records"
-        )
+    refuse_final_only([j.seed for j in jobs], "benchmark jobs", final=final)
     ex = executor or make_executor("local", workers, start_method="spawn")
     tick = None if progress is None else (lambda _i, row: progress(row))
     return ex.map(run_job, list(jobs), on_result=tick)

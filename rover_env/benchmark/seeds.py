@@ -3,10 +3,12 @@ can keep a seed inside its split too)."""
 
 from rover_env.seeds import (
     HELD_OUT,
+    SPENT,
     SPLITS,
     assert_disjoint,
     check_split,
     draw_seed,
+    refuse_final_only,
     seeds,
     split_of,
     training_seed,
@@ -14,10 +16,12 @@ from rover_env.seeds import (
 
 __all__ = [
     "HELD_OUT",
+    "SPENT",
     "SPLITS",
     "assert_disjoint",
     "check_split",
     "draw_seed",
+    "refuse_final_only",
     "seeds",
     "split_of",
     "training_seed",

@@ -58,7 +58,7 @@ from rover_env.control.slip_pi import SlipPI, SlipPIConfig
 from rover_env.estimation.estimator import EstimatorConfig
 from rover_env.executor import die_with_parent
 from rover_env.policies.controllers import ClassicalController
-from rover_env.seeds import split_of
+from rover_env.seeds import refuse_final_only
 from rover_env.tasks.scenarios import Episode
 
 __all__ = ["TuningResult", "evaluate", "objective", "stability_bounds", "tune", "write_config"]
@@ -116,8 +116,7 @@ def evaluate(
 ) -> list[dict[str, float]]:
     """Metrics of every case with SlipPI(gains), or OpenLoop when ``gains`` is None."""
     for c in cases:
-        if split_of(c.seed) == "test":
-            raise ValueError(f"tuning case {c.scenario} seed {c.seed} is a test seed")
+        refuse_final_only([c.seed], f"tuning case {c.scenario} seed {c.seed}")
     jobs = [(gains, c) for c in cases]
     if pool is None:
         return [_run_case(j) for j in jobs]

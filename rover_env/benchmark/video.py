@@ -23,7 +23,7 @@ import numpy.typing as npt
 
 from rover_env.benchmark.run import ScenarioWrapper, run_episode
 from rover_env.envs.proto_explorer import ProtoExplorerEnv
-from rover_env.seeds import split_of
+from rover_env.seeds import refuse_final_only
 from rover_env.tasks.scenarios import load_scenario
 
 __all__ = ["add_cli", "play", "record_side_by_side", "side_by_side"]
@@ -43,11 +43,7 @@ def play(
     """Frames (after the reset and after every step) and benchmark metrics of one episode."""
     from rover_env.policies.specs import make_controller
 
-    if split_of(seed) == "test":
-        raise ValueError(
-            f"seed {seed} is a test seed: videos play validation (or tuning) episodes; the "
-            "test split is for the final benchmark run only"
-        )
+    refuse_final_only([seed], "video (videos play validation or tuning episodes)")
     ctrl = make_controller(spec)
     episode = load_scenario(scenario).episode(seed, duration)
     env = ProtoExplorerEnv(

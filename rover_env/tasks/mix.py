@@ -8,8 +8,12 @@ the :class:`~rover_env.tasks.scenario.ScenarioTask` drawn here.
 Seeds (:mod:`rover_env.seeds`): the jitter seed of the drawn scenario is the reset seed
 itself when that seed is held out (a validation seed plays the benchmark's own validation
 episode of the drawn scenario) and otherwise a seed drawn from the split of the last reset
-seed (the training block after a training seed or none). Training seeds draw the scenario,
-jitter seed and command scales in the order the shipped agents were trained with.
+seed (the training block after a training seed or none, the tuning or validation block after
+one of theirs). Test seeds are played only as given: an unseeded reset after a test seed
+raises rather than draw further test episodes (the test block is played only by a final
+run, seed by seed), and a spent seed (:data:`rover_env.seeds.SPENT`) is refused. Training
+seeds draw the scenario, jitter seed and command scales in the order the shipped agents were
+trained with.
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from rover_env.control.base import CommandSchedule
-from rover_env.seeds import draw_seed, split_of
+from rover_env.seeds import SPENT, draw_seed, refuse_final_only, split_of
 from rover_env.tasks.scenario import ScenarioTask
 from rover_env.tasks.scenarios import Episode, ScenarioConfig, load_scenario
 
@@ -87,7 +91,16 @@ class ScenarioMix:
     def draw(self, rng: np.random.Generator, seed: int | None) -> ScenarioTask:
         """The next episode's task; ``seed`` is the reset seed (None: continue the stream)."""
         if seed is not None:
-            self.split = split_of(seed)
+            split = split_of(seed)
+            if split == SPENT:
+                refuse_final_only([seed], "ScenarioMix reset")
+            self.split = split
+        elif self.split == "test":
+            raise ValueError(
+                "ScenarioMix: an unseeded reset after a test seed would draw further test "
+                "episodes; the test block is played only seed by seed by a final run "
+                "(reset with a seed, or reset(seed=...) with a training/validation seed)"
+            )
         i = int(rng.choice(len(self.cfgs), p=self.p))
         episode_seed = draw_seed(self.split, rng)  # drawn always: the same stream either way
         if seed is not None and self.split != "training":
