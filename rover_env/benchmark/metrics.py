@@ -10,6 +10,12 @@ Slip statistics come from one set of samples: the mean |S| of each driven wheel 
 control step (its estimator samples averaged, ``info["slip_abs_step"]``), so the mean and
 the 95th percentile describe the same distribution (a percentile of step-end snapshots
 beside a mean of every sample could fall below the mean).
+
+*Success* is what a user would sign: the goal reached while keeping the commanded pace
+(:data:`PACE_TOLERANCE`; :func:`pace_ratio`). A controller that gets there at twice the
+commanded speed has not done what it was asked; ``goal`` keeps the old meaning (goal
+reached, at any pace). The pace line applies to every scenario alike: where the ground does
+not let any controller keep the pace, every controller's success is low there.
 """
 
 from __future__ import annotations
@@ -25,23 +31,29 @@ __all__ = [
     "LOWER_IS_BETTER",
     "METRICS",
     "MIN_PATH",
+    "PACE_TOLERANCE",
     "STEP_KEYS",
     "UNITS",
     "episode_metrics",
     "metrics_of_steps",
+    "pace_ratio",
     "trace_metrics",
 ]
 
 Array = npt.NDArray[np.float64]
 
 METRICS: tuple[str, ...] = (
+    "success",
+    "goal",
+    "pace_ok",
+    "pace_ratio",
+    "time_to_goal",
     "mean_abs_slip",
     "p95_abs_slip",
     "rms_speed_error",
     "rms_yaw_rate_error",
     "energy_per_metre",
     "distance_made_good",
-    "success",
     "flipped",
     "mean_sinkage",
     "max_sinkage",
@@ -50,19 +62,26 @@ METRICS: tuple[str, ...] = (
 """Per-episode metrics, in table order (see :func:`episode_metrics`)."""
 
 UNITS: dict[str, str] = {
+    "success": "share",
+    "goal": "share",
+    "pace_ok": "share",
+    "pace_ratio": "1",
+    "time_to_goal": "s",
     "mean_abs_slip": "1",
     "p95_abs_slip": "1",
     "rms_speed_error": "m/s",
     "rms_yaw_rate_error": "rad/s",
     "energy_per_metre": "J/m",
     "distance_made_good": "m",
-    "success": "share",
     "flipped": "share",
     "mean_sinkage": "m",
     "max_sinkage": "m",
     "time_stuck": "s",
 }
-LOWER_IS_BETTER = {m: m not in ("distance_made_good", "success") for m in METRICS}
+HIGHER_IS_BETTER = ("distance_made_good", "success", "goal", "pace_ok")
+UNORDERED = frozenset({"pace_ratio"})
+"""Metrics with no better side (the pace ratio is best at 1): a paired table says *differs*."""
+LOWER_IS_BETTER = {m: m not in HIGHER_IS_BETTER for m in METRICS}
 
 STEP_KEYS: tuple[str, ...] = (
     "slip_abs_step",
@@ -73,6 +92,7 @@ STEP_KEYS: tuple[str, ...] = (
     "wheel_sinkage",
     "command",
     "speed",
+    "yaw_rate",
 )
 """The ``info`` entries of every step that the metrics need."""
 
@@ -80,6 +100,13 @@ STUCK_PROGRESS = 0.2
 """A control step is stuck when the rover makes less than this share of the commanded progress."""
 MIN_PATH = 0.01
 """Path length (m) below which energy per metre is taken over this floor (no division by 0)."""
+PACE_TOLERANCE = 0.25
+"""The pace line: the episode's mean speed within +-25 % of its mean commanded speed."""
+MIN_SPEED = 0.01
+"""Mean commanded |forward speed| (m/s) below which an episode turns in place: its pace is
+then the yaw rate's (:func:`pace_ratio`)."""
+MIN_YAW_RATE = 0.01
+"""Mean commanded |yaw rate| (rad/s) below which a turn in place is a stand-still (no pace)."""
 
 
 def episode_metrics(
@@ -99,8 +126,21 @@ def episode_metrics(
     command: Array | None = None,
     speed: Array | None = None,
     step_dt: float = 0.1,
+    yaw_rate: Array | None = None,
 ) -> dict[str, float]:
     """The benchmark's metrics of one episode from per-step arrays (truth, as in ``info``).
+
+    * ``success``: ``goal`` and ``pace_ok`` (module docstring);
+    * ``goal``: 1 if no flip, still in the arena, and the path length reached
+      ``goal_fraction`` of the commanded one (the rover was not stuck), else 0; given
+      ``speed`` (the true forward speed at each step end) and ``command``, a step whose
+      forward speed opposes the command counts its path *against* the goal (a rover sliding
+      back down a loose slope while its wheels spin forward is not progressing);
+    * ``pace_ok``: 1 if ``pace_ratio`` is within 1 +- :data:`PACE_TOLERANCE`;
+    * ``pace_ratio``: mean speed over mean commanded speed over the whole episode
+      (:func:`pace_ratio`);
+    * ``time_to_goal``: seconds until the progress first reached the goal; an episode that
+      misses its goal counts its whole played length (censored: at least that);
 
     * ``mean_abs_slip``, ``p95_abs_slip``: mean and 95th percentile of |S| of the driven
       wheels over the per-step, per-wheel means ``slip_abs_step`` (steps, 4) (module
@@ -110,11 +150,6 @@ def episode_metrics(
     * ``energy_per_metre``: motor electrical energy over the middle segment's path length
       (J/m), the path floored at :data:`MIN_PATH`;
     * ``distance_made_good``: straight-line displacement of the middle segment (m);
-    * ``success``: 1 if no flip, still in the arena, and the path length reached
-      ``goal_fraction`` of the commanded one (the rover was not stuck), else 0; given
-      ``speed`` (the true forward speed at each step end) and ``command``, a step whose
-      forward speed opposes the command counts its path *against* the goal (a rover sliding
-      back down a loose slope while its wheels spin forward is not progressing);
     * ``flipped``: 1 if a segment tipped beyond 75 deg;
     * ``mean_sinkage``, ``max_sinkage``: sinkage into loose soil (m) of the six wheels at
       the step ends (``wheel_sinkage``, steps x 6), mean over steps and wheels and the
@@ -126,25 +161,56 @@ def episode_metrics(
     path = float(np.sum(distance))
     made_good = float(np.linalg.norm(np.asarray(end)[:2] - np.asarray(start)[:2]))
     progress = _progress(distance, command, speed)
-    ok = (
-        (not flipped)
-        and (not out_of_arena)
-        and float(np.sum(progress)) >= goal_fraction * commanded_path
-    )
+    goal_path = goal_fraction * commanded_path
+    ok = (not flipped) and (not out_of_arena) and float(np.sum(progress)) >= goal_path
+    ratio = pace_ratio(progress, command, yaw_rate, step_dt)
+    pace = abs(ratio - 1.0) <= PACE_TOLERANCE
+    played = progress.size * step_dt
+    reached = np.flatnonzero(np.cumsum(progress) >= goal_path)
     slip = np.asarray(slip_abs_step, dtype=np.float64)
     return {
+        "success": float(ok and pace),
+        "goal": float(ok),
+        "pace_ok": float(pace),
+        "pace_ratio": ratio,
+        "time_to_goal": float(reached[0] + 1) * step_dt if ok and reached.size else played,
         "mean_abs_slip": float(np.mean(slip)),
         "p95_abs_slip": float(np.percentile(slip, 95)),
         "rms_speed_error": math.sqrt(float(np.mean(np.square(tracking_error_speed)))),
         "rms_yaw_rate_error": math.sqrt(float(np.mean(np.square(tracking_error_yaw_rate)))),
         "energy_per_metre": float(np.sum(energy)) / max(path, MIN_PATH),
         "distance_made_good": made_good,
-        "success": float(ok),
         "flipped": float(flipped),
         "mean_sinkage": float(np.mean(wheel_sinkage)) if wheel_sinkage is not None else 0.0,
         "max_sinkage": float(np.max(wheel_sinkage)) if wheel_sinkage is not None else 0.0,
         "time_stuck": time_stuck(progress, command, step_dt),
     }
+
+
+def pace_ratio(
+    progress: Array, command: Array | None, yaw_rate: Array | None, step_dt: float
+) -> float:
+    """The episode's mean speed over its mean commanded speed (1: the commanded pace).
+
+    Forward: the path made along the commanded direction (``progress``, see
+    :func:`episode_metrics`) over the commanded path, both over the played steps, so periods
+    of stand-still in a schedule count on both sides. An episode whose mean commanded
+    |forward speed| is below :data:`MIN_SPEED` turns in place: its ratio is the mean yaw
+    rate along the commanded sense over the mean commanded |yaw rate|; without ``yaw_rate``,
+    or below :data:`MIN_YAW_RATE` too (a stand-still), there is no pace to keep and the
+    ratio is 1. Without ``command`` the pace is not judged (1).
+    """
+    if command is None:
+        return 1.0
+    cmd = np.asarray(command, dtype=float).reshape(-1, 2)
+    v_cmd = np.abs(cmd[:, 0])
+    if float(np.mean(v_cmd)) >= MIN_SPEED:
+        return float(np.sum(progress)) / (float(np.sum(v_cmd)) * step_dt)
+    w_cmd = cmd[:, 1]
+    if yaw_rate is None or float(np.mean(np.abs(w_cmd))) < MIN_YAW_RATE:
+        return 1.0
+    along = np.asarray(yaw_rate, dtype=float) * np.sign(w_cmd)
+    return float(np.sum(along)) / float(np.sum(np.abs(w_cmd)))
 
 
 def _progress(distance: Array, command: Array | None, speed: Array | None) -> Array:

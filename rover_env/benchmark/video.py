@@ -68,9 +68,9 @@ def play(
 
 
 def _summary(m: dict[str, float]) -> str:
-    goal = "goal reached" if m.get("success", 0.0) >= 0.5 else "goal missed"
+    goal = "goal reached" if m.get("goal", 0.0) >= 0.5 else "goal missed"
     return (
-        f"{goal}, made good {m['distance_made_good']:.2f} m, |S| {m['mean_abs_slip']:.3f}, "
+        f"{goal} at {m['pace_ratio']:.2f} x the commanded pace, made good {m['distance_made_good']:.2f} m, |S| {m['mean_abs_slip']:.3f}, "
         f"sinkage {1000 * m['mean_sinkage']:.1f} mm, {m['energy_per_metre']:.0f} J/m"
     )
 
