@@ -9,7 +9,9 @@ A paired table makes many comparisons at once (controllers x scenarios x metrics
 verdicts (*better*, *worse*) come from the paired t-test's p-values after Holm's correction
 over all comparisons of the table (family-wise error 5 %), not from each interval alone;
 the table states the number of comparisons. Beside every relative difference it gives the
-absolute one and both means.
+absolute one and both means. The claim a user signs is the verdict table
+(:mod:`rover_env.benchmark.verdict`): success, energy per metre and sinkage together. A final
+run's tables use its look's alpha (:mod:`rover_env.benchmark.spending`) in place of 5 %.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from rover_env.benchmark.metrics import LOWER_IS_BETTER, METRICS, UNITS
+from rover_env.benchmark.metrics import LOWER_IS_BETTER, METRICS, UNITS, UNORDERED
 
 __all__ = [
     "ALPHA",
@@ -105,9 +107,11 @@ def summarise(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
-def paired(rows: Sequence[dict[str, Any]], baseline: str) -> list[dict[str, Any]]:
+def paired(
+    rows: Sequence[dict[str, Any]], baseline: str, alpha: float = ALPHA
+) -> list[dict[str, Any]]:
     """Every other controller minus ``baseline``, per scenario and metric, on shared seeds;
-    verdicts after Holm's correction over all rows returned (module docstring)."""
+    verdicts after Holm's correction over all rows returned at ``alpha`` (module docstring)."""
     out = []
     ctrls = [c for c in _unique(r["controller"] for r in rows) if c != baseline]
     for other in ctrls:
@@ -146,11 +150,23 @@ def paired(rows: Sequence[dict[str, Any]], baseline: str) -> list[dict[str, Any]
         r["comparisons"] = family
         if r["n"] < 2:
             r["verdict"] = "n = 1"
-        elif q < ALPHA:
+        elif q < alpha:
             lower = LOWER_IS_BETTER[r["metric"]]
             r["verdict"] = "better" if (r["diff_mean"] < 0) == lower else "worse"
+            if r["metric"] in UNORDERED:
+                r["verdict"] = "higher" if r["diff_mean"] > 0 else "lower"
         else:
             r["verdict"] = "no difference"
+    return out
+
+
+def _flat(v: dict[str, Any]) -> dict[str, Any]:
+    """A verdict row for the CSV: one column per metric's difference, interval and state."""
+    out = {k: v[k] for k in ("controller", "baseline", "scenario", "verdict", "alpha")}
+    out["better"], out["worse"] = " ".join(v["better"]), " ".join(v["worse"])
+    for m, c in v["metrics"].items():
+        for k in ("diff_mean", "ci_low", "ci_high", "p_holm", "state"):
+            out[f"{m}_{k}"] = c[k]
     return out
 
 
@@ -191,6 +207,8 @@ def _markdown(
     summary: Sequence[dict[str, Any]],
     pairs: Sequence[dict[str, Any]],
     meta: dict[str, Any],
+    verdict_lines: Sequence[str] = (),
+    alpha: float = ALPHA,
 ) -> str:
     lines = ["# Controller benchmark", ""]
     for k, v in meta.items():
@@ -220,16 +238,17 @@ def _markdown(
             ]
             lines.append(f"| {c} | {n} | " + " | ".join(cells) + " |")
         lines.append("")
+    lines += verdict_lines
     if pairs:
         family = pairs[0]["comparisons"]
         lines += [
             "## Paired differences (controller − baseline, same seeds)",
             "",
             "95 % paired t-interval of the per-seed difference (absolute, in the metric's "
-            "unit); *relative* is that difference over the baseline's mean. *better*/*worse*: "
-            f"the paired t-test rejects no difference at 5 % after Holm's correction over the "
-            f"{family} comparisons of this table (p Holm < {ALPHA}); the intervals are not "
-            "adjusted.",
+            "unit); *relative* is that difference over the baseline's mean. *better*/*worse* "
+            f"(*higher*/*lower* for the pace ratio): the paired t-test rejects no difference "
+            f"after Holm's correction over the {family} comparisons of this table (p Holm < "
+            f"{alpha:.4g}); the intervals are not adjusted. The verdict above is the claim.",
             "",
             "| scenario | controller − baseline | metric | n | baseline mean | controller mean "
             "| difference [95 % CI] | relative | p (Holm) | verdict |",
@@ -259,7 +278,7 @@ def _plots(
     files = []
     ctrls = _unique(r["controller"] for r in summary)
     scens = _unique(r["scenario"] for r in summary)
-    fig, axes = plt.subplots(3, 4, figsize=(18, 12))
+    fig, axes = plt.subplots(4, 4, figsize=(18, 16))
     width = 0.8 / max(len(ctrls), 1)
     x = np.arange(len(scens))
     for ax, m in zip(axes.ravel(), METRICS, strict=False):
@@ -292,7 +311,7 @@ def _plots(
     for other in _unique(r["controller"] for r in pairs):
         mine = [r for r in pairs if r["controller"] == other]
         base = mine[0]["baseline"]
-        fig, axes = plt.subplots(3, 4, figsize=(18, 12))
+        fig, axes = plt.subplots(4, 4, figsize=(18, 16))
         for ax, m in zip(axes.ravel(), METRICS, strict=False):
             by = {r["scenario"]: r for r in mine if r["metric"] == m}
             d = np.array([by[s]["diff_mean"] if s in by else np.nan for s in scens])
@@ -318,24 +337,38 @@ def write_report(
     rows: Sequence[dict[str, Any]],
     meta: dict[str, Any] | None = None,
     plots: bool = True,
+    alpha: float = ALPHA,
+    look: str = "",
 ) -> dict[str, Path]:
-    """Write episodes.csv, summary.csv, paired.csv, benchmark.md and the PNG plots."""
+    """Write episodes.csv, summary.csv, paired.csv, verdict.csv, benchmark.md and the PNG
+    plots (``frontier.png`` where a verdict is a trade). ``alpha``: the look's, ``look``: a
+    sentence saying which look of which question it is (final runs)."""
+    from rover_env.benchmark.verdict import frontier_plot, verdict_markdown, verdicts
+
     d = Path(out)
     d.mkdir(parents=True, exist_ok=True)
     summary = summarise(rows)
     ctrls = _unique(r["controller"] for r in rows)
-    pairs = paired(rows, ctrls[0]) if len(ctrls) > 1 else []
+    pairs = paired(rows, ctrls[0], alpha) if len(ctrls) > 1 else []
+    vs = verdicts(rows, ctrls[0], alpha) if len(ctrls) > 1 else []
     files = {
         "episodes": d / "episodes.csv",
         "summary": d / "summary.csv",
         "paired": d / "paired.csv",
+        "verdict": d / "verdict.csv",
         "markdown": d / "benchmark.md",
     }
     _write_csv(files["episodes"], rows)
     _write_csv(files["summary"], summary)
     _write_csv(files["paired"], pairs)
-    files["markdown"].write_text(_markdown(summary, pairs, meta or {}))
+    _write_csv(files["verdict"], [_flat(v) for v in vs])
+    vlines = verdict_markdown(vs, summary, look)
+    files["markdown"].write_text(_markdown(summary, pairs, meta or {}, vlines, alpha))
     if plots:
         for p in _plots(d, summary, pairs):
             files[p.stem] = p
+        traded = _unique(v["scenario"] for v in vs if v["verdict"] == "trade")
+        front = frontier_plot(d, summary, traded)
+        if front is not None:
+            files["frontier"] = front
     return files
