@@ -310,14 +310,20 @@ def test_cli_train_kill_resume_evaluate(tmp_path: Path) -> None:
     assert "validation split" in ev.stdout
 
     # The test seeds once: a second final run of the same agent is refused.
+    (tmp_path / "q.yaml").write_text(
+        "questions:\n  - {id: q, text: agent vs open loop, baseline: open-loop, "
+        "scenarios: [flat-turns], controllers: ['ppo:*'], max_looks: 2}\n"
+    )
     final = ["--which", "final", "--quiet", "--final", "--ledger", str(tmp_path / "ledger.csv")]
+    final += ["--question", "q", "--questions", str(tmp_path / "q.yaml")]
     short = ["--episodes", "1", "--scenarios", "flat-turns", "--duration", "0.5"]
     ev = _run("train/evaluate.py", str(run), *short, *final, "--out", str(tmp_path / "f"))
     assert ev.returncode == 0, ev.stderr
-    assert "test split" in ev.stdout
+    assert "test split" in ev.stdout and "Look 1 of 2 at question `q`" in ev.stdout
     with (tmp_path / "ledger.csv").open() as fh:
-        (row,) = list(csv.DictReader(fh))
-    assert row["agent"] == f"ppo:{run / 'model.zip'}"
+        base, row = list(csv.DictReader(fh))  # the question's baseline is recorded too
+    assert (base["agent"], base["role"]) == ("open-loop", "baseline")
+    assert row["agent"] == f"ppo:{run / 'model.zip'}" and row["role"] == "agent"
     ev = _run("train/evaluate.py", str(run), *short, *final, "--out", str(tmp_path / "f2"))
     assert ev.returncode == 3 and "already had its final test run" in ev.stderr
 

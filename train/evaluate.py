@@ -1,7 +1,8 @@
-"""Evaluate a trained run: python train/evaluate.py RUN_DIR [--episodes N] [--final].
+"""Evaluate a trained run: python train/evaluate.py RUN_DIR [--episodes N] [--final --question ID].
 
-Validation seeds by default; ``--final`` is the agent's one run on the test seeds, recorded
-in docs/benchmark/test_ledger.csv (a second one is refused unless ``--force``).
+Validation seeds by default; ``--final --question ID`` is the agent's one run on the test
+seeds, a look at a registered question, recorded in docs/benchmark/test_ledger.csv (a second
+one is refused unless ``--force``).
 """
 
 import sys

@@ -38,16 +38,28 @@ def _command_line() -> str:
 
 def _bench_cli(args: argparse.Namespace) -> int:
     from rover_env.benchmark.ledger import FinalRunRefused
+    from rover_env.config import ConfigError
     from rover_env.policies.specs import parse_specs
 
     if args.force and not args.final:
         print("error: --force only applies to --final", file=sys.stderr)
+        return 2
+    if args.final and not args.question:
+        print(
+            "error: --final needs --question ID (a question of configs/benchmarks/questions.yaml)",
+            file=sys.stderr,
+        )
         return 2
     try:
         return _bench(args, parse_specs(args.controllers))
     except FinalRunRefused as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 3
+    except (ConfigError, ValueError) as exc:
+        if not args.final:
+            raise
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
 
 
 def _bench(args: argparse.Namespace, specs: list[str]) -> int:
@@ -68,6 +80,8 @@ def _bench(args: argparse.Namespace, specs: list[str]) -> int:
         executor=args.executor,
         ray_address=args.ray_address,
         resume=args.resume,
+        question=args.question,
+        questions=args.questions,
     )
     print(files["markdown"].read_text())
     print("wrote " + ", ".join(str(p) for p in files.values()))
@@ -142,11 +156,22 @@ def add_cli(subparsers: Any) -> None:
     p.add_argument(
         "--final",
         action="store_true",
-        help="the one test-split run of an agent (every controller but the first baseline): "
-        "recorded in the test ledger; a second one is refused",
+        help="a look at the test block (4000-4999) for a registered --question: every "
+        "controller recorded in the test ledger; a second run of an agent is refused",
     )
     p.add_argument(
-        "--force", action="store_true", help="with --final: run again, the row marked a repeat"
+        "--question",
+        default=None,
+        help="with --final (required): the id of the pre-registered question the run answers "
+        "(configs/benchmarks/questions.yaml); its looks are counted and spend its alpha",
+    )
+    p.add_argument(
+        "--questions", default=None, help="questions YAML (default configs/benchmarks/questions.yaml)"
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="with --final: run although refused (a repeat, a look beyond the plan); rows marked",
     )
     p.add_argument(
         "--ledger", default=None, help="test ledger CSV (default docs/benchmark/test_ledger.csv)"

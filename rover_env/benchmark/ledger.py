@@ -1,18 +1,29 @@
-"""The test ledger: the test split is touched once per agent.
+"""The test ledger: every look at the test block, counted per research question.
 
 Selection, tuning and ablation run on the validation seeds; the test seeds
-(:mod:`rover_env.seeds`) only report an agent already chosen. Each such *final* run
-(``rover-env benchmark --final``, ``train/evaluate.py --final``) appends one row per agent
-under test to ``docs/benchmark/test_ledger.csv``: the hash of the agent's files, the
-configuration and command of the run, the date and its figures. A second final run of an
-agent whose hash is already in the ledger is refused (:class:`FinalRunRefused`) unless
-forced, and a forced row is marked ``repeat`` so that a reader sees the test split was
-looked at more than once.
+(:mod:`rover_env.seeds`) only report controllers already chosen, each final run
+(``rover-env benchmark --final --question ID``, ``train/evaluate.py --final --question ID``)
+answering one pre-registered question (:mod:`rover_env.benchmark.questions`). A final run
+appends one row per controller of the run, the baseline included (``role``), to
+``docs/benchmark/test_ledger.csv``: the run, the question, its fingerprint, the look number and
+the look's alpha (:mod:`rover_env.benchmark.spending`), the hash of the controller's files,
+the configuration and command, the date, the figures and the verdict.
 
-The agents under test are every controller but the first, which is the paired baseline
-(a run of one controller tests that one). The hash covers what decides the agent's
-actions: for ``ppo:PATH`` (``sac:``, ``td3:``) the model ``.zip``, its normalisation statistics and the run's
-``config.yaml``; for a classical controller its spec and its resolved settings.
+Refused before any episode runs (:class:`FinalRunRefused`) unless forced, a forced row
+marked so that a reader sees it:
+
+* an agent (every controller but the baseline) that already had a final run on the test
+  block (``repeat (forced)``);
+* a look beyond the question's ``max_looks`` (``beyond max looks (forced)``; such a look
+  has alpha 0 and claims nothing);
+* a look at a question edited since its first look (``question edited (forced)``).
+
+The hash covers what decides the controller's actions: for ``ppo:PATH`` (``sac:``, ``td3:``)
+the model ``.zip``, its normalisation statistics and the run's ``config.yaml``; for a
+classical controller its spec and its resolved settings.
+
+Rows written before issue 46 (version 1: no question, agents only) stay readable: they read
+as looks without a question on the ``spent`` block and do not count against the new one.
 """
 
 from __future__ import annotations
@@ -22,27 +33,45 @@ import datetime as dt
 import hashlib
 import json
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from rover_env.benchmark.questions import Question
+from rover_env.seeds import split_of
+
 __all__ = [
     "FIELDS",
+    "FIELDS_V1",
+    "FinalCheck",
     "FinalRunRefused",
     "agent_hash",
     "agents_under_test",
     "check_final",
     "default_ledger",
+    "read_ledger",
     "record_final",
 ]
 
+FIELDS_V1 = ("date", "agent", "agent_hash", "baseline", "config", "command", "figures", "repeat")
+"""The columns before issue 46 (agents only, no question)."""
+
 FIELDS = (
     "date",
+    "run",
+    "question",
+    "question_hash",
+    "look",
+    "alpha_look",
+    "role",
     "agent",
     "agent_hash",
     "baseline",
+    "split",
     "config",
     "command",
     "figures",
+    "verdict",
     "repeat",
 )
 
@@ -88,34 +117,96 @@ def agent_hash(spec: str) -> str:
     return h.hexdigest()[:16]
 
 
-def _read(ledger: Path) -> list[dict[str, str]]:
+def read_ledger(ledger: Path) -> list[dict[str, str]]:
+    """Every row with the version-2 columns (version-1 rows filled in: module docstring)."""
     if not ledger.is_file():
         return []
     with ledger.open(newline="") as fh:
         rows = list(csv.DictReader(fh))
-    if rows and set(FIELDS) - set(rows[0]):
-        raise ValueError(f"{ledger}: columns {sorted(set(FIELDS) - set(rows[0]))} missing")
-    return rows
+    if not rows:
+        return []
+    have = set(rows[0])
+    if not set(FIELDS) <= have and not set(FIELDS_V1) <= have:
+        raise ValueError(f"{ledger}: columns {sorted(set(FIELDS) - have)} missing")
+    out = []
+    for r in rows:
+        if "question" not in r:
+            first = str(json.loads(r["config"] or "{}").get("seeds", "")).split("..")[0]
+            r = {
+                **dict.fromkeys(FIELDS, ""),
+                **r,
+                "run": r["date"],
+                "role": "agent",
+                "split": split_of(int(first)) if first.isdigit() else "",
+            }
+        out.append({k: r.get(k) or "" for k in FIELDS})
+    return out
+
+
+@dataclass
+class FinalCheck:
+    """What :func:`check_final` allows: the look, its alpha and each controller's hash."""
+
+    question: Question
+    look: int
+    alpha: float
+    hashes: dict[str, str]
+    marks: dict[str, str] = field(default_factory=dict)
+    """Controller -> its row's ``repeat`` mark (forced refusals)."""
+
+    def describe(self) -> str:
+        q = self.question
+        left = "no alpha left: nothing is claimed" if self.alpha <= 0 else f"alpha {self.alpha:.4g}"
+        return (
+            f"Look {self.look} of {q.max_looks} at question `{q.id}` ({q.spending} spending of "
+            f"alpha {q.alpha:g} over {q.max_looks} planned looks): {left}."
+        )
 
 
 def check_final(
-    controllers: Sequence[str], ledger: Path, force: bool = False
-) -> dict[str, tuple[str, bool]]:
-    """``{agent: (hash, repeat)}`` for a final run; raises :class:`FinalRunRefused` when an
-    agent already has a row and ``force`` is False. Call it before any test episode runs."""
-    seen = {r["agent_hash"]: r for r in _read(ledger)}
-    out: dict[str, tuple[str, bool]] = {}
+    controllers: Sequence[str],
+    scenarios: Sequence[str],
+    ledger: Path,
+    question: Question,
+    force: bool = False,
+) -> FinalCheck:
+    """The look a final run would be; raises :class:`FinalRunRefused` (module docstring)
+    unless ``force``. Call it before any test episode runs."""
+    question.check_run(controllers, scenarios)
+    rows = [r for r in read_ledger(ledger) if r["split"] == "test"]
+    mine = [r for r in rows if r["question"] == question.id]
+    runs = list(dict.fromkeys(r["run"] for r in mine))
+    look = len(runs) + 1
+    marks: dict[str, str] = {}
+    refusals = []
+    if mine and mine[0]["question_hash"] != question.fingerprint():
+        refusals.append(
+            f"question {question.id} changed since its first look on {mine[0]['date']} "
+            "(register a new question id)"
+        )
+        marks.update(dict.fromkeys(controllers, "question edited (forced)"))
+    if look > question.max_looks:
+        refusals.append(
+            f"question {question.id} had its {question.max_looks} planned look(s) "
+            f"({', '.join(runs)}); a further look has no alpha left"
+        )
+        marks.update(dict.fromkeys(controllers, "beyond max looks (forced)"))
+    hashes = {spec: agent_hash(spec) for spec in controllers}
+    tested = {r["agent_hash"]: r for r in rows if r["role"] == "agent"}
     for spec in agents_under_test(controllers):
-        digest = agent_hash(spec)
-        prior = seen.get(digest)
-        if prior is not None and not force:
-            raise FinalRunRefused(
-                f"{spec} (hash {digest}) already had its final test run on {prior['date']} "
-                f"({ledger}); select and tune on validation, or pass --force to run the test "
-                "split again (the row is then marked as a repeat)"
+        prior = tested.get(hashes[spec])
+        if prior is not None:
+            refusals.append(
+                f"{spec} (hash {hashes[spec]}) already had its final test run on "
+                f"{prior['date']} (question {prior['question']})"
             )
-        out[spec] = (digest, prior is not None)
-    return out
+            marks[spec] = "; ".join(x for x in (marks.get(spec), "repeat (forced)") if x)
+    if refusals and not force:
+        raise FinalRunRefused(
+            "; ".join(refusals) + f" ({ledger}); select and tune on validation, or pass "
+            "--force to run the test split again (the rows are then marked)"
+        )
+    return FinalCheck(question, look, question.alpha_of_look(look), hashes, marks)
 
 
 def _figures(rows: Sequence[dict[str, Any]], agent: str) -> str:
@@ -136,30 +227,54 @@ def _figures(rows: Sequence[dict[str, Any]], agent: str) -> str:
 
 def record_final(
     ledger: Path,
-    checked: dict[str, tuple[str, bool]],
+    checked: FinalCheck,
     controllers: Sequence[str],
     rows: Sequence[dict[str, Any]],
     config: dict[str, Any],
     command: str,
+    verdicts: Sequence[dict[str, Any]] = (),
 ) -> None:
-    """Append one row per agent of ``checked`` (from :func:`check_final`) after the run."""
+    """Append one row per controller of the run (the baseline too) after the run; a
+    version-1 ledger is rewritten with the version-2 columns first (its rows kept)."""
     ledger.parent.mkdir(parents=True, exist_ok=True)
-    new = not ledger.is_file() or ledger.stat().st_size == 0
+    old = read_ledger(ledger)
+    header = None
+    if ledger.is_file():
+        with ledger.open(newline="") as fh:
+            header = next(csv.reader(fh), None)
     date = dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
-    with ledger.open("a", newline="") as fh:
+    run = f"{date} {hashlib.sha256(command.encode()).hexdigest()[:6]}"
+    baseline = controllers[0] if len(controllers) > 1 else ""
+    q = checked.question
+    new = []
+    for spec in controllers:
+        role = "baseline" if spec == baseline else "agent"
+        mine = {v["scenario"]: v["verdict"] for v in verdicts if v["controller"] == spec}
+        new.append(
+            {
+                "date": date,
+                "run": run,
+                "question": q.id,
+                "question_hash": q.fingerprint(),
+                "look": str(checked.look),
+                "alpha_look": f"{checked.alpha:.6g}",
+                "role": role,
+                "agent": spec,
+                "agent_hash": checked.hashes[spec],
+                "baseline": baseline if role == "agent" else "",
+                "split": "test",
+                "config": json.dumps(config, separators=(",", ":"), sort_keys=True),
+                "command": command,
+                "figures": _figures(rows, spec),
+                "verdict": json.dumps(mine, separators=(",", ":")) if mine else "",
+                "repeat": checked.marks.get(spec, ""),
+            }
+        )
+    rewrite = header is None or tuple(header) != FIELDS
+    with ledger.open("w" if rewrite else "a", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(FIELDS))
-        if new:
+        if rewrite:
             w.writeheader()
-        for agent, (digest, repeat) in checked.items():
-            w.writerow(
-                {
-                    "date": date,
-                    "agent": agent,
-                    "agent_hash": digest,
-                    "baseline": controllers[0] if len(controllers) > 1 else "",
-                    "config": json.dumps(config, separators=(",", ":"), sort_keys=True),
-                    "command": command,
-                    "figures": _figures(rows, agent),
-                    "repeat": "repeat (forced)" if repeat else "",
-                }
-            )
+            w.writerows(old)
+        w.writerows(new)
+

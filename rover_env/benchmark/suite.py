@@ -30,6 +30,8 @@ def run_benchmark(
     executor: str = "local",
     ray_address: str | None = None,
     resume: bool = False,
+    question: str | None = None,
+    questions: str | Path | None = None,
 ) -> dict[str, Path]:
     """Every controller on every scenario for the first ``episodes`` seeds of ``split``.
 
@@ -37,12 +39,16 @@ def run_benchmark(
     the rest. ``executor``/``ray_address``: :func:`rover_env.executor.make_executor`.
 
     The test split is touched once per agent (:mod:`rover_env.benchmark.ledger`): it needs
-    ``final=True``, which runs the test seeds, refuses an agent the ledger already holds
-    unless ``force`` and appends the run to ``ledger`` (default
+    ``final=True`` and ``question``, the id of a pre-registered question in ``questions``
+    (default ``configs/benchmarks/questions.yaml``); it runs the test seeds, refuses an agent
+    the ledger already holds or a look beyond the question's plan unless ``force``, judges at
+    the look's alpha and appends every controller of the run to ``ledger`` (default
     ``docs/benchmark/test_ledger.csv``).
     """
     from rover_env.benchmark import ledger as test_ledger
-    from rover_env.benchmark.report import write_report
+    from rover_env.benchmark.questions import question as registered
+    from rover_env.benchmark.report import ALPHA, write_report
+    from rover_env.benchmark.verdict import verdicts
     from rover_env.benchmark.run import Job, run_job
     from rover_env.executor import make_executor, run_study
     from rover_env.seeds import seeds as seed_split
@@ -54,8 +60,16 @@ def run_benchmark(
             "the test split is touched once per agent: select and tune on validation, and "
             "run the test seeds with --final (final=True), which the test ledger records"
         )
+    if final and not question:
+        raise ValueError(
+            "a final run answers a pre-registered question: pass question=ID (--question ID, "
+            "configs/benchmarks/questions.yaml)"
+        )
     ledger_path = Path(ledger) if ledger is not None else test_ledger.default_ledger()
-    checked = test_ledger.check_final(controllers, ledger_path, force) if final else {}
+    checked = None
+    if final:
+        q = registered(str(question), questions)
+        checked = test_ledger.check_final(controllers, scenarios, ledger_path, q, force)
     seed_list = seed_split(split, episodes)
     # Scenario-major, seed, then controller: paired episodes finish close together.
     jobs = [Job(c, s, seed, duration) for s in scenarios for seed in seed_list for c in controllers]
@@ -89,13 +103,17 @@ def run_benchmark(
         "wall time": f"{wall:.0f} s on the {where}, {len(jobs)} episodes"
         + (" (resumed)" if resume else ""),
     }
-    if final:
-        repeats = [a for a, (_, rep) in checked.items() if rep]
+    alpha, look = ALPHA, ""
+    if checked is not None:
+        marks = [f"{a}: {m}" for a, m in checked.marks.items()]
+        meta["question"] = f"`{checked.question.id}`: {checked.question.text}"
         meta["test ledger"] = f"final run recorded in {ledger_path}" + (
-            f"; REPEATED final run (forced) of {', '.join(repeats)}" if repeats else ""
+            f"; FORCED ({'; '.join(marks)})" if marks else ""
         )
-    files = write_report(out, rows, meta, plots=plots)
-    if final:
+        alpha, look = checked.alpha, checked.describe()
+        meta["look"] = look
+    files = write_report(out, rows, meta, plots=plots, alpha=alpha, look=look)
+    if checked is not None:
         config = {
             "controllers": list(controllers),
             "scenarios": list(scenarios),
@@ -104,7 +122,13 @@ def run_benchmark(
             "duration": duration,
         }
         test_ledger.record_final(
-            ledger_path, checked, controllers, rows, config, command or "(API call)"
+            ledger_path,
+            checked,
+            controllers,
+            rows,
+            config,
+            command or "(API call)",
+            verdicts(rows, controllers[0], alpha) if len(controllers) > 1 else (),
         )
     return files
 

@@ -123,12 +123,18 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument(
         "--final", action="store_true", help="the agent's one test-split run (test ledger)"
     )
+    ap.add_argument(
+        "--question", default=None, help="with --final (required): registered question id"
+    )
+    ap.add_argument("--questions", default=None, help="questions YAML (default configs/benchmarks/)")
     ap.add_argument("--force", action="store_true", help="with --final: again, marked a repeat")
     ap.add_argument("--ledger", default=None, help="test ledger CSV (default docs/benchmark/)")
     argv_list = list(sys.argv[1:] if argv is None else argv)
     args = ap.parse_args(argv_list)
     if args.force and not args.final:
         ap.error("--force only applies to --final")
+    if args.final and not args.question:
+        ap.error("--final needs --question ID (configs/benchmarks/questions.yaml)")
 
     from rover_env.benchmark.ledger import FinalRunRefused
     from rover_env.training.evaluate import evaluate
@@ -147,6 +153,8 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
             final=args.final,
             force=args.force,
             ledger=args.ledger,
+            question=args.question,
+            questions=args.questions,
             command="python train/evaluate.py " + " ".join(shlex.quote(a) for a in argv_list),
         )
     except FinalRunRefused as exc:

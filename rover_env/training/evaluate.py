@@ -87,10 +87,13 @@ def evaluate(
     force: bool = False,
     ledger: str | Path | None = None,
     command: str | None = None,
+    question: str | None = None,
+    questions: str | Path | None = None,
 ) -> str:
     """Benchmark the run's agent on the first ``episodes`` seeds (default 20) per scenario:
-    validation seeds, or with ``final`` the test seeds (refused for an agent already in the
-    test ledger unless ``force``).
+    validation seeds, or with ``final`` the test seeds as a look at the pre-registered
+    ``question`` (refused for an agent already in the test ledger unless ``force``); without
+    ``baselines`` a final run pairs the agent with the question's baseline.
 
     ``baselines`` (e.g. ``["open-loop"]``) run on the same seeds; the first is the reference
     of the paired differences. Writes the benchmark's tables and plots to ``out`` (default
@@ -102,6 +105,10 @@ def evaluate(
     names = list(scenarios) if scenarios else scenario_names()
     for n in names:
         load_scenario(n)  # a typo fails before any episode runs
+    if final and question and not baselines:
+        from rover_env.benchmark.questions import question as registered
+
+        baselines = [registered(question, questions).baseline]
     controllers = parse_specs(",".join([*baselines, spec]))
     files = run_benchmark(
         controllers,
@@ -116,5 +123,7 @@ def evaluate(
         force=force,
         ledger=ledger,
         command=command,
+        question=question,
+        questions=questions,
     )
     return files["markdown"].read_text()
