@@ -110,7 +110,10 @@ def main() -> int:
     seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
     bad = [s for s in seeds if split_of(s) in ("test", "spent")]
     if bad:
-        print(f"error: seeds {bad} are test or spent seeds; use tuning or validation seeds", file=sys.stderr)
+        print(
+            f"error: seeds {bad} are test or spent seeds; use tuning or validation seeds",
+            file=sys.stderr,
+        )
         return 2
     ctrl = make_controller(args.controller)  # one agent load for every episode
     print(f"{args.controller} on {args.scenario}: goal reached / distance (m) / tries / energy (J)")

@@ -91,6 +91,7 @@ def refuse_final_only(seed_list: Iterable[int], where: str, final: bool = False)
             "(rover-env benchmark --final --question ID), which the test ledger records"
         )
 
+
 _TRAINING_ENVS_PER_RUN = 1000
 
 

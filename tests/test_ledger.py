@@ -64,11 +64,23 @@ def test_test_split_needs_final_and_a_question(tmp_path: Path) -> None:
     (tmp_path / "q.yaml").write_text(QUESTIONS)
     with pytest.raises(ConfigError, match="no question 'nope'"):
         run_benchmark(
-            CTRLS, ["flat-turns"], 1, tmp_path, final=True, question="nope", questions=tmp_path / "q.yaml"
+            CTRLS,
+            ["flat-turns"],
+            1,
+            tmp_path,
+            final=True,
+            question="nope",
+            questions=tmp_path / "q.yaml",
         )
     with pytest.raises(ValueError, match="asked on scenarios"):
         run_benchmark(
-            CTRLS, ["ice-patch"], 1, tmp_path, final=True, question="pi", questions=tmp_path / "q.yaml"
+            CTRLS,
+            ["ice-patch"],
+            1,
+            tmp_path,
+            final=True,
+            question="pi",
+            questions=tmp_path / "q.yaml",
         )
 
 
@@ -79,13 +91,17 @@ def test_every_controller_is_recorded_with_its_question_and_look(tmp_path: Path)
     assert tuple(row) == FIELDS
     assert (base["agent"], base["role"], base["baseline"]) == ("open-loop", "baseline", "")
     assert (row["agent"], row["role"], row["baseline"]) == ("slip-pi", "agent", "open-loop")
-    assert base["agent_hash"] == agent_hash("open-loop") and row["agent_hash"] == agent_hash("slip-pi")
+    assert base["agent_hash"] == agent_hash("open-loop") and row["agent_hash"] == agent_hash(
+        "slip-pi"
+    )
     assert row["question"] == "pi" and row["look"] == "1" and row["split"] == "test"
     assert row["run"] == base["run"] and row["repeat"] == ""
     q = question("pi", tmp_path / "questions.yaml")
     assert row["question_hash"] == q.fingerprint()
     # The first of two O'Brien-Fleming-type looks spends almost nothing (0.003 of 0.05).
-    assert float(row["alpha_look"]) == pytest.approx(nominal_alphas("obrien-fleming", 0.05, 2)[0], rel=1e-5)
+    assert float(row["alpha_look"]) == pytest.approx(
+        nominal_alphas("obrien-fleming", 0.05, 2)[0], rel=1e-5
+    )
     assert json.loads(row["config"])["seeds"] == "4000..4001"
     assert set(json.loads(row["figures"])["flat-turns"]) == set(METRICS)
     assert set(json.loads(row["verdict"])) == {"flat-turns"} and base["verdict"] == ""

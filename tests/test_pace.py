@@ -76,7 +76,10 @@ def test_open_loop_at_twice_the_command_fails_the_pace_line_in_the_env() -> None
     from rover_env.benchmark.run import Job, run_jobs
 
     plain, double = run_jobs(
-        [Job("open-loop", "flat-turns", 2000, 3.0), Job("open-loop@gain=2", "flat-turns", 2000, 3.0)]
+        [
+            Job("open-loop", "flat-turns", 2000, 3.0),
+            Job("open-loop@gain=2", "flat-turns", 2000, 3.0),
+        ]
     )
     assert plain["success"] == 1.0 and abs(plain["pace_ratio"] - 1.0) < 0.1
     assert double["goal"] == 1.0 and double["success"] == 0.0

@@ -166,7 +166,9 @@ def add_cli(subparsers: Any) -> None:
         "(configs/benchmarks/questions.yaml); its looks are counted and spend its alpha",
     )
     p.add_argument(
-        "--questions", default=None, help="questions YAML (default configs/benchmarks/questions.yaml)"
+        "--questions",
+        default=None,
+        help="questions YAML (default configs/benchmarks/questions.yaml)",
     )
     p.add_argument(
         "--force",

@@ -277,4 +277,3 @@ def record_final(
             w.writeheader()
             w.writerows(old)
         w.writerows(new)
-

@@ -25,6 +25,8 @@ from typing import Any
 import numpy as np
 
 from rover_env.benchmark.metrics import LOWER_IS_BETTER, METRICS, UNITS, UNORDERED
+from rover_env.benchmark.stats import holm, paired_p, t_interval
+from rover_env.benchmark.verdict import frontier_plot, verdict_markdown, verdicts
 
 __all__ = [
     "ALPHA",
@@ -39,45 +41,6 @@ __all__ = [
 
 ALPHA = 0.05
 """Family-wise error rate of a paired table's verdicts (Holm)."""
-
-
-def t_interval(x: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
-    """(mean, low, high) of the Student-t interval for the mean of ``x``."""
-    from scipy import stats
-
-    a = np.asarray(x, dtype=np.float64)
-    m = float(np.mean(a))
-    if a.size < 2:
-        return m, m, m
-    sd = float(np.std(a, ddof=1))
-    hw = float(stats.t.ppf(0.5 + level / 2, a.size - 1)) * sd / math.sqrt(a.size)
-    return m, m - hw, m + hw
-
-
-def paired_p(d: Sequence[float]) -> float:
-    """Two-sided p-value of the paired t-test that the mean difference ``d`` is 0."""
-    from scipy import stats
-
-    a = np.asarray(d, dtype=np.float64)
-    if a.size < 2:
-        return float("nan")
-    m, sd = float(np.mean(a)), float(np.std(a, ddof=1))
-    if sd == 0.0:
-        return 1.0 if m == 0.0 else 0.0
-    t = m / (sd / math.sqrt(a.size))
-    return float(2.0 * stats.t.sf(abs(t), a.size - 1))
-
-
-def holm(p: Sequence[float]) -> list[float]:
-    """Holm's step-down adjusted p-values (NaN entries stay NaN and do not count)."""
-    idx = [i for i, x in enumerate(p) if math.isfinite(x)]
-    m = len(idx)
-    out = [float("nan")] * len(p)
-    running = 0.0
-    for rank, i in enumerate(sorted(idx, key=lambda i: p[i])):
-        running = max(running, min(1.0, (m - rank) * p[i]))
-        out[i] = running
-    return out
 
 
 def summarise(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -343,8 +306,6 @@ def write_report(
     """Write episodes.csv, summary.csv, paired.csv, verdict.csv, benchmark.md and the PNG
     plots (``frontier.png`` where a verdict is a trade). ``alpha``: the look's, ``look``: a
     sentence saying which look of which question it is (final runs)."""
-    from rover_env.benchmark.verdict import frontier_plot, verdict_markdown, verdicts
-
     d = Path(out)
     d.mkdir(parents=True, exist_ok=True)
     summary = summarise(rows)

@@ -22,6 +22,7 @@ numbers.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 
@@ -59,7 +60,7 @@ def boundaries(rule: str, alpha: float, fractions: Sequence[float]) -> list[floa
     """Two-sided z boundaries c_k: P(|Z_k| >= c_k at look k, none before) spends exactly
     ``spent(t_k) - spent(t_{k-1})`` under no difference (module docstring)."""
     t = [float(x) for x in fractions]
-    if not t or any(b <= a for a, b in zip(t, t[1:], strict=False)) or t[-1] > 1 + 1e-12:
+    if not t or any(b <= a for a, b in itertools.pairwise(t)) or t[-1] > 1 + 1e-12:
         raise ValueError(f"information fractions must increase within (0, 1], got {t}")
     out = [float(stats.norm.isf(spent(rule, alpha, t[0]) / 2.0))]
     # W(t) = Z sqrt(t) is Brownian motion; dens is the density of W on the continuation
@@ -71,10 +72,16 @@ def boundaries(rule: str, alpha: float, fractions: Sequence[float]) -> list[floa
         dt = t[k] - t[k - 1]
         target = spent(rule, alpha, t[k]) - spent(rule, alpha, t[k - 1])
 
-        def excess(c: float, k: int = k, dt: float = dt, target: float = target) -> float:
-            return _crossing(cont, dens, dt, c * math.sqrt(t[k])) - target
-
-        c = float(optimize.brentq(excess, 0.1, 12.0, xtol=1e-10))
+        c = float(
+            optimize.brentq(
+                lambda c, x=cont, f=dens, dt=dt, k=k, target=target: (
+                    _crossing(x, f, dt, c * math.sqrt(t[k])) - target
+                ),
+                0.1,
+                12.0,
+                xtol=1e-10,
+            )
+        )
         out.append(c)
         b_new = c * math.sqrt(t[k])
         new = np.linspace(-b_new, b_new, _GRID)

@@ -48,8 +48,8 @@ def run_benchmark(
     from rover_env.benchmark import ledger as test_ledger
     from rover_env.benchmark.questions import question as registered
     from rover_env.benchmark.report import ALPHA, write_report
-    from rover_env.benchmark.verdict import verdicts
     from rover_env.benchmark.run import Job, run_job
+    from rover_env.benchmark.verdict import verdicts
     from rover_env.executor import make_executor, run_study
     from rover_env.seeds import seeds as seed_split
 

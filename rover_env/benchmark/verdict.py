@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from rover_env.benchmark.metrics import LOWER_IS_BETTER, UNITS
-from rover_env.benchmark.report import holm, paired_p, t_interval
+from rover_env.benchmark.stats import holm, paired_p, t_interval
 
 __all__ = ["PRIMARY", "frontier_plot", "verdict_markdown", "verdicts"]
 
@@ -50,7 +50,9 @@ def _comparisons(
     out = []
     for other in [c for c in _unique(r["controller"] for r in rows) if c != baseline]:
         for scen in _unique(r["scenario"] for r in rows):
-            a = {r["seed"]: r for r in rows if r["controller"] == baseline and r["scenario"] == scen}
+            a = {
+                r["seed"]: r for r in rows if r["controller"] == baseline and r["scenario"] == scen
+            }
             b = {r["seed"]: r for r in rows if r["controller"] == other and r["scenario"] == scen}
             shared = sorted(set(a) & set(b))
             if not shared:
@@ -91,7 +93,9 @@ def verdicts(
         if c["n"] < 2 or alpha <= 0 or not (q < alpha):
             c["state"] = "no difference"
         else:
-            c["state"] = "better" if (c["diff_mean"] < 0) == LOWER_IS_BETTER[c["metric"]] else "worse"
+            c["state"] = (
+                "better" if (c["diff_mean"] < 0) == LOWER_IS_BETTER[c["metric"]] else "worse"
+            )
     out = []
     for other in _unique(c["controller"] for c in comps):
         for scen in _unique(c["scenario"] for c in comps if c["controller"] == other):

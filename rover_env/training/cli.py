@@ -126,7 +126,9 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument(
         "--question", default=None, help="with --final (required): registered question id"
     )
-    ap.add_argument("--questions", default=None, help="questions YAML (default configs/benchmarks/)")
+    ap.add_argument(
+        "--questions", default=None, help="questions YAML (default configs/benchmarks/)"
+    )
     ap.add_argument("--force", action="store_true", help="with --final: again, marked a repeat")
     ap.add_argument("--ledger", default=None, help="test ledger CSV (default docs/benchmark/)")
     argv_list = list(sys.argv[1:] if argv is None else argv)
