@@ -53,6 +53,8 @@ def test_side_by_side_gif_plays_the_benchmark_episode(tmp_path) -> None:
 
 def test_video_refuses_test_seeds_and_bad_names(tmp_path) -> None:
     with pytest.raises(ValueError, match="test seed"):
+        play("open-loop", "sand-slope", 4000)
+    with pytest.raises(ValueError, match="spent seeds"):
         play("open-loop", "sand-slope", 3000)
     with pytest.raises(ValueError, match=r"\.gif or \.mp4"):
         record_side_by_side(SPECS, "sand-slope", 2000, tmp_path / "x.avi")

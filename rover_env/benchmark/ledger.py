@@ -243,7 +243,7 @@ def record_final(
         with ledger.open(newline="") as fh:
             header = next(csv.reader(fh), None)
     date = dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
-    run = f"{date} {hashlib.sha256(command.encode()).hexdigest()[:6]}"
+    run = f"{checked.question.id}#{checked.look} {date}"  # one per look: looks count runs
     baseline = controllers[0] if len(controllers) > 1 else ""
     q = checked.question
     new = []
