@@ -76,7 +76,12 @@ def run(n_worlds: list[int], device: str | None = None, ppo_iterations: int = 3)
         raw = raw_steps_per_s(n, dev)
         env = WarpRoverEnv(n, device=dev)
         rows.append(
-            {"name": "warp-env", "n": n, "steps_per_s": env_steps_per_s(env), "raw_steps_per_s": raw}
+            {
+                "name": "warp-env",
+                "n": n,
+                "steps_per_s": env_steps_per_s(env),
+                "raw_steps_per_s": raw,
+            }
         )
         _, log = train(env, ppo_iterations, PPOConfig(steps_per_env=8))
         ppo = log[-1]["steps_per_s"] * env.substeps  # env steps -> substeps

@@ -109,14 +109,16 @@ class WarpRoverEnv:
         return self.observe()
 
     def _motion(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Segment 1's forward speed, yaw rate (own axes) and up axis in its frame."""
-        rot = self._xmat[:, self._seg]  # (n, 3, 3) body to world
-        cv = self._cvel[:, self._seg]
-        ang, lin = cv[:, :3], cv[:, 3:]
-        v = lin + torch.cross(ang, self._xpos[:, self._seg] - self._com[:, self._root], dim=1)
-        v_body = torch.einsum("nji,nj->ni", rot, v)
-        w_body = torch.einsum("nji,nj->ni", rot, ang)
-        return v_body[:, 0], w_body[:, 2], rot[:, 2, :]
+        """Segment 1's forward speed, yaw rate (own axes) and up axis in its frame, from its
+        free joint's state (current after a reset too, unlike the kinematics arrays)."""
+        w, x, y, z = self._qpos[:, 3:7].unbind(1)
+        # the body x axis in world coordinates (R's first column), the world z axis in body
+        # coordinates (R's last row); the free joint's angular velocity is in body axes
+        fwd = torch.stack(
+            [1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)], dim=1
+        )
+        up = torch.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], dim=1)
+        return (self._qvel[:, 0:3] * fwd).sum(dim=1), self._qvel[:, 5], up
 
     def observe(self) -> torch.Tensor:
         v, w, up = self._motion()
@@ -136,7 +138,7 @@ class WarpRoverEnv:
         self._targets.copy_(a * self.max_wheel)
         self.sim.step(self.substeps)
         self.steps += 1
-        v, w, up = self._motion()
+        v, w, _ = self._motion()
         reward = (
             torch.exp(-(((v - self.command[:, 0]) / 0.05) ** 2))
             + torch.exp(-(((w - self.command[:, 1]) / 0.1) ** 2))

@@ -195,7 +195,9 @@ def rut_cell(
     tile = int(rut_index[w, (iy // RUT_TILE) * ntx + ix // RUT_TILE])
     if tile <= 0:
         return 0.0
-    return rut_pool[w, (tile - 1) * RUT_TILE * RUT_TILE + (iy % RUT_TILE) * RUT_TILE + ix % RUT_TILE]
+    return rut_pool[
+        w, (tile - 1) * RUT_TILE * RUT_TILE + (iy % RUT_TILE) * RUT_TILE + ix % RUT_TILE
+    ]
 
 
 @wp.func

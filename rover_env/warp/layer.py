@@ -21,8 +21,6 @@ from rover_env.warp.kernels import (
     D_Z,
     DEG_TO_RAD,
     K_RE,
-    MU_X,
-    MU_Y,
     RUT_WRITE_EVERY,
     S_DAMP,
     S_KDIG,
@@ -156,6 +154,115 @@ def hard_ground(
     return wp.vec4(ux_new, uy_new, wp.min(wp.max(f_x, -bx), bx), wp.min(wp.max(f_y, -by), by))
 
 
+@wp.func
+def soil_forces(
+    ter: wp.array2d[float],
+    w: int,
+    sb: int,
+    s_fwd: float,
+    tan_b: float,
+    h: float,
+    h_c: float,
+    r: float,
+    width: float,
+    v_x: float,
+    v_w: float,
+) -> wp.vec4:
+    """The soil's (F_x, F_y, F_z, T): forward and reverse stresses blended by the leading
+    speed's smoothstep (soil.V_BLEND)."""
+    lead = v_x
+    if wp.abs(v_w) >= wp.abs(v_x):
+        lead = v_w
+    z = wp.min(wp.max(lead / SOIL_V_BLEND, -1.0), 1.0)
+    wt = 0.5 + z * (0.75 - 0.25 * z * z)
+    tan_phi = wp.tan(ter[w, sb + S_PHI] * DEG_TO_RAD)
+    f = wp.vec4(0.0)
+    g = wp.vec4(0.0)
+    if wt != 0.0:
+        f = stress_integrals(ter, w, sb, s_fwd, tan_b, 1.0, h, h_c, r, tan_phi, width)
+    if wt != 1.0:
+        g = stress_integrals(ter, w, sb, -s_fwd, tan_b, -1.0, h, h_c, r, tan_phi, width)
+    return wt * f + (1.0 - wt) * g
+
+
+@wp.func
+def rut_pending(
+    ter: wp.array2d[float],
+    w: int,
+    point: wp.vec3,
+    xc: wp.vec3,
+    axis: wp.vec3,
+    v_x: float,
+    sink: float,
+    r: float,
+    dt: float,
+    depth: float,
+) -> wp.spatial_vector:
+    """TireLayer's rut_writes for one wheel: a strip behind it, across its width."""
+    cell = ter[w, 16]
+    hw = wp.min(sink, r)
+    e = 1.0 - hw / r
+    length = wp.max(cell, 2.0 * wp.abs(v_x) * (float(RUT_WRITE_EVERY) * dt))
+    back = (r * wp.sqrt(wp.max(0.0, 1.0 - e * e)) + 0.5 * length) + 1.5 * cell
+    sgn = float(-1.0)
+    if v_x > 0.0:
+        sgn = 1.0
+    a = rut_across(axis)
+    return wp.spatial_vector(
+        point[0] - sgn * back * xc[0], point[1] - sgn * back * xc[1], a[0], a[1], depth, length
+    )
+
+
+@wp.func
+def soil_slip(
+    par: wp.array[float],
+    ter: wp.array2d[float],
+    w: int,
+    sb: int,
+    v_x: float,
+    v_y: float,
+    v_w: float,
+    ux: float,
+    uy: float,
+) -> wp.vec4:
+    """soil.soil_step's relaxed slip: (u_x, u_y, slip s, tan beta) after the substep."""
+    dt = par[P_DT]
+    ssx = par[SIGMA_X]
+    ssy = par[SIGMA_Y]
+    if ter[w, sb + S_SIGMA] > 0.0:  # the soil's own relaxation length
+        ssx = ter[w, sb + S_SIGMA]
+        ssy = ter[w, sb + S_SIGMA]
+    rho_x = wp.max(wp.max(wp.abs(v_x), wp.abs(v_w)), SOIL_V_EPS) / ssx
+    rho_y = wp.max(wp.abs(v_x), SOIL_V_EPS) / ssy
+    emx = expm1(-rho_x * dt)
+    emy = expm1(-rho_y * dt)
+    ux_new = ux * (emx + 1.0) + (v_x - v_w) * (-emx / rho_x)
+    uy_new = uy * (emy + 1.0) + v_y * (-emy / rho_y)
+    ux_new = wp.min(wp.max(ux_new, -ssx), ssx)
+    uy_new = wp.min(wp.max(uy_new, -SOIL_MAX_TAN_BETA * ssy), SOIL_MAX_TAN_BETA * ssy)
+    return wp.vec4(ux_new, uy_new, -ux_new / ssx, uy_new / ssy)
+
+
+@wp.func
+def dig_update(
+    ter: wp.array2d[float],
+    w: int,
+    sb: int,
+    dig: float,
+    delta: float,
+    depth: float,
+    v_x: float,
+    v_w: float,
+    r: float,
+    dt: float,
+) -> float:
+    """The depth a spinning wheel has dug (decays as it rolls on)."""
+    rate = float(0.0)
+    if delta - wp.max(depth, dig) > 0.0:
+        rate = ter[w, sb + S_KDIG] * ter[w, sb + S_MEMORY] * wp.max(wp.abs(v_w) - wp.abs(v_x), 0.0)
+    return wp.min(dig * wp.exp(-wp.abs(v_x) * dt / r) + rate * dt, r)
+
+
 @wp.kernel
 def wheel_forces(
     par: wp.array[float],
@@ -207,9 +314,7 @@ def wheel_forces(
     v_w = (radius - par[K_RE] * wp.max(delta, 0.0)) * omega
     delta_dot = -wp.dot(v_c, nrm)
     fzn = wp.max(par[C_Z] * delta + par[D_Z] * delta_dot, 0.0)
-    F_z = float(0.0)
-    if delta > 0.0:
-        F_z = fzn
+    F_z = wp.where(delta > 0.0, fzn, 0.0)
     fp = friction_patch(ter, w, point[0], point[1])
     soil = int(fp[3])
     ux = u_x[w, i]
@@ -231,55 +336,22 @@ def wheel_forces(
     if soil > 0:  # loose soil: soil.soil_step and TireLayer's soil branch
         sb = soil_base(ter, w, soil)
         r = radius
-        ssx = par[SIGMA_X]
-        ssy = par[SIGMA_Y]
-        if ter[w, sb + S_SIGMA] > 0.0:
-            ssx = ter[w, sb + S_SIGMA]
-            ssy = ter[w, sb + S_SIGMA]
         v_w = r * omega
         depth = rut_footprint(ter, rut.index, rut.pool, w, point, axis, par[P_WIDTH])
-        rho_x = wp.max(wp.max(wp.abs(v_x), wp.abs(v_w)), SOIL_V_EPS) / ssx
-        rho_y = wp.max(wp.abs(v_x), SOIL_V_EPS) / ssy
-        emx = expm1(-rho_x * dt)
-        emy = expm1(-rho_y * dt)
-        ux_new = ux * (emx + 1.0) + (v_x - v_w) * (-emx / rho_x)
-        uy_new = uy * (emy + 1.0) + v_y * (-emy / rho_y)
-        ux_new = wp.min(wp.max(ux_new, -ssx), ssx)
-        uy_new = wp.min(wp.max(uy_new, -SOIL_MAX_TAN_BETA * ssy), SOIL_MAX_TAN_BETA * ssy)
-        s_fwd = -ux_new / ssx
-        tan_b = uy_new / ssy
-        dig = dig_state[w, i]
-        rate = float(0.0)
-        if delta - wp.max(depth, dig) > 0.0:
-            rate = (
-                ter[w, sb + S_KDIG]
-                * ter[w, sb + S_MEMORY]
-                * wp.max(wp.abs(v_w) - wp.abs(v_x), 0.0)
-            )
-        dig = wp.min(dig * wp.exp(-wp.abs(v_x) * dt / r) + rate * dt, r)
+        sl = soil_slip(par, ter, w, sb, v_x, v_y, v_w, ux, uy)
+        ux_new = sl[0]
+        uy_new = sl[1]
+        s_fwd = sl[2]
+        tan_b = sl[3]
+        dig = dig_update(ter, w, sb, dig_state[w, i], delta, depth, v_x, v_w, r, dt)
         h = delta - dig
         h_c = delta - wp.max(depth, dig)
-        lead = v_x
-        if wp.abs(v_w) >= wp.abs(v_x):
-            lead = v_w
-        z = wp.min(wp.max(lead / SOIL_V_BLEND, -1.0), 1.0)
-        wt = 0.5 + z * (0.75 - 0.25 * z * z)
-        tan_phi = wp.tan(ter[w, sb + S_PHI] * DEG_TO_RAD)
-        f = wp.vec4(0.0)
-        g = wp.vec4(0.0)
-        width = par[P_WIDTH]
-        if wt != 0.0:
-            f = stress_integrals(ter, w, sb, s_fwd, tan_b, 1.0, h, h_c, r, tan_phi, width)
-        if wt != 1.0:
-            g = stress_integrals(ter, w, sb, -s_fwd, tan_b, -1.0, h, h_c, r, tan_phi, width)
-        F_x = wt * f[0] + (1.0 - wt) * g[0]
-        F_y = wt * f[1] + (1.0 - wt) * g[1]
-        F_z = wt * f[2] + (1.0 - wt) * g[2]
-        torque = wt * f[3] + (1.0 - wt) * g[3]
-        if h_c > 0.0:
-            F_z = wp.max(F_z + ter[w, sb + S_DAMP] * delta_dot, 0.0)
-        else:
-            F_z = 0.0
+        sf = soil_forces(ter, w, sb, s_fwd, tan_b, h, h_c, r, par[P_WIDTH], v_x, v_w)
+        F_x = sf[0]
+        F_y = sf[1]
+        F_z = sf[2]
+        torque = sf[3]
+        F_z = wp.where(h_c > 0.0, wp.max(F_z + ter[w, sb + S_DAMP] * delta_dot, 0.0), 0.0)
         sink = wp.max(h, 0.0)
         memory = ter[w, sb + S_MEMORY]
         if (
@@ -288,29 +360,12 @@ def wheel_forces(
             and memory > 0.0
             and nstep[w] % RUT_WRITE_EVERY == 0
         ):  # rut_writes: behind a moving wheel, across its width
-            cell = ter[w, 16]
-            hw = wp.min(sink, r)
-            e = 1.0 - hw / r
-            length = wp.max(cell, 2.0 * wp.abs(v_x) * (float(RUT_WRITE_EVERY) * dt))
-            back = (r * wp.sqrt(wp.max(0.0, 1.0 - e * e)) + 0.5 * length) + 1.5 * cell
-            sgn = float(-1.0)
-            if v_x > 0.0:
-                sgn = 1.0
-            a = rut_across(axis)
-            rut.pending[w, i] = wp.spatial_vector(
-                point[0] - sgn * back * xc[0],
-                point[1] - sgn * back * xc[1],
-                a[0],
-                a[1],
-                memory * delta,
-                length,
+            rut.pending[w, i] = rut_pending(
+                ter, w, point, xc, axis, v_x, sink, r, dt, memory * delta
             )
     force[w, i] = (F_x * xc + F_y * yc) + F_z * nrm
     moment[w, i] = -torque * axis
-    if soil > 0:
-        at[w, i] = centre
-    else:
-        at[w, i] = point
+    at[w, i] = wp.where(soil > 0, centre, point)  # soil: at the hub; tire: at the contact
     dig_state[w, i] = dig
     u_x[w, i] = ux_new
     u_y[w, i] = uy_new
@@ -387,3 +442,41 @@ def apply_wheels(
                 pw[5],
             )
     nstep[w] = nstep[w] + 1
+
+
+# small helpers of WarpRoverSim (speed targets, resets)
+
+
+@wp.kernel
+def clip_copy(src: wp.array2d[float], lim: float, dst: wp.array2d[float]):
+    w, k = wp.tid()
+    dst[w, k] = wp.clamp(src[w, k], -lim, lim)
+
+
+@wp.kernel
+def copy_rows(mask: wp.array[wp.int32], src: wp.array2d[float], dst: wp.array2d[float]):
+    w, k = wp.tid()
+    if mask[w] != 0:
+        dst[w, k] = src[w, k]
+
+
+@wp.kernel
+def zero_rows_f(mask: wp.array[wp.int32], dst: wp.array2d[float]):
+    w, k = wp.tid()
+    if mask[w] != 0:
+        dst[w, k] = 0.0
+
+
+@wp.kernel
+def zero_rows_i(mask: wp.array[wp.int32], dst: wp.array2d[wp.int32]):
+    w, k = wp.tid()
+    if mask[w] != 0:
+        dst[w, k] = wp.int32(0)
+
+
+@wp.kernel
+def zero_time(mask: wp.array[wp.int32], time: wp.array[float], nstep: wp.array[int]):
+    w = wp.tid()
+    if mask[w] != 0:
+        time[w] = 0.0
+        nstep[w] = 0

@@ -10,6 +10,7 @@ adaptive learning rate (KL target), as rsl_rl's defaults do.
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -42,7 +43,7 @@ class PPOConfig:
 
 def _mlp(sizes: list[int]) -> nn.Sequential:
     layers: list[nn.Module] = []
-    for a, b in zip(sizes[:-1], sizes[1:], strict=True):
+    for a, b in itertools.pairwise(sizes):
         layers += [nn.Linear(a, b), nn.ELU()]
     return nn.Sequential(*layers[:-1])
 
@@ -56,6 +57,9 @@ class ActorCritic(nn.Module):
         self.actor = _mlp([OBS_DIM, *cfg.hidden, ACT_DIM])
         self.critic = _mlp([OBS_DIM, *cfg.hidden, 1])
         self.log_std = nn.Parameter(torch.full((ACT_DIM,), cfg.init_log_std))
+        self.obs_mean: torch.Tensor
+        self.obs_var: torch.Tensor
+        self.obs_count: torch.Tensor
         self.register_buffer("obs_mean", torch.zeros(OBS_DIM))
         self.register_buffer("obs_var", torch.ones(OBS_DIM))
         self.register_buffer("obs_count", torch.tensor(1e-4))

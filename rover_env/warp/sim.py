@@ -22,6 +22,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import fields
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import mujoco_warp as mjw
@@ -67,7 +68,8 @@ def _params(cfg: RoverConfig, dt: float) -> NDArray[np.float32]:
     mo = cfg.motor
     tire = [float(getattr(cfg.tire, f.name)) for f in fields(TireParams)]
     cond = mo.anti_windup == "conditional"
-    row = tire + [
+    row = [
+        *tire,
         cfg.geometry.wheel_radius,
         cfg.geometry.wheel_width,
         mo.max_angle_error,
@@ -123,7 +125,7 @@ class WarpRoverSim:
         items = list(terrain) if isinstance(terrain, (list, tuple)) else [terrain] * n_worlds
         if len(items) != n_worlds:
             raise ValueError(f"terrain: {len(items)} terrains for {n_worlds} worlds")
-        tcfgs = [t if isinstance(t, TerrainConfig) else load_terrain(t) for t in items]
+        tcfgs = [t if isinstance(t, TerrainConfig) else load_terrain(t) for t in items]  # type: ignore[arg-type]
         if len({id(t) for t in tcfgs}) > 1 and not all(t.is_flat for t in tcfgs):
             raise ValueError("terrain: one terrain per world needs flat terrains")
         self.terrain_cfg = tcfgs[0]
@@ -150,7 +152,7 @@ class WarpRoverSim:
             def ints(a: NDArray[np.int64] | list[int]) -> wp.array:
                 return wp.array(np.asarray(a, dtype=np.int32), dtype=int)
 
-            def zeros(*shape: int, dtype: type = float) -> wp.array:
+            def zeros(*shape: int, dtype: Any = float) -> Any:
                 return wp.zeros(shape, dtype=dtype)
 
             self._ix = {
@@ -169,8 +171,8 @@ class WarpRoverSim:
                 "body_parentid": ints(mj.body_parentid),
                 "dof_parentid": ints(mj.dof_parentid),
             }
-            self.par = wp.array(_params(self.cfg, self.dt), dtype=float)
-            self.ter = wp.array(rows, dtype=float)
+            self.par: Any = wp.array(_params(self.cfg, self.dt), dtype=float)
+            self.ter: Any = wp.array(rows, dtype=float)
             self.targets = zeros(n_worlds, nd)
             self.setpoints = zeros(n_worlds, nd)
             self.u_x = zeros(n_worlds, nw)
@@ -180,20 +182,22 @@ class WarpRoverSim:
             self.force = zeros(n_worlds, nw, dtype=wp.vec3)
             self.moment = zeros(n_worlds, nw, dtype=wp.vec3)
             self.at = zeros(n_worlds, nw, dtype=wp.vec3)
-            self.truth = layer.Truth()
+            truth: Any = layer.Truth()
+            self.truth = truth
             for name in TRUTH_FIELDS:
                 setattr(self.truth, name, zeros(n_worlds, nw))
             self.truth.patch = zeros(n_worlds, nw, dtype=int)
             self.truth.soil = zeros(n_worlds, nw, dtype=int)
             self.truth.point = zeros(n_worlds, nw, dtype=wp.vec3)
             self.truth.normal = zeros(n_worlds, nw, dtype=wp.vec3)
-            self.rut = layer.Rut()
+            rut: Any = layer.Rut()
+            self.rut = rut
             tiles = rut_pool_tiles if has_soil else 0
             self.rut.index = zeros(n_worlds, index_size if has_soil else 0, dtype=wp.int32)
             self.rut.pool = zeros(n_worlds, max(tiles, 1) * RUT_TILE * RUT_TILE)
             self.rut.count = zeros(n_worlds, 2, dtype=wp.int32)
             self.rut.pending = zeros(n_worlds, nw, dtype=wp.spatial_vector)
-        self._graphs: dict[int, object] = {}
+        self._graphs: dict[int, Any] = {}
         self._warm = False
         self.reset()
 
@@ -236,7 +240,7 @@ class WarpRoverSim:
         """RoverSim.reset at the origin for every world: settle ``settle`` s with zero
         targets, then restart the clock, encoders and setpoints and forget the ruts dug
         meanwhile; the result becomes the template :meth:`reset_worlds` copies."""
-        mj, d0 = self.mjm, self._initial_data()
+        d0 = self._initial_data()
         with wp.ScopedDevice(self.device):
             n = self.n
             for name in ("qpos", "qvel", "ctrl", "qacc_warmstart"):
@@ -271,7 +275,7 @@ class WarpRoverSim:
         """Speed targets (n, 4) rad/s of 1L 1R 2L 2R, clipped to the motor's range."""
         lim = self.cfg.motor.max_wheel_speed
         if isinstance(targets, wp.array):
-            wp.launch(_clip_copy, dim=self.targets.shape, inputs=[targets, lim, self.targets])
+            wp.launch(layer.clip_copy, dim=self.targets.shape, inputs=[targets, lim, self.targets])
         else:
             t = np.clip(np.asarray(targets, dtype=np.float64).reshape(self.n, -1), -lim, lim)
             self.targets.assign(t.astype(np.float32))
@@ -367,15 +371,19 @@ class WarpRoverSim:
                 wp.capture_launch(graph)
                 n -= k
 
-    def reset_worlds(self, mask: wp.array) -> None:
+    def reset_worlds(self, mask: Any) -> None:
         """Put the worlds where ``mask`` (int32, (n,)) is nonzero back to the settled template."""
         with wp.ScopedDevice(self.device):
             for name, tmpl in self._template.items():
                 live = getattr(self.d, name) if hasattr(self.d, name) else getattr(self, name)
-                wp.launch(_copy_rows, dim=live.shape, inputs=[mask, tmpl, live])
+                wp.launch(layer.copy_rows, dim=live.shape, inputs=[mask, tmpl, live])
             for a in (self.dig, self.rut.index, self.rut.count):
-                wp.launch(_zero_rows_f if a.dtype == wp.float32 else _zero_rows_i, dim=a.shape, inputs=[mask, a])
-            wp.launch(_zero_time, dim=self.n, inputs=[mask, self.d.time, self.nstep])
+                wp.launch(
+                    layer.zero_rows_f if a.dtype == wp.float32 else layer.zero_rows_i,
+                    dim=a.shape,
+                    inputs=[mask, a],
+                )
+            wp.launch(layer.zero_time, dim=self.n, inputs=[mask, self.d.time, self.nstep])
 
     # ------------------------------------------------------------------ outputs
     def wheel_truth(self) -> dict[str, Array]:
@@ -388,49 +396,18 @@ class WarpRoverSim:
         out["soil"] = self.truth.soil.numpy()
         return out
 
-    def rut_depth(self, world: int, x: float, y: float) -> float:
-        """Stored rut depth of the cell holding (x, y) in ``world`` (0 where none)."""
+    def rut_state(self, world: int) -> Array:
+        """World ``world``'s rut map in rover_env.rut's state layout (float64, the pool at
+        ``RUT_POOL_TILES`` tiles), so that ``RutGrid.lookup`` and its kin read it."""
         g = self.terrains[world].rut_grid
-        ix, iy = int((x - g.x0) // g.cell), int((y - g.y0) // g.cell)
-        if not (0 <= ix < g.nx and 0 <= iy < g.ny):
-            return 0.0
-        tile = int(self.rut.index.numpy()[world, (iy // RUT_TILE) * g.ntx + ix // RUT_TILE])
-        if tile <= 0:
-            return 0.0
-        cell = (iy % RUT_TILE) * RUT_TILE + ix % RUT_TILE
-        return float(self.rut.pool.numpy()[world, (tile - 1) * RUT_TILE * RUT_TILE + cell])
-
-
-@wp.kernel
-def _clip_copy(src: wp.array2d[float], lim: float, dst: wp.array2d[float]):
-    w, k = wp.tid()
-    dst[w, k] = wp.clamp(src[w, k], -lim, lim)
-
-
-@wp.kernel
-def _copy_rows(mask: wp.array[wp.int32], src: wp.array2d[float], dst: wp.array2d[float]):
-    w, k = wp.tid()
-    if mask[w] != 0:
-        dst[w, k] = src[w, k]
-
-
-@wp.kernel
-def _zero_rows_f(mask: wp.array[wp.int32], dst: wp.array2d[float]):
-    w, k = wp.tid()
-    if mask[w] != 0:
-        dst[w, k] = 0.0
-
-
-@wp.kernel
-def _zero_rows_i(mask: wp.array[wp.int32], dst: wp.array2d[wp.int32]):
-    w, k = wp.tid()
-    if mask[w] != 0:
-        dst[w, k] = wp.int32(0)
-
-
-@wp.kernel
-def _zero_time(mask: wp.array[wp.int32], time: wp.array[float], nstep: wp.array[int]):
-    w = wp.tid()
-    if mask[w] != 0:
-        time[w] = 0.0
-        nstep[w] = 0
+        out = g.new_state()
+        if not g.index_size:
+            return out
+        count = self.rut.count.numpy()[world]
+        index = self.rut.index.numpy()[world, : g.index_size]
+        pool = self.rut.pool.numpy()[world].astype(np.float64)
+        out[0], out[1] = float(count[0]), float(count[1])
+        out[2 : 2 + g.index_size] = index
+        size = min(pool.size, out.size - 2 - g.index_size)
+        out[2 + g.index_size : 2 + g.index_size + size] = pool[:size]
+        return out
