@@ -31,25 +31,18 @@ def default_device() -> str:
 
 
 def raw_steps_per_s(n: int, device: str, steps: int = 100) -> float:
-    """Bare ``mujoco_warp.step`` of the rover's model (graph-captured on CUDA)."""
+    """Bare ``mujoco_warp.step`` of the rover's model, captured as the env's substeps are."""
     mjm = warp_model(load_rover("proto_explorer"), load_terrain("flat"))
     with wp.ScopedDevice(device):
         m = mjw.put_model(mjm)
         d = mjw.make_data(mjm, nworld=n)
         mjw.step(m, d)  # compile
-        graph = None
-        if wp.get_device(device).is_cuda:
-            with wp.ScopedCapture() as cap:
-                for _ in range(steps):
-                    mjw.step(m, d)
-            graph = cap.graph
-        wp.synchronize()
-        t0 = time.perf_counter()
-        if graph is not None:
-            wp.capture_launch(graph)
-        else:
+        with wp.ScopedCapture() as cap:  # a CUDA graph, or Warp's CPU launch stream
             for _ in range(steps):
                 mjw.step(m, d)
+        wp.synchronize()
+        t0 = time.perf_counter()
+        wp.capture_launch(cap.graph)
         wp.synchronize()
         return n * steps / (time.perf_counter() - t0)
 
