@@ -101,7 +101,10 @@ class ProtoExplorerEnv(RoverEpisode, gym.Env[NDArray[np.float32], NDArray[np.flo
     SensorConfig), ``action_layout`` ("wheels" | "sides"), ``max_speed_command`` (m/s, 0.2),
     ``max_yaw_rate_command`` (rad/s, 0.3), ``command_interval`` ((min, max) s between command
     changes, (4, 8)), ``randomize_terrain`` (bool), ``estimator_rate`` (Hz, 50), ``imu_noise``
-    (rad/s; default 0.002, 0 with ``sensor_noise="none"``), ``backend`` ("auto" | "plugin" |
+    (rad/s; default 0.002, 0 with ``sensor_noise="none"``), ``timestep`` (physics substep in
+    s, default the rover configuration's 1 ms; 2 ms and 5 ms are studied in docs/timestep.md;
+    it must divide the 1 / ``estimator_rate`` sample period, and a step still lasts
+    1 / ``control_frequency``), ``backend`` ("auto" | "plugin" |
     "numpy": the compiled tire plugin where it builds, else the numpy reference layer; the
     two agree to ~1e-16 m over a drive, see ``rover_env.sim.fast``),
     ``render_mode`` (None | "rgb_array" | "human"), ``width``, ``height``.

@@ -16,6 +16,7 @@ from rover_env.config import (
     Obstacle,
     Roughness,
     RoverConfig,
+    SimSpec,
     TerrainConfig,
     load_rover,
     load_terrain,
@@ -44,6 +45,29 @@ class EnvOptions:
     randomize_terrain: bool = False
     estimator_rate: float = 50.0
     imu_noise: float | None = None
+    timestep: float | None = None
+    """Physics substep (s) replacing the rover configuration's ``sim.timestep``; None keeps
+    it (1 ms shipped). The step stays 1 / ``control_frequency``: docs/timestep.md."""
+
+
+def _whole(ratio: float) -> bool:
+    return round(ratio) >= 1 and abs(ratio - round(ratio)) < 1e-6 * ratio
+
+
+def _check_periods(timestep: float, estimator_rate: float, control_frequency: float) -> None:
+    """The env samples its sensors every whole number of substeps and steps every whole
+    number of samples, so that a step lasts exactly 1 / control_frequency at any timestep."""
+    sample = 1.0 / estimator_rate
+    if not _whole(sample / timestep):
+        raise ValueError(
+            f"timestep {timestep:g} s must divide the sensor sample period 1 / estimator_rate"
+            f" = {sample:g} s into whole substeps (e.g. 0.001, 0.002 or 0.005 at 50 Hz)"
+        )
+    if not _whole((1.0 / control_frequency) / sample):
+        raise ValueError(
+            f"1 / control_frequency = {1.0 / control_frequency:g} s must be a whole number of"
+            f" sensor samples (1 / estimator_rate = {sample:g} s)"
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,6 +100,13 @@ class EnvSettings:
         """Validate ``options`` (loading the named configurations)."""
         o = options or EnvOptions()
         rover_cfg = o.rover if isinstance(o.rover, RoverConfig) else load_rover(o.rover)
+        if o.timestep is not None:
+            rover_cfg = dataclasses.replace(rover_cfg, sim=SimSpec(timestep=float(o.timestep)))
+        if not (math.isfinite(o.estimator_rate) and o.estimator_rate > 0):
+            raise ValueError(f"estimator_rate must be > 0, got {o.estimator_rate!r}")
+        if not (math.isfinite(o.control_frequency) and o.control_frequency > 0):
+            raise ValueError(f"control_frequency must be > 0, got {o.control_frequency!r}")
+        _check_periods(rover_cfg.sim.timestep, o.estimator_rate, o.control_frequency)
         base_terrain = (
             o.terrain if isinstance(o.terrain, TerrainConfig) else load_terrain(o.terrain)
         )
@@ -85,8 +116,6 @@ class EnvSettings:
             raise ValueError(f"slip_source must be 'true' or 'estimate', got {o.slip_source!r}")
         if o.action_layout not in ("wheels", "sides"):
             raise ValueError(f"action_layout must be 'wheels' or 'sides', got {o.action_layout!r}")
-        if not (math.isfinite(o.control_frequency) and o.control_frequency > 0):
-            raise ValueError(f"control_frequency must be > 0, got {o.control_frequency!r}")
         if render_mode is not None and render_mode not in render_modes:
             raise ValueError(f"render_mode must be one of {list(render_modes)}")
         weights = (

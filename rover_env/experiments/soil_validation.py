@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from rover_env.config import TerrainConfig, from_dict, load_rover, load_terrain
+from rover_env.config import RoverConfig, TerrainConfig, from_dict, load_rover, load_terrain
 from rover_env.sim.rig import measure_soil
 from rover_env.sim.simulator import RoverSim
 from rover_env.soil import V_EPS, load_soil, slip_and_direction, soil_forces, static_sinkage
@@ -233,7 +233,11 @@ def compaction_resistance(soil: str, load: float = LOAD) -> float:
 
 
 def parked(
-    soil: str, duration: float = 20.0, window: float = 10.0, backend: str = "plugin"
+    soil: str,
+    duration: float = 20.0,
+    window: float = 10.0,
+    backend: str = "plugin",
+    rover: RoverConfig | str = "proto_explorer",
 ) -> dict[str, Any]:
     """The rover on a 10 degree loose slope, zero speed targets, for ``duration`` s.
 
@@ -242,7 +246,7 @@ def parked(
     substep to the next) and each wheel's F_x (standard deviation about its mean, and RMS
     substep-to-substep change).
     """
-    sim = RoverSim(terrain=slope_terrain(soil), backend=backend)  # settles 0.5 s at rest
+    sim = RoverSim(rover, terrain=slope_terrain(soil), backend=backend)  # settles 0.5 s at rest
     p_start = sim.segment_truth().pos[1].copy()
     n_win = round(window / sim.dt)
     sim.step(round((duration - window) / sim.dt))
@@ -312,6 +316,7 @@ def soil_endurance(
     seed: int = 0,
     hold: tuple[float, float] = (2.0, 5.0),
     backend: str = "plugin",
+    rover: RoverConfig | str = "proto_explorer",
 ) -> dict[str, Any]:
     """Random speed targets held for random spells on the rough soil scene.
 
@@ -319,7 +324,7 @@ def soil_endurance(
     Flips and arena exits are counted and the rover put back.
     """
     rng = np.random.default_rng(seed)
-    sim = RoverSim(terrain=from_dict(TerrainConfig, SOIL_ROUGH), backend=backend)
+    sim = RoverSim(rover, terrain=from_dict(TerrainConfig, SOIL_ROUGH), backend=backend)
     half = np.array(sim.terrain_cfg.size) / 2 - 1.0
     lim = sim.cfg.motor.max_wheel_speed
     chunk = round(0.05 / sim.dt)

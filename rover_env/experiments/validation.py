@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 from tqdm import tqdm
 
-from rover_env.config import SimSpec, load_rover
+from rover_env.config import RoverConfig, SimSpec, load_rover
 from rover_env.sim.simulator import RoverSim
 
 
@@ -48,10 +48,16 @@ def convergence(duration: float = 20.0) -> dict[str, float]:
     }
 
 
-def endurance(duration: float = 300.0, seed: int = 0, hold: float = 2.0) -> dict[str, float]:
+def endurance(
+    duration: float = 300.0,
+    seed: int = 0,
+    hold: float = 2.0,
+    rover: RoverConfig | str = "proto_explorer",
+    backend: str = "numpy",
+) -> dict[str, float]:
     """Random speed targets on the rough scene; counts flips and arena exits."""
     rng = np.random.default_rng(seed)
-    sim = RoverSim(terrain="rough")
+    sim = RoverSim(rover, terrain="rough", backend=backend)
     half = np.array(sim.terrain_cfg.size) / 2 - 1.0
     lim = sim.cfg.motor.max_wheel_speed
     n = round(hold / sim.dt)
@@ -72,9 +78,11 @@ def endurance(duration: float = 300.0, seed: int = 0, hold: float = 2.0) -> dict
     return {"duration": duration, "flips": flips, "exits": exits, "max_F_z": fz_max}
 
 
-def tip_over(roll_deg: float = 62.0, duration: float = 2.0) -> dict[str, float]:
+def tip_over(
+    roll_deg: float = 62.0, duration: float = 2.0, rover: RoverConfig | str = "proto_explorer"
+) -> dict[str, float]:
     """Release the rover rolled past its tipping angle: it must fall and be reported flipped."""
-    sim = RoverSim()
+    sim = RoverSim(rover)
     sim.reset(settle=0.0)
     q = np.zeros(4)
     mujoco.mju_axisAngle2Quat(q, np.array([1.0, 0.0, 0.0]), np.radians(roll_deg))
@@ -82,7 +90,7 @@ def tip_over(roll_deg: float = 62.0, duration: float = 2.0) -> dict[str, float]:
     sim.data.qpos[2] += 0.05
     flipped_at = float("nan")
     for _ in range(round(duration / 0.01)):
-        sim.step(10)
+        sim.step(round(0.01 / sim.dt))
         if sim.flipped() and not np.isfinite(flipped_at):
             flipped_at = sim.time
     return {"roll_deg": roll_deg, "flipped": float(sim.flipped()), "flipped_at": flipped_at}
