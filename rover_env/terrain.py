@@ -9,7 +9,7 @@ for chassis/obstacle contacts only: wheels never touch it through MuJoCo.
 from __future__ import annotations
 
 import dataclasses
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -260,7 +260,8 @@ def _changed(soil: SoilParams, changes: dict[str, float] | None) -> SoilParams:
         raise ConfigError(
             f"terrain.soil_changes.{soil.name}: unknown soil field(s) {', '.join(unknown or ['name'])}"
         )
-    return dataclasses.replace(soil, **changes)
+    values: dict[str, Any] = dict(changes)  # every changed field is a number (checked above)
+    return dataclasses.replace(soil, **values)
 
 
 def _normal(hx: Array, hy: Array) -> Array:

@@ -18,9 +18,7 @@ from rover_env.benchmark.suite import run_benchmark, run_tuning
 __all__ = ["add_cli", "main", "run_benchmark", "run_tuning"]
 
 
-def _scenarios(
-    text: str, default_filter: str | None = None, shift: str | None = None
-) -> list[str]:
+def _scenarios(text: str, default_filter: str | None = None, shift: str | None = None) -> list[str]:
     from rover_env.benchmark.scenarios import load_scenario, scenario_names
 
     if text == "all":

@@ -40,6 +40,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
+from rover_env.config import TerrainConfig
 from rover_env.envs.episode import OBS_NAMES, RoverEpisode
 from rover_env.envs.fast_step import FastBatchSampler
 from rover_env.envs.settings import EnvOptions, EnvSettings
@@ -51,7 +52,6 @@ from rover_env.sim.batch import BatchRoverSim
 from rover_env.sim.readers import RoverIndex
 from rover_env.sim.sample import BatchRows, StepSample, run_samples
 from rover_env.sim.simulator import RoverSim, resolve_auto_backend
-from rover_env.config import TerrainConfig
 from rover_env.terrain import Terrain
 
 __all__ = ["ProtoExplorerVectorEnv"]

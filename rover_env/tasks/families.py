@@ -96,8 +96,10 @@ class Dist:
             a = set(self.choice or ()) if self.choice is not None else None
             b = set(other.choice or ()) if other.choice is not None else None
             if a is None or b is None:
-                rng = (self.uniform or self.loguniform) if a is None else (
-                    other.uniform or other.loguniform
+                rng = (
+                    (self.uniform or self.loguniform)
+                    if a is None
+                    else (other.uniform or other.loguniform)
                 )
                 vals = b if a is None else a
                 assert rng is not None and vals is not None
@@ -471,7 +473,9 @@ def world_schedule(
     return CommandSchedule.from_rows(rows)
 
 
-def world_start(start: tuple[float, float, float], world: dict[str, Any]) -> tuple[float, float, float]:
+def world_start(
+    start: tuple[float, float, float], world: dict[str, Any]
+) -> tuple[float, float, float]:
     """(x, y, heading rad) with the drawn start (``start``: the fixed one, heading in deg)."""
     x, y, yaw_deg = start
     return (

@@ -211,7 +211,6 @@ class ScenarioConfig:
             goal_fraction=self.goal_fraction,
         )
 
-
     def _drawn(self, spec: FamilySpec, seed: int, duration: float | None) -> Episode:
         world = draw_world(spec, self.name, seed, self.commands)
         base = self.terrain_config()
