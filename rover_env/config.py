@@ -336,10 +336,26 @@ class TerrainConfig:
     obstacles: tuple[Obstacle, ...] = ()
     soil: str | None = None
     """Loose soil over the whole ground (a preset name or YAML path); None: hard ground."""
+    soil_changes: dict[str, dict[str, float]] = field(default_factory=dict)
+    """Changed parameters of the soils named here (soil name or path as written in ``soil``
+    or a patch -> SoilParams field -> value), e.g. a scenario family's drawn soil; the soil
+    is loaded and these replace its values (checked by ``SoilParams`` when it is built)."""
 
     def __post_init__(self) -> None:
         for v in self.size:
             _positive("terrain.size", v)
+        named = {self.soil, *(p.soil for p in self.patches)} - {None}
+        for soil, changes in self.soil_changes.items():
+            if soil not in named:
+                raise ConfigError(
+                    f"terrain.soil_changes.{soil}: no soil of that name on this ground "
+                    f"(have {sorted(str(n) for n in named)})"
+                )
+            for k, v in changes.items():
+                if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                    raise ConfigError(
+                        f"terrain.soil_changes.{soil}.{k}: expected a finite number, got {v!r}"
+                    )
         _positive("terrain.resolution", self.resolution)
         for s in self.slope_deg:
             if not -45.0 < s < 45.0:

@@ -8,12 +8,13 @@ for chassis/obstacle contacts only: wheels never touch it through MuJoCo.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+import dataclasses
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
-from rover_env.config import TerrainConfig
+from rover_env.config import ConfigError, TerrainConfig
 from rover_env.rut import RutGrid
 from rover_env.soil import SoilParams, load_soil
 from rover_env.tire import TireParams
@@ -112,7 +113,7 @@ class Terrain:
         # Loose soil: distinct presets numbered from 1 (0 = hard ground, the Gim layer).
         names = [n for n in (cfg.soil, *(q.soil for q in p)) if n]
         unique = list(dict.fromkeys(names))
-        soils = [load_soil(n) for n in unique]
+        soils = [_changed(load_soil(n), cfg.soil_changes.get(n)) for n in unique]
         self.ground_soil = unique.index(cfg.soil) + 1 if cfg.soil else 0
         if soil_over_ground is not None:  # a model extension's soil (loose_soil) replaces cfg.soil
             soils.append(soil_over_ground)
@@ -248,6 +249,19 @@ class Terrain:
         ys = np.linspace(-sy / 2, sy / 2, ny)
         gx, gy = np.meshgrid(xs, ys)
         return xs, ys, self.height(gx, gy)
+
+
+def _changed(soil: SoilParams, changes: dict[str, float] | None) -> SoilParams:
+    """``soil`` with the terrain's ``soil_changes`` for it (a family's drawn soil)."""
+    if not changes:
+        return soil
+    unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(soil)} - {"name"})
+    if unknown or "name" in changes:
+        raise ConfigError(
+            f"terrain.soil_changes.{soil.name}: unknown soil field(s) {', '.join(unknown or ['name'])}"
+        )
+    values: dict[str, Any] = dict(changes)  # every changed field is a number (checked above)
+    return dataclasses.replace(soil, **values)
 
 
 def _normal(hx: Array, hy: Array) -> Array:

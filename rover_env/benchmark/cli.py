@@ -18,18 +18,36 @@ from rover_env.benchmark.suite import run_benchmark, run_tuning
 __all__ = ["add_cli", "main", "run_benchmark", "run_tuning"]
 
 
-def _scenarios(text: str, default_filter: str | None = None) -> list[str]:
+def _scenarios(text: str, default_filter: str | None = None, shift: str | None = None) -> list[str]:
     from rover_env.benchmark.scenarios import load_scenario, scenario_names
 
     if text == "all":
         names = scenario_names()
         if default_filter == "slip_wasted":
             names = [n for n in names if load_scenario(n).slip_wasted]
-        return names
-    names = [s.strip() for s in text.split(",") if s.strip()]
+    else:
+        names = [s.strip() for s in text.split(",") if s.strip()]
     for n in names:
         load_scenario(n)  # fail early on a typo
-    return names
+    return names if shift is None else _variants(names, shift)
+
+
+def _variants(names: list[str], shift: str) -> list[str]:
+    """Each scenario's family under ``--shift``: ``train``, a comma list of shift names
+    (``train`` among them or not) or ``all`` (training distribution and every shift)."""
+    from rover_env.benchmark.scenarios import load_scenario
+
+    want = [v.strip() for v in shift.split(",") if v.strip()]
+    out: list[str] = []
+    for n in names:
+        have = load_scenario(n).variants
+        if not have:
+            raise ValueError(f"--shift: scenario {n} declares no family")
+        pick = have if want == ["all"] else [v for v in want if v in have]
+        if not pick:
+            raise ValueError(f"--shift {shift}: scenario {n} has none of it; it has {have}")
+        out += [f"{n}@{v}" for v in pick]
+    return out
 
 
 def _command_line() -> str:
@@ -63,9 +81,14 @@ def _bench_cli(args: argparse.Namespace) -> int:
 
 
 def _bench(args: argparse.Namespace, specs: list[str]) -> int:
+    try:
+        scenarios = _scenarios(args.scenarios, shift=args.shift)
+    except ValueError as exc:  # ConfigError too
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     files = run_benchmark(
         specs,
-        _scenarios(args.scenarios),
+        scenarios,
         args.episodes,
         args.out,
         split=args.split,
@@ -143,7 +166,16 @@ def add_cli(subparsers: Any) -> None:
         "(default open-loop,slip-pi)",
     )
     p.add_argument(
-        "--scenarios", default="all", help="comma list of names in configs/scenarios, or all"
+        "--scenarios",
+        default="all",
+        help="comma list of names in configs/scenarios (NAME@train or NAME@SHIFT for a "
+        "family's distribution), or all",
+    )
+    p.add_argument(
+        "--shift",
+        default=None,
+        help="play the scenarios' families: train (the training distribution), shift names, "
+        "or all (training and every declared shift, reported side by side)",
     )
     p.add_argument("--episodes", type=int, default=20, help="seeds per scenario (default 20)")
     p.add_argument(

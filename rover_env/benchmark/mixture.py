@@ -17,6 +17,13 @@ seed (the old test block 3000-3999) is refused. Episodes of training seeds
 are those the shipped agents were trained on, draw for draw. ``info["seed_split"]`` and
 ``info["episode_seed"]`` say which episode was played.
 
+``rover_env/ProtoExplorerFamilies-v0`` (:func:`families_env`, issue 46) is the same env over
+the scenario families' training distributions (``NAME@train``, :data:`FAMILY_MIX`): each
+episode's world (soil, slope, ripples, patches, rock, commands, start) is drawn from its seed
+and reported in ``info["world"]``; the commands are the family's own (``scale_commands``
+False). ``ProtoExplorerScenarioMix-v0`` keeps meaning the fixed worlds the shipped agents
+learnt on.
+
 Version history: v0. Issue 17 made held-out seeds play their own split's episodes (before,
 every reset seed drew a training-block episode, so "validation" was training episodes);
 episodes of training seeds are unchanged draw for draw, so the id was kept. Stop 41 changed
@@ -47,7 +54,11 @@ from rover_env.seeds import SPLITS
 from rover_env.tasks.mix import DEFAULT_MIX, SOIL_MIX, ScenarioMix
 from rover_env.tasks.scenarios import Episode
 
-__all__ = ["DEFAULT_MIX", "SOIL_MIX", "ScenarioMixEnv"]
+__all__ = ["DEFAULT_MIX", "FAMILY_MIX", "SOIL_MIX", "ScenarioMixEnv", "families_env"]
+
+FAMILY_MIX: dict[str, float] = {f"{k}@train": w for k, w in {**DEFAULT_MIX, **SOIL_MIX}.items()}
+"""Every scenario family's training distribution, weighted as the fixed mixes
+(``rover_env/ProtoExplorerFamilies-v0``)."""
 
 Obs = npt.NDArray[np.float32]
 
@@ -72,6 +83,7 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
             which then has 47 values.
         speed_scale: range of the factor on every commanded speed of an episode.
         yaw_scale: range of the factor on every commanded yaw rate (its sign is drawn too).
+        scale_commands: False plays each episode's own commands (the families' env).
         **env_kwargs: passed to every scenario's ``ProtoExplorerEnv`` (e.g. reward_weights);
             ``terrain`` comes from the scenario.
     """
@@ -88,13 +100,14 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
         stall_clock: bool | Mapping[str, float] | None = None,
         speed_scale: tuple[float, float] = (0.6, 1.3),
         yaw_scale: tuple[float, float] = (0.5, 1.5),
+        scale_commands: bool = True,
         **env_kwargs: Any,
     ) -> None:
         if "terrain" in env_kwargs:
             raise ValueError("ScenarioMixEnv: the terrain comes from each scenario, not env_kwargs")
         if action_residual is not None and action_schedule is not None:
             raise ValueError("give action_residual or action_schedule, not both")
-        self.mix = ScenarioMix(scenarios, speed_scale, yaw_scale)
+        self.mix = ScenarioMix(scenarios, speed_scale, yaw_scale, scale_commands)
         self.residual: Residual | Schedule | None = None
         if action_residual is not None:
             self.residual = Residual(residual_base, action_residual, residual_ramp)
@@ -123,7 +136,7 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
 
     def _wrapper(self, episode: Episode) -> ScenarioWrapper:
         if episode.scenario not in self._wrappers:
-            env = ProtoExplorerEnv(terrain=episode.terrain, **self.env_kwargs)
+            env = ProtoExplorerEnv(terrain=episode.envelope or episode.terrain, **self.env_kwargs)
             self._wrappers[episode.scenario] = ScenarioWrapper(env)
         return self._wrappers[episode.scenario]
 
@@ -160,3 +173,13 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
     def close(self) -> None:
         for w in self._wrappers.values():
             w.close()
+
+
+def families_env(**kwargs: Any) -> ScenarioMixEnv:
+    """``rover_env/ProtoExplorerFamilies-v0``: the scenario mix over the families' training
+    distributions (:data:`FAMILY_MIX`), each episode a world its seed draws, with its own
+    commands (no further scaling). Held-out seeds play their own split's worlds, as in the
+    mix; the shifts are never drawn. ``kwargs``: :class:`ScenarioMixEnv`'s."""
+    kwargs.setdefault("scenarios", FAMILY_MIX)
+    kwargs.setdefault("scale_commands", False)
+    return ScenarioMixEnv(**kwargs)

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from rover_env.benchmark.families import family_lines
 from rover_env.benchmark.metrics import LOWER_IS_BETTER, METRICS, UNITS, UNORDERED
 from rover_env.benchmark.stats import holm, paired_p, t_interval
 from rover_env.benchmark.verdict import frontier_plot, verdict_markdown, verdicts
@@ -159,8 +160,9 @@ def _write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
     if not rows:
         path.write_text("")
         return
+    names = list(dict.fromkeys(k for r in rows for k in r))  # a family's world.* columns
     with path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w = csv.DictWriter(fh, fieldnames=names)
         w.writeheader()
         for r in rows:
             w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
@@ -202,6 +204,7 @@ def _markdown(
             lines.append(f"| {c} | {n} | " + " | ".join(cells) + " |")
         lines.append("")
     lines += verdict_lines
+    lines += family_lines(summary)
     if pairs:
         family = pairs[0]["comparisons"]
         lines += [

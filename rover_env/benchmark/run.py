@@ -125,10 +125,11 @@ _CONTROLLERS: dict[str, EnvController] = {}
 
 
 def wrapper_for(scenario: str, layout: str, episode: Episode) -> ScenarioWrapper:
-    """This process's env for ``scenario`` with the given action layout (built once)."""
+    """This process's env for ``scenario`` with the given action layout (built once; a
+    family's is compiled with its envelope terrain, so every world of it fits)."""
     key = (scenario, layout)
     if key not in _ENVS:
-        env = ProtoExplorerEnv(terrain=episode.terrain, action_layout=layout)
+        env = ProtoExplorerEnv(terrain=episode.envelope or episode.terrain, action_layout=layout)
         _ENVS[key] = ScenarioWrapper(env)
     return _ENVS[key]
 
@@ -146,6 +147,7 @@ def run_job(job: Job) -> dict[str, Any]:
         "scenario": job.scenario,
         "seed": job.seed,
         **metrics,
+        **{f"world.{k}": v for k, v in episode.world.items()},
         "wall_s": time.perf_counter() - t0,
     }
 

@@ -208,6 +208,7 @@ class RoverEpisode:
         self._push_sample_from(sim, index, est, ids)
         self.last_estimate = est.estimate(ids)[0]
         info = self._info_from(sim, index)
+        info.update(self.task.reset_info())
         return self._obs_from(sim, index), info
 
     # --- actions

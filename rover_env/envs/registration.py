@@ -9,6 +9,8 @@ MIX_ENV_ID = "rover_env/ProtoExplorerScenarioMix-v0"
 SOIL_ENV_ID = "rover_env/ProtoExplorerSoil-v1"
 """Random tracking commands on loose soil (``configs/terrain/sand.yaml``). Not in ENV_IDS,
 the ids configs/ppo.yaml carries training settings for."""
+FAMILY_ENV_ID = "rover_env/ProtoExplorerFamilies-v0"
+"""The scenario families' training distributions, one world drawn per episode (issue 46)."""
 MAX_EPISODE_STEPS = 300
 """30 s at the default 10 Hz control frequency."""
 VECTOR_ENTRY_POINT = "rover_env.envs.vector:ProtoExplorerVectorEnv"
@@ -45,5 +47,10 @@ def register_envs() -> None:
     gym.register(
         id=MIX_ENV_ID,
         entry_point="rover_env.benchmark.mixture:ScenarioMixEnv",
+        max_episode_steps=MAX_EPISODE_STEPS,
+    )
+    gym.register(
+        id=FAMILY_ENV_ID,
+        entry_point="rover_env.benchmark.mixture:families_env",
         max_episode_steps=MAX_EPISODE_STEPS,
     )

@@ -17,7 +17,9 @@ How:
   template ``RoverSim`` whose settled state (plugin state included) is copied into the
   rover's batch row; with per-episode terrain (``randomize_terrain``, the rough variant)
   each rover keeps a copy of the template's model with its own ground
-  (``mujoco.batch.Batch.set_models``).
+  (``mujoco.batch.Batch.set_models``); so does each rover once a task gives it a ground of
+  its own (a scenario family's world: ``set_attr("task", [ScenarioTask(...), ...])``, the
+  simulator compiled with the family's envelope terrain, ``Episode.envelope``).
 * What costs per sample is done for all rovers at once on the batch's bound arrays:
   sensors, segment velocity (``mj_objectVelocity``'s arithmetic), true slip, motor power,
   and the slip estimator (``FastSlipEstimator``, the compiled estimator the single env
@@ -38,6 +40,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
+from rover_env.config import TerrainConfig
 from rover_env.envs.episode import OBS_NAMES, RoverEpisode
 from rover_env.envs.fast_step import FastBatchSampler
 from rover_env.envs.settings import EnvOptions, EnvSettings
@@ -180,7 +183,10 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         ep = self.episodes[i]
         ep.seed(seed)
         sim = self.sim
+        before = sim.terrain_cfg
         obs, info = ep.begin_episode(sim, self.index, self.estimator, [i], ep.np_random, options)
+        if self._models is None and sim.terrain_cfg != before:
+            self._own_models(before)
         if self._models is not None:
             self._models[i] = copy.copy(sim.model)
             self.terrains[i] = sim.terrain
@@ -189,6 +195,17 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         self._elapsed[i] = 0
         self._autoreset[i] = False
         return obs, info
+
+    def _own_models(self, before: TerrainConfig) -> None:
+        """From now on every rover runs on its own copy of the model: a task set a ground of
+        its own (a scenario family's world) on the template, whose model the rovers shared.
+        The others keep the ground they run on (``before``)."""
+        sim = self.sim
+        now = sim.terrain_cfg
+        sim.set_terrain(before)
+        self._models = [copy.copy(sim.model) for _ in range(self.num_envs)]
+        self.terrains = [sim.terrain] * self.num_envs
+        sim.set_terrain(now)
 
     def _reset_many(
         self, ids: list[int], seeds: list[int | None], options: dict[str, Any] | None

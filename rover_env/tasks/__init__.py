@@ -11,7 +11,10 @@ or leaving the arena. Tasks here:
   (``configs/scenarios/*.yaml``, :mod:`~rover_env.tasks.scenarios`): its ground, start pose,
   fixed command schedule and length;
 * :class:`~rover_env.tasks.mix.ScenarioMix`: a scenario drawn per episode with its seed kept
-  in the seed plan's split (``ProtoExplorerScenarioMix-v0``).
+  in the seed plan's split (``ProtoExplorerScenarioMix-v0``; over the families' training
+  distributions ``ProtoExplorerFamilies-v0``);
+* scenario families (:mod:`~rover_env.tasks.families`): ``NAME@train`` and ``NAME@SHIFT``
+  draw a whole world per seed from the distributions a scenario YAML declares.
 
 Layer: above the controllers (it uses their ``CommandSchedule``) and below the envs; no
 gymnasium here.

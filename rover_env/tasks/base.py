@@ -5,6 +5,7 @@ from __future__ import annotations
 import abc
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -46,6 +47,10 @@ class Task(abc.ABC):
     def setup(self, rng: np.random.Generator) -> EpisodeSetup:
         """The episode's ground and start pose (default: the env decides)."""
         return EpisodeSetup()
+
+    def reset_info(self) -> dict[str, Any]:
+        """Entries the env adds to ``reset``'s info (a scenario's drawn ``world``)."""
+        return {}
 
     @abc.abstractmethod
     def command(self, rng: np.random.Generator, t: float) -> Command:

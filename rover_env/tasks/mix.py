@@ -66,6 +66,8 @@ class ScenarioMix:
         scenarios: name -> weight (default :data:`DEFAULT_MIX`), or names (equal weights).
         speed_scale: range of the factor on every commanded speed of an episode.
         yaw_scale: range of the factor on every commanded yaw rate (its sign is drawn too).
+        scale_commands: False plays each episode's own schedule (a family draws its
+            commands itself); the scales are drawn all the same, so the stream is unchanged.
     """
 
     def __init__(
@@ -73,6 +75,7 @@ class ScenarioMix:
         scenarios: dict[str, float] | Sequence[str] | None = None,
         speed_scale: tuple[float, float] = (0.6, 1.3),
         yaw_scale: tuple[float, float] = (0.5, 1.5),
+        scale_commands: bool = True,
     ) -> None:
         mix = DEFAULT_MIX if scenarios is None else scenarios
         if not isinstance(mix, dict):
@@ -85,6 +88,7 @@ class ScenarioMix:
         self.p = p / p.sum()
         self.speed_scale = (float(speed_scale[0]), float(speed_scale[1]))
         self.yaw_scale = (float(yaw_scale[0]), float(yaw_scale[1]))
+        self.scale_commands = bool(scale_commands)
         self.split = "training"
         """The split of the last reset seed; unseeded episodes stay in it."""
 
@@ -108,4 +112,6 @@ class ScenarioMix:
         episode: Episode = self.cfgs[i].episode(episode_seed)
         yaw = float(rng.uniform(*self.yaw_scale)) * (1.0 if rng.random() < 0.5 else -1.0)
         schedule = _scaled(episode.schedule, float(rng.uniform(*self.speed_scale)), yaw)
+        if not self.scale_commands:
+            return ScenarioTask(episode)
         return ScenarioTask(dataclasses.replace(episode, schedule=schedule))

@@ -4,6 +4,7 @@ schedule and length."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -28,6 +29,10 @@ class ScenarioTask(Task):
 
     def setup(self, rng: np.random.Generator) -> EpisodeSetup:
         return EpisodeSetup(terrain=self.episode.terrain, start=self.episode.start)
+
+    def reset_info(self) -> dict[str, Any]:
+        """``world``: the episode's drawn parameters (empty for a fixed scenario)."""
+        return {"world": dict(self.episode.world)}
 
     def command(self, rng: np.random.Generator, t: float) -> Command:
         v, w = self.episode.schedule.at(t)

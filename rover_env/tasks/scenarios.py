@@ -1,10 +1,15 @@
-"""Named benchmark scenarios: a ground, a start pose, a fixed command schedule, per-seed jitter.
+"""Named benchmark scenarios: a ground, a start pose, a fixed command schedule, per-seed jitter,
+and the family of worlds around them.
 
 Each lives in ``configs/scenarios/<name>.yaml`` (keys: :class:`ScenarioConfig`). The ground is
 a shipped terrain name, a terrain YAML path, or a terrain mapping written inline. A seed
 turns a scenario into one :class:`Episode`: the start pose and the friction of the ground's
 patches are jittered by a generator seeded with (seed, scenario name), so every controller
 sees the same episode for the same seed and the scenarios' draws are independent.
+
+``NAME@train`` and ``NAME@SHIFT`` (:func:`load_scenario`) are the scenario's family: a seed
+draws a whole world from the ``family:`` distribution or one of its ``shifts:``
+(:mod:`rover_env.tasks.families`); the bare name stays the fixed world.
 """
 
 from __future__ import annotations
@@ -27,6 +32,17 @@ from rover_env.config import (
     load_terrain,
 )
 from rover_env.control.base import CommandSchedule
+from rover_env.tasks.families import (
+    TRAIN,
+    FamilySpec,
+    check_family,
+    draw_world,
+    envelope_terrain,
+    merged,
+    world_schedule,
+    world_start,
+    world_terrain,
+)
 
 __all__ = [
     "Episode",
@@ -78,6 +94,12 @@ class Episode:
     schedule: CommandSchedule
     duration: float
     goal_fraction: float
+    world: dict[str, Any] = field(default_factory=dict)
+    """The drawn parameters of a family's episode (``group.field`` -> value; empty for a
+    fixed scenario): ``info["world"]`` and the benchmark's ``world.*`` columns."""
+    envelope: TerrainConfig | None = None
+    """The terrain to compile the simulator with so that every world of the family fits
+    (None: this episode's own terrain)."""
 
 
 @dataclass(frozen=True)
@@ -95,6 +117,14 @@ class ScenarioConfig:
     """Success needs this share of the commanded path length (see ``episode_metrics``)."""
     slip_wasted: bool = False
     """True where the benchmark expects slip control to pay (tuning set, acceptance)."""
+    family: FamilySpec | None = None
+    """The training distribution of the world (``NAME@train``); None: a fixed scenario."""
+    shifts: dict[str, FamilySpec] = field(default_factory=dict)
+    """Held-out distributions (``NAME@SHIFT``), each overriding some of the family's
+    parameters with ranges outside the training ones."""
+    variant: str | None = None
+    """Which distribution episodes draw from: None the fixed world, ``train`` the family,
+    or a shift's name (``load_scenario("NAME@VARIANT")`` sets it)."""
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.duration) and self.duration > 0):
@@ -102,6 +132,36 @@ class ScenarioConfig:
         if not 0 <= self.goal_fraction <= 1:
             raise ConfigError(f"scenario {self.name}: goal_fraction must lie in [0, 1]")
         CommandSchedule.from_rows(self.commands)  # validates
+        if "@" in self.name:
+            raise ConfigError(f"scenario {self.name}: a name holds no '@' (it selects a family)")
+        if self.variant is not None and self.variant not in self.variants:
+            raise ConfigError(
+                f"variant: scenario {self.name} has no distribution {self.variant!r}; "
+                f"have {self.variants or 'none (no family)'}"
+            )
+
+    @property
+    def variants(self) -> list[str]:
+        """The distributions it declares: ``train`` and its shifts (none without a family)."""
+        return [TRAIN, *self.shifts] if self.family is not None else []
+
+    @property
+    def key(self) -> str:
+        """Its name in the benchmark: ``NAME`` (the fixed world) or ``NAME@VARIANT``."""
+        return self.name if self.variant is None else f"{self.name}@{self.variant}"
+
+    @property
+    def distribution(self) -> FamilySpec | None:
+        """The distribution its episodes draw from (None: the fixed world)."""
+        if self.variant is None or self.family is None:
+            return None
+        if self.variant == TRAIN:
+            return self.family
+        return merged(self.family, self.shifts[self.variant])
+
+    def check_family(self) -> None:
+        """Refuse a family or shift that cannot be drawn on this ground (keys named)."""
+        check_family(self.family, self.shifts, self.terrain_config(), self.commands)
 
     @property
     def schedule(self) -> CommandSchedule:
@@ -119,7 +179,11 @@ class ScenarioConfig:
         raise ConfigError(f"scenario {self.name}: terrain must be a name, path or mapping")
 
     def episode(self, seed: int, duration: float | None = None) -> Episode:
-        """The jittered episode of ``seed`` (``duration`` overrides the scenario's length)."""
+        """The jittered episode of ``seed`` (``duration`` overrides the scenario's length);
+        for a family, the world ``seed`` draws."""
+        spec = self.distribution
+        if spec is not None:
+            return self._drawn(spec, seed, duration)
         rng = np.random.default_rng([int(seed), zlib.crc32(self.name.encode())])
         j, s = self.jitter, self.start
         dx, dy, dyaw, dmu = rng.uniform(-1.0, 1.0, 4)
@@ -147,6 +211,22 @@ class ScenarioConfig:
             goal_fraction=self.goal_fraction,
         )
 
+    def _drawn(self, spec: FamilySpec, seed: int, duration: float | None) -> Episode:
+        world = draw_world(spec, self.name, seed, self.commands)
+        base = self.terrain_config()
+        s = self.start
+        return Episode(
+            scenario=self.key,
+            seed=int(seed),
+            terrain=world_terrain(base, world),
+            start=world_start((s.x, s.y, s.yaw_deg), world),
+            schedule=world_schedule(self.commands, world),
+            duration=self.duration if duration is None else float(duration),
+            goal_fraction=self.goal_fraction,
+            world=world,
+            envelope=envelope_terrain(spec, base),
+        )
+
 
 def _scenario_dir() -> Path:
     return configs_dir() / "scenarios"
@@ -158,17 +238,26 @@ def scenario_names() -> list[str]:
 
 
 def load_scenario(name_or_path: str | Path) -> ScenarioConfig:
-    """A shipped scenario by name or a scenario YAML path."""
-    p = Path(name_or_path)
+    """A shipped scenario by name or a scenario YAML path; ``NAME@VARIANT`` (a path too)
+    selects its family's training distribution (``@train``) or a shift."""
+    text = str(name_or_path)
+    variant: str | None = None
+    if "@" in text:
+        text, variant = text.rsplit("@", 1)
+    p = Path(text)
     if p.suffix not in (".yaml", ".yml"):
-        p = _scenario_dir() / f"{name_or_path}.yaml"
+        p = _scenario_dir() / f"{text}.yaml"
         if not p.is_file():
-            raise ConfigError(
-                f"no shipped scenario named {name_or_path!r}; have {scenario_names()}"
-            )
+            raise ConfigError(f"no shipped scenario named {text!r}; have {scenario_names()}")
     cfg = load_config(ScenarioConfig, p, "scenarios")
     try:
         cfg.terrain_config()  # fail early on a bad ground
+        cfg.check_family()
+        if variant is not None:
+            cfg = dataclasses.replace(cfg, variant=variant)
+        spec = cfg.distribution
+        if spec is not None:  # the envelope must build (a ledge, a bad soil value)
+            envelope_terrain(spec, cfg.terrain_config())
     except ConfigError as exc:
         raise ConfigError(f"{p}: {exc}") from None
     return cfg
