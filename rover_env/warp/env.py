@@ -157,7 +157,9 @@ class WarpRoverEnv:
         phi = self._qpos[:, self._wheel_qpos]
         theta = self._qpos[:, self._joint_qpos]
         if c.wheel_noise > 0:
-            phi = phi + c.wheel_noise * torch.randn(phi.shape, generator=self.gen, device=self.device)
+            phi = phi + c.wheel_noise * torch.randn(
+                phi.shape, generator=self.gen, device=self.device
+            )
         if c.joint_noise > 0:
             theta = theta + c.joint_noise * torch.randn(
                 theta.shape, generator=self.gen, device=self.device
@@ -167,7 +169,9 @@ class WarpRoverEnv:
         t = self._sample.double() * self.sample_dt
         mask = where if where is not None else None
         self.estimator.push(mask, t, phi, theta)
-        self.theta_meas = theta if where is None else torch.where(where[:, None], theta, self.theta_meas)
+        self.theta_meas = (
+            theta if where is None else torch.where(where[:, None], theta, self.theta_meas)
+        )
 
     def _restart(self, where: torch.Tensor) -> None:
         """The estimator's and sensors' part of a new episode in the worlds ``where``."""
@@ -210,7 +214,9 @@ class WarpRoverEnv:
         est = self.estimator.estimate()
         imu = torch.where(self._fresh[:, None, None, None], self._imu0, self._imu())
         if self.imu_noise > 0:
-            imu = imu + self.imu_noise * torch.randn(imu.shape, generator=self.gen, device=self.device)
+            imu = imu + self.imu_noise * torch.randn(
+                imu.shape, generator=self.gen, device=self.device
+            )
         f = self._qpos.dtype
         return torch.cat(
             [
