@@ -27,6 +27,7 @@ RANKS = {
     "rover_env.sim": 1,
     "rover_env.warp": 1,  # MuJoCo Warp simulation and its tire-layer kernels (docs/gpu.md)
     "rover_env.warp.env": 7,  # torch from here on: the batched env, its PPO, the benchmark
+    "rover_env.warp.estimator": 7,  # the slip estimator in torch, for the env
     "rover_env.warp.ppo": 7,
     "rover_env.warp.bench": 7,
     "rover_env.independent": 1,  # the SPEC-only log generator (issue 47): rover_env.logs only

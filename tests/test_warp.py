@@ -183,7 +183,7 @@ def test_torch_env_and_ppo_stay_on_the_device() -> None:
     from rover_env.warp.env import ACT_DIM, OBS_DIM, WarpRoverEnv
     from rover_env.warp.ppo import PPOConfig, train
 
-    env = WarpRoverEnv(3, device="cpu", control_dt=0.05, episode_seconds=0.2, seed=1)
+    env = WarpRoverEnv(3, device="cpu", episode_seconds=0.2, seed=1)
     obs = env.reset()
     assert obs.shape == (3, OBS_DIM) and obs.device == env.device
     cmd0 = env.command.clone()
@@ -191,7 +191,7 @@ def test_torch_env_and_ppo_stay_on_the_device() -> None:
         obs, rew, term, trunc = env.step(torch.full((3, ACT_DIM), 0.8))
     assert trunc.all() and not term.any() and torch.isfinite(rew).all()
     assert (env.steps == 0).all() and not torch.equal(env.command, cmd0)  # restarted
-    v = obs[:, 2]  # forward speed observed after the reset: back at rest
-    assert v.abs().max() < 0.02
+    v, _ = env.true_motion()  # after the reset: back at rest
+    assert v.abs().max() < 0.02 and (obs[:, :6] == 0).all()  # one sample: no rates yet
     _, rows = train(env, 1, PPOConfig(steps_per_env=4, minibatches=2, epochs=1))
     assert np.isfinite(rows[0]["mean_reward"]) and rows[0]["steps_per_s"] > 0

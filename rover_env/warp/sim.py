@@ -48,7 +48,7 @@ from rover_env.warp import layer
 Array = NDArray[np.float64]
 
 GRAPH_SUBSTEPS = 50
-"""Substeps per captured graph (a WarpRoverEnv step at the default 0.05 s)."""
+"""Most substeps per captured graph (WarpRoverEnv replays graphs of one estimator sample, 20)."""
 TRUTH_FIELDS = ("v_x", "v_y", "v_w", "F_x", "F_y", "F_z", "delta", "sinkage", "torque")
 
 
