@@ -18,7 +18,7 @@ def _per_reset(key: str, n: int) -> tuple[float, float]:
     cfg = load_scenario(key)
     first = cfg.episode(1000)
     t0 = time.perf_counter()
-    env = ScenarioWrapper(ProtoExplorerEnv(terrain=first.envelope or first.terrain))
+    env = ScenarioWrapper(ProtoExplorerEnv(**first.env_kwargs()))
     build = time.perf_counter() - t0
     t0 = time.perf_counter()
     for s in range(1000, 1000 + n):

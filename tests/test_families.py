@@ -20,7 +20,7 @@ from rover_env.benchmark.report import summarise, write_report
 from rover_env.benchmark.run import Job, ScenarioWrapper, run_job
 from rover_env.config import ConfigError, configs_dir
 from rover_env.envs.proto_explorer import ProtoExplorerEnv
-from rover_env.tasks.families import TRAIN
+from rover_env.tasks.families import FAMILY_TIMESTEP, TRAIN
 from rover_env.tasks.scenario import ScenarioTask
 from rover_env.tasks.scenarios import load_scenario, scenario_names
 
@@ -181,7 +181,7 @@ def test_unknown_variant_and_soil_preset_are_refused(tmp_path: Path) -> None:
 def test_world_is_the_same_in_the_single_env_and_the_mix_env() -> None:
     key, seed = "flat-turns@train", 2000  # a validation seed plays its own episode in the mix
     ep = load_scenario(key).episode(seed)
-    single = ScenarioWrapper(ProtoExplorerEnv(terrain=ep.envelope))
+    single = ScenarioWrapper(ProtoExplorerEnv(**ep.env_kwargs()))
     single.set_episode(ep)
     obs1, info1 = single.reset()
     mix = families_env(scenarios=[key])
@@ -203,11 +203,11 @@ def test_vector_env_gives_each_rover_its_own_world() -> None:
     cfg = load_scenario("slope@train")
     eps = [dataclasses.replace(cfg.episode(s), duration=1.0) for s in (1000, 1001)]
     assert eps[0].terrain != eps[1].terrain and eps[0].envelope == eps[1].envelope
-    vec = ProtoExplorerVectorEnv(num_envs=2, terrain=eps[0].envelope)
+    vec = ProtoExplorerVectorEnv(num_envs=2, **eps[0].env_kwargs())
     vec.set_attr("task", [ScenarioTask(e) for e in eps])
     singles = []
     for e in eps:
-        env = ProtoExplorerEnv(terrain=e.envelope, backend="plugin")
+        env = ProtoExplorerEnv(**e.env_kwargs(), backend="plugin")
         env.set_task(ScenarioTask(e))
         singles.append(env)
     obs, info = vec.reset(seed=[e.seed for e in eps])
@@ -257,3 +257,18 @@ def test_the_cheapest_family_varies() -> None:
         ]
     )
     assert np.std(e, ddof=1) / np.mean(e) >= 0.10, e
+
+
+def test_family_worlds_play_at_the_family_step_and_refuse_another() -> None:
+    """A family's episode carries its 2 ms step; an env at 1 ms refuses it (no silent mix)."""
+    ep = load_scenario("flat-turns@train").episode(1000)
+    assert ep.timestep == FAMILY_TIMESTEP == 0.002
+    assert load_scenario("flat-turns").episode(1000).timestep is None
+    env = ScenarioWrapper(ProtoExplorerEnv(terrain=ep.envelope))
+    env.set_episode(ScenarioTask(ep))
+    with pytest.raises(ValueError, match=r"0\.002 s physics step"):
+        env.reset(seed=1000)
+    ok = ScenarioWrapper(ProtoExplorerEnv(**ep.env_kwargs()))
+    ok.set_episode(ScenarioTask(ep))
+    ok.reset(seed=1000)
+    assert ok.base.unwrapped.sim.dt == pytest.approx(0.002)

@@ -136,7 +136,7 @@ class ScenarioMixEnv(gym.Env[Obs, Obs]):
 
     def _wrapper(self, episode: Episode) -> ScenarioWrapper:
         if episode.scenario not in self._wrappers:
-            env = ProtoExplorerEnv(terrain=episode.envelope or episode.terrain, **self.env_kwargs)
+            env = ProtoExplorerEnv(**{**episode.env_kwargs(), **self.env_kwargs})
             self._wrappers[episode.scenario] = ScenarioWrapper(env)
         return self._wrappers[episode.scenario]
 

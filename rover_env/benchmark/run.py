@@ -129,7 +129,7 @@ def wrapper_for(scenario: str, layout: str, episode: Episode) -> ScenarioWrapper
     family's is compiled with its envelope terrain, so every world of it fits)."""
     key = (scenario, layout)
     if key not in _ENVS:
-        env = ProtoExplorerEnv(terrain=episode.envelope or episode.terrain, action_layout=layout)
+        env = ProtoExplorerEnv(**episode.env_kwargs(), action_layout=layout)
         _ENVS[key] = ScenarioWrapper(env)
     return _ENVS[key]
 

@@ -47,7 +47,7 @@ def play(
     ctrl = make_controller(spec)
     episode = load_scenario(scenario).episode(seed, duration)
     env = ProtoExplorerEnv(
-        terrain=episode.terrain,
+        **episode.env_kwargs(),
         action_layout=ctrl.action_layout,
         render_mode="rgb_array",
         width=width,

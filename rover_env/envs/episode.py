@@ -135,6 +135,11 @@ class RoverEpisode:
         """This episode's terrain and start pose (the task's, else drawn) and ``sim`` there."""
         self.reward_weights = self.task.reward_weights or self.settings.reward_weights
         setup = self.task.setup(rng)
+        if setup.timestep is not None and abs(sim.dt - setup.timestep) > 1e-12:
+            raise ValueError(
+                f"the task's episode is played at a {setup.timestep:g} s physics step, the env "
+                f"runs at {sim.dt:g} s: build the env with timestep={setup.timestep:g}"
+            )
         if setup.terrain is not None:
             if sim.terrain_cfg != setup.terrain:
                 sim.set_terrain(setup.terrain)

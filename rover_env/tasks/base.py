@@ -26,6 +26,9 @@ class EpisodeSetup:
     terrain: TerrainConfig | None = None
     start: tuple[float, float, float] | None = None
     """x, y (m) and heading (rad) of the front axle at rest."""
+    timestep: float | None = None
+    """Physics substep (s) the episode was drawn for (None: any); an env at another refuses
+    it, so a family's world is never played at a step its figures were not made at."""
 
 
 class Task(abc.ABC):

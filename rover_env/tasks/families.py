@@ -33,6 +33,7 @@ from rover_env.control.base import CommandSchedule
 from rover_env.tire import TireParams
 
 __all__ = [
+    "FAMILY_TIMESTEP",
     "TRAIN",
     "Dist",
     "FamilySpec",
@@ -47,6 +48,11 @@ __all__ = [
 
 TRAIN = "train"
 """The variant name of a family's training distribution (``NAME@train``)."""
+
+FAMILY_TIMESTEP = 0.002
+"""Physics substep (s) of every family's episode (fixed scenarios keep the rover's 1 ms): every
+physical check holds at 2 ms with the tolerances it has at 1 ms, and an env step costs half
+the substeps (docs/timestep.md)."""
 
 
 @dataclass(frozen=True)

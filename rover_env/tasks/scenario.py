@@ -28,7 +28,9 @@ class ScenarioTask(Task):
         self.reward_weights = reward_weights
 
     def setup(self, rng: np.random.Generator) -> EpisodeSetup:
-        return EpisodeSetup(terrain=self.episode.terrain, start=self.episode.start)
+        return EpisodeSetup(
+            terrain=self.episode.terrain, start=self.episode.start, timestep=self.episode.timestep
+        )
 
     def reset_info(self) -> dict[str, Any]:
         """``world``: the episode's drawn parameters (empty for a fixed scenario)."""

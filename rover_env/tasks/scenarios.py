@@ -33,6 +33,7 @@ from rover_env.config import (
 )
 from rover_env.control.base import CommandSchedule
 from rover_env.tasks.families import (
+    FAMILY_TIMESTEP,
     TRAIN,
     FamilySpec,
     check_family,
@@ -100,6 +101,16 @@ class Episode:
     envelope: TerrainConfig | None = None
     """The terrain to compile the simulator with so that every world of the family fits
     (None: this episode's own terrain)."""
+    timestep: float | None = None
+    """Physics substep (s) the episode is played at (None: the rover configuration's; a
+    family's worlds: :data:`~rover_env.tasks.families.FAMILY_TIMESTEP`)."""
+
+    def env_kwargs(self) -> dict[str, Any]:
+        """What an env playing this episode is built with: its ground and physics step."""
+        out: dict[str, Any] = {"terrain": self.envelope or self.terrain}
+        if self.timestep is not None:
+            out["timestep"] = self.timestep
+        return out
 
 
 @dataclass(frozen=True)
@@ -225,6 +236,7 @@ class ScenarioConfig:
             goal_fraction=self.goal_fraction,
             world=world,
             envelope=envelope_terrain(spec, base),
+            timestep=FAMILY_TIMESTEP,
         )
 
 
