@@ -10,7 +10,16 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from rover_env.config import ConfigError
-from rover_env.training.config import ALGOS
+from rover_env.training.config import ALGOS, env_ids
+
+
+def only_env_id(config: str) -> str:
+    """The env id of a hyperparameter file with one entry (an agent's file: ``configs/agents``)."""
+    ids = env_ids(config)
+    if len(ids) != 1:
+        raise ConfigError(f"{config}: has entries for {ids}; name one with --env-id")
+    return ids[0]
+
 
 ALGO_NAMES = ALGOS
 
@@ -30,7 +39,11 @@ def train_main(argv: Sequence[str] | None = None, algo: str | None = None) -> in
             default=None,
             help="algorithm (default ppo; resume: the run dir's)",
         )
-    ap.add_argument("--env-id", help="e.g. rover_env/ProtoExplorer-v0 (resume: from the run dir)")
+    ap.add_argument(
+        "--env-id",
+        help="e.g. rover_env/ProtoExplorer-v0 (default: the config file's only entry; resume: "
+        "from the run dir)",
+    )
     ap.add_argument(
         "--config",
         default=None,
@@ -38,7 +51,7 @@ def train_main(argv: Sequence[str] | None = None, algo: str | None = None) -> in
         "(default: the shipped file named for the algorithm, e.g. configs/sac.yaml)",
     )
     ap.add_argument("--seed", type=int, help="run seed (resume: from the run dir)")
-    ap.add_argument("--out", help="run directory")
+    ap.add_argument("--out", help="run directory (default runs/<config name>_s<seed>)")
     ap.add_argument(
         "--resume",
         nargs="?",
@@ -66,13 +79,19 @@ def train_main(argv: Sequence[str] | None = None, algo: str | None = None) -> in
         if out is not None and Path(out) != Path(args.resume):
             ap.error(f"--resume {args.resume} and --out {out} name different runs")
         out = args.resume
+    resume = args.resume is not False
+    chosen = algo or args.algo
+    if not resume:
+        if args.seed is None:
+            ap.error("a new run needs --seed")
+        try:
+            args.env_id = args.env_id or only_env_id(args.config or chosen or "ppo")
+        except ConfigError as exc:
+            ap.error(str(exc))
+        if out is None and args.config is not None:
+            out = str(Path("runs") / f"{Path(args.config).stem}_s{args.seed}")
     if out is None:
         ap.error("--out is required (or --resume DIR)")
-    resume = args.resume is not False
-    if not resume and (args.env_id is None or args.seed is None):
-        ap.error("a new run needs --env-id and --seed")
-
-    chosen = algo or args.algo
     from rover_env.training.run import train
 
     try:
