@@ -55,3 +55,17 @@ def test_the_task_ends_the_episode_on_a_flip_or_leaving_the_arena() -> None:
     assert not task.terminated(_result())
     assert task.terminated(_result(flipped=True))
     assert task.terminated(_result(out_of_arena=True))
+
+
+def test_speed_tracking_pays_the_pace_alone_so_standing_still_earns_no_pace() -> None:
+    """``speed_tracking`` adds the speed term on its own: a stopped rover on a straight
+    command (e_v = the command, e_w = 0) earns the yaw term only, a rover at the pace both."""
+    w = RewardWeights(tracking=0.0, speed_tracking=2.0, yaw_tracking=1.0, slip=0.0, energy=0.0)
+    stopped = reward_terms(w, _result(tracking_error_speed=0.15, tracking_error_yaw_rate=0.0))
+    at_pace = reward_terms(w, _result(tracking_error_speed=0.0, tracking_error_yaw_rate=0.0))
+    assert stopped[1]["reward_tracking"] == 1.0 + 2.0 * math.exp(-9.0)
+    assert at_pace[1]["reward_tracking"] == 3.0
+    plain = RewardWeights(slip=0.0, energy=0.0)  # tracking 1: half of it for the yaw rate
+    assert reward_terms(plain, _result(tracking_error_speed=0.15, tracking_error_yaw_rate=0.0))[
+        0
+    ] == 0.5 + 0.5 * math.exp(-9.0)
