@@ -1,10 +1,12 @@
 """The training (mobility) reward a controller earns after T seconds, with its targets as they
 are, halved and stopped: what stopping in a stall pays (issue 18, stop 36).
 
-python benchmarks/stall_reward.py ppo:agents/mobility-ppo-rr-ft-patch 1052 7
+python benchmarks/stall_reward.py slip-pi:slip_pi_soil 1052 7
 
 Soft-patch, one tuning or validation seed; the reward weights of a training config
-(``--config``, default configs/agents_mobility/ppo_rr_wide_e04.yaml: energy 0.04 per W).
+(``--config``, default configs/agents/soil-families-ppo.yaml, the loose-soil agent's recipe;
+the mobility reward of stop 36 was configs/agents_mobility/ppo_rr_wide_e04.yaml, in git
+history).
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from rover_env.policies.specs import make_controller
 from rover_env.seeds import split_of
 from rover_env.tasks.scenarios import load_scenario
 
-CONFIG = Path(__file__).resolve().parent.parent / "configs/agents_mobility/ppo_rr_wide_e04.yaml"
+CONFIG = Path(__file__).resolve().parent.parent / "configs/agents/soil-families-ppo.yaml"
 
 
 def reward_weights(config: Path) -> dict[str, Any]:

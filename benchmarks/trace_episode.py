@@ -1,6 +1,6 @@
 """Print one benchmark episode second by second: position, wheel speed targets, slip, sinkage.
 
-python benchmarks/trace_episode.py ppo:agents/mobility-ppo-rr-ft-patch 1052 --scenario soft-patch
+python benchmarks/trace_episode.py slip-pi:slip_pi_soil 1052 --scenario soft-patch   # or ppo:RUN_DIR --spread
 
 Used to see what a controller does where it stalls (docs/benchmark-agents-mobility, stop 27).
 ``--spread`` adds a PPO or SAC policy's action mean and standard deviation (is it held at the

@@ -9,7 +9,7 @@ range of over-speed gains and for the set-point slip PI at a range of ``max_corr
 below the curve is a better allocation, on it is another gain.
 
     python benchmarks/turn_frontier.py --seeds 10 --workers 2 --out docs/benchmark-agents-mobility/frontier
-    python benchmarks/turn_frontier.py --extra ppo:agents/mobility-ppo ...  # an agent's point
+    python benchmarks/turn_frontier.py --extra ppo:agents/NAME ...  # an agent's point
 """
 
 from __future__ import annotations

@@ -233,15 +233,27 @@ def test_ablation_grid_ranks_fixed_settings_on_validation(tmp_path: Path) -> Non
 
 def test_every_shipped_agent_with_a_test_run_is_the_one_tested() -> None:
     """An agent's files under agents/ are those its ledger row hashed: a re-save, a retrain or a
-    swapped normaliser after the one test run would make the shipped figures someone else's."""
+    swapped normaliser after the one test run would make the shipped figures someone else's.
+    An agent that left agents/ keeps its rows (history) and is listed, with the commit holding
+    its files, in docs/benchmark/removed_agents.yaml; one that is gone unlisted is an error."""
+    from rover_env.config import load_yaml
+
     repo = Path(__file__).resolve().parents[1]
     rows = read_ledger(repo / "docs" / "benchmark" / "test_ledger.csv")
     tested = {r["agent"]: r["agent_hash"] for r in rows if r["agent"].startswith("ppo:agents/")}
-    assert "ppo:agents/mobility-ppo-sp15" in tested  # the shipped mobility agent (stop 43)
+    removed = load_yaml(repo / "docs" / "benchmark" / "removed_agents.yaml")
+    assert "ppo:agents/axle-schedule" in tested  # the shipped hard-ground agent (issue 17)
+    assert "ppo:agents/mobility-ppo-sp15" in tested and "ppo:agents/mobility-ppo-sp15" in removed
     for spec, digest in tested.items():
         folder = repo / spec.removeprefix("ppo:")  # the ledger names it from the repository root
-        if folder.is_dir():
+        if spec in removed:
+            assert not folder.exists(), f"{spec} is listed as removed but is in agents/"
+        else:
+            assert folder.is_dir(), f"{spec}: not in agents/ and not in removed_agents.yaml"
             assert agent_hash(f"ppo:{folder}") == digest, spec
+    for spec, entry in removed.items():
+        assert not (repo / spec.removeprefix("ppo:")).exists(), spec
+        assert len(entry["commit"]) == 40 and (repo / entry["docs"]).is_file(), spec
 
 
 def test_shipped_questions_load_and_old_looks_are_on_the_spent_block() -> None:

@@ -70,14 +70,21 @@ def test_shipped_config_has_both_env_ids() -> None:
     assert load_config("ppo", ENV) == load_config(REPO / "configs" / "ppo.yaml", ENV)
 
 
-@pytest.mark.parametrize("name", ["ppo.yaml", "ppo_gsde.yaml"])
+@pytest.mark.parametrize("name", ["ppo.yaml", "gsde.yaml"])
 def test_resolved_config_round_trips(tmp_path: Path, name: str) -> None:
     env = ENV if name == "ppo.yaml" else "rover_env/ProtoExplorerScenarioMix-v0"
-    cfg = load_config(REPO / "configs" / name, env)
+    src = REPO / "configs" / name
+    if name == "gsde.yaml":  # a gSDE variant: its schedules and SDE settings resolve too
+        src = tmp_path / name
+        src.write_text(
+            f"base: {REPO / 'configs' / 'ppo.yaml'}\n{env}:\n"
+            "  use_sde: true\n  sde_sample_freq: 4\n  policy_kwargs: {log_std_init: -3.0}\n"
+        )
+    cfg = load_config(src, env)
     path = tmp_path / "resolved.yaml"
     path.write_text(yaml.safe_dump({env: cfg.to_dict()}))
     assert load_config(path, env) == cfg
-    assert cfg["use_sde"] == (name == "ppo_gsde.yaml")
+    assert cfg["use_sde"] == (name == "gsde.yaml")
 
 
 @pytest.mark.parametrize(

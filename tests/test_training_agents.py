@@ -4,7 +4,6 @@ benchmark, a 2-trial search that resumes (CPU, tiny step counts, seconds each)."
 from __future__ import annotations
 
 import csv
-import dataclasses
 import math
 import os
 import pickle
@@ -35,7 +34,7 @@ from rover_env.training import load_algo_config, train
 from rover_env.training.callbacks import latest_checkpoint, replay_buffer_path
 from rover_env.training.config import parse_algo_config
 from rover_env.training.evaluate import agent_spec
-from rover_env.training.search import apply_params, load_space, search
+from rover_env.training.search import apply_params, search
 
 ENV = "rover_env/ProtoExplorer-v0"
 MIX = "rover_env/ProtoExplorerScenarioMix-v0"
@@ -82,6 +81,47 @@ def _rows(path: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(fh))
 
 
+@pytest.fixture(scope="module")
+def residual_agent(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A PPO wheel residual (0.5 of the range on the soft-started open loop x 2.2) trained here
+    for 256 steps, its output layer then scaled x 200: a few hundred steps leave the mean near
+    0 (SB3 starts ``action_net`` at gain 0.01), and widening and ``spread`` must be seen where
+    the mean lies beyond the action bounds too, as a trained agent's does on a stall."""
+    from stable_baselines3 import PPO
+
+    tmp = tmp_path_factory.mktemp("residual_agent")
+    entry = {
+        **PPO_SMALL,
+        "n_steps": 64,
+        "batch_size": 64,
+        "policy_kwargs": {"net_arch": [16, 16]},
+        "max_episode_steps": 30,
+        "eval_freq": 10_000,
+        "checkpoint_freq": 10_000,
+        "env_kwargs": {
+            "scenarios": {"soft-patch": 1.0},
+            "action_residual": 0.5,
+            "residual_base": "open-loop@gain=2.2@ramp=2",
+            "residual_ramp": 2.0,
+        },
+    }
+    cfg = tmp / "ppo.yaml"
+    cfg.write_text(yaml.safe_dump({MIX: entry}))
+    run = tmp / "run"
+    train(MIX, cfg, 0, run, progress=False)
+    agent = tmp / "agent"
+    agent.mkdir()
+    for name in ("config.yaml", "command.txt", "vecnormalize.pkl"):
+        shutil.copy2(run / name, agent / name)
+    model = PPO.load(str(run / "model.zip"), device="cpu")
+    sd = model.policy.state_dict()
+    sd["action_net.weight"] = sd["action_net.weight"] * 200.0
+    sd["action_net.bias"] = sd["action_net.bias"] * 200.0
+    model.policy.load_state_dict(sd)
+    model.save(str(agent / "model.zip"))
+    return agent
+
+
 # --------------------------------------------------------------------------- configuration
 
 
@@ -112,66 +152,20 @@ def test_soil_agent_configs() -> None:
         assert kw["residual_base"] == "open-loop" and kw["action_residual"] > 0
 
 
-def test_mobility_agent_configs() -> None:
-    """configs/agents_mobility/{algo}.yaml: one ground, action and reward for the three
-    algorithms; the reward is the mobility one (no pace tracking, progress paid) and the
-    base the open loop x 2.2, a classical controller (no slip PI in the policy's loop)."""
-    kws = [load_algo_config(a, "agents_mobility", MIX).env_kwargs for a in ("ppo", "sac", "td3")]
-    for kw in kws:
-        assert kw == kws[0]
-        assert {"sand-slope", "soft-patch", "sand-turns", "flat-turns"} <= set(kw["scenarios"])
-        assert kw["residual_base"] == "open-loop@gain=2.2" and kw["action_residual"] > 0
-        w = kw["reward_weights"]
-        assert w["tracking"] == 0 and w["progress"] > 0 and w["yaw_tracking"] > 0
-    # The PPO variants (yaw weight, soft-start base, its fine-tune) change what their header
-    # says and keep the ground, the residual's size and an open-loop base (no PI in the loop).
-    for name in ("ppo_yaw04", "ppo_soft", "ppo_soft_ft", "ppo_rr_ft", "ppo_rr_ft_patch"):
-        path = REPO / "configs" / "agents_mobility" / f"{name}.yaml"
-        kw = load_algo_config("ppo", path, MIX).env_kwargs
-        assert set(kw["scenarios"]) == set(kws[0]["scenarios"]), name  # weights may differ
-        assert kw["action_residual"] == kws[0]["action_residual"], name
-        assert kw["residual_base"].startswith("open-loop@gain=2.2"), name
-        assert kw["reward_weights"]["tracking"] == 0, name
-        # The stop-26 fine-tunes give the residual the base's own soft start.
-        assert kw.get("residual_ramp", 0.0) == (2.0 if name.startswith("ppo_rr") else 0.0), name
-    # SAC and TD3 on the stop-26 ground: the fine-tune's env_kwargs exactly.
-    rr = load_algo_config("ppo", REPO / "configs" / "agents_mobility" / "ppo_rr_ft.yaml", MIX)
-    for algo in ("sac", "td3"):
-        path = REPO / "configs" / "agents_mobility" / f"{algo}_rr.yaml"
-        assert load_algo_config(algo, path, MIX).env_kwargs == rr.env_kwargs, algo
-    # Stop 27: the patch fine-tune plus the stall-energy charge (and, in one, gamma 0.99).
-    patch = load_algo_config(
-        "ppo", REPO / "configs" / "agents_mobility" / "ppo_rr_ft_patch.yaml", MIX
-    )
-    for name, gamma in (("ppo_rr_stall", 0.97), ("ppo_rr_stall_g99", 0.99)):
-        c = load_algo_config("ppo", REPO / "configs" / "agents_mobility" / f"{name}.yaml", MIX)
-        w = dict(c.env_kwargs["reward_weights"])
-        assert w.pop("stall_energy") == 0.05, name
-        assert {**c.env_kwargs, "reward_weights": w} == patch.env_kwargs, name
-        assert (
-            c["gamma"] == gamma
-            and dataclasses.replace(
-                c,
-                hyperparams={**c.hyperparams, "gamma": patch["gamma"]},
-                env_kwargs=patch.env_kwargs,
-            )
-            == patch
-        ), name
-    # ... and on the widened agent: the residual 1.0 of the range, the stall charge 0.05 or 0.15.
-    stall = load_algo_config("ppo", REPO / "configs" / "agents_mobility" / "ppo_rr_stall.yaml", MIX)
-    for name, w_stall in (("ppo_rr_wide_stall", 0.05), ("ppo_rr_wide_stall15", 0.15)):
-        c = load_algo_config("ppo", REPO / "configs" / "agents_mobility" / f"{name}.yaml", MIX)
-        kw = dict(c.env_kwargs)
-        assert kw.pop("action_residual") == 1.0, name
-        w = dict(kw.pop("reward_weights"))
-        assert w.pop("stall_energy") == w_stall, name
-        ref = dict(stall.env_kwargs)
-        ref.pop("action_residual")
-        w_ref = dict(ref.pop("reward_weights"))
-        w_ref.pop("stall_energy")
-        assert kw == ref and w == w_ref, name
-    space = load_space(REPO / "configs" / "agents_mobility" / "search_ft_space.yaml")
-    assert not any(k.startswith("policy_kwargs") for k in space)  # a fine-tune keeps the net
+def test_agent_config_rebuilds_the_shipped_axle_schedule_agent() -> None:
+    """configs/agents/axle-schedule.yaml is self-contained (no ``base:``), has one env id
+    (so ``train/ppo.py --config FILE --seed 0`` needs nothing else) and resolves to exactly
+    the hyperparameters the shipped agent was trained with (its run's resolved config.yaml)."""
+    from rover_env.config import read_yaml
+    from rover_env.training.cli import only_env_id
+
+    path = REPO / "configs" / "agents" / "axle-schedule.yaml"
+    assert "base" not in read_yaml(path)
+    assert only_env_id(str(path)) == MIX
+    shipped = REPO / "agents" / "axle-schedule" / "config.yaml"
+    assert load_algo_config("ppo", path, MIX) == load_algo_config("ppo", shipped, MIX)
+    (cmd,) = yaml.safe_load((REPO / "agents" / "axle-schedule" / "command.txt").read_text())
+    assert (cmd["seed"], cmd["total_timesteps"]) == (0, 200_000)
 
 
 @pytest.mark.parametrize(
@@ -403,14 +397,16 @@ def test_search_retries_a_trial_a_killed_search_left_running(tmp_path: Path) -> 
     assert res.best_number == 1 and res.n_complete == 1
 
 
-def test_widen_residual_keeps_the_agents_actions_and_noise(tmp_path: Path) -> None:
+def test_widen_residual_keeps_the_agents_actions_and_noise(
+    tmp_path: Path, residual_agent: Path
+) -> None:
     """The widened copy acts as the agent wherever the agent's mean was inside its bounds,
     with the same exploration noise in rad/s; beyond them it reaches further."""
     from stable_baselines3 import PPO
 
     from rover_env.training.widen import widen_residual
 
-    src = REPO / "agents" / "mobility-ppo-rr-ft-patch"
+    src = residual_agent
     out = widen_residual(src, 1.0, tmp_path / "wide")
     old = PPO.load(str(src / "model.zip"), device="cpu")
     new = PPO.load(str(out / "model.zip"), device="cpu")
@@ -444,11 +440,12 @@ def test_widen_residual_keeps_the_agents_actions_and_noise(tmp_path: Path) -> No
         widen_residual(src, 3.0, tmp_path / "w3")
 
 
-def test_spread_is_the_mean_the_deterministic_action_clips() -> None:
+def test_spread_is_the_mean_the_deterministic_action_clips(residual_agent: Path) -> None:
     """``spread`` reads the policy's own mean and noise: where the mean is inside [-1, 1] it is
     the deterministic action; beyond, the action is the bound (what a saturated policy does)."""
-    ctrl = make_controller(f"ppo:{REPO / 'agents' / 'mobility-ppo-rr-ft-patch'}")
-    obs = np.random.default_rng(1).normal(size=(64, 46)).astype(np.float32) * 20.0
+    ctrl = make_controller(f"ppo:{residual_agent}")
+    n_obs = ctrl.model.observation_space.shape[0]
+    obs = np.random.default_rng(1).normal(size=(64, n_obs)).astype(np.float32) * 20.0
     n_in = n_out = 0
     for o in obs:
         stats = ctrl.spread(o)
@@ -487,35 +484,33 @@ def test_stall_clock_counts_slow_seconds_resets_and_caps() -> None:
 
 
 def test_an_agent_given_the_stall_clock_acts_as_before_and_the_mix_env_feeds_it(
-    tmp_path: Path,
+    tmp_path: Path, residual_agent: Path
 ) -> None:
-    """The copy with the clock as a zero-weight 47th input drives the benchmark exactly as the
-    agent, through a stall where the clock runs; the training env appends the same clock the
-    controller computes."""
+    """The copy with the clock as a zero-weight extra input drives the benchmark exactly as the
+    agent while the clock runs; the training env appends the same clock the controller
+    computes."""
     from rover_env.benchmark.mixture import ScenarioMixEnv
     from rover_env.policies.memory import StallClock
     from rover_env.training.widen import add_stall_clock
 
-    src = REPO / "agents" / "mobility-ppo-rr-ft-patch"
-    out = add_stall_clock(src, tmp_path / "clock")
+    src = residual_agent
+    # "slow" below 0.5 m/s, above the rover's pace: the clock runs from the start, so the
+    # copy is seen acting as the agent with a nonzero input it must ignore
+    out = add_stall_clock(src, tmp_path / "clock", {"speed": 0.5, "cap": 5.0})
     with pytest.raises(ConfigError, match="already set"):
         add_stall_clock(out, tmp_path / "again")
     a, b = make_controller(f"ppo:{src}"), make_controller(f"ppo:{out}")
     assert b.clock is not None and a.clock is None  # type: ignore[attr-defined]
-    # soft-patch with 20 cm ripples (the shipped 15 cm ones rarely stop this agent): seed
-    # 1052 stalls at the first face, and the clock runs
-    wall = yaml.safe_load((REPO / "configs/scenarios/soft-patch.yaml").read_text())
-    wall["name"] = "soft-patch-20cm"
-    wall["terrain"]["bumps"][0]["amplitude"] = 0.20
-    (tmp_path / "wall.yaml").write_text(yaml.safe_dump(wall))
-    episode = load_scenario(tmp_path / "wall.yaml").episode(1052)
+    n_obs = a.model.observation_space.shape[0]  # type: ignore[attr-defined]
+    assert b.model.observation_space.shape == (n_obs + 1,)  # type: ignore[attr-defined]
+    episode = load_scenario("soft-patch").episode(1052)
     wrapper = ScenarioWrapper(ProtoExplorerEnv(terrain=episode.terrain))
     wrapper.set_episode(episode)
     obs, _ = wrapper.reset()
     a.reset(wrapper.base)
     b.reset(wrapper.base)
     clock_seen = []
-    for _ in range(80):
+    for _ in range(30):
         act_a, act_b = a.action(wrapper.base, obs), b.action(wrapper.base, obs)
         np.testing.assert_allclose(act_b, act_a, rtol=0, atol=1e-6)
         clock_seen.append(b.clock.t)  # type: ignore[attr-defined]

@@ -1,8 +1,8 @@
 """Copy a residual PPO agent with a wider residual and/or the stall clock as a new input, acting
 the same (rover_env.training.widen).
 
-python train/widen.py agents/mobility-ppo-rr-ft-patch --scale 1.0 --out agents/mobility-ppo-rr-wide
-python train/widen.py agents/mobility-ppo-rr-ft-patch --scale 1.0 --stall-clock --out runs/x
+python train/widen.py runs/soil_ppo_s0 --scale 1.0 --out runs/soil_ppo_wide
+python train/widen.py runs/soil_ppo_s0 --scale 1.0 --stall-clock --out runs/soil_ppo_clock
 """
 
 import argparse
