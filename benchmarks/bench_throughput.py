@@ -143,7 +143,9 @@ def envs_section(out: Callable[[str], None], n: int, rounds: int, nthread: int) 
     b = {k: best(v) for k, v in rows.items()}
     out("## Envs on CPU (env steps/s; raw MuJoCo: 100 substeps of the same model, no tire layer)")
     out("")
-    out("| | env steps/s | per CPU-s | raw MuJoCo steps/s | raw per CPU-s | / raw (median of rounds) |")
+    out(
+        "| | env steps/s | per CPU-s | raw MuJoCo steps/s | raw per CPU-s | / raw (median of rounds) |"
+    )
     out("|---|---:|---:|---:|---:|---:|")
     out(
         f"| single env (fast path) | {b['env'].wall:,.0f} | {b['env'].cpu:,.0f} | "

@@ -77,7 +77,9 @@ def test_profile_attributes_the_run_to_its_stages(algo: str) -> None:
     assert lines[0].startswith("| ms per env step") and any("physics" in x for x in lines)
 
 
-@pytest.mark.parametrize("env_id", ["rover_env/ProtoExplorer-v0", "rover_env/ProtoExplorerRough-v0"])
+@pytest.mark.parametrize(
+    "env_id", ["rover_env/ProtoExplorer-v0", "rover_env/ProtoExplorerRough-v0"]
+)
 def test_shipped_ppo_collects_on_the_batched_env_with_the_old_update_grid(env_id: str) -> None:
     """The batched recipe keeps the 1024 env steps per update of 2 envs x 512 steps (so the
     updates per env step, and with them the learning curve per step, stay the same)."""

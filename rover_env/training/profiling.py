@@ -270,3 +270,46 @@ def table(profiles: list[Profile]) -> list[str]:
         + " |"
     )
     return lines
+
+
+def profile_main(argv: list[str] | None = None) -> int:
+    """``train/profile_training.py``: where an env step's wall time goes in a config's run."""
+    import argparse
+
+    from rover_env.config import ConfigError
+    from rover_env.training.config import ALGOS, load_algo_config
+
+    ap = argparse.ArgumentParser(
+        prog="train/profile_training.py",
+        description="Train for --steps env steps (no run dir) and print ms per env step of "
+        "each stage: physics, env core, env Python, adapter, VecNormalize, policy inference, "
+        "buffer, gradient update.",
+    )
+    ap.add_argument("--algo", choices=ALGOS, default="ppo")
+    ap.add_argument("--env-id", default="rover_env/ProtoExplorer-v0")
+    ap.add_argument(
+        "--config", default=None, help="hyperparameter file (default: configs/ALGO.yaml)"
+    )
+    ap.add_argument("--steps", type=int, default=8192, help="timed env steps")
+    ap.add_argument(
+        "--warmup",
+        type=int,
+        default=None,
+        help="untimed env steps first (default: SAC/TD3's learning_starts, PPO none)",
+    )
+    ap.add_argument("--torch-threads", type=int, default=1)
+    args = ap.parse_args(argv)
+    try:
+        cfg = load_algo_config(args.algo, args.config or args.algo, args.env_id)
+    except ConfigError as exc:
+        print(f"error: {exc}")
+        return 2
+    warmup = args.warmup
+    if warmup is None:
+        warmup = int(cfg["learning_starts"]) + cfg.n_envs if cfg.off_policy else 0
+    label = f"{args.algo} {cfg.vec_env} {cfg.n_envs}"
+    p = profile_training(
+        args.env_id, cfg, args.steps, label, warmup=warmup, torch_threads=args.torch_threads
+    )
+    print("\n".join(table([p])))
+    return 0

@@ -110,7 +110,7 @@ class GymnasiumVecEnv(VecEnv):
     def _step(self, actions: np.ndarray) -> tuple[Any, ...]:
         """The vector env's step; infos one dict per sub-env, the step's own (not shared)."""
         if self.info_rows:
-            return self.venv.step_rows(actions)  # type: ignore[attr-defined,no-any-return]
+            return self.venv.step_rows(actions)  # type: ignore[attr-defined]
         obs, rewards, terminated, truncated, infos = self.venv.step(actions)
         return obs, rewards, terminated, truncated, deepcopy(split_infos(infos, self.num_envs))
 
