@@ -13,7 +13,8 @@ Prints markdown, all measured in this process:
    ``mujoco.batch`` with the same rovers and threads, no tire layer;
 3. training on CPU: PPO with the shipped recipe before issue 49 (2 subprocess envs x 512
    steps), the batched env through Gymnasium's info columns (the adapter's general path), and
-   the shipped configs/ppo.yaml (32 batched rovers x 32 steps); SAC and TD3 as shipped and on
+   the shipped configs/ppo.yaml (32 batched rovers x 32 steps), then before and shipped again
+   in turn (the ratio is the median over rounds); SAC and TD3 as shipped and on
    the batched env (past ``learning_starts``); each profiled stage by stage
    (:mod:`rover_env.training.profiling`) and beside raw ``mujoco.batch`` measured right before
    and after it (the mean of the two);
@@ -161,7 +162,7 @@ def envs_section(out: Callable[[str], None], n: int, rounds: int, nthread: int) 
 
 
 def training_section(
-    out: Callable[[str], None], rawn: RawBatch, steps: int, off_steps: int, n: int
+    out: Callable[[str], None], rawn: RawBatch, steps: int, off_steps: int, n: int, rounds: int
 ) -> None:
     from rover_env.training.config import load_algo_config
     from rover_env.training.profiling import profile_training, table
@@ -185,9 +186,23 @@ def training_section(
         runs.append((f"{algo.upper()} 2 subproc (shipped)", cfg, kw))
         runs.append((f"{algo.upper()} batch 2", dataclasses.replace(cfg, vec_env="batch"), kw))
     profiles, raws = [], []
-    for label, cfg, kw in runs:
+    ppo_rounds: list[tuple[Any, Any]] = []
+    for k in range(rounds):  # PPO before and shipped in turn: ratios per round
+        pair = []
+        for label, cfg, kw in runs[:3] if k == 0 else [runs[0], runs[2]]:
+            r0 = rawn(max(2, 640 // n))
+            p = profile_training(ID, cfg, steps, label, **kw)
+            r1 = rawn(max(2, 640 // n))
+            if k == 0:
+                profiles.append(p)
+                raws.append(0.5 * (r0.wall + r1.wall))
+            if label != runs[1][0]:
+                pair.append(p)
+            print(f"  round {k}: {label}: {p.steps_per_s:,.1f} env steps/s", flush=True)
+        ppo_rounds.append((pair[0], pair[1]))
+    for label, cfg, kw in runs[3:]:
         r0 = rawn(max(2, 640 // n))
-        p = profile_training(ID, cfg, off_steps if cfg.off_policy else steps, label, **kw)
+        p = profile_training(ID, cfg, off_steps, label, **kw)
         r1 = rawn(max(2, 640 // n))
         profiles.append(p)
         raws.append(0.5 * (r0.wall + r1.wall))
@@ -195,9 +210,10 @@ def training_section(
     out("## Training on CPU: where each millisecond of an env step goes")
     out("")
     out(
-        f"PPO {steps:,} env steps, SAC/TD3 {off_steps:,} (after their learning_starts, "
-        f"untimed), one seed, torch threads 1, mujoco.batch on all CPUs; timers exclusive "
-        f"(rover_env.training.profiling)."
+        f"PPO {steps:,} env steps (first of {rounds} interleaved rounds), SAC/TD3 "
+        f"{off_steps:,} (after their learning_starts, untimed), one seed, torch threads 1, "
+        f"mujoco.batch on all CPUs; timers exclusive (rover_env.training.profiling). CPU-s: "
+        f"this process and its env worker processes."
     )
     out("")
     for line in table(profiles):
@@ -207,11 +223,15 @@ def training_section(
     cells = " | ".join(f"{p.steps_per_s / r:.3f}" for p, r in zip(profiles, raws, strict=True))
     out(f"| / raw | {cells} |")
     out("")
-    ppo0, ppo1 = profiles[0], profiles[2]
+    wall = [b.steps_per_s / a.steps_per_s for a, b in ppo_rounds]
+    cpu = [b.steps_per_cpu_s / a.steps_per_cpu_s for a, b in ppo_rounds]
+    ppo1 = ppo_rounds[-1][1]
     out(
-        f"PPO shipped / before, same run: {ppo1.steps_per_s / ppo0.steps_per_s:.2f} x env "
-        f"steps/s; per CPU-second of the process {ppo1.steps_per_cpu_s:,.0f} "
-        f"(2 idle cores: at most ~{2 * ppo1.steps_per_cpu_s:,.0f})."
+        f"PPO shipped / before, {rounds} interleaved rounds: {float(np.median(wall)):.2f} x env "
+        f"steps/s (rounds {', '.join(f'{x:.2f}' for x in wall)}), "
+        f"{float(np.median(cpu)):.2f} x env steps per CPU-second (process + env workers; "
+        f"rounds {', '.join(f'{x:.2f}' for x in cpu)}). Shipped, last round: "
+        f"{ppo1.steps_per_s:,.0f} env steps/s, {ppo1.steps_per_cpu_s:,.0f} per CPU-second."
     )
     out("")
 
@@ -270,7 +290,9 @@ def main() -> None:
     rawn = envs_section(out, args.n, 3 if args.quick else 8, 0)
     if not args.skip_training:
         steps = args.steps or (2048 if args.quick else 8192)
-        training_section(out, rawn, steps, 256 if args.quick else 1024, args.n)
+        training_section(
+            out, rawn, steps, 256 if args.quick else 1024, args.n, 2 if args.quick else 3
+        )
     if not args.skip_gpu:
         gpu_section(out)
     out(

@@ -35,6 +35,7 @@ import functools
 import os
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import torch
@@ -109,7 +110,7 @@ class Profile:
     steps: int
     wall_s: float
     cpu_s: float
-    """CPU seconds of this process (all its threads; subprocess workers not included)."""
+    """CPU seconds of this process (all its threads) and of its env worker processes."""
     seconds: dict[str, float]
     load_before: float
     load_after: float
@@ -124,6 +125,22 @@ class Profile:
 
     def ms_per_step(self, stage: str) -> float:
         return 1e3 * self.seconds[stage] / self.steps
+
+
+def _worker_cpu(venv: VecEnv) -> float:
+    """CPU seconds so far of ``SubprocVecEnv`` worker processes in the chain (Linux
+    ``/proc``; 0 elsewhere or without workers)."""
+    layer: Any = venv
+    while isinstance(layer, VecEnvWrapper):
+        layer = layer.venv
+    total = 0.0
+    for proc in getattr(layer, "processes", []) if isinstance(layer, SubprocVecEnv) else []:
+        try:
+            fields = Path(f"/proc/{proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            return 0.0
+        total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    return total
 
 
 def _patch(obj: Any, name: str, timers: Timers, stage: str) -> None:
@@ -226,10 +243,11 @@ def profile_training(
         first = model.num_timesteps
         with _class_timers(timers):
             load0 = os.getloadavg()[0]
-            t0, c0 = time.perf_counter(), time.process_time()
+            t0, c0, w0 = time.perf_counter(), time.process_time(), _worker_cpu(venv)
             learn = timers.wrap("other", model.learn)
             learn(total_timesteps=steps, reset_num_timesteps=False)
-            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            wall = time.perf_counter() - t0
+            cpu = time.process_time() - c0 + _worker_cpu(venv) - w0
         done = model.num_timesteps - first
     finally:
         venv.close()
@@ -260,7 +278,7 @@ def table(profiles: list[Profile]) -> list[str]:
         "| env steps / s | " + " | ".join(f"{p.steps_per_s:,.0f}" for p in profiles) + " |"
     )
     lines.append(
-        "| env steps / CPU-s of the process | "
+        "| env steps / CPU-s (process + env workers) | "
         + " | ".join(f"{p.steps_per_cpu_s:,.0f}" for p in profiles)
         + " |"
     )
