@@ -88,3 +88,17 @@ def test_shipped_ppo_collects_on_the_batched_env_with_the_old_update_grid(env_id
     assert cfg.rollout_size == 1024 and cfg["n_epochs"] == 10
     mix = load_algo_config("ppo", "ppo", "rover_env/ProtoExplorerScenarioMix-v0")
     assert mix.vec_env == "subproc"  # no batched env for the scenario mix
+
+
+@needs_cc
+def test_profile_command_line(tmp_path: Any, capsys: pytest.CaptureFixture[str]) -> None:
+    import yaml
+
+    cfg = tmp_path / "ppo_tiny.yaml"
+    entry = {"n_envs": 2, "vec_env": "batch", "n_steps": 8, "batch_size": 8, "n_epochs": 1}
+    cfg.write_text(yaml.safe_dump({ENV: {**entry, "max_episode_steps": 6}}))
+    assert profiling.profile_main(["--config", str(cfg), "--steps", "16"]) == 0
+    printed = capsys.readouterr().out
+    assert "| physics |" in printed and "| gradient update |" in printed
+    assert profiling.profile_main(["--config", str(tmp_path / "none.yaml")]) == 2
+    assert "not found" in capsys.readouterr().out
