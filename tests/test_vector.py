@@ -137,7 +137,19 @@ def test_batch_estimator_equals_streaming_estimator() -> None:
 
 
 # --------------------------------------------------------------------------- SB3 adapter
-def test_sb3_adapter_resets_in_the_same_step_like_dummy_vec_env() -> None:
+class _Columns(gym.vector.VectorWrapper):
+    """The vector env with Gymnasium's API only (no step_rows/reset_rows): the adapter's
+    general path, through info columns."""
+
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        return self.env.get_attr(name)  # type: ignore[no-any-return]
+
+    def set_attr(self, name: str, values: Any) -> None:
+        self.env.set_attr(name, values)
+
+
+@pytest.mark.parametrize("path", ["rows", "columns"])
+def test_sb3_adapter_resets_in_the_same_step_like_dummy_vec_env(path: str) -> None:
     pytest.importorskip("stable_baselines3")
     from stable_baselines3.common.vec_env import DummyVecEnv
 
@@ -148,7 +160,10 @@ def test_sb3_adapter_resets_in_the_same_step_like_dummy_vec_env() -> None:
     seeds = [[100 + i, 200 + i] for i in range(n)]
     kwargs: dict[str, Any] = {"terrain": TINY, "max_episode_steps": limit}
     venv = gym.make_vec(ID, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+    if path == "columns":
+        venv = _Columns(venv)
     adapted = GymnasiumVecEnv(venv, seeds)
+    assert hasattr(adapted.venv, "step_rows") == (path == "rows")
     reference = DummyVecEnv(
         [
             lambda i=i: SeedSchedule(gym.make(ID, backend="plugin", **kwargs), seeds[i])
@@ -205,6 +220,49 @@ def test_sb3_adapter_resets_in_the_same_step_like_dummy_vec_env() -> None:
     )
     adapted.close()
     reference.close()
+
+
+def _copied(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [{k: np.array(v) for k, v in r.items()} for r in rows]
+
+
+def test_rows_are_the_info_columns_split_and_stay_put() -> None:
+    """``step_rows``/``reset_rows`` give per rover what ``step``/``reset`` give as columns;
+    nothing in them is a view of a buffer a later step or reset rewrites (the adapter hands
+    them to SB3 without DummyVecEnv's deepcopy)."""
+    from rover_env.training.vec_adapter import split_infos
+
+    n = 3
+    kwargs: dict[str, Any] = {"terrain": TINY, "max_episode_steps": 3}
+    rows_env = ProtoExplorerVectorEnv(n, **kwargs)
+    cols_env = ProtoExplorerVectorEnv(n, **kwargs)
+    obs_r, rows = rows_env.reset_rows(seed=[1, 2, 3])
+    obs_c, cols = cols_env.reset(seed=[1, 2, 3])
+    np.testing.assert_array_equal(obs_r, obs_c)
+    assert not np.array_equal(rows[0]["position"], rows[2]["position"])
+    for i, split in enumerate(split_infos(cols, n)):
+        same(rows[i], split, f"reset rover {i}")
+    handed, copies = [rows], [_copied(rows)]
+    rng = np.random.default_rng(2)
+    for k in range(5):  # through a time limit: rows of autoreset rovers hold the reset's info
+        a = rng.uniform(-1, 1, (n, 4)).astype(np.float32)
+        *out_r, rows = rows_env.step_rows(a)
+        *out_c, cols = cols_env.step(a)
+        same(out_r, out_c, f"step {k}")
+        for i, split in enumerate(split_infos(cols, n)):
+            same(rows[i], split, f"step {k} rover {i}")
+        handed.append(rows)
+        copies.append(_copied(rows))
+    rows_env.reset_rows(seed=[4, 5, 6])
+    # What was handed out earlier is unchanged by later steps and resets (no shared buffers).
+    for k, (got, copy) in enumerate(zip(handed, copies, strict=True)):
+        for i in range(n):
+            same({key: np.asarray(v) for key, v in got[i].items()}, copy[i], f"{k} rover {i}")
+    mask = np.array([False, True, False])
+    _, rows = rows_env.reset_rows(options={"reset_mask": mask})
+    assert rows[0] == {} and rows[2] == {} and "position" in rows[1]
+    rows_env.close()
+    cols_env.close()
 
 
 def test_obs_layout() -> None:

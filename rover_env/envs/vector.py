@@ -218,14 +218,10 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
             self.batch.set_models(self._models)
         return infos
 
-    def reset(
-        self,
-        *,
-        seed: int | list[int | None] | None = None,
-        options: dict[str, Any] | None = None,
-    ) -> tuple[Obs, dict[str, Any]]:
-        """Reset every rover (``SyncVectorEnv``'s seeding: ``seed + i``, or one seed each),
-        or those of ``options["reset_mask"]`` (a bool array)."""
+    def _reset_rovers(
+        self, seed: int | list[int | None] | None, options: dict[str, Any] | None
+    ) -> tuple[list[int], list[dict[str, Any]]]:
+        """The rovers :meth:`reset` resets, and their infos."""
         n = self.num_envs
         if seed is None:
             seeds: list[int | None] = [None] * n
@@ -256,12 +252,67 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         ids = np.flatnonzero(mask).tolist()
         infos = self._reset_many(ids, seeds, opts)
         self._ran_reset = True
+        return ids, infos
+
+    def reset(
+        self,
+        *,
+        seed: int | list[int | None] | None = None,
+        options: dict[str, Any] | None = None,
+    ) -> tuple[Obs, dict[str, Any]]:
+        """Reset every rover (``SyncVectorEnv``'s seeding: ``seed + i``, or one seed each),
+        or those of ``options["reset_mask"]`` (a bool array)."""
+        ids, infos = self._reset_rovers(seed, options)
         return self._observations.copy(), self._merge_infos(ids, infos)
+
+    def reset_rows(
+        self,
+        *,
+        seed: int | list[int | None] | None = None,
+        options: dict[str, Any] | None = None,
+    ) -> tuple[Obs, list[dict[str, Any]]]:
+        """:meth:`reset` with one info dict per rover (empty for rovers not reset) instead
+        of Gymnasium's columns: what an SB3 ``VecEnv`` hands on, without the round trip
+        through arrays (:class:`rover_env.training.vec_adapter.GymnasiumVecEnv`)."""
+        ids, infos = self._reset_rovers(seed, options)
+        return self._observations.copy(), self._rows(ids, infos)
+
+    def _rows(self, ids: list[int], infos: list[dict[str, Any]]) -> list[dict[str, Any]]:
+        """Per-rover info dicts (each a new dict of new values: no later step changes it)."""
+        out: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        for i, info in zip(ids, infos, strict=True):
+            out[i] = info
+        return out
 
     # ------------------------------------------------------------------ step
     def step(
         self, actions: NDArray[Any]
     ) -> tuple[Obs, NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
+        obs, rewards, terminations, truncations, ids, infos = self._step_all(actions)
+        return obs, rewards, terminations, truncations, self._merge_infos(ids, infos)
+
+    def step_rows(
+        self, actions: NDArray[Any]
+    ) -> tuple[
+        Obs, NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], list[dict[str, Any]]
+    ]:
+        """:meth:`step` with one info dict per rover instead of Gymnasium's columns (see
+        :meth:`reset_rows`); every rover has one (its step's, or its autoreset's)."""
+        obs, rewards, terminations, truncations, ids, infos = self._step_all(actions)
+        return obs, rewards, terminations, truncations, self._rows(ids, infos)
+
+    def _step_all(
+        self, actions: NDArray[Any]
+    ) -> tuple[
+        Obs,
+        NDArray[np.float64],
+        NDArray[np.bool_],
+        NDArray[np.bool_],
+        list[int],
+        list[dict[str, Any]],
+    ]:
+        """One step of every rover: observations, rewards, ends, and the infos of rovers
+        ``ids`` (ascending)."""
         if not self._ran_reset:
             raise RuntimeError("call reset() before step()")
         n = self.num_envs
@@ -285,8 +336,8 @@ class ProtoExplorerVectorEnv(VectorEnv[Obs, Obs, NDArray[Any]]):
         infos_by_env = dict(zip(done_before, reset_infos, strict=True))
         infos_by_env.update(step_infos)
         ids = sorted(infos_by_env)
-        infos = self._merge_infos(ids, [infos_by_env[i] for i in ids])
-        return self._observations.copy(), rewards, terminations, truncations, infos
+        infos = [infos_by_env[i] for i in ids]
+        return self._observations.copy(), rewards, terminations, truncations, ids, infos
 
     def _step_rovers(
         self,

@@ -96,7 +96,7 @@ def _start_from(model: BaseAlgorithm, vn: VecNormalize, path: str | Path, algo_c
         vn.obs_rms, vn.ret_rms = old.obs_rms, old.ret_rms
 
 
-def _normalized(venv: VecEnv, cfg: AlgoConfig, training: bool) -> VecNormalize:
+def normalized(venv: VecEnv, cfg: AlgoConfig, training: bool) -> VecNormalize:
     """Always wrapped (pass-through when disabled) so every run dir has ``vecnormalize.pkl``."""
     n = cfg.normalize
     return VecNormalize(
@@ -282,7 +282,7 @@ def _fresh(
 ) -> tuple[BaseAlgorithm, VecNormalize]:
     """A new model seeded with the run seed, or started from ``init_from``'s weights."""
     set_random_seed(plan.seed)
-    vn = _normalized(venv, plan.cfg, training=True)
+    vn = normalized(venv, plan.cfg, training=True)
     model = build_model(plan.cfg, vn)
     if init_from is not None:
         _start_from(model, vn, init_from, algo_class(plan.algo))
@@ -307,7 +307,7 @@ def _eval_venv(plan: _Plan) -> VecNormalize:
     """The validation envs (the seed plan's validation seeds), normalised but not updating."""
     cfg = plan.cfg
     eval_seeds = split_episodes(validation_seeds(), cfg.n_eval_episodes, cfg.n_eval_envs)
-    return _normalized(
+    return normalized(
         make_vec_env(
             plan.env_id, cfg, cfg.n_eval_envs, eval_seeds, None, "eval", split="validation"
         ),

@@ -78,6 +78,13 @@ class GymnasiumVecEnv(VecEnv):
         self._schedules = [[int(s) for s in ss] for ss in seeds] or [[] for _ in range(n)]
         self._next = [0] * n
         self._actions: np.ndarray | None = None
+        # A vector env with step_rows/reset_rows (ProtoExplorerVectorEnv) hands out one info
+        # dict per sub-env: no round trip through Gymnasium's info columns.
+        self.info_rows = callable(getattr(venv, "step_rows", None)) and callable(
+            getattr(venv, "reset_rows", None)
+        )
+        """Infos come per sub-env from ``step_rows``/``reset_rows`` (False: through
+        Gymnasium's info columns, split here and deep-copied as ``DummyVecEnv`` does)."""
 
     # ------------------------------------------------------------------ seeds
     def _planned(self, i: int, given: int | None) -> int | None:
@@ -91,51 +98,62 @@ class GymnasiumVecEnv(VecEnv):
 
     def _reset(
         self, seeds: list[int | None], options: dict[str, Any] | None
-    ) -> tuple[Any, dict[str, Any]]:
+    ) -> tuple[np.ndarray, list[dict[str, Any]]]:
+        """Reset through the vector env; infos one dict per sub-env."""
         # Gymnasium's vector envs take one seed per sub-env (VectorEnv.reset is typed int).
-        return self.venv.reset(seed=seeds, options=options)  # type: ignore[arg-type]
+        if self.info_rows:
+            obs, rows = self.venv.reset_rows(seed=seeds, options=options)  # type: ignore[attr-defined]
+            return np.asarray(obs), rows
+        obs, infos = self.venv.reset(seed=seeds, options=options)  # type: ignore[arg-type]
+        return np.asarray(obs), split_infos(infos, self.num_envs)
+
+    def _step(self, actions: np.ndarray) -> tuple[Any, ...]:
+        """The vector env's step; infos one dict per sub-env, the step's own (not shared)."""
+        if self.info_rows:
+            return self.venv.step_rows(actions)  # type: ignore[attr-defined]
+        obs, rewards, terminated, truncated, infos = self.venv.step(actions)
+        return obs, rewards, terminated, truncated, deepcopy(split_infos(infos, self.num_envs))
 
     # ------------------------------------------------------------------ VecEnv API
     def reset(self) -> VecEnvObs:
         seeds = [self._planned(i, self._seeds[i]) for i in range(self.num_envs)]
         options = self._options[0] if self._options and self._options[0] else None
-        obs, infos = self._reset(seeds, options)
-        self.reset_infos = split_infos(infos, self.num_envs)
+        obs, self.reset_infos = self._reset(seeds, options)
         self._reset_seeds()
         self._reset_options()
-        return np.asarray(obs)
+        return obs
 
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = actions
 
     def step_wait(self) -> VecEnvStepReturn:
         assert self._actions is not None, "step_async() first"
-        obs, rewards, terminated, truncated, infos = self.venv.step(self._actions)
+        obs, rewards, terminated, truncated, info_list = self._step(self._actions)
         self._actions = None
         n = self.num_envs
         obs = np.array(obs)
         dones = np.logical_or(terminated, truncated)
-        info_list = split_infos(infos, n)
+        ended = np.flatnonzero(dones).tolist()
         same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
-        for i in range(n):
-            if same_step and dones[i]:
+        if same_step:
+            for i in ended:
                 # The vector env already reset: its info is the reset's, final_* the step's.
                 reset_info = info_list[i]
                 info_list[i] = dict(reset_info.pop("final_info", {}))
                 info_list[i]["terminal_observation"] = reset_info.pop("final_obs")
                 self.reset_infos[i] = reset_info
-            info_list[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
-        if dones.any() and not same_step:
-            for i in np.flatnonzero(dones).tolist():
+        time_limit = (np.asarray(truncated) & ~np.asarray(terminated)).tolist()
+        for i in range(n):
+            info_list[i]["TimeLimit.truncated"] = time_limit[i]
+        if ended and not same_step:
+            for i in ended:
                 info_list[i]["terminal_observation"] = obs[i].copy()
             seeds = [self._planned(i, None) if dones[i] else None for i in range(n)]
-            reset_obs, reset_infos = self._reset(seeds, {"reset_mask": dones})
-            reset_obs = np.asarray(reset_obs)
-            per_env = split_infos(reset_infos, n)
-            for i in np.flatnonzero(dones).tolist():
+            reset_obs, per_env = self._reset(seeds, {"reset_mask": dones})
+            for i in ended:
                 obs[i] = reset_obs[i]
                 self.reset_infos[i] = per_env[i]
-        return obs, np.asarray(rewards, dtype=np.float32), dones, deepcopy(info_list)
+        return obs, np.asarray(rewards, dtype=np.float32), dones, info_list
 
     def close(self) -> None:
         self.venv.close()
