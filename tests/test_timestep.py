@@ -10,6 +10,7 @@ import pytest
 
 import rover_env  # noqa: F401  (registers the env ids)
 from rover_env.config import ConfigError, SimSpec, load_rover
+from rover_env.envs.registration import ENV_IDS, V1_ENV_IDS
 from rover_env.sim.rig import free_wheel_residual
 from rover_env.sim.simulator import RoverSim
 
@@ -63,3 +64,18 @@ def test_turning_drive_at_2_ms_ends_where_the_1_ms_drive_does() -> None:
     dist = float(np.linalg.norm(ends[0] - p0))
     assert dist > 1.0
     assert np.linalg.norm(ends[1] - ends[0]) < 0.01 * dist
+
+
+@pytest.mark.parametrize("v0, v1", list(zip(ENV_IDS, V1_ENV_IDS, strict=True)))
+def test_v1_ids_are_the_v0_tasks_at_2_ms(v0: str, v1: str) -> None:
+    """v1 = v0's task and kwargs at the 2 ms step, single and batched; a step stays 0.1 s."""
+    assert gym.spec(v1).kwargs == {**gym.spec(v0).kwargs, "timestep": 0.002}
+    env = gym.make(v1)
+    assert env.unwrapped.sim.dt == pytest.approx(0.002)
+    env.reset(seed=0)
+    t0 = env.unwrapped.sim.data.time
+    env.step(np.zeros(4, dtype=np.float32))
+    assert env.unwrapped.sim.data.time - t0 == pytest.approx(0.1)
+    vec = gym.make_vec(v1, num_envs=2, vectorization_mode="vector_entry_point")
+    assert vec.unwrapped.sim.dt == pytest.approx(0.002)
+    assert gym.make(v0).unwrapped.sim.dt == pytest.approx(0.001)

@@ -24,7 +24,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from rover_env.config import ConfigError
-from rover_env.envs.registration import ENV_IDS
+from rover_env.envs.registration import ENV_IDS, V1_ENV_IDS
 from rover_env.training import load_config, train
 from rover_env.training.callbacks import checkpoint_paths, latest_checkpoint
 
@@ -63,7 +63,7 @@ def _rows(path: Path) -> list[dict[str, str]]:
 
 
 def test_shipped_config_has_both_env_ids() -> None:
-    for env_id in ENV_IDS:
+    for env_id in (*ENV_IDS, *V1_ENV_IDS):
         cfg = load_config(REPO / "configs" / "ppo.yaml", env_id)
         assert cfg["learning_rate"].linear and cfg["learning_rate"].start == pytest.approx(3e-4)
         assert cfg["batch_size"] <= cfg.rollout_size

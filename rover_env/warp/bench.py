@@ -74,11 +74,20 @@ def run(n_worlds: list[int], device: str | None = None, ppo_iterations: int = 3)
                 "n": n,
                 "steps_per_s": env_steps_per_s(env),
                 "raw_steps_per_s": raw,
+                "substeps": env.substeps,
             }
         )
         _, log = train(env, ppo_iterations, PPOConfig(steps_per_env=8))
         ppo = log[-1]["steps_per_s"] * env.substeps  # env steps -> substeps
-        rows.append({"name": "warp-ppo", "n": n, "steps_per_s": ppo, "raw_steps_per_s": raw})
+        rows.append(
+            {
+                "name": "warp-ppo",
+                "n": n,
+                "steps_per_s": ppo,
+                "raw_steps_per_s": raw,
+                "substeps": env.substeps,
+            }
+        )
     return rows
 
 
