@@ -528,3 +528,24 @@ def test_an_agent_given_the_stall_clock_acts_as_before_and_the_mix_env_feeds_it(
         assert o[-1] == pytest.approx(mirror.update(o[:-1], 0.1))
         seen.append(float(o[-1]))
     assert max(seen) > 0  # the start from rest is slow
+
+
+def test_the_agent_command_is_seeded_two_runs_give_the_same_weights(tmp_path: Path) -> None:
+    """``train/ppo.py --config configs/agents/soil-families-ppo.yaml --seed S`` rebuilds an
+    agent: two runs of one update with the same seed end with identical weights and
+    observation statistics; another seed does not (issue 46: agents anyone can rebuild)."""
+    import torch
+    from stable_baselines3 import PPO
+
+    cfg = REPO / "configs" / "agents" / "soil-families-ppo.yaml"
+    runs = {}
+    for name, seed in (("a", 5), ("b", 5), ("c", 6)):
+        out = tmp_path / name
+        train("rover_env/ProtoExplorerFamilies-v0", cfg, seed, out, total_timesteps=2048)
+        model = PPO.load(out / "model.zip", device="cpu")
+        weights = torch.cat([p.detach().flatten() for p in model.policy.parameters()])
+        with open(out / "vecnormalize.pkl", "rb") as f:
+            runs[name] = (weights, pickle.load(f).obs_rms.mean)
+    assert torch.equal(runs["a"][0], runs["b"][0])
+    assert np.array_equal(runs["a"][1], runs["b"][1])
+    assert not torch.equal(runs["a"][0], runs["c"][0])
