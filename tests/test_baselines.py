@@ -36,7 +36,7 @@ def test_return_is_the_sum_of_the_env_rewards_under_the_given_weights() -> None:
         obs, reward, term, trunc, info = own.step(ctrl.action(own.base, obs))
         terms = ("reward_tracking", "reward_slip", "reward_energy", "reward_sinkage")
         assert reward == pytest.approx(sum(info[k] for k in terms), abs=1e-12)
-        total += reward
+        total += float(reward)
         sinkage_mm += 1000.0 * float(np.mean(info["wheel_sinkage"]))
         done = term or trunc
     assert sinkage_mm > 1.0  # loose soil: the sinkage weight matters here

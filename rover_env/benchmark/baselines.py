@@ -362,7 +362,7 @@ def _r(x: float, nd: int = 4) -> float:
     return float(round(x, nd)) if math.isfinite(x) else x
 
 
-def _triple(t: tuple[float, float, float]) -> dict[str, float]:
+def _triple(t: tuple[float, float, float]) -> dict[str, Any]:
     return {"mean": _r(t[0]), "ci95": [_r(t[1]), _r(t[2])]}
 
 

@@ -15,7 +15,7 @@ __all__ = ["REWARD_TERMS", "RewardWeights", "StepResult", "reward_terms"]
 @dataclasses.dataclass(frozen=True)
 class RewardWeights:
     """reward = tracking * (exp(-(e_v/sigma_v)^2) + exp(-(e_w/sigma_w)^2)) / 2
-    + yaw_tracking * exp(-(e_w/sigma_w)^2) + progress * p
+    + yaw_tracking * exp(-(e_w/sigma_w)^2) + speed_tracking * exp(-(e_v/sigma_v)^2) + progress * p
     - slip * g(mean |S|) - energy * electrical power [W] - sinkage * mean sinkage [mm]
     - stall_energy * P * clip(1 - p / |v_cmd|, 0, 1),
     with g(m) = m, or g(m) = slip_scale * ln(1 + m / slip_scale) when ``slip_scale`` > 0,
@@ -43,6 +43,11 @@ class RewardWeights:
     """Per m/s of path speed along the commanded direction (0: the pace is the command's)."""
     yaw_tracking: float = 0.0
     """Weight of the yaw-rate term alone (with ``tracking`` 0: turn as told, at any pace)."""
+    speed_tracking: float = 0.0
+    """Weight of the speed term alone. Why: ``tracking`` pays half its weight for the yaw
+    rate, which a rover standing still meets on a straight command; where driving costs slip,
+    energy and sinkage (a soft slope) stopping can then out-earn a slow climb. Paying the pace
+    on its own makes the commanded pace the thing to reach (issue 46)."""
     sinkage: float = 0.0
     """Per mm of the six wheels' mean sinkage into loose soil (0 on hard ground)."""
     stall_energy: float = 0.0
@@ -101,11 +106,14 @@ class StepResult:
 
 
 def tracking(w: RewardWeights, r: StepResult) -> float:
-    """w_track * (exp(-(e_v/sigma_v)^2) + exp(-(e_w/sigma_w)^2)) / 2 + w_yaw * exp(-(e_w/sigma_w)^2)."""
+    """w_track * (k_v + k_w) / 2 + w_yaw * k_w + w_speed * k_v, k = exp(-(e / sigma)^2)."""
     k_w = math.exp(-((r.tracking_error_yaw_rate / w.sigma_yaw_rate) ** 2))
-    out = w.tracking * 0.5 * (math.exp(-((r.tracking_error_speed / w.sigma_speed) ** 2)) + k_w)
+    k_v = math.exp(-((r.tracking_error_speed / w.sigma_speed) ** 2))
+    out = w.tracking * 0.5 * (k_v + k_w)
     if w.yaw_tracking:
         out += w.yaw_tracking * k_w
+    if w.speed_tracking:
+        out += w.speed_tracking * k_v
     return out
 
 
