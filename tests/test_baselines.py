@@ -130,3 +130,31 @@ def test_grids_are_the_stated_settings() -> None:
         assert 8 <= len(specs) <= 12, b.name
         for s in specs:
             make_controller(s)
+
+
+def test_objective_is_the_agents_return_at_zero_residual() -> None:
+    """The agent's own env (its config's env_kwargs, one family for speed) with a zero
+    residual on its base ``open-loop@ramp=2`` earns, on a validation seed, exactly the
+    return the tuner scores for that base: the same episode, the same reward."""
+    from rover_env.benchmark.mixture import families_env
+    from rover_env.config import load_yaml
+
+    path = "configs/agents/soil-families-ppo.yaml"
+    ((_, entry),) = load_yaml(path).items()
+    kwargs = {**entry["env_kwargs"], "scenarios": {"flat-turns@train": 1.0}}
+    env = families_env(**kwargs)
+    env.reset(seed=2000)
+    total, done = 0.0, False
+    while not done:
+        _, reward, term, trunc, _ = env.step(np.zeros(4, dtype=np.float32))
+        total += reward
+        done = term or trunc
+    env.close()
+
+    obj = bl.objective_of(path)
+    episode = load_scenario("flat-turns@train").episode(2000)
+    wrapper = ScenarioWrapper(ProtoExplorerEnv(**episode.env_kwargs()))
+    base = make_controller(kwargs["residual_base"])
+    m = run_episode(wrapper, base, episode, reward_weights=obj.reward_weights)
+    assert m["return"] == pytest.approx(total, rel=1e-9)
+    assert total > 0.5 * episode.duration / 0.1  # a tracking episode, not an empty one
