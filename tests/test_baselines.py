@@ -80,6 +80,10 @@ def test_tuner_keeps_the_best_setting_and_scores_from_the_rows(tmp_path: Path) -
 
     cfg = bl.write_config(tmp_path / "baselines.yaml", res, "cmd")
     assert bl.load_tuned(cfg) == {"ol": "open-loop@gain=1@ramp=0"}
+    rows = bl.read_episodes(bl.write_episodes(tmp_path / "episodes.jsonl", res))
+    again = bl.from_rows(res.objective, rows, [grid], duration=1.5)
+    assert [s.objective for s in again.results[0].tuning] == [s.objective for s in r.tuning]
+    assert again.best.chosen.objective == r.chosen.objective
     text = bl.write_report(tmp_path / "baselines.md", res).read_text()
     assert "open-loop@gain=2.2@ramp=0" in text and "**Best baseline: ol" in text
 

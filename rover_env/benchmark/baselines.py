@@ -54,12 +54,15 @@ __all__ = [
     "Objective",
     "Score",
     "TunedBaselines",
+    "from_rows",
     "load_tuned",
     "objective_of",
+    "read_episodes",
     "score",
     "tune_baselines",
     "weighted_interval",
     "write_config",
+    "write_episodes",
     "write_report",
 ]
 
@@ -355,6 +358,37 @@ def tune_baselines(
     return out
 
 
+def from_rows(
+    objective: Objective,
+    rows: Sequence[dict[str, Any]],
+    baselines: Sequence[Baseline] = BASELINES,
+    duration: float | None = None,
+) -> TunedBaselines:
+    """The result of a run rebuilt from its episode rows (:func:`read_episodes`): a report
+    or config written again without playing anything (wall time: the episodes' sum)."""
+    split = {k: [r for r in rows if r.get("split") == k] for k in ("tuning", "validation")}
+    seeds = {k: sorted({int(r["seed"]) for r in v}) for k, v in split.items()}
+    out = TunedBaselines(objective, seeds["tuning"], seeds["validation"], duration, [])
+    played = {k: {r["controller"] for r in v} for k, v in split.items()}
+    for b in baselines:
+        specs = [s for s in b.settings() if s in played["tuning"]]
+        if not specs:
+            continue
+        tuning = [score(s, split["tuning"], objective) for s in specs]
+        ranked = [s.spec for s in sorted(tuning, key=lambda s: -s.objective[0])]
+        finals = [
+            score(s, split["validation"], objective) for s in ranked if s in played["validation"]
+        ]
+        if not finals:
+            raise ValueError(f"from_rows: no validation episodes of {b.name}'s finalists")
+        out.results.append(BaselineResult(b, tuning, finals))
+    if not out.results:
+        raise ValueError("from_rows: no tuning episodes of any baseline")
+    out.rows = list(rows)
+    out.wall_s = float(sum(float(r.get("wall_s", 0.0)) for r in rows))
+    return out
+
+
 # --------------------------------------------------------------------------- outputs
 
 
@@ -525,3 +559,9 @@ def write_episodes(path: str | Path, res: TunedBaselines) -> Path:
         for r in res.rows:
             fh.write(json.dumps(r, default=float) + "\n")
     return p
+
+
+def read_episodes(path: str | Path) -> list[dict[str, Any]]:
+    """The rows :func:`write_episodes` wrote."""
+    with Path(path).open() as fh:
+        return [json.loads(line) for line in fh if line.strip()]

@@ -158,17 +158,21 @@ def _tune_baselines_cli(args: argparse.Namespace) -> int:
     from rover_env.seeds import seeds
 
     objective = bl.objective_of(args.agent_config)
-    res = bl.tune_baselines(
-        objective,
-        seeds("tuning", args.seeds_tune),
-        seeds("validation", args.seeds_val),
-        top=args.top,
-        duration=args.duration,
-        workers=args.workers,
-    )
-    command = _command_line()
     out = Path(args.out)
-    bl.write_episodes(out / "episodes.jsonl", res)
+    if args.from_episodes:
+        rows = bl.read_episodes(out / "episodes.jsonl")
+        res = bl.from_rows(objective, rows, duration=args.duration)
+    else:
+        res = bl.tune_baselines(
+            objective,
+            seeds("tuning", args.seeds_tune),
+            seeds("validation", args.seeds_val),
+            top=args.top,
+            duration=args.duration,
+            workers=args.workers,
+        )
+        bl.write_episodes(out / "episodes.jsonl", res)
+    command = _command_line()
     bl.write_report(out / "baselines.md", res, command)
     bl.write_config(out / "baselines.yaml", res, command)
     if args.config:
@@ -302,6 +306,11 @@ def add_cli(subparsers: Any) -> None:
         "--config", default=None, help="also write the chosen settings here (shipped YAML)"
     )
     p.add_argument("--report", default=None, help="also write the report here (Markdown)")
+    p.add_argument(
+        "--from-episodes",
+        action="store_true",
+        help="play nothing: rebuild report and config from OUT/episodes.jsonl",
+    )
     p.set_defaults(func=_tune_baselines_cli)
 
 
