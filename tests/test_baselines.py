@@ -77,6 +77,8 @@ def test_tuner_keeps_the_best_setting_and_scores_from_the_rows(tmp_path: Path) -
     assert row["seed"] == 2000
     assert r.chosen.objective[0] == pytest.approx(row["return"])
     assert {x["seed"] for x in res.rows if x["split"] == "tuning"} == {1000}
+    d = bl.paired_difference(res, "open-loop@gain=1@ramp=0", "open-loop@gain=2.2@ramp=0", "tuning")
+    assert d[0] == pytest.approx(exact - fast)
 
     cfg = bl.write_config(tmp_path / "baselines.yaml", res, "cmd")
     assert bl.load_tuned(cfg) == {"ol": "open-loop@gain=1@ramp=0"}

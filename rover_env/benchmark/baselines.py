@@ -57,6 +57,7 @@ __all__ = [
     "from_rows",
     "load_tuned",
     "objective_of",
+    "paired_difference",
     "read_episodes",
     "score",
     "tune_baselines",
@@ -475,6 +476,25 @@ def load_tuned(path: str | Path = "configs/benchmarks/baselines.yaml") -> dict[s
     return {best: specs[best], **{k: v for k, v in specs.items() if k != best}}
 
 
+def paired_difference(
+    res: TunedBaselines, a: str, b: str, split: str = "validation"
+) -> tuple[float, float, float]:
+    """(mean, low, high) of the objective of spec ``a`` less that of ``b``, paired by family
+    and seed (both play the same episodes) and weighted across families as the objective."""
+    ret = {
+        (r["controller"], r["scenario"], int(r["seed"])): float(r["return"])
+        for r in res.rows
+        if r.get("split") == split and r["controller"] in (a, b)
+    }
+    groups: dict[str, list[float]] = {}
+    for (c, sc, seed), x in ret.items():
+        if c == a and (b, sc, seed) in ret:
+            groups.setdefault(sc, []).append(x - ret[(b, sc, seed)])
+    if set(groups) != set(res.objective.scenarios):
+        raise ValueError(f"paired_difference({a}, {b}): not paired on every family ({split})")
+    return weighted_interval(groups, res.objective.scenarios)
+
+
 def _ci(t: tuple[float, float, float], fmt: str = ".3g") -> str:
     return f"{t[0]:{fmt}} ± {(t[2] - t[1]) / 2:{fmt}}"
 
@@ -504,15 +524,21 @@ def report_lines(res: TunedBaselines, command: str = "") -> list[str]:
     ]
     if command:
         lines += ["Produced by:", "", "```bash", command, "```", ""]
+    best = res.best.chosen.spec
     lines += ["## Chosen settings (validation)", ""]
     lines += [
-        "| baseline | controller | objective | " + " | ".join(REPORT_METRICS) + " |",
-        "|---|---|---|" + "---|" * len(REPORT_METRICS),
+        "Δ: objective less the best baseline's, paired on the same episodes (mean ± 95 %).",
+        "",
+        "| baseline | controller | objective | Δ vs best | " + " | ".join(REPORT_METRICS) + " |",
+        "|---|---|---|---|" + "---|" * len(REPORT_METRICS),
     ]
     for r in res.results:
         c = r.chosen
         cells = " | ".join(_ci(c.metrics[m]) for m in REPORT_METRICS)
-        lines.append(f"| {r.baseline.name} | `{c.spec}` | {_ci(c.objective, '.2f')} | {cells} |")
+        d = "–" if c.spec == best else _ci(paired_difference(res, c.spec, best), ".2f")
+        lines.append(
+            f"| {r.baseline.name} | `{c.spec}` | {_ci(c.objective, '.2f')} | {d} | {cells} |"
+        )
     lines.append("")
     for r in res.results:
         b = r.baseline
@@ -525,20 +551,22 @@ def report_lines(res: TunedBaselines, command: str = "") -> list[str]:
         for s in sorted(r.tuning, key=lambda s: -s.objective[0]):
             per = " | ".join(f"{s.by_family[f]:.1f}" for f in fams)
             lines.append(f"| `{s.spec}` | {_ci(s.objective, '.2f')} | {per} |")
-        lines += ["", "Finalists on validation (chosen in bold):", ""]
+        lines += ["", "Finalists on validation (chosen in bold; Δ paired vs the chosen):", ""]
         lines += [
-            "| setting | objective | "
+            "| setting | objective | Δ vs chosen | "
             + " | ".join(REPORT_METRICS)
             + " | "
             + " | ".join(fams)
             + " |",
-            "|---|---|" + "---|" * (len(REPORT_METRICS) + len(fams)),
+            "|---|---|---|" + "---|" * (len(REPORT_METRICS) + len(fams)),
         ]
         for s in r.finalists:
-            name = f"**`{s.spec}`**" if s is r.chosen else f"`{s.spec}`"
+            mine = s is r.chosen
+            name = f"**`{s.spec}`**" if mine else f"`{s.spec}`"
+            d = "–" if mine else _ci(paired_difference(res, s.spec, r.chosen.spec), ".2f")
             cells = " | ".join(_ci(s.metrics[m]) for m in REPORT_METRICS)
             per = " | ".join(f"{s.by_family[f]:.1f}" for f in fams)
-            lines.append(f"| {name} | {_ci(s.objective, '.2f')} | {cells} | {per} |")
+            lines.append(f"| {name} | {_ci(s.objective, '.2f')} | {d} | {cells} | {per} |")
         lines.append("")
     return lines
 
