@@ -290,6 +290,11 @@ def add_cli(subparsers: Any) -> None:
     p.add_argument("--report", default=None, help="CSV of every gain pair tried")
     p.set_defaults(func=_tune_cli)
 
+    _add_tune_baselines(subparsers)
+
+
+def _add_tune_baselines(subparsers: Any) -> None:
+    """Register ``tune-baselines`` (:mod:`rover_env.benchmark.baselines`)."""
     p = subparsers.add_parser(
         "tune-baselines",
         help="tune open loop, slip PI and set-point PI on an agent's objective (tuning seeds), "
