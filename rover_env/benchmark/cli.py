@@ -1,4 +1,5 @@
-"""``rover-env benchmark``, ``rover-env ablate`` and ``rover-env tune-slip-pi``.
+"""``rover-env benchmark``, ``rover-env ablate``, ``rover-env tune-slip-pi`` and
+``rover-env tune-baselines``.
 
 Wire into ``rover_env.cli`` with ``add_cli(subparsers)``; standalone:
 ``python -m rover_env.benchmark.cli benchmark ...``.
@@ -150,8 +151,40 @@ def _tune_cli(args: argparse.Namespace) -> int:
     return 0
 
 
+def _tune_baselines_cli(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from rover_env.benchmark import baselines as bl
+    from rover_env.seeds import seeds
+
+    objective = bl.objective_of(args.agent_config)
+    out = Path(args.out)
+    if args.from_episodes:
+        rows = bl.read_episodes(out / "episodes.jsonl")
+        res = bl.from_rows(objective, rows, duration=args.duration)
+    else:
+        res = bl.tune_baselines(
+            objective,
+            seeds("tuning", args.seeds_tune),
+            seeds("validation", args.seeds_val),
+            top=args.top,
+            duration=args.duration,
+            workers=args.workers,
+        )
+        bl.write_episodes(out / "episodes.jsonl", res)
+    command = _command_line()
+    bl.write_report(out / "baselines.md", res, command)
+    bl.write_config(out / "baselines.yaml", res, command)
+    if args.config:
+        bl.write_config(args.config, res, command)
+    if args.report:
+        bl.write_report(args.report, res, command)
+    print(f"best baseline: {res.best.baseline.name} -> {res.best.chosen.spec}; files in {out}")
+    return 0
+
+
 def add_cli(subparsers: Any) -> None:
-    """Register ``benchmark``, ``ablate`` and ``tune-slip-pi``."""
+    """Register ``benchmark``, ``ablate``, ``tune-slip-pi`` and ``tune-baselines``."""
     from rover_env.executor import add_executor_args
 
     workers = max(1, min(2, os.cpu_count() or 1))
@@ -256,6 +289,34 @@ def add_cli(subparsers: Any) -> None:
     )
     p.add_argument("--report", default=None, help="CSV of every gain pair tried")
     p.set_defaults(func=_tune_cli)
+
+    _add_tune_baselines(subparsers)
+
+
+def _add_tune_baselines(subparsers: Any) -> None:
+    """Register ``tune-baselines`` (:mod:`rover_env.benchmark.baselines`)."""
+    p = subparsers.add_parser(
+        "tune-baselines",
+        help="tune open loop, slip PI and set-point PI on an agent's objective (tuning seeds), "
+        "choose on validation seeds",
+    )
+    p.add_argument("--agent-config", required=True, help="the agent's training YAML")
+    p.add_argument("--seeds-tune", type=int, default=6, help="tuning seeds per family (6)")
+    p.add_argument("--seeds-val", type=int, default=8, help="validation seeds per family (8)")
+    p.add_argument("--top", type=int, default=3, help="finalists per baseline (3)")
+    p.add_argument("--duration", type=float, default=None, help="episode length override (s)")
+    p.add_argument("--workers", type=int, default=1, help="processes (default 1)")
+    p.add_argument("--out", default="out/baselines", help="output folder (episodes, report)")
+    p.add_argument(
+        "--config", default=None, help="also write the chosen settings here (shipped YAML)"
+    )
+    p.add_argument("--report", default=None, help="also write the report here (Markdown)")
+    p.add_argument(
+        "--from-episodes",
+        action="store_true",
+        help="play nothing: rebuild report and config from OUT/episodes.jsonl",
+    )
+    p.set_defaults(func=_tune_baselines_cli)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

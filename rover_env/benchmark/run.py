@@ -28,6 +28,7 @@ from rover_env.executor import Executor, make_executor
 from rover_env.policies.controllers import EnvController
 from rover_env.policies.specs import make_controller
 from rover_env.seeds import refuse_final_only
+from rover_env.tasks.reward import RewardWeights
 from rover_env.tasks.scenario import ScenarioTask
 from rover_env.tasks.scenarios import Episode, load_scenario
 
@@ -49,9 +50,17 @@ class ScenarioWrapper(gym.Wrapper[Obs, Obs, Obs, Obs]):
         assert isinstance(env, ProtoExplorerEnv)
         return env
 
-    def set_episode(self, episode: Episode | ScenarioTask) -> None:
-        """The episode of the next reset (an :class:`Episode`, or its task)."""
-        task = episode if isinstance(episode, ScenarioTask) else ScenarioTask(episode)
+    def set_episode(
+        self, episode: Episode | ScenarioTask, reward_weights: RewardWeights | None = None
+    ) -> None:
+        """The episode of the next reset (an :class:`Episode`, or its task); the env scores
+        it with ``reward_weights`` when given (with an Episode only), else its own."""
+        if isinstance(episode, ScenarioTask):
+            if reward_weights is not None:
+                raise ValueError("set_episode: reward_weights go with an Episode, not a task")
+            task = episode
+        else:
+            task = ScenarioTask(episode, reward_weights)
         self.episode = task.episode
         self.base.set_task(task)
 
@@ -74,12 +83,16 @@ def run_episode(
     controller: EnvController,
     episode: Episode,
     observer: Callable[[], None] | None = None,
+    reward_weights: RewardWeights | None = None,
 ) -> dict[str, float]:
     """One episode; the metrics of :func:`rover_env.benchmark.metrics.episode_metrics`.
 
     ``observer`` is called after the reset and after every step (e.g. to render a frame).
+    With ``reward_weights`` the env scores the episode with them and the metrics add
+    ``return``: the sum of the env's rewards, what an agent trained with those weights
+    maximises (:mod:`rover_env.benchmark.baselines` tunes the baselines on it).
     """
-    wrapper.set_episode(episode)
+    wrapper.set_episode(episode, reward_weights)
     obs, info = wrapper.reset()
     controller.reset(wrapper.base)
     if observer is not None:
@@ -87,16 +100,18 @@ def run_episode(
     start = np.asarray(info["position"]).copy()
     steps: dict[str, list[Any]] = {k: [] for k in STEP_KEYS}
     last = info
+    total = 0.0
     while True:
         action = controller.action(wrapper.base, obs)
-        obs, _, terminated, truncated, last = wrapper.step(action)
+        obs, reward, terminated, truncated, last = wrapper.step(action)
+        total += float(reward)
         for k in STEP_KEYS:
             steps[k].append(last[k])
         if observer is not None:
             observer()
         if terminated or truncated:
             break
-    return metrics_of_steps(
+    metrics = metrics_of_steps(
         steps,
         start=start,
         last_info=last,
@@ -104,6 +119,9 @@ def run_episode(
         goal_fraction=episode.goal_fraction,
         step_dt=wrapper.base.control_dt,
     )
+    if reward_weights is not None:
+        metrics["return"] = total
+    return metrics
 
 
 @dataclass(frozen=True)
@@ -112,11 +130,15 @@ class Job:
     scenario: str
     seed: int
     duration: float | None = None
+    reward_weights: tuple[tuple[str, float], ...] | None = None
+    """RewardWeights fields as (name, value) pairs: the episode's ``return`` under them
+    (:func:`run_episode`); None: no return recorded."""
 
     @property
     def key(self) -> str:
         """Names the episode in a study's results file (``--resume`` matches on it)."""
-        return f"{self.controller}|{self.scenario}|{self.seed}|{self.duration}"
+        key = f"{self.controller}|{self.scenario}|{self.seed}|{self.duration}"
+        return key if self.reward_weights is None else f"{key}|{dict(self.reward_weights)}"
 
 
 # Per-process caches: building an env compiles a MuJoCo model; loading a policy loads torch.
@@ -141,7 +163,8 @@ def run_job(job: Job) -> dict[str, Any]:
     ctrl = _CONTROLLERS[job.controller]
     episode = load_scenario(job.scenario).episode(job.seed, job.duration)
     wrapper = wrapper_for(job.scenario, ctrl.action_layout, episode)
-    metrics = run_episode(wrapper, ctrl, episode)
+    weights = None if job.reward_weights is None else RewardWeights(**dict(job.reward_weights))
+    metrics = run_episode(wrapper, ctrl, episode, reward_weights=weights)
     return {
         "controller": job.controller,
         "scenario": job.scenario,
