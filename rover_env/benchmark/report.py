@@ -26,7 +26,8 @@ import numpy as np
 
 from rover_env.benchmark.families import family_lines
 from rover_env.benchmark.metrics import LOWER_IS_BETTER, METRICS, UNITS, UNORDERED
-from rover_env.benchmark.stats import holm, paired_p, t_interval
+from rover_env.benchmark.stats import holm, paired_p, paired_rows, t_interval
+from rover_env.benchmark.stats import unique as _unique
 from rover_env.benchmark.verdict import frontier_plot, verdict_markdown, verdicts
 
 __all__ = [
@@ -76,37 +77,28 @@ def paired(
 ) -> list[dict[str, Any]]:
     """Every other controller minus ``baseline``, per scenario and metric, on shared seeds;
     verdicts after Holm's correction over all rows returned at ``alpha`` (module docstring)."""
-    out = []
-    ctrls = [c for c in _unique(r["controller"] for r in rows) if c != baseline]
-    for other in ctrls:
-        for scen in _unique(r["scenario"] for r in rows):
-            a = {
-                r["seed"]: r for r in rows if r["controller"] == baseline and r["scenario"] == scen
-            }
-            b = {r["seed"]: r for r in rows if r["controller"] == other and r["scenario"] == scen}
-            shared = sorted(set(a) & set(b))
-            if not shared:
-                continue
-            for m in METRICS:
-                d = [float(b[s][m]) - float(a[s][m]) for s in shared]
-                mean, lo, hi = t_interval(d)
-                base_mean = float(np.mean([float(a[s][m]) for s in shared]))
-                out.append(
-                    {
-                        "controller": other,
-                        "baseline": baseline,
-                        "scenario": scen,
-                        "metric": m,
-                        "n": len(shared),
-                        "baseline_mean": base_mean,
-                        "controller_mean": base_mean + mean,
-                        "diff_mean": mean,
-                        "ci_low": lo,
-                        "ci_high": hi,
-                        "relative": mean / base_mean if base_mean != 0 else float("nan"),
-                        "p": paired_p(d),
-                    }
-                )
+    out: list[dict[str, Any]] = []
+    for other, scen, a, b in paired_rows(rows, baseline):
+        for m in METRICS:
+            d = [float(rb[m]) - float(ra[m]) for ra, rb in zip(a, b, strict=True)]
+            mean, lo, hi = t_interval(d)
+            base_mean = float(np.mean([float(r[m]) for r in a]))
+            out.append(
+                {
+                    "controller": other,
+                    "baseline": baseline,
+                    "scenario": scen,
+                    "metric": m,
+                    "n": len(a),
+                    "baseline_mean": base_mean,
+                    "controller_mean": base_mean + mean,
+                    "diff_mean": mean,
+                    "ci_low": lo,
+                    "ci_high": hi,
+                    "relative": mean / base_mean if base_mean != 0 else float("nan"),
+                    "p": paired_p(d),
+                }
+            )
     adjusted = holm([r["p"] for r in out])
     family = sum(math.isfinite(r["p"]) for r in out)
     for r, q in zip(out, adjusted, strict=True):
@@ -132,13 +124,6 @@ def _flat(v: dict[str, Any]) -> dict[str, Any]:
         for k in ("diff_mean", "ci_low", "ci_high", "p_holm", "state"):
             out[f"{m}_{k}"] = c[k]
     return out
-
-
-def _unique(items: Any) -> list[Any]:
-    seen: dict[Any, None] = {}
-    for i in items:
-        seen.setdefault(i, None)
-    return list(seen)
 
 
 def _fmt(x: float) -> str:

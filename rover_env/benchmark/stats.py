@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -47,3 +48,27 @@ def holm(p: Sequence[float]) -> list[float]:
         running = max(running, min(1.0, (m - rank) * p[i]))
         out[i] = running
     return out
+
+
+def unique(items: Iterable[Any]) -> list[Any]:
+    """``items`` without repeats, in first-seen order (controllers, scenarios as run)."""
+    seen: dict[Any, None] = {}
+    for i in items:
+        seen.setdefault(i, None)
+    return list(seen)
+
+
+def paired_rows(
+    rows: Sequence[dict[str, Any]], baseline: str
+) -> Iterator[tuple[str, str, list[dict[str, Any]], list[dict[str, Any]]]]:
+    """(controller, scenario, baseline rows, controller rows) of every other controller and
+    scenario, on the seeds both played, in seed order: what every paired comparison pairs."""
+    for other in [c for c in unique(r["controller"] for r in rows) if c != baseline]:
+        for scen in unique(r["scenario"] for r in rows):
+            a = {
+                r["seed"]: r for r in rows if r["controller"] == baseline and r["scenario"] == scen
+            }
+            b = {r["seed"]: r for r in rows if r["controller"] == other and r["scenario"] == scen}
+            shared = sorted(set(a) & set(b))
+            if shared:
+                yield other, scen, [a[s] for s in shared], [b[s] for s in shared]

@@ -32,7 +32,8 @@ from typing import Any
 import numpy as np
 
 from rover_env.benchmark.metrics import LOWER_IS_BETTER, UNITS
-from rover_env.benchmark.stats import holm, paired_p, t_interval
+from rover_env.benchmark.stats import holm, paired_p, paired_rows, t_interval
+from rover_env.benchmark.stats import unique as _unique
 
 __all__ = ["PRIMARY", "frontier_plot", "verdict_markdown", "verdicts"]
 
@@ -40,39 +41,27 @@ PRIMARY: tuple[str, ...] = ("success", "energy_per_metre", "mean_sinkage")
 """The verdict metrics: success (goal at the commanded pace), energy per metre, sinkage."""
 
 
-def _unique(items: Any) -> list[Any]:
-    return list(dict.fromkeys(items))
-
-
 def _comparisons(
     rows: Sequence[dict[str, Any]], baseline: str, metrics: Sequence[str], level: float
 ) -> list[dict[str, Any]]:
     out = []
-    for other in [c for c in _unique(r["controller"] for r in rows) if c != baseline]:
-        for scen in _unique(r["scenario"] for r in rows):
-            a = {
-                r["seed"]: r for r in rows if r["controller"] == baseline and r["scenario"] == scen
-            }
-            b = {r["seed"]: r for r in rows if r["controller"] == other and r["scenario"] == scen}
-            shared = sorted(set(a) & set(b))
-            if not shared:
-                continue
-            for m in metrics:
-                d = [float(b[s][m]) - float(a[s][m]) for s in shared]
-                mean, lo, hi = t_interval(d, level)
-                out.append(
-                    {
-                        "controller": other,
-                        "scenario": scen,
-                        "metric": m,
-                        "n": len(shared),
-                        "baseline_mean": float(np.mean([float(a[s][m]) for s in shared])),
-                        "diff_mean": mean,
-                        "ci_low": lo,
-                        "ci_high": hi,
-                        "p": paired_p(d),
-                    }
-                )
+    for other, scen, a, b in paired_rows(rows, baseline):
+        for m in metrics:
+            d = [float(rb[m]) - float(ra[m]) for ra, rb in zip(a, b, strict=True)]
+            mean, lo, hi = t_interval(d, level)
+            out.append(
+                {
+                    "controller": other,
+                    "scenario": scen,
+                    "metric": m,
+                    "n": len(a),
+                    "baseline_mean": float(np.mean([float(r[m]) for r in a])),
+                    "diff_mean": mean,
+                    "ci_low": lo,
+                    "ci_high": hi,
+                    "p": paired_p(d),
+                }
+            )
     return out
 
 
