@@ -8,11 +8,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from rover_env.calibration.diagnose import Options, diagnose
 from rover_env.config import RoverConfig
 from rover_env.generators.make_logs import make_logs
 
 
+@pytest.mark.slow  # ~100 s of one core: kept out of the default suite's 10 minutes
 def test_a_heavier_rover_is_not_named_friction_with_confidence(tmp_path: Path) -> None:
     """Outside the catalogue: a rover 20 % heavier. Friction stands in for it (held-out
     better) but the fit leaves the rocker joint theta_4 above its floor and worse in every

@@ -11,12 +11,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from rover_env.calibration.diagnose import Options, diagnose
 from rover_env.generators.foreign_logs import make_foreign_logs
 
 DELAY = 0.2244
 
 
+@pytest.mark.slow  # ~100 s of one core: kept out of the default suite's 10 minutes
 def test_a_second_generator_delay_is_fitted_by_the_signals_it_moves(tmp_path: Path) -> None:
     paths = make_foreign_logs(tmp_path / "logs", {"command_delay": {"delay": DELAY}}, drives=2,
                               seed=37, duration=36.0, plan="test", progress=False)  # fmt: skip

@@ -28,10 +28,16 @@ import pytest
 
 pytest.importorskip("mujoco_warp", reason="the gpu extra (mujoco-warp) is not installed")
 
+import torch
+
 from rover_env import tire
 from rover_env.config import load_rover
+from rover_env.envs.episode import OBS_NAMES
+from rover_env.estimation.batch import BatchSlipEstimator
 from rover_env.sim.simulator import RoverSim
 from rover_env.warp.sim import WarpRoverSim
+
+CFG = load_rover("proto_explorer")
 
 TERRAINS = ("flat", "paper-sand")
 SAMPLE = 100  # substeps between samples (0.1 s)
@@ -195,3 +201,81 @@ def test_torch_env_and_ppo_stay_on_the_device() -> None:
     assert v.abs().max() < 0.02 and (obs[:, :6] == 0).all()  # one sample: no rates yet
     _, rows = train(env, 1, PPOConfig(steps_per_env=4, minibatches=2, epochs=1))
     assert np.isfinite(rows[0]["mean_reward"]) and rows[0]["steps_per_s"] > 0
+
+
+# --- The Warp env's observation carries the device estimator's estimate (tests/test_warp_estimator.py
+# checks the estimator itself). Here, beside the drives, so that one process compiles Warp's
+# kernels for both.
+@pytest.fixture(scope="module")
+def env_run() -> dict:
+    """A 2-world Warp env on CPU for 10 steps (0.8 s episodes: one restart), recording the
+    estimator's inputs; world 0 drives straight, world 1 turns."""
+    from rover_env.warp.env import WarpRoverEnv
+
+    env = WarpRoverEnv(2, device="cpu", episode_seconds=0.8, seed=3)
+    pushes: list[tuple] = []
+    push = env.estimator.push
+
+    def recording(ids, t, phi, theta):
+        mask = torch.ones(2, dtype=torch.bool) if ids is None else ids.clone()
+        pushes.append((mask.numpy(), t.numpy().copy(), phi.numpy().copy(), theta.numpy().copy()))
+        push(ids, t, phi, theta)
+
+    env.estimator.push = recording  # type: ignore[method-assign]
+    obs = [env.reset()]
+    truth = []
+    action = torch.tensor([[0.75] * 4, [0.5, 1.0, 0.5, 1.0]])
+    for _ in range(10):
+        obs.append(env.step(action)[0])
+        truth.append(env.true_motion()[0].clone())
+    return {"env": env, "obs": torch.stack(obs).numpy(), "pushes": pushes, "truth": truth}
+
+
+def test_env_observation_is_the_cpu_envs_layout(env_run: dict) -> None:
+    from rover_env.envs.proto_explorer import ProtoExplorerEnv
+
+    cpu = ProtoExplorerEnv()
+    assert env_run["obs"].shape[2] == len(OBS_NAMES) == cpu.observation_space.shape[0]
+    assert env_run["obs"].dtype == cpu.observation_space.dtype
+
+
+def test_env_observation_carries_the_estimate(env_run: dict) -> None:
+    """The observation's estimator entries are the numpy estimator's on the same inputs
+    (to the float32 bounds above), restart included; the joint angles are the inputs."""
+    ref = BatchSlipEstimator(CFG, 2)
+    env, obs = env_run["env"], env_run["obs"]
+    per_obs = [1] + [env.samples_per_step + 1] * 10  # each step ends with the restart push
+    pushes = iter(env_run["pushes"])
+    ix = {name: OBS_NAMES.index(name) for name in OBS_NAMES}
+    restarted = 0
+    last_theta = np.zeros((2, 5), dtype=np.float32)
+    for k, count in enumerate(per_obs):
+        for _ in range(count):
+            mask, t, phi, theta = next(pushes)
+            ids = np.flatnonzero(mask)
+            if ids.size and (t[ids] == 0).all():  # a new episode's first sample
+                ref.reset(ids)
+                restarted += 1
+            ref.push(ids, t[ids], phi[ids], theta[ids])
+            last_theta[ids] = theta[ids]
+        e = ref.estimate()
+        o = obs[k]
+        want = np.stack([q.slip_ratio for q in e])
+        np.testing.assert_allclose(o[:, ix["slip_estimate_1L"] :][:, :4], want, atol=2e-4)
+        rates = np.stack([q.phi_rate for q in e])
+        np.testing.assert_allclose(o[:, :6], rates, atol=1e-5)
+        speed = [q.seg_velocity[1, 0] for q in e]
+        np.testing.assert_allclose(o[:, ix["speed_estimate"]], speed, atol=1e-5)
+        np.testing.assert_allclose(o[:, ix["theta_1"] : ix["theta_5"] + 1], last_theta, atol=0)
+    assert restarted == 2  # the reset and the end of the 0.8 s episodes
+
+
+def test_env_estimate_tracks_the_true_speed_driving_straight(env_run: dict) -> None:
+    """World 0 drives straight on hard ground: after the 0.5 s warm-up the estimated speed
+    of the middle segment is the true one within 2 % and the slip is small."""
+    obs, truth = env_run["obs"], env_run["truth"]
+    k = 7  # 0.7 s into the episode, the last step before the restart
+    v_true = float(truth[k - 1][0])
+    v_est = float(obs[k, 0, OBS_NAMES.index("speed_estimate")])
+    assert v_true > 0.15 and abs(v_est - v_true) < 0.02 * v_true, (v_est, v_true)
+    assert np.abs(obs[k, 0, 34:38]).max() < 0.03
