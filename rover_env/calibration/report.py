@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from rover_env.calibration.diagnosis.judge import form_mismatch
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
 from rover_env.calibration.residuals import REGIMES, Cell
@@ -288,6 +289,11 @@ def write_report(d: Diagnosis) -> Path:
             f"| {s.d_aic:+.1f} | {s.d_bic:+.1f} | {_sig(s)} |"
         )
     L += ["", "![candidates](candidates.png)", ""]
+    split_groups = [(s.fit.name, form_mismatch(s.fit)) for s in ranked if form_mismatch(s.fit)]
+    if split_groups:
+        L += ["Model-form mismatch (the fitted value is a compromise between signal groups):", ""]
+        L += [f"- {name}: {text}" for name, text in split_groups]
+        L.append("")
     if tried:
         L += ["## Second effect (forward selection, against the winner alone)", ""]
         L += [

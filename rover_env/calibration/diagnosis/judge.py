@@ -213,6 +213,20 @@ def fmt_phys(f: Fit) -> str:
     return ", ".join(parts)
 
 
+def form_mismatch(f: Fit) -> str | None:
+    """The signal groups' disagreement in words, or None when they agree within their noise.
+
+    Each group (driven wheels, free wheels, joints, pose) puts the parameter at its own
+    minimum; a between-group spread beyond their noise (:func:`.fit.between_group_sd`) means
+    the model's form differs from the rover's, so the value is a compromise between groups
+    and is reported as such, not as one estimate (issue 47: a torque limit of -0.70 on an
+    independent implementation, driven wheels -0.33, free wheels +0.64, joints -0.42)."""
+    if f.between <= 0 or not f.groups:
+        return None
+    parts = ", ".join(f"{g} {v:.4g}" for g, v in f.groups.items())
+    return f"signal groups disagree beyond their noise ({parts}; spread {f.between:.3g})"
+
+
 def fit_dict(s: Scored) -> dict[str, Any]:
     return {
         "params": {e: {k: list(v) for k, v in p.items()} for e, p in s.fit.physical().items()},
@@ -221,6 +235,7 @@ def fit_dict(s: Scored) -> dict[str, Any]:
         "interval_method": s.fit.method,
         "signal_groups": s.fit.groups,
         "between_groups_sd": s.fit.between,
+        "form_mismatch": form_mismatch(s.fit),
         "replay_bias": None if s.fit.bias is None else [float(b) for b in s.fit.bias],
         "noise_se": None if s.fit.noise_se is None else [float(v) for v in s.fit.noise_se],
         "train_cost": s.fit.cost,

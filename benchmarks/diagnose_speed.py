@@ -1,0 +1,121 @@
+"""Seconds per diagnose case, this code against a previous commit, in one run (issue 47).
+
+The same logs are diagnosed by both trees, alternately (previous, current, previous, ...), each
+in its own process with the same ``--workers``; the reference tree is a ``git worktree`` of
+``--against`` (default ``HEAD~1``). Cases are drawn from the independent generator with build
+tolerances (:mod:`rover_env.independent`), seeds from ``--seed0``: clean and one effect each.
+
+    python benchmarks/diagnose_speed.py --against 512b331 --cases 4 --workers 2
+    python benchmarks/bench_diagnose.py --against 512b331   # the same, from the matrix script
+
+Prints each case's seconds and what each tree named, then the median ratio previous/current.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from rover_env.independent import make_independent_logs
+
+EFFECTS: list[dict[str, dict[str, float]]] = [
+    {},
+    {"torque_limit": {"fraction": -0.6}},
+    {"command_delay": {"delay": 0.12}},
+    {"slope": {"deg": 6.0, "heading_deg": 40.0}},
+    {"rolling_resistance": {"c_rr": 0.05}},
+    {"loose_soil": {"k_phi": 1.0}},
+]
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def reference_tree(ref: str, work: Path) -> Path:
+    """A worktree of ``ref`` under ``work`` (reused when it is already at ``ref``)."""
+    sha = subprocess.check_output(["git", "rev-parse", ref], cwd=ROOT, text=True).strip()
+    tree = work / f"ref_{sha[:10]}"
+    if not tree.exists():
+        subprocess.check_call(
+            ["git", "worktree", "add", "--detach", str(tree), sha], cwd=ROOT, stdout=sys.stderr
+        )
+    return tree
+
+
+def diagnose_seconds(
+    tree: Path, logs: list[Path], out: Path, workers: int
+) -> tuple[float, list[str]]:
+    """Wall seconds of one ``rover-env diagnose`` run with ``tree`` first on the path."""
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    cmd = [sys.executable, "-m", "rover_env.cli", "diagnose", *map(str, logs)]
+    cmd += ["--out", str(out), "--workers", str(workers), "--quiet"]
+    t0 = time.perf_counter()
+    subprocess.run(cmd, env=env, check=True, cwd=tree, stdout=subprocess.DEVNULL)
+    dt = time.perf_counter() - t0
+    named = json.loads((out / "result.json").read_text())["named"]
+    return dt, named
+
+
+def run(against: str, cases: int, workers: int, work: Path, seed0: int) -> dict[str, object]:
+    work.mkdir(parents=True, exist_ok=True)
+    ref = reference_tree(against, work)
+    rows = []
+    for i in range(cases):
+        eff = EFFECTS[i % len(EFFECTS)]
+        d = work / f"case_{seed0 + i}"
+        logs = make_independent_logs(d / "logs", eff, drives=3, seed=seed0 + i)
+        prev, prev_named = diagnose_seconds(ref, logs, d / "prev", workers)
+        cur, cur_named = diagnose_seconds(ROOT, logs, d / "cur", workers)
+        rows.append(
+            {
+                "case": seed0 + i,
+                "effects": eff,
+                "previous_s": prev,
+                "current_s": cur,
+                "previous_named": prev_named,
+                "current_named": cur_named,
+            }
+        )
+        print(
+            f"case {seed0 + i} {'+'.join(eff) or 'clean'}: previous {prev:.0f} s"
+            f" {prev_named}, current {cur:.0f} s {cur_named}, ratio {prev / cur:.2f}",
+            flush=True,
+        )
+    ratios = [r["previous_s"] / r["current_s"] for r in rows]  # type: ignore[operator]
+    summary = {
+        "against": against,
+        "workers": workers,
+        "cpus": os.cpu_count(),
+        "median_previous_s": statistics.median(r["previous_s"] for r in rows),  # type: ignore[misc]
+        "median_current_s": statistics.median(r["current_s"] for r in rows),  # type: ignore[misc]
+        "median_ratio": statistics.median(ratios),
+        "rows": rows,
+    }
+    print(
+        f"median seconds per case: previous {summary['median_previous_s']:.0f},"
+        f" current {summary['median_current_s']:.0f}; median ratio {summary['median_ratio']:.2f}"
+    )
+    return summary
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--against", default="HEAD~1", help="the previous code: a git ref")
+    ap.add_argument("--cases", type=int, default=4)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--seed0", type=int, default=47900)
+    ap.add_argument("--work", default="out/diagnose_speed")
+    ap.add_argument("--json", default=None, help="write the summary here")
+    a = ap.parse_args(argv)
+    s = run(a.against, a.cases, a.workers, Path(a.work).resolve(), a.seed0)
+    if a.json:
+        Path(a.json).write_text(json.dumps(s, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
