@@ -106,6 +106,8 @@ EFFECTS = (
     "loose_soil",
 )
 """The catalogue effects the independent generator implements."""
+DRIVES, DURATION = 3, 50.0
+"""Drives per case (the last held out) and their length (s), as the other matrix."""
 PER_EFFECT = 5
 SAND = (1, 3)
 """Which loose-soil singles (0-based, in seed order) are on dry sand; the others on regolith."""
@@ -307,20 +309,22 @@ def run_case(case: dict[str, Any], root: Path, workers: int = 1) -> dict[str, An
         shutil.rmtree(d)
     opts = Options(progress=False, workers=workers)
     t0 = time.perf_counter()
-    paths = make_independent_logs(d / "logs", case["effects"], drives=3, seed=case["seed"])
+    paths = make_independent_logs(
+        d / "logs", case["effects"], drives=DRIVES, seed=case["seed"], duration=DURATION
+    )
     t1 = time.perf_counter()
     res = diagnose([str(p) for p in paths], d / "out", opts)
     t2 = time.perf_counter()
     props = proposals(d / "out")
     extra: list[Path] = []
-    for j, prop in enumerate(props):  # the same rover (seed), noise of drive 3 + j
+    for j, prop in enumerate(props):  # the same rover (seed), the noise of drive DRIVES + j
         extra += make_independent_logs(
             d / f"followup_{j}",
             case["effects"],
             drives=1,
             seed=case["seed"],
             plan=schedule(prop),
-            first_index=3 + j,
+            first_index=DRIVES + j,
         )
     followed = (
         diagnose([str(p) for p in [*paths, *extra]], d / "out_followup", opts) if extra else None
@@ -492,6 +496,8 @@ def _effect_table(rows: list[dict[str, Any]], name: str) -> list[str]:
         " | fitted [95 %] | covers | follow-up |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
+    if not _singles(rows, name):
+        return []
     for r in _singles(rows, name):
         f = r["fits"].get(name) or {}
         x = _ratio(name, f)

@@ -12,6 +12,7 @@ from types import ModuleType
 
 import numpy as np
 import pytest
+import yaml
 
 from rover_env.calibration.drive_plan import Proposal
 from rover_env.effects import CATALOGUE, effect_class
@@ -153,3 +154,73 @@ def test_a_proposal_becomes_the_rows_drive_plan_writes(b: ModuleType) -> None:
     assert np.array_equal(s.t, t) and np.array_equal(s.cmd, cmd)
     assert s.duration == 20.0 and np.abs(s.cmd).max() <= 4.0 and not s.cmd[-1].any()
     assert np.array_equal(s.at(np.array([0.0, 0.02, 19.99])), cmd[[0, 1, -2]])
+
+
+def test_run_case_drives_every_proposal_with_the_same_rover(
+    b: ModuleType, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The case's plumbing, with a stand-in for diagnose (the matrix runs the real one): the
+    first report proposes a tie's drive and an evidence drive; both are driven by the same
+    build (truth.yaml's nuisance) as drives 3 and 4 of 1 s logs, the second diagnosis gets all
+    five logs, and the row carries its named effects and the fit against the truth."""
+    calls: list[list[str]] = []
+
+    def fake(paths: list[str], out: Path, opts: object) -> dict[str, object]:
+        calls.append(paths)
+        second = len(calls) == 2
+        fit = {"params": {"torque_limit": {"fraction": [-0.4, -0.45, -0.35]}}}
+        res = {
+            "named": ["torque_limit"] if second else [],
+            "tie": None
+            if second
+            else {
+                "effects": ["torque_limit", "friction"],
+                "plan": "accel",
+                "seed": 0,
+                "duration": 1.0,
+                "why": "x",
+            },
+            "evidence": []
+            if second
+            else [
+                {
+                    "effect": "slope",
+                    "plan": "reversals",
+                    "seed": 0,
+                    "duration": 1.0,
+                    "why": "y",
+                    "separates": True,
+                }
+            ],
+            "main_signal": "wheel_1L",
+            "main_reduction": 0.5,
+            "unexplained": [] if second else ["wheel_1L"],
+            "fits": {"torque_limit": {**fit, "threshold": {"-": 0.05}}},
+            "final": {"torque_limit": fit} if second else {},
+        }
+        Path(out).mkdir(parents=True)
+        (Path(out) / "result.json").write_text(json.dumps(res))
+        return res
+
+    monkeypatch.setattr(b, "diagnose", fake)
+    monkeypatch.setattr(b, "DURATION", 1.0)
+    case = next(c for c in b.cases() if c["kind"] == "single" and "torque_limit" in c["effects"])
+    row = b.run_case(case, tmp_path)
+    assert [len(c) for c in calls] == [3, 5]
+    assert [Path(p).name for p in calls[1][3:]] == ["drive_03.csv", "drive_04.csv"]
+    d = tmp_path / b.tag(case)
+    builds = [
+        json.dumps(yaml.safe_load((d / f).read_text())["nuisance"])
+        for f in ("logs/truth.yaml", "followup_0/truth.yaml", "followup_1/truth.yaml")
+    ]
+    assert builds[0] == builds[1] == builds[2]
+    assert [p["plan"] for p in row["followup"]] == ["accel", "reversals"]
+    assert (
+        row["named"] == ["torque_limit"]
+        and row["first_named"] == []
+        and row["gen"] == "independent"
+    )
+    f = row["fits"]["torque_limit"]
+    assert (f["value"], f["threshold"]) == (-0.4, 0.05) and f["truth"] == case["truth"][
+        "torque_limit"
+    ]["fraction"]
