@@ -313,7 +313,7 @@ def run_case(case: dict[str, Any], root: Path, workers: int = 1) -> dict[str, An
     return row
 
 
-def _magnitude(name: str, truth: float) -> float:
+def magnitude(name: str, truth: float) -> float:
     """The truth in the variable diagnose fits and states its noise threshold in: the
     parameter's size, but 1e6 / k_phi for the loose soil (fitted as u = 1/k_phi, 0 next to
     hard ground: a stiffer soil is a smaller effect)."""
@@ -329,7 +329,7 @@ def _above(r: dict[str, Any], name: str) -> bool:
         return True
     if f is None or not f.get("threshold"):
         return False
-    return bool(_magnitude(name, f["truth"]) >= 2 * f["threshold"])
+    return bool(magnitude(name, f["truth"]) >= 2 * f["threshold"])
 
 
 def _bins(rows: list[dict[str, Any]], name: str) -> list[str]:
@@ -339,7 +339,7 @@ def _bins(rows: list[dict[str, Any]], name: str) -> list[str]:
         f = r["fits"].get(name)
         if f is None or not f.get("threshold"):
             continue
-        pts.append((_magnitude(name, f["truth"]) / f["threshold"], r, f))
+        pts.append((magnitude(name, f["truth"]) / f["threshold"], r, f))
     if not pts:
         return []
     out = []
@@ -349,7 +349,7 @@ def _bins(rows: list[dict[str, Any]], name: str) -> list[str]:
             continue
         named = sum(name in r["named"] for _, r, _ in sel)
         ratio = [f["value"] / f["truth"] for _, r, f in sel if name in r["named"]]
-        cov = sum(_covers(f) for _, r, f in sel if name in r["named"])
+        cov = sum(covers(f) for _, r, f in sel if name in r["named"])
         label = f"{lo:g}–{hi:g}" if math.isfinite(hi) else f"≥ {lo:g}"
         out.append(
             f"| {name} | {label} | {named}/{len(sel)} |"
@@ -359,7 +359,7 @@ def _bins(rows: list[dict[str, Any]], name: str) -> list[str]:
     return out
 
 
-def _covers(f: dict[str, Any]) -> bool:
+def covers(f: dict[str, Any]) -> bool:
     lo = f["lo"] if f["lo"] is not None else -math.inf
     hi = f["hi"] if f["hi"] is not None else math.inf
     return bool(lo <= f["truth"] <= hi)
@@ -381,10 +381,10 @@ def _acceptance(rows: list[dict[str, Any]], gen: str) -> list[str]:
         if f is None or not f.get("threshold"):
             continue
         ok = name in r["named"]
-        if _magnitude(name, f["truth"]) >= 2 * f["threshold"]:
+        if magnitude(name, f["truth"]) >= 2 * f["threshold"]:
             above.append(ok)
             if ok:
-                cov.append(_covers(f))
+                cov.append(covers(f))
         else:
             below.append(ok)
     wrong = [bool(set(r["named"]) - set(r["truth"])) for r in single]
@@ -398,7 +398,7 @@ def _acceptance(rows: list[dict[str, Any]], gen: str) -> list[str]:
     ]
     # Each effect of a pair named, its 95 % interval (from the pair's fit) against the truth.
     pair_cov = [
-        _covers(r["fits"][e])
+        covers(r["fits"][e])
         for r in g
         if r["kind"] == "pair"
         for e in r["truth"]
@@ -588,7 +588,7 @@ def main() -> int:
             f" {row['diagnose_s']:.0f}s"
         )
         total = time.perf_counter() - t0
-        (out / json_name).write_text(json.dumps(rows, indent=1, default=_finite))
+        (out / json_name).write_text(json.dumps(rows, indent=1, default=finite))
         if not args.shard:
             write_report(out / "matrix.md", summarise(rows, total, args.quick, len(todo)))
 
@@ -622,13 +622,13 @@ def merge(out: Path, quick: bool, seed0: int = SEED0) -> int:
     rows.sort(key=rank)
     # Shards ran side by side, so this sum is CPU time, not the matrix's wall time.
     total = sum(r["make_logs_s"] + r["diagnose_s"] + r["followup_s"] for r in rows)
-    (out / "matrix.json").write_text(json.dumps(rows, indent=1, default=_finite))
+    (out / "matrix.json").write_text(json.dumps(rows, indent=1, default=finite))
     write_report(out / "matrix.md", summarise(rows, total, quick, len(todo)))
     print(f"merged {len(rows)} cases into {out / 'matrix.md'}")
     return 0
 
 
-def _finite(x: Any) -> Any:
+def finite(x: Any) -> Any:
     v = float(x)
     return v if math.isfinite(v) else None
 

@@ -171,6 +171,103 @@ def test_sustained_spin_buries_a_wheel_in_loose_soil() -> None:
     assert tr.sink[-1, :4].min() > 1.5 * tr.sink[0, :4].max()
 
 
+# --------------------------------------------------------------------------- outside the catalogue
+
+
+def test_payload_on_segment_2_loads_its_wheels_and_bends_the_pitch_joint() -> None:
+    """A load of 30 % of the rover's mass on segment 2's deck: the tires carry the new weight
+    (sum of C_z delta = (1.3 m) g at rest, within 1 %), segment 2's wheels most of it, and
+    the pitch spring to segment 3 takes the moment (it sat at ~0 without)."""
+    base, loaded = run(left=0.0, right=0.0), run({"payload": {"fraction": 0.3}}, 0.0, 0.0)
+    p = model.RoverParams()
+    weight = 1.3 * p.total_mass() * model.G
+    assert abs(loaded.sink[-1].sum() * p.c_z / weight - 1.0) < 0.01
+    extra = loaded.sink[-1] - base.sink[-1]
+    assert extra[2:4].min() > 1.5 * max(extra[:2].max(), extra[4:].max()) > 0.0
+    assert abs(np.degrees(loaded.theta[-1, 3])) > 2.0 > 10 * abs(np.degrees(base.theta[-1, 3]))
+
+
+def test_toe_in_rolls_the_front_wheels_at_opposite_slip_angles_and_scrubs() -> None:
+    """Front wheels yawed 6 degrees inward, straight command: they roll at slip angles of
+    +-tan(6 deg) (left +, right -), the others at none; the lateral forces cancel (the rover
+    keeps its heading) but drag it back, so the front (driven) wheels spin more."""
+    base, toe = run(), run({"toe": {"deg": 6.0}})
+    ta = toe.tan_alpha[STEADY].mean(axis=0)
+    assert abs(ta[0] - np.tan(np.radians(6.0))) < 0.01 and abs(ta[1] + ta[0]) < 1e-3
+    assert np.abs(ta[2:]).max() < 0.005
+    assert abs(toe.pose[-1, 2]) < 0.005
+    front = lambda tr: float(tr.slip[STEADY, :2].mean())  # noqa: E731
+    assert front(toe) < front(base) - 0.003
+
+
+def test_brake_drag_on_a_free_wheel_slows_it_and_pulls_the_rover_to_its_side() -> None:
+    base, braked = run(), run({"brake_drag": {"torque": 0.3, "wheel": 4}})  # on 3L
+    om = braked.omega[STEADY].mean(axis=0)
+    assert om[4] < om[5] - 0.1  # 3L turns slower than 3R under the same (straight) command
+    assert abs(base.omega[STEADY, 4].mean() - base.omega[STEADY, 5].mean()) < 0.01
+    assert braked.pose[-1, 2] > 0.02 > abs(base.pose[-1, 2])  # it yaws toward the left
+
+
+def test_battery_sag_lowers_the_top_speed_at_full_command_only() -> None:
+    """At a target beyond reach (6.5 rad/s) the wheels run at the speed the clipped voltage
+    allows, which falls with the supply (no-load speed V / k_t: 1 - fraction of nominal);
+    at 2 rad/s the speed loops still hold the target."""
+    top = lambda tr: float(tr.omega[STEADY, :4].mean())  # noqa: E731
+    sag = {"battery_sag": {"fraction": 0.4}}
+    ratio = top(run(sag, 6.5, 6.5)) / top(run(None, 6.5, 6.5))
+    assert abs(ratio - 0.6) < 0.03
+    assert abs(top(run(sag)) - W) < 0.02
+
+
+# --------------------------------------------------------------------------- given plans
+
+
+def test_a_given_schedule_is_driven_as_held_rows(tmp_path: Path) -> None:
+    from rover_env.independent.drive import Schedule
+
+    sched = Schedule(
+        np.array([0.0, 0.5, 1.7, 2.0]),
+        np.array([[0.0] * 4, [2.0, 2.0, 2.0, 2.0], [1.0, 3.0, 1.0, 3.0], [0.0] * 4]),
+    )
+    (p,) = make_independent_logs(tmp_path, {}, drives=1, seed=5, plan=sched, first_index=3)
+    assert p.name == "drive_03.csv"
+    log = read_log(p)
+    assert log.t[-1] == 2.0 and len(log) == 101
+    assert np.array_equal(log.cmd[(log.t >= 0.5) & (log.t < 1.7)][0], [2.0, 2.0, 2.0, 2.0])
+    assert np.array_equal(log.cmd[(log.t >= 1.7) & (log.t < 2.0)], np.tile([1.0, 3, 1, 3], (15, 1)))
+    assert np.array_equal(log.cmd[-1], [0.0] * 4)
+    k05, k17 = 25, 85
+    assert log.phi[k17, 0] - log.phi[k05, 0] > 1.5  # ~2 rad/s for 1.2 s after its rise
+    last = log.phi[-1] - log.phi[k17]
+    assert last[1] > last[0] + 0.2 and last[3] > last[2] + 0.2  # then the right side faster
+    truth = yaml.safe_load((tmp_path / "truth.yaml").read_text())
+    assert truth["drives"][0]["schedule"]["t"] == [0.0, 0.5, 1.7, 2.0]
+    # the same rover: the first drives of seed 5 carry the same build in truth.yaml
+    other = make_independent_logs(tmp_path / "first", {}, drives=1, seed=5, duration=1.0)
+    assert (
+        yaml.safe_load((other[0].parent / "truth.yaml").read_text())["nuisance"]
+        == truth["nuisance"]
+    )
+
+
+def test_given_manoeuvres_and_the_cli_plan_csv(tmp_path: Path) -> None:
+    from rover_env.independent.__main__ import main
+
+    (p,) = make_independent_logs(
+        tmp_path / "m", {}, drives=1, plan=[(1.0, 0, 0, 0), (1.5, 2, 2, 0.5)]
+    )
+    log = read_log(p)
+    assert log.t[-1] == 2.5 and log.cmd[-1, 0] == 2.0 and log.cmd[60, 0] == pytest.approx(0.8)
+    csv_path = tmp_path / "plan.csv"
+    csv_path.write_text("t,cmd_1L,cmd_1R,cmd_2L,cmd_2R\n0,0,0,0,0\n0.4,1,1,1,1\n1.0,0,0,0,0\n")
+    args = ["--plan-csv", str(csv_path), "--drives", "1", "--first-index", "4", "--out"]
+    assert main([*args, str(tmp_path / "c")]) == 0
+    log = read_log(tmp_path / "c" / "drive_04.csv")
+    assert log.t[-1] == 1.0 and log.cmd[20, 0] == 1.0 and log.cmd[19, 0] == 0.0
+    csv_path.write_text("time,a,b\n0,1,2\n")
+    assert main([*args, str(tmp_path / "bad")]) == 2
+
+
 # --------------------------------------------------------------------------- (d) nuisance
 
 
@@ -216,7 +313,7 @@ def test_imports_nothing_from_rover_env_but_logs() -> None:
     assert not bad, bad
 
 
-_STDLIB = {"argparse", "ast", "dataclasses", "functools", "math", "pathlib", "sys", "typing"}
+_STDLIB = {"argparse", "ast", "csv", "dataclasses", "functools", "math", "pathlib", "sys", "typing"}
 
 
 # --------------------------------------------------------------------------- entry point
@@ -242,3 +339,7 @@ def test_effect_parsing_and_ranges() -> None:
         effects.resolve({"command_lag": {"tau": 3.0}})
     with pytest.raises(effects.EffectError):
         effects.resolve({"wheel_wobble": {"x": 1.0}})
+    with pytest.raises(effects.EffectError):
+        effects.resolve({"brake_drag": {"torque": 0.2, "wheel": 2.5}})
+    e = effects.resolve({"battery_sag": {"fraction": 0.3}, "brake_drag": {"torque": 0.2}})
+    assert e.supply_scale == pytest.approx(0.7) and (e.brake_wheel, e.brake_torque) == (4, 0.2)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from rover_env.independent.drive import Schedule
 from rover_env.independent.effects import EffectError, parse_cli
 from rover_env.independent.generate import make_independent_logs
 
@@ -27,6 +28,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--no-nuisance", action="store_true", help="the nominal rover, built to drawing"
     )
+    ap.add_argument(
+        "--plan-csv",
+        default=None,
+        metavar="FILE",
+        help="drive these targets instead of the seeded plans: t,cmd_1L,cmd_1R,cmd_2L,cmd_2R rows"
+        " each held until the next (what `rover-env drive-plan` writes); the drive lasts until"
+        " the last row",
+    )
+    ap.add_argument(
+        "--first-index",
+        type=int,
+        default=0,
+        help="number the drives (and draw their sensor noise) from here: a follow-up drive of"
+        " the same rover (same --seed) is --first-index 3 after three drives",
+    )
     a = ap.parse_args(argv)
     try:
         effects = dict(parse_cli(s) for s in a.effect)
@@ -37,8 +53,10 @@ def main(argv: list[str] | None = None) -> int:
             seed=a.seed,
             duration=a.duration,
             nuisance=not a.no_nuisance,
+            plan=Schedule.from_csv(a.plan_csv) if a.plan_csv else None,
+            first_index=a.first_index,
         )
-    except EffectError as exc:
+    except (EffectError, ValueError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     for p in paths:

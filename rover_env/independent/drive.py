@@ -6,9 +6,19 @@ starts with one second at rest. The kinds rotate with the drive index so a case 
 has three different characters; the numbers in each are drawn from the seed.
 Wheel speeds are in rad/s (1 rad/s is about 8 cm/s on this rover); the motors reach about
 6 rad/s unloaded, plans stay within +-3.5 rad/s.
+
+A drive can also follow a given plan (``make_independent_logs(..., plan=...)``): a list of
+manoeuvres as above, or a :class:`Schedule`, rows of the four targets each held from its time
+until the next, as ``rover-env drive-plan`` writes them (``t,cmd_1L,cmd_1R,cmd_2L,cmd_2R``,
+read by :meth:`Schedule.from_csv`). Both are plain numbers: turning another tool's plan into
+them is that tool's business.
 """
 
 from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -84,3 +94,53 @@ def targets(manoeuvres: list[Manoeuvre], t: Array) -> Array:
 
 def drive_kind(index: int, seed: int) -> str:
     return KINDS[(index + 3 * seed) % len(KINDS)]
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """Targets 1L 1R 2L 2R (rad/s) from ``t[k]`` until ``t[k + 1]`` (zero-order hold); the
+    drive lasts until the last row's time, whose targets hold at that instant."""
+
+    t: Array  # (M,) increasing, t[0] = 0
+    cmd: Array  # (M, 4)
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.t, dtype=np.float64)
+        cmd = np.asarray(self.cmd, dtype=np.float64)
+        if t.ndim != 1 or t.size < 2 or cmd.shape != (t.size, 4):
+            raise ValueError(
+                f"schedule: need (M,) times and (M, 4) targets, got {t.shape}, {cmd.shape}"
+            )
+        if t[0] != 0.0 or np.any(np.diff(t) <= 0.0):
+            raise ValueError("schedule: times must start at 0 and increase")
+        if not np.all(np.isfinite(cmd)):
+            raise ValueError("schedule: targets must be finite")
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "cmd", cmd)
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1])
+
+    def at(self, t: Array) -> Array:
+        """(N, 4) targets at times ``t`` (the row in force at each)."""
+        k = np.searchsorted(self.t, np.asarray(t) + 1e-9, side="right") - 1
+        return self.cmd[np.clip(k, 0, self.t.size - 1)]
+
+    @classmethod
+    def from_csv(cls, path: str | Path) -> Schedule:
+        """A ``t,cmd_1L,cmd_1R,cmd_2L,cmd_2R`` CSV (a header row, then numbers)."""
+        with Path(path).open(newline="") as fh:
+            rows = list(csv.reader(fh))
+        if not rows or [c.strip() for c in rows[0]] != list(CSV_HEADER):
+            raise ValueError(f"{path}: header must be {','.join(CSV_HEADER)}")
+        try:
+            a = np.array([[float(x) for x in r] for r in rows[1:] if r], dtype=np.float64)
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
+        if a.ndim != 2 or a.shape[1] != 5:
+            raise ValueError(f"{path}: every row needs 5 numbers")
+        return cls(a[:, 0], a[:, 1:])
+
+
+CSV_HEADER = ("t", "cmd_1L", "cmd_1R", "cmd_2L", "cmd_2R")

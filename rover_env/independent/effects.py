@@ -27,6 +27,25 @@ the one ``--effect name=value`` sets. Each is applied where it physically lives:
   far above ``range``: ``(1 - fall) mu``).
 - ``loose_soil`` (``k_phi`` factor in [0.3, 3], ``sand`` 0/1): the ground is SOIL.md's loose soil
   (:mod:`soil` presets: regolith, or dry sand when ``sand`` is 1) with k_phi times the factor.
+
+Four more act on a real rover but have no counterpart in ``rover-env diagnose``'s catalogue (the
+"outside the catalogue" cases of the acceptance matrix, ``benchmarks/bench_independent.py``):
+
+- ``payload`` (``fraction`` in [0, 1]): a rigid load of ``fraction`` times the rover's total mass
+  bolted on segment 2's deck (its centre 0.14 m above the axle, a 0.2 x 0.2 x 0.1 m box): more
+  load on segment 2's wheels, and through the chain's springs on its neighbours.
+- ``toe`` (``deg`` in [-10, 10]): the two front wheels (segment 1) yawed on their mounts, ``deg``
+  toe-in (positive: the wheels' fronts point toward the centre line), as a misaligned bracket.
+  Straight driving makes them roll at a slip angle: lateral forces that cancel left to right but
+  scrub speed and take traction.
+- ``brake_drag`` (``torque`` N m in [0, 2], ``wheel`` index 0-5 of 1L 1R 2L 2R 3L 3R, default 4:
+  3L): a dragging brake or seized bearing on one wheel, a Coulomb moment ``torque`` (smoothed
+  over 0.05 rad/s, as the gearbox drag) between that wheel and its segment. On a free wheel it
+  slows that wheel and pulls the rover toward its side; a driven wheel's speed loop hides it
+  except in the current it needs.
+- ``battery_sag`` (``fraction`` in [0, 0.9]): the motors' supply voltage is ``1 - fraction`` of
+  nominal (a tired battery, a long harness): the drivers clip at that voltage, which lowers each
+  motor's top speed and the torque it has left near it (the current limit stays).
 """
 
 from __future__ import annotations
@@ -43,7 +62,13 @@ MAIN: dict[str, str] = {
     "command_delay": "delay",
     "load_dependent_friction": "fall",
     "loose_soil": "k_phi",
+    "payload": "fraction",
+    "toe": "deg",
+    "brake_drag": "torque",
+    "battery_sag": "fraction",
 }
+OUTSIDE: tuple[str, ...] = ("payload", "toe", "brake_drag", "battery_sag")
+"""Effects with no counterpart in ``rover-env diagnose``'s catalogue."""
 RANGES: dict[tuple[str, str], tuple[float, float]] = {
     ("rolling_resistance", "c_rr"): (0.0, 0.3),
     ("slope", "deg"): (-20.0, 20.0),
@@ -57,6 +82,11 @@ RANGES: dict[tuple[str, str], tuple[float, float]] = {
     ("load_dependent_friction", "range"): (1.0, 1000.0),
     ("loose_soil", "k_phi"): (0.3, 3.0),
     ("loose_soil", "sand"): (0.0, 1.0),
+    ("payload", "fraction"): (0.0, 1.0),
+    ("toe", "deg"): (-10.0, 10.0),
+    ("brake_drag", "torque"): (0.0, 2.0),
+    ("brake_drag", "wheel"): (0.0, 5.0),
+    ("battery_sag", "fraction"): (0.0, 0.9),
 }
 
 
@@ -80,11 +110,16 @@ class Effects:
     friction_range: float = 60.0
     soil: str | None = None
     k_phi_factor: float = 1.0
+    payload_fraction: float = 0.0
+    toe_deg: float = 0.0
+    brake_torque: float = 0.0
+    brake_wheel: int = 4
+    supply_scale: float = 1.0
 
 
 def resolve(effects: dict[str, dict[str, float]]) -> Effects:
     """Check ``effects`` and turn it into :class:`Effects`."""
-    kw: dict[str, float | str | None] = {}
+    kw: dict[str, float | int | str | None] = {}
     for name, params in effects.items():
         if name not in MAIN:
             raise EffectError(f"unknown effect {name!r}; known: {', '.join(MAIN)}")
@@ -118,6 +153,18 @@ def resolve(effects: dict[str, dict[str, float]]) -> Effects:
         elif name == "loose_soil":
             kw["soil"] = "dry_sand" if float(params.get("sand", 0.0)) >= 0.5 else "regolith"
             kw["k_phi_factor"] = v
+        elif name == "payload":
+            kw["payload_fraction"] = v
+        elif name == "toe":
+            kw["toe_deg"] = v
+        elif name == "brake_drag":
+            kw["brake_torque"] = v
+            wheel = float(params.get("wheel", 4.0))
+            if wheel != int(wheel):
+                raise EffectError(f"brake_drag.wheel = {wheel}: a wheel index 0-5")
+            kw["brake_wheel"] = int(wheel)
+        elif name == "battery_sag":
+            kw["supply_scale"] = 1.0 - v
     return Effects(**kw)  # type: ignore[arg-type]
 
 

@@ -5,6 +5,13 @@ plan, its own sensor noise and its own world seed. Logs are written at 50 Hz (``
 50: a choice; SPEC gives no rate), ``rover: proto_explorer``, ``terrain: flat`` (what a tester
 would write even on a slope or loose soil: the effect is what diagnose must find), with a
 ``truth.yaml`` beside them holding the effects, the nuisance draw and the drive plans.
+
+``plan`` drives a given plan instead of the seeded ones (every drive the same targets): a list of
+(duration, left, right, ramp) manoeuvres (:mod:`.drive`; the drive lasts their total) or a
+:class:`~rover_env.independent.drive.Schedule` (it lasts until its last row). ``first_index``
+numbers the files from there (``drive_03.csv``...) and draws their sensor noise as the drives of
+that index would: a follow-up drive of the same rover (same ``seed``: the same build) adds to
+the first ones without repeating their noise.
 """
 
 from __future__ import annotations
@@ -35,20 +42,30 @@ def make_independent_logs(
     seed: int = 0,
     duration: float = 50.0,
     nuisance: bool = True,
+    plan: list[drive.Manoeuvre] | drive.Schedule | None = None,
+    first_index: int = 0,
 ) -> list[Path]:
-    """Write ``drives`` logs of ``duration`` seconds into ``out``; returns the CSV paths."""
+    """Write ``drives`` logs of ``duration`` seconds (or ``plan``'s) into ``out``; returns the
+    CSV paths."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     eff = resolve(effects)
+    if first_index < 0:
+        raise ValueError(f"first_index must be >= 0, got {first_index}")
+    if isinstance(plan, drive.Schedule):
+        duration = plan.duration
+    elif plan is not None:
+        if not plan or any(len(m) != 4 or m[0] <= 0 or m[3] < 0 for m in plan):
+            raise ValueError("plan: manoeuvres are (duration > 0, left, right, ramp >= 0)")
+        plan = [(float(a), float(b), float(c), float(d)) for a, b, c, d in plan]
+        duration = float(sum(m[0] for m in plan))
     draw = nuisance_mod.draw(seed) if nuisance else nuisance_mod.nominal()
     params = nuisance_mod.apply(RoverParams(), draw)
     t = np.round(np.arange(0.0, duration + 0.5 / SAMPLE_HZ, 1.0 / SAMPLE_HZ), 9)
     paths: list[Path] = []
     plans: list[dict[str, Any]] = []
-    for i in range(drives):
-        kind = drive.drive_kind(i, seed)
-        manoeuvres = drive.plan(kind, duration, seed * 1000 + i)
-        cmd = drive.targets(manoeuvres, t)
+    for i in range(first_index, first_index + drives):
+        kind, record, cmd = _targets(plan, i, seed, duration, t)
         truth = simulate(params, eff, t, cmd)
         rng = np.random.default_rng([47, 3, seed, i])
         phi = sensors.encoder_angles(truth.phi, params.encoder_cpr, rng.uniform(0.0, 1.0, 6))
@@ -64,9 +81,7 @@ def make_independent_logs(
         )
         log = DriveLog(t=t, cmd=cmd, phi=phi, theta=theta, pose=pose, meta=meta)
         paths.append(write_log(log, out / f"drive_{i:02d}.csv", overwrite=True))
-        plans.append(
-            {"file": paths[-1].name, "kind": kind, "manoeuvres": [list(m) for m in manoeuvres]}
-        )
+        plans.append({"file": paths[-1].name, "kind": kind, **record})
     truth_doc = {
         "generator": "rover_env.independent",
         "seed": seed,
@@ -87,3 +102,21 @@ def make_independent_logs(
     }
     (out / "truth.yaml").write_text(yaml.safe_dump(truth_doc, sort_keys=False), encoding="utf-8")
     return paths
+
+
+def _targets(
+    plan: list[drive.Manoeuvre] | drive.Schedule | None,
+    i: int,
+    seed: int,
+    duration: float,
+    t: np.ndarray,
+) -> tuple[str, dict[str, Any], np.ndarray]:
+    """Drive ``i``'s plan kind, its record for truth.yaml, and its (N, 4) targets at ``t``."""
+    if isinstance(plan, drive.Schedule):
+        rows = {"t": plan.t.tolist(), "cmd": plan.cmd.tolist()}
+        return "given schedule", {"schedule": rows}, plan.at(t)
+    if plan is not None:
+        return "given manoeuvres", {"manoeuvres": [list(m) for m in plan]}, drive.targets(plan, t)
+    kind = drive.drive_kind(i, seed)
+    manoeuvres = drive.plan(kind, duration, seed * 1000 + i)
+    return kind, {"manoeuvres": [list(m) for m in manoeuvres]}, drive.targets(manoeuvres, t)

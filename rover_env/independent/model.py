@@ -68,9 +68,12 @@ class RoverParams:
     # sensors
     pot_gain: list[float] = field(default_factory=lambda: [1.0] * 5)
     encoder_cpr: int = 1024
+    # what the outside-the-catalogue effects change (:mod:`effects`): none on the drawing
+    payload_mass: float = 0.0  # kg on segment 2's deck
+    toe_rad: float = 0.0  # segment 1's wheels yawed inward (toe-in > 0)
 
     def total_mass(self) -> float:
-        return float(sum(self.seg_mass) + 6 * self.wheel_mass)
+        return float(sum(self.seg_mass) + 6 * self.wheel_mass + self.payload_mass)
 
 
 def _box_inertia(m: float, dims: tuple[float, float, float]) -> tuple[float, float, float]:
@@ -82,13 +85,20 @@ def _f(v: float) -> str:
     return repr(float(v))
 
 
-def _wheel_xml(name: str, y: float, r: float, m: float, driven: bool, armature: float) -> str:
+PAYLOAD_HEIGHT = 0.14
+"""Centre of a payload above segment 2's axle: a 0.1 m tall load on the deck (top at 0.09 m)."""
+PAYLOAD_BOX = (0.2, 0.2, 0.1)
+
+
+def _wheel_xml(
+    name: str, y: float, r: float, m: float, driven: bool, armature: float, yaw: float = 0.0
+) -> str:
     iy = 0.5 * m * r * r
     ix = 0.25 * m * r * r
     arm = armature if driven else 0.0
     damp = 2e-4  # bearing (+ potentiometer wiper on the free wheels), N m s/rad
     return (
-        f'<body name="w{name}" pos="0 {_f(y)} 0">'
+        f'<body name="w{name}" pos="0 {_f(y)} 0" euler="0 0 {_f(yaw)}">'
         f'<joint name="phi_{name}" type="hinge" axis="0 1 0" armature="{_f(arm)}" damping="{_f(damp)}"/>'
         f'<inertial pos="0 0 0" mass="{_f(m)}" diaginertia="{_f(ix)} {_f(iy)} {_f(ix)}"/>'
         "</body>"
@@ -120,12 +130,24 @@ def build_mjcf(
         for j, side in enumerate("LR"):
             k = 2 * (seg - 1) + j
             y = p.half_track if side == "L" else -p.half_track
+            # toe-in turns a left wheel's front toward -y (clockwise seen from above)
+            yaw = (-p.toe_rad if side == "L" else p.toe_rad) if seg == 1 else 0.0
             out.append(
                 _wheel_xml(
-                    f"{seg}{side}", y, p.wheel_radius[k], p.wheel_mass, seg < 3, rotor_armature
+                    f"{seg}{side}", y, p.wheel_radius[k], p.wheel_mass, seg < 3, rotor_armature, yaw
                 )
             )
         return "".join(out)
+
+    def payload() -> str:
+        if p.payload_mass <= 0.0:
+            return ""
+        ixx, iyy, izz = _box_inertia(p.payload_mass, PAYLOAD_BOX)
+        return (
+            f'<body name="payload" pos="0 0 {_f(PAYLOAD_HEIGHT)}">'
+            f'<inertial pos="0 0 0" mass="{_f(p.payload_mass)}" '
+            f'diaginertia="{_f(ixx)} {_f(iyy)} {_f(izz)}"/></body>'
+        )
 
     def joint(name: str, anchor_x: float) -> str:
         i = JOINTS.index(name)
@@ -145,7 +167,7 @@ def build_mjcf(
         f'<body name="seg1" pos="{_f(L)} 0 {_f(z0)}"><freejoint name="root"/>{seg_inertial(0)}'
         f"{wheels(1)}"
         f'<body name="seg2" pos="{_f(-L)} 0 0">'
-        f"{joint('theta_1', L / 2)}{joint('theta_2', L / 2)}{seg_inertial(1)}{wheels(2)}"
+        f"{joint('theta_1', L / 2)}{joint('theta_2', L / 2)}{seg_inertial(1)}{wheels(2)}{payload()}"
         f'<body name="seg3" pos="{_f(-L)} 0 0">'
         f"{joint('theta_3', L / 2)}{joint('theta_4', L / 2)}{joint('theta_5', L / 2)}"
         f"{seg_inertial(2)}{wheels(3)}"

@@ -12,7 +12,8 @@ numbers; all numbers are this module's choices).
 - Speed loop at 250 Hz (every other 2 ms physics step), PI on the speed error to a voltage command
   clipped to +-12 V; anti-windup by back-calculation (the integrator is bled by the clipped excess
   at rate 1/T_t, T_t = 0.05 s), a choice distinct from a plain clamp or conditional integration.
-- The motor torque limit effect scales the driver's current limit.
+- The motor torque limit effect scales the driver's current limit; the battery sag effect the
+  supply voltage the drivers clip at (the controller's feed-forward still assumes nothing).
 """
 
 from __future__ import annotations
@@ -52,18 +53,27 @@ class Drives:
     kp: Array
     ki: Array
     current_limit: Array
+    v_max: float = V_MAX
     integ: Array = field(default_factory=lambda: np.zeros(4))
     voltage: Array = field(default_factory=lambda: np.zeros(4))
     speed_est: Array = field(default_factory=lambda: np.zeros(4))
     last_count: Array = field(default_factory=lambda: np.zeros(4))
 
     @classmethod
-    def make(cls, k_t: list[float], kp: list[float], ki: list[float], limit_scale: float) -> Drives:
+    def make(
+        cls,
+        k_t: list[float],
+        kp: list[float],
+        ki: list[float],
+        limit_scale: float,
+        supply_scale: float = 1.0,
+    ) -> Drives:
         return cls(
             k_t=np.array(k_t, dtype=float),
             kp=np.array(kp, dtype=float),
             ki=np.array(ki, dtype=float),
             current_limit=np.full(4, I_MAX * limit_scale),
+            v_max=V_MAX * supply_scale,
         )
 
     def reset_counts(self, wheel_angle: Array) -> None:
@@ -79,7 +89,7 @@ class Drives:
         err = target - self.speed_est
         v_ff = target * K_T_DATASHEET * GEAR  # back-EMF feed-forward (datasheet constant)
         unclipped = v_ff + self.kp * err + self.integ
-        self.voltage = np.clip(unclipped, -V_MAX, V_MAX)
+        self.voltage = np.clip(unclipped, -self.v_max, self.v_max)
         self.integ = self.integ + dt * (self.ki * err + (self.voltage - unclipped) / T_TRACK)
 
     def wheel_torque(self, omega: Array) -> Array:

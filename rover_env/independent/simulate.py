@@ -12,12 +12,15 @@ drives from this package, stepped with a ``mj_step1`` / forces / ``mj_step2`` sp
 - Speed loops at 250 Hz (every second step); the motor current every step.
 - The rover is put down at its static height and settles for one second with zero targets
   before the log's t = 0.
+- The effects that change the build (payload, toe) enter the MJCF through :class:`RoverParams`
+  (:func:`built`); a dragging brake is a joint torque on that wheel's hinge (the reaction on
+  its segment), next to the motors' in ``qfrc_applied``.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -63,6 +66,26 @@ class Truth:
     slip: Array  # (N, 6) SPEC's S per wheel (tire state)
     omega: Array  # (N, 6) wheel rates
     sink: Array  # (N, 6) tire compression (flat) or sinkage below the undisturbed surface (soil)
+    tan_alpha: Array  # (N, 6) tangent of each wheel's slip angle (tire state)
+
+
+def built(p: RoverParams, eff: Effects) -> RoverParams:
+    """The rover as built with the effects that change its hardware: a payload on segment 2
+    (a fraction of the rover's own mass), the front wheels' toe."""
+    return replace(
+        p,
+        payload_mass=p.payload_mass + eff.payload_fraction * p.total_mass(),
+        toe_rad=p.toe_rad + math.radians(eff.toe_deg),
+    )
+
+
+def brake_torque(eff: Effects, omega: Array) -> Array:
+    """(6,) the dragging brake's moment on each wheel hinge at wheel rates ``omega``."""
+    out = np.zeros(6)
+    if eff.brake_torque > 0.0:
+        w = eff.brake_wheel
+        out[w] = -eff.brake_torque * math.tanh(float(omega[w]) / motor.DRAG_W)
+    return out
 
 
 def _static_height(p: RoverParams, eff: Effects) -> float:
@@ -266,6 +289,7 @@ class _Log:
         self.slip = np.zeros((n, 6))
         self.omega = np.zeros((n, 6))
         self.sink = np.zeros((n, 6))
+        self.tan_alpha = np.zeros((n, 6))
         self.phi0 = np.zeros(6)
         self.p30 = np.zeros(3)
         self.r30 = np.eye(3)
@@ -295,6 +319,7 @@ class _Log:
         self.slip[k] = ground.s_travel
         self.omega[k] = d.qvel[a.w_dadr]
         self.sink[k] = ground.sink
+        self.tan_alpha[k] = ground.uy / tire.SIGMA
 
     def truth(self, t: Array) -> Truth:
         return Truth(
@@ -305,6 +330,7 @@ class _Log:
             slip=self.slip,
             omega=self.omega,
             sink=self.sink,
+            tan_alpha=self.tan_alpha,
         )
 
 
@@ -313,12 +339,13 @@ def simulate(
 ) -> Truth:
     """Drive the rover with targets ``cmd`` (N, 4), held from ``t[k]`` to ``t[k + 1]``."""
     grav = gravity_vector(eff.slope_deg, eff.slope_heading_deg)
+    p = built(p, eff)
     z0 = _static_height(p, eff)
     xml = build_mjcf(p, timestep=DT, gravity=grav, z0=z0, rotor_armature=motor.reflected_inertia())
     m = mujoco.MjModel.from_xml_string(xml)
     d = mujoco.MjData(m)
     addr = _Addr.of(m)
-    drives = motor.Drives.make(p.k_t, p.kp, p.ki, eff.current_limit_scale)
+    drives = motor.Drives.make(p.k_t, p.kp, p.ki, eff.current_limit_scale, eff.supply_scale)
     ground = _Ground(p, eff, addr)
     command = _Command(eff, t, cmd)
     mujoco.mj_forward(m, d)
@@ -344,6 +371,8 @@ def simulate(
         mujoco.mj_step1(m, d)
         ground.apply(d)
         d.qfrc_applied[:] = 0.0
-        d.qfrc_applied[addr.drv_dadr] = drives.wheel_torque(d.qvel[addr.drv_dadr])
+        if eff.brake_torque > 0.0:
+            d.qfrc_applied[addr.w_dadr] = brake_torque(eff, d.qvel[addr.w_dadr])
+        d.qfrc_applied[addr.drv_dadr] += drives.wheel_torque(d.qvel[addr.drv_dadr])
         mujoco.mj_step2(m, d)
     return log.truth(t)

@@ -1,0 +1,677 @@
+"""Issue 47's acceptance matrix of ``rover-env diagnose`` on the third generator, the
+independent one (:mod:`rover_env.independent`, written from SPEC.md and SOIL.md alone).
+
+Each case: ``make_independent_logs`` writes 3 drives of 50 s (2 training, 1 held out) of one
+rover built within its tolerances (nuisance ON, drawn from the case seed) with hidden effects;
+``diagnose`` sees only the logs. Every drive the report then proposes (a tie's separating
+drive, each evidence drive: what ``rover-env drive-plan --report`` would write for the user)
+is driven by the same rover (same seed: the same build) and the case is diagnosed again with
+those drives added. The plan is turned into plain numbers here (``command_rows``: the
+targets at 50 Hz, clipped to the model rover's ``max_wheel_speed``, as ``drive-plan`` writes
+them) and handed to the generator as a :class:`~rover_env.independent.drive.Schedule`.
+
+Cases (seeds from 47000, magnitudes drawn by seed, log-uniform over each effect's range;
+nobody picks them): 5 singles of each of the 9 catalogue effects the generator implements
+(45), 10 clean (nuisance only), 6 pairs (never a tire-only effect with loose soil,
+``INERT_ON_SOIL``), 4 outside the catalogue (``payload``, ``toe``, ``brake_drag``,
+``battery_sag``). Where an effect means the same in both, its range is ``bench_diagnose.RANGES``.
+
+The generator's parameters against the catalogue's (``rover_env.effects``; the truth column
+is the catalogue parameter that gives the same physical quantity in diagnose's model, the
+``proto_explorer`` rover the logs name, :func:`catalogue_truth`):
+
+- ``rolling_resistance`` c_rr, ``friction`` fraction (mu_x, mu_y times 1 + f), ``command_lag``
+  tau, ``command_delay`` delay: the same definition in both; truth = the drawn value.
+- ``slope`` deg and heading_deg: both tilt gravity so the ground rises ``deg`` toward
+  ``heading_deg``, counter-clockwise from the log frame's +x (the rover's initial heading in
+  both); truth = the drawn values.
+- ``rolling_radius`` fraction: the generator scales the effective rolling radius,
+  r_e (1 + f); the catalogue adds f d at static load (d the wheel radius). Both rovers have
+  r_e = d - delta/3 = 0.0761 m at static load, so the truth is f r_e / d = 0.895 f.
+- ``torque_limit`` fraction: both scale the rover's own limit by 1 + f (the generator its
+  drivers' current limit). The rovers' own limits differ: 0.7 x 100 x 0.02 N m/A x 2 A =
+  2.8 N m at the wheel here, 3.0 N m in the model; truth = (1 + f) 2.8 / 3.0 - 1 (-0.05 ->
+  -0.113, -0.5 -> -0.533). Only lowered limits are drawn, -5 % to -80 % (a raised limit is
+  invisible unless the nominal one is reached).
+- ``load_dependent_friction``: different forms. Here mu (1 - fall tanh(F_z / 60 N)), full
+  friction at no load; the catalogue's mu (1 - fall clip((F_z - F_z0) / (2 range F_z0))),
+  nominal at the static load F_z0, range 0.1 (its default). The truth is the catalogue fall
+  with the same relative slope of mu over load at F_z0 (26.8 N):
+  2 range F_z0 fall sech^2(x) / (60 N (1 - fall tanh x)), x = F_z0 / 60 N: 0.074 fall /
+  (1 - 0.42 fall). The generator's form also lowers the friction level at F_z0 by
+  fall tanh(x) = 0.42 fall, which the catalogue calls ``friction``: recorded as the case's
+  ``equivalent``; a diagnosis naming friction there is counted as another effect named.
+- ``loose_soil``: the generator's parameter is a factor (0.3-3) on the k_phi of its preset
+  (regolith, 8.14e5 N/m^(n+2) with n 1.0; dry sand, 1.528e6 with n 1.1, for 2 of the 5
+  singles); truth k_phi = preset k_phi x factor. The catalogue fits k_phi alone with its
+  own other soil constants (mars-sand's, n0 0.92), so "within a factor of 2" is the test.
+
+Outside effects are drawn over ranges where they are clearly present (the acceptance asks
+for a gap reported): payload 10-40 % of the rover's mass on segment 2, toe-in 2-6 degrees,
+a 0.1-0.5 N m dragging brake on a free wheel (3L or 3R, drawn), battery sag 30-60 %.
+
+    python benchmarks/bench_independent.py --quick          # 5 cases
+    # the full matrix (65 cases): one shard per core, resumable, then merge
+    python benchmarks/bench_independent.py --shard 0/2 --resume & \
+        python benchmarks/bench_independent.py --shard 1/2 --resume; wait
+    python benchmarks/bench_independent.py --merge
+    python benchmarks/bench_independent.py --only torque_limit --limit 1 --out out/check
+
+It writes ``OUT/independent.md`` (acceptance figures, every case per effect) and
+``OUT/independent.json`` (rows); logs and diagnoses go to ``--work`` (out/, not in git).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import shutil
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from _report import write_report
+from bench_diagnose import INERT_ON_SOIL, RANGES, covers, draw, finite, magnitude
+
+from rover_env.calibration.diagnose import Options, diagnose
+from rover_env.calibration.drive_plan import (
+    DrivePlanError,
+    Proposal,
+    command_rows,
+    proposals_from_report,
+)
+from rover_env.config import load_rover
+from rover_env.effects import effect_class
+from rover_env.independent import motor as ind_motor
+from rover_env.independent import soil as ind_soil
+from rover_env.independent.drive import Schedule
+from rover_env.independent.effects import Effects
+from rover_env.independent.generate import SAMPLE_HZ, make_independent_logs
+from rover_env.independent.model import G, RoverParams
+
+GEN = "independent"
+SEED0 = 47000
+"""Case seeds of this matrix: a block of their own, never looked at while building diagnose."""
+EFFECTS = (
+    "rolling_resistance",
+    "slope",
+    "rolling_radius",
+    "torque_limit",
+    "friction",
+    "command_lag",
+    "command_delay",
+    "load_dependent_friction",
+    "loose_soil",
+)
+"""The catalogue effects the independent generator implements."""
+DRIVES, DURATION = 3, 50.0
+"""Drives per case (the last held out) and their length (s), as the other matrix."""
+PER_EFFECT = 5
+SAND = (1, 3)
+"""Which loose-soil singles (0-based, in seed order) are on dry sand; the others on regolith."""
+N_CLEAN = 10
+N_PAIRS = 6
+OWN_RANGES: dict[str, tuple[str, float, float, tuple[int, ...]]] = {
+    "torque_limit": ("fraction", 0.05, 0.8, (-1,)),
+    "loose_soil": ("k_phi", 0.3, 3.0, (1,)),  # a factor on the preset's k_phi
+}
+"""Ranges where the generator's parameter differs from ``bench_diagnose.RANGES``."""
+OUTSIDE_RANGES: dict[str, tuple[str, float, float]] = {
+    "payload": ("fraction", 0.1, 0.4),
+    "toe": ("deg", 2.0, 6.0),
+    "brake_drag": ("torque", 0.1, 0.5),
+    "battery_sag": ("fraction", 0.3, 0.6),
+}
+FREE_WHEELS = (4, 5)  # 3L, 3R: a driven wheel's speed loop hides a dragging brake
+
+ROVER = load_rover("proto_explorer")  # the rover the logs name: diagnose's model
+_NOM = RoverParams()
+F0_IND = _NOM.total_mass() * G / 6
+RE_RATIO = (_NOM.wheel_radius[0] - F0_IND / _NOM.c_z / 3) / ROVER.geometry.wheel_radius
+T_IND = ind_motor.EFF * ind_motor.GEAR * _NOM.k_t[0] * ind_motor.I_MAX
+TORQUE_RATIO = T_IND / ROVER.motor.torque_limit
+LDF_RANGE_CAT = next(
+    p.off for p in effect_class("load_dependent_friction").params if p.name == "range"
+)
+LDF_RANGE_IND = Effects().friction_range
+
+
+def generator_params(effect: str, seed: int, sand: bool = False) -> dict[str, float]:
+    """The generator's parameters of ``effect`` for case ``seed``: log-uniform magnitude."""
+    if effect in OUTSIDE_RANGES:
+        param, lo, hi = OUTSIDE_RANGES[effect]
+        rng = np.random.default_rng([seed, 47, len(effect)])
+        out = {param: round(float(math.exp(rng.uniform(math.log(lo), math.log(hi)))), 5)}
+        if effect == "brake_drag":
+            out["wheel"] = float(rng.choice(FREE_WHEELS))
+        return out
+    if effect not in OWN_RANGES:
+        return draw(effect, seed)  # the same meaning: the other matrix's range and draw
+    param, lo, hi, signs = OWN_RANGES[effect]
+    rng = np.random.default_rng([seed, 16, len(effect)])
+    mag = float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+    out = {param: round(int(rng.choice(signs)) * mag, 5)}
+    if effect == "loose_soil":
+        out["sand"] = 1.0 if sand else 0.0
+    return out
+
+
+def _ldf(params: dict[str, float]) -> tuple[float, float]:
+    """(catalogue fall of the same relative slope of mu at F_z0, the level change there)."""
+    a = params["fall"]
+    r = params.get("range", LDF_RANGE_IND)
+    x = F0_IND / r
+    level = 1.0 - a * math.tanh(x)
+    return 2 * LDF_RANGE_CAT * F0_IND * a / math.cosh(x) ** 2 / r / level, level - 1.0
+
+
+def catalogue_truth(effect: str, params: dict[str, float]) -> dict[str, float]:
+    """The catalogue parameters giving the same physics in diagnose's model (docstring)."""
+    if effect == "rolling_radius":
+        return {"fraction": params["fraction"] * RE_RATIO}
+    if effect == "torque_limit":
+        return {"fraction": (1.0 + params["fraction"]) * TORQUE_RATIO - 1.0}
+    if effect == "load_dependent_friction":
+        return {"fall": _ldf(params)[0]}
+    if effect == "loose_soil":
+        preset = "dry_sand" if params.get("sand", 0.0) >= 0.5 else "regolith"
+        return {"k_phi": ind_soil.PRESETS[preset].k_phi * params["k_phi"]}
+    return dict(params)
+
+
+def _case(kind: str, effects: dict[str, dict[str, float]], seed: int) -> dict[str, Any]:
+    if kind == "outside":
+        truth: Any = next(iter(effects))
+    else:
+        truth = {n: catalogue_truth(n, p) for n, p in effects.items()} or "none"
+    case = {"kind": kind, "gen": GEN, "seed": seed, "effects": effects, "truth": truth}
+    if "load_dependent_friction" in effects:
+        level = _ldf(effects["load_dependent_friction"])[1]
+        case["equivalent"] = {"friction": {"fraction": level}}
+    return case
+
+
+def _pair(seed: int) -> tuple[str, str]:
+    """Two effects that both act (seeded; never a tire-only effect with loose soil)."""
+    rng = np.random.default_rng([seed, 47])
+    while True:
+        a, b = (str(x) for x in rng.choice(EFFECTS, 2, replace=False))
+        if not ("loose_soil" in (a, b) and {a, b} & INERT_ON_SOIL):
+            return a, b
+
+
+def cases(quick: bool = False, seed0: int = SEED0) -> list[dict[str, Any]]:
+    """Every planned case, seeds counted from ``seed0``; ``quick``: a handful of them."""
+    out: list[dict[str, Any]] = []
+    seed = seed0
+    for i in range(PER_EFFECT):
+        for name in EFFECTS:
+            sand = name == "loose_soil" and i in SAND
+            out.append(_case("single", {name: generator_params(name, seed, sand)}, seed))
+            seed += 1
+    for _ in range(N_CLEAN):
+        out.append(_case("clean", {}, seed))
+        seed += 1
+    for _ in range(N_PAIRS):
+        a, b = _pair(seed)
+        eff = {a: generator_params(a, seed), b: generator_params(b, seed + 50_000)}
+        out.append(_case("pair", eff, seed))
+        seed += 1
+    for name in OUTSIDE_RANGES:
+        out.append(_case("outside", {name: generator_params(name, seed)}, seed))
+        seed += 1
+    if quick:
+        want = [
+            ("single", "torque_limit"),
+            ("single", "command_delay"),
+            ("clean", None),
+            ("single", "loose_soil"),
+            ("outside", "battery_sag"),
+        ]
+        return [
+            next(c for c in out if c["kind"] == k and (n is None or n in c["effects"]))
+            for k, n in want
+        ]
+    return out
+
+
+def tag(case: dict[str, Any]) -> str:
+    return f"{case['kind']}_{'+'.join(case['effects']) or 'none'}_{case['seed']}"
+
+
+def planned(quick: bool, seed0: int = SEED0) -> list[dict[str, Any]]:
+    """The quick cases first, then the rest round-robin over (kind, effect) groups, so a
+    matrix stopped early has cases on every acceptance line and every effect."""
+    first = cases(True, seed0)
+    if quick:
+        return first
+    done = {tag(c) for c in first}
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for c in cases(False, seed0):
+        if tag(c) not in done:
+            eff = next(iter(c["effects"]), "") if c["kind"] in ("single", "outside") else ""
+            groups.setdefault((c["kind"], eff), []).append(c)
+    out = list(first)
+    for i in range(max((len(g) for g in groups.values()), default=0)):
+        out.extend(g[i] for g in groups.values() if i < len(g))
+    return out
+
+
+def same_case(row: dict[str, Any], case: dict[str, Any]) -> bool:
+    """Whether a result row is the planned ``case`` (for --resume and --merge)."""
+    return bool(row["seed"] == case["seed"] and row["effects"] == case["effects"])
+
+
+def schedule(prop: Proposal) -> Schedule:
+    """A proposed drive as the generator drives it: ``drive-plan``'s rows at the log rate."""
+    t, cmd, _ = command_rows(
+        prop.plan, prop.seed, prop.duration, ROVER.motor.max_wheel_speed, SAMPLE_HZ
+    )
+    return Schedule(t, cmd)
+
+
+def proposals(out: Path) -> list[Proposal]:
+    """Every drive the diagnosis in ``out`` proposes (tie and evidence), as drive-plan reads them."""
+    try:
+        return proposals_from_report(out)
+    except DrivePlanError:  # it proposes none
+        return []
+
+
+def fits(final: dict[str, Any], truth: Any) -> dict[str, dict[str, Any]]:
+    """Each true catalogue effect's fit in the final diagnosis (value, 95 % interval, the
+    noise threshold diagnose reports on the truth's side; None where it was not fitted)."""
+    out: dict[str, dict[str, Any]] = {}
+    for name, params in (truth if isinstance(truth, dict) else {}).items():
+        param = RANGES[name][0]
+        v = params[param]
+        side = "deg" if name == "slope" else ("+" if v > 0 else "-")
+        thr = (final["fits"].get(name, {}).get("threshold") or {}).get(side)
+        row: dict[str, Any] = {"truth": v, "value": None, "lo": None, "hi": None}
+        row.update(side="", threshold=thr)
+        for src in (final["final"], final["fits"]):
+            for key, f in src.items():
+                if name in key.split(" + ") and name in f["params"] and row["value"] is None:
+                    row["value"], row["lo"], row["hi"] = f["params"][name][param]
+                    row["side"] = (f.get("sides") or {}).get(name, {}).get(param, "")
+                    if name == "slope" and "heading_deg" in f["params"][name]:
+                        row["heading"] = list(f["params"][name]["heading_deg"])
+                        row["truth_heading"] = params.get("heading_deg", 0.0)
+        out[name] = row
+    return out
+
+
+def run_case(case: dict[str, Any], root: Path, workers: int = 1) -> dict[str, Any]:
+    d = root / tag(case)
+    if d.exists():  # a fresh start: no logs or reports of an interrupted run mixed in
+        shutil.rmtree(d)
+    opts = Options(progress=False, workers=workers)
+    t0 = time.perf_counter()
+    paths = make_independent_logs(
+        d / "logs", case["effects"], drives=DRIVES, seed=case["seed"], duration=DURATION
+    )
+    t1 = time.perf_counter()
+    res = diagnose([str(p) for p in paths], d / "out", opts)
+    t2 = time.perf_counter()
+    props = proposals(d / "out")
+    extra: list[Path] = []
+    for j, prop in enumerate(props):  # the same rover (seed), the noise of drive DRIVES + j
+        extra += make_independent_logs(
+            d / f"followup_{j}",
+            case["effects"],
+            drives=1,
+            seed=case["seed"],
+            plan=schedule(prop),
+            first_index=DRIVES + j,
+        )
+    followed = (
+        diagnose([str(p) for p in [*paths, *extra]], d / "out_followup", opts) if extra else None
+    )
+    t3 = time.perf_counter()
+    final = followed or res
+    tie = res.get("tie")
+    return {
+        "case": tag(case),
+        "gen": GEN,
+        "kind": case["kind"],
+        "seed": case["seed"],
+        "effects": case["effects"],
+        "truth": case["truth"],
+        "equivalent": case.get("equivalent"),
+        "named": final["named"],
+        "first_named": res["named"],
+        "tie": tie["effects"] if tie else None,
+        "followup": [
+            {"plan": p.plan, "seed": p.seed, "duration": p.duration, "for": sorted(p.effects)}
+            for p in props
+        ],
+        "main_signal": final["main_signal"],
+        "main_reduction": final["main_reduction"],
+        "unexplained": final["unexplained"],
+        "first_unexplained": res["unexplained"],
+        "evidence": [
+            {k: e.get(k) for k in ("effect", "plan", "reason", "best_signal", "best_floor_units")}
+            for e in res.get("evidence", [])
+        ],
+        "make_logs_s": t1 - t0,
+        "diagnose_s": t2 - t1,
+        "followup_s": t3 - t2,
+        "fits": fits(final, case["truth"]),
+    }
+
+
+def case_row(case: dict[str, Any], root: Path, workers: int) -> dict[str, Any]:
+    """``run_case``, or a row recording its error: one broken case must not stop the matrix."""
+    try:
+        return run_case(case, root, workers)
+    except Exception as exc:  # recorded in the table, the matrix goes on
+        return {
+            "case": tag(case),
+            "gen": GEN,
+            "kind": case["kind"],
+            "seed": case["seed"],
+            "effects": case["effects"],
+            "truth": case["truth"],
+            "named": [],
+            "tie": None,
+            "followup": [],
+            "unexplained": [],
+            "make_logs_s": 0.0,
+            "diagnose_s": 0.0,
+            "followup_s": 0.0,
+            "fits": {},
+            "error": f"{type(exc).__name__}: {exc}",
+        }
+
+
+# --------------------------------------------------------------------------- the report
+
+
+def _share(xs: list[bool]) -> str:
+    return f"{sum(xs)}/{len(xs)} ({100 * sum(xs) / len(xs):.0f} %)" if xs else "–"
+
+
+def _ratio(name: str, f: dict[str, Any] | None) -> float | None:
+    """The truth over the noise threshold diagnose reported (None: no threshold)."""
+    if not f or not f.get("threshold"):
+        return None
+    return magnitude(name, f["truth"]) / f["threshold"]
+
+
+def _fitted(f: dict[str, Any]) -> str:
+    if f.get("value") is None or f.get("lo") is None or f.get("hi") is None:
+        return "—"
+    if f.get("side") == "upper":
+        return f"< {f['hi']:.3g}"
+    return f"{f['value']:.3g} [{f['lo']:.3g}, {f['hi']:.3g}]"
+
+
+def _within2(f: dict[str, Any] | None) -> bool:
+    return bool(f and f.get("value") and 0.5 <= f["value"] / f["truth"] <= 2.0)
+
+
+def _singles(rows: list[dict[str, Any]], name: str) -> list[dict[str, Any]]:
+    return [r for r in rows if r["kind"] == "single" and name in r["effects"]]
+
+
+def acceptance(rows: list[dict[str, Any]]) -> list[str]:
+    """The acceptance figures of issue 47 on this generator."""
+    ok = [r for r in rows if "error" not in r]
+    single = [r for r in ok if r["kind"] == "single"]
+    above, cov, below, unknown = [], [], [], 0
+    for r in single:
+        (name,) = r["truth"]
+        x = _ratio(name, r["fits"].get(name))
+        if x is None:
+            unknown += 1
+        elif x >= 2:
+            above.append(name in r["named"])
+            if name in r["named"]:
+                cov.append(covers(r["fits"][name]))
+        else:
+            below.append(name in r["named"])
+    wrong = [bool(set(r["named"]) - set(r["truth"])) for r in single]
+    clean = [r for r in ok if r["kind"] == "clean"]
+    pairs = [r for r in ok if r["kind"] == "pair"]
+    pairs_above = [
+        all(e in r["named"] for e in r["truth"])
+        for r in pairs
+        if all((_ratio(e, r["fits"].get(e)) or 0) >= 2 for e in r["truth"])
+    ]
+    pair_cov = [covers(r["fits"][e]) for r in pairs for e in r["truth"] if e in r["named"]]
+    outside = [r for r in ok if r["kind"] == "outside"]
+    torque = [
+        ("torque_limit" in r["named"] and covers(r["fits"]["torque_limit"])) or bool(r["followup"])
+        for r in _singles(ok, "torque_limit")
+    ]
+    soil = [
+        "loose_soil" in r["named"] and _within2(r["fits"].get("loose_soil"))
+        for r in _singles(ok, "loose_soil")
+    ]
+    total = [r["make_logs_s"] + r["diagnose_s"] + r["followup_s"] for r in ok]
+
+    def med(key: str) -> float:
+        return float(np.median([r[key] for r in ok])) if ok else float("nan")
+
+    return [
+        f"- Single effect, truth ≥ 2 × its noise threshold: named right {_share(above)};"
+        f" 95 % interval covering the truth {_share(cov)} (of those named)",
+        f"- Single effect below 2 × threshold: named {_share(below)}; no threshold reported"
+        f" (not fitted): {unknown}",
+        f"- Single effect: another effect named besides or instead {_share(wrong)}",
+        "- Clean (nuisance only): nothing named"
+        f" {_share([not r['named'] for r in clean])} (target ≥ 95 %)",
+        "- Gap false alarms on clean: a significant unexplained gap reported"
+        f" {_share([bool(r['unexplained']) for r in clean])} (target ≤ 5 %)",
+        f"- Pairs: both named {_share([all(e in r['named'] for e in r['truth']) for r in pairs])};"
+        f" of those whose effects are both ≥ 2 × threshold {_share(pairs_above)}; named"
+        f" effects' 95 % intervals covering the truth {_share(pair_cov)}",
+        "- Outside the catalogue, nothing named and a gap reported"
+        f" {_share([not r['named'] and bool(r['unexplained']) for r in outside])} (nothing"
+        f" named {_share([not r['named'] for r in outside])}, gap reported"
+        f" {_share([bool(r['unexplained']) for r in outside])})",
+        "- Torque-limit cuts: named with a covering interval, or a drive proposed"
+        f" {_share(torque)}",
+        f"- Loose soil: named with k_phi within a factor of 2 {_share(soil)}",
+        f"- Seconds per case (median): {np.median(total) if total else float('nan'):.0f} s in all;"
+        f" logs {med('make_logs_s'):.0f} s, diagnose {med('diagnose_s'):.0f} s, follow-up"
+        f" drives and diagnosis {med('followup_s'):.0f} s; a follow-up driven in"
+        f" {sum(bool(r['followup']) for r in ok)} of {len(ok)} cases",
+        f"- Cases that failed to run: {len(rows) - len(ok)}",
+    ]
+
+
+def _params(p: dict[str, float]) -> str:
+    return ", ".join(f"{k} {v:.4g}" for k, v in p.items())
+
+
+def _effect_table(rows: list[dict[str, Any]], name: str) -> list[str]:
+    """Every single case of ``name``: drawn, truth, threshold, ratio, named, fit, covers."""
+    out = [
+        f"### {name}",
+        "",
+        "| seed | drawn (generator) | truth (catalogue) | threshold | truth / threshold | named"
+        " | fitted [95 %] | covers | follow-up |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    if not _singles(rows, name):
+        return []
+    for r in _singles(rows, name):
+        f = r["fits"].get(name) or {}
+        x = _ratio(name, f)
+        truth = _params(r["truth"][name])
+        if r.get("equivalent"):
+            truth += f" (and friction {r['equivalent']['friction']['fraction']:+.3f})"
+        fitted = _fitted(f)
+        if f.get("heading"):
+            fitted += f"; heading {f['heading'][0]:.0f}"
+        thr = f"{f['threshold']:.3g}" if f.get("threshold") else "—"
+        ratio = f"{x:.2f}" if x is not None else "—"
+        cov = ("yes" if covers(f) else "no") if f.get("value") is not None else "—"
+        named = ", ".join(r["named"]) or "—"
+        plans = ", ".join(p["plan"] for p in r["followup"]) or "—"
+        err = f" error: {r['error']}" if "error" in r else ""
+        out.append(
+            f"| {r['seed']} | {_params(r['effects'][name])} | {truth} | {thr} | {ratio} |"
+            f" {named} | {fitted} | {cov} | {plans} |{err}"
+        )
+    return [*out, ""]
+
+
+def _other_table(rows: list[dict[str, Any]], kind: str) -> list[str]:
+    """The pairs, clean or outside cases: what was drawn, named, left unexplained."""
+    out = [
+        "| seed | drawn (generator) | named | fitted [95 %] | unexplained gap | tie | follow-up | s |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        if r["kind"] != kind:
+            continue
+        drawn = "; ".join(f"{n}: {_params(p)}" for n, p in r["effects"].items()) or "—"
+        fitted = "; ".join(f"{n} {_fitted(f)}" for n, f in r["fits"].items()) or "—"
+        secs = r["make_logs_s"] + r["diagnose_s"] + r["followup_s"]
+        err = f" error: {r['error']}" if "error" in r else ""
+        out.append(
+            f"| {r['seed']} | {drawn} | {', '.join(r['named']) or '—'} | {fitted} |"
+            f" {', '.join(r['unexplained']) or '—'} | {' / '.join(r['tie'] or []) or '—'} |"
+            f" {', '.join(p['plan'] for p in r['followup']) or '—'} | {secs:.0f} |{err}"
+        )
+    return [*out, ""]
+
+
+def summarise(rows: list[dict[str, Any]], total_s: float, quick: bool, planned_n: int) -> str:
+    full = len(cases(False))
+    head = [
+        "# `rover-env diagnose` on the independent generator (issue 47)",
+        "",
+        f"Run by `benchmarks/bench_independent.py{' --quick' if quick else ''}` (its docstring"
+        " gives the cases, the draws and how each generator parameter maps to the catalogue's):"
+        " each case 3 drives of 50 s from `rover_env.independent` with nuisance (a rover built"
+        " within tolerances), then every drive the report proposes driven by the same rover and"
+        f" diagnosed again. {len(rows)} of the {planned_n} planned cases run (the full matrix"
+        f" has {full}); {total_s / 60:.1f} min summed over cases.",
+        "",
+        "## Acceptance figures",
+        "",
+        *acceptance(rows),
+        "",
+        "## Single effects, every case",
+        "",
+        "Truth in the catalogue's parameter (for loose soil the threshold and the ratio are in"
+        " 1e6 / k_phi, the variable diagnose fits); threshold: the magnitude at which the effect"
+        " moves its most sensitive signal by one replay floor on those drives, as diagnose"
+        " reports it; named and fitted after the follow-up drives, if any.",
+        "",
+    ]
+    for name in EFFECTS:
+        head += _effect_table(rows, name)
+    for kind, title in (
+        ("pair", "Pairs"),
+        ("clean", "Clean (nuisance only)"),
+        ("outside", "Outside the catalogue"),
+    ):
+        head += [f"## {title}", "", *_other_table(rows, kind)]
+    return "\n".join(head) + "\n"
+
+
+# --------------------------------------------------------------------------- command line
+
+
+def _rows_path(out: Path, shard: str | None) -> Path:
+    return out / (f"independent_shard_{shard.split('/')[0]}.json" if shard else "independent.json")
+
+
+def _seconds(rows: list[dict[str, Any]]) -> float:
+    return float(sum(r["make_logs_s"] + r["diagnose_s"] + r["followup_s"] for r in rows))
+
+
+def _order(rows: list[dict[str, Any]], todo: list[dict[str, Any]]) -> None:
+    rows.sort(key=lambda r: next((i for i, c in enumerate(todo) if same_case(r, c)), len(todo)))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--quick", action="store_true", help="5 cases")
+    ap.add_argument("--work", default="out/bench_independent", help="logs and diagnoses")
+    ap.add_argument("--out", default="docs/calibration", help="independent.md and .json")
+    ap.add_argument("--only", default=None, help="run the cases whose tag contains this text")
+    ap.add_argument("--limit", type=int, default=None, help="run at most N cases")
+    ap.add_argument("--resume", action="store_true", help="keep the cases already in OUT's json")
+    ap.add_argument(
+        "--shard",
+        default=None,
+        help="K/N: every N-th planned case from K, rows to OUT/independent_shard_K.json;"
+        " --merge then writes independent.md from all shards",
+    )
+    ap.add_argument("--merge", action="store_true", help="combine OUT/independent_shard_*.json")
+    ap.add_argument("--seed0", type=int, default=SEED0, help=f"first case seed ({SEED0})")
+    ap.add_argument("--workers", type=int, default=1, help="diagnose's worker processes per case")
+    args = ap.parse_args()
+    out = Path(args.out)
+    todo = planned(args.quick, args.seed0)
+    if args.merge:
+        return merge(out, args.quick, todo)
+    shard_k, shard_n = 0, 1
+    if args.shard:
+        try:
+            shard_k, shard_n = (int(x) for x in args.shard.split("/"))
+        except ValueError:
+            ap.error(f"--shard {args.shard!r}: expected K/N with integers, e.g. 0/2")
+        if not 0 <= shard_k < shard_n:
+            ap.error(f"--shard {args.shard!r}: need 0 <= K < N")
+    path = _rows_path(out, args.shard)
+    rows: list[dict[str, Any]] = []
+    if args.resume and path.is_file():
+        rows = json.loads(path.read_text())
+    mine = [
+        c
+        for i, c in enumerate(todo)
+        if i % shard_n == shard_k
+        and not (args.only and args.only not in tag(c))
+        and not any(same_case(r, c) for r in rows)
+    ][: args.limit]
+    out.mkdir(parents=True, exist_ok=True)
+    print(f"{len(mine)} cases to run ({len(rows)} done before), work in {args.work}", flush=True)
+    for k, c in enumerate(mine, 1):
+        t0 = time.perf_counter()
+        row = case_row(c, Path(args.work), args.workers)
+        rows.append(row)
+        _order(rows, todo)
+        path.write_text(json.dumps(rows, indent=1, default=finite))
+        if not args.shard:
+            write_report(
+                out / "independent.md", summarise(rows, _seconds(rows), args.quick, len(todo))
+            )
+        tie = f", tie {' / '.join(row['tie'])}" if row.get("tie") else ""
+        plans = ", ".join(p["plan"] for p in row["followup"])
+        follow = f", follow-up {plans}" if plans else ""
+        print(
+            f"[{k}/{len(mine)}] {row['case']}: {time.perf_counter() - t0:.0f} s, named"
+            f" {', '.join(row['named']) or 'nothing'}{tie}{follow}"
+            + (f", ERROR {row['error']}" if "error" in row else ""),
+            flush=True,
+        )
+    return 0
+
+
+def merge(out: Path, quick: bool, todo: list[dict[str, Any]]) -> int:
+    """independent.json and independent.md from the shards' rows, in the planned order."""
+    rows: list[dict[str, Any]] = []
+    for f in sorted(out.glob("independent_shard_*.json")):
+        rows.extend(json.loads(f.read_text()))
+    if not rows:
+        raise SystemExit(f"--merge: no independent_shard_*.json in {out}")
+    _order(rows, todo)
+    (out / "independent.json").write_text(json.dumps(rows, indent=1, default=finite))
+    # shards ran side by side: the sum is CPU-side time over cases, not the wall time
+    write_report(out / "independent.md", summarise(rows, _seconds(rows), quick, len(todo)))
+    print(f"merged {len(rows)} cases into {out / 'independent.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,226 @@
+"""The plan of issue 47's matrix on the independent generator (benchmarks/bench_independent.py):
+what it draws and how the truth is stated in the catalogue's terms. No diagnosis runs here."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+import yaml
+
+from rover_env.calibration.drive_plan import Proposal
+from rover_env.effects import CATALOGUE, effect_class
+from rover_env.independent import effects as ind_effects
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def _load(name: str) -> ModuleType:
+    if str(BENCH) not in sys.path:  # its sibling modules (_report, bench_diagnose)
+        sys.path.insert(0, str(BENCH))
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, BENCH / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture(scope="module")
+def b() -> ModuleType:
+    _load("bench_diagnose")
+    return _load("bench_independent")
+
+
+def test_the_plan_is_deterministic_and_its_seeds_are_its_own(b: ModuleType) -> None:
+    a = json.dumps(b.cases(), sort_keys=True)
+    assert a == json.dumps(b.cases(), sort_keys=True)
+    assert a != json.dumps(b.cases(False, b.SEED0 + 1000), sort_keys=True)
+    seeds = [c["seed"] for c in b.cases()]
+    assert len(set(seeds)) == len(seeds) and min(seeds) == b.SEED0 == 47000
+    planned = b.planned(False)
+    assert sorted(map(b.tag, planned)) == sorted(map(b.tag, b.cases()))  # all, once
+    assert [b.tag(c) for c in planned[:5]] == [b.tag(c) for c in b.cases(True)]
+
+
+def test_the_plan_has_every_kind_and_every_implemented_effect(b: ModuleType) -> None:
+    cs = b.cases()
+    kinds = [c["kind"] for c in cs]
+    assert kinds.count("clean") == 10 and kinds.count("pair") == 6
+    assert kinds.count("outside") == 4 and kinds.count("single") >= 40
+    implemented = {n for n in ind_effects.MAIN if n in CATALOGUE}
+    assert set(b.EFFECTS) == implemented and len(implemented) == 9
+    singles = [next(iter(c["effects"])) for c in cs if c["kind"] == "single"]
+    assert set(singles) == implemented
+    outside = {next(iter(c["effects"])) for c in cs if c["kind"] == "outside"}
+    assert outside == set(ind_effects.OUTSIDE) and not outside & set(CATALOGUE)
+    sand = [
+        c["effects"]["loose_soil"]["sand"]
+        for c in cs
+        if c["kind"] == "single" and "loose_soil" in c["effects"]
+    ]
+    assert 0 < sum(sand) < len(sand)  # some on dry sand, the rest on regolith
+    for c in cs:
+        if c["kind"] == "clean":
+            assert c["effects"] == {} and c["truth"] == "none"
+        if c["kind"] == "pair":
+            names = set(c["effects"])
+            assert len(names) == 2 and names <= implemented
+            assert not ("loose_soil" in names and names & b.INERT_ON_SOIL), c
+
+
+def test_magnitudes_lie_in_their_ranges_in_both_parameterisations(b: ModuleType) -> None:
+    for c in b.cases():
+        ind_effects.resolve(c["effects"])  # the generator accepts them
+        for name, params in c["effects"].items():
+            if name in b.OUTSIDE_RANGES:
+                param, lo, hi = b.OUTSIDE_RANGES[name]
+                signs: tuple[int, ...] = (1,)
+            else:
+                param, lo, hi, signs = {**b.RANGES, **b.OWN_RANGES}[name]
+            v = params[param]
+            assert lo * (1 - 1e-4) <= abs(v) <= hi * (1 + 1e-4), (c["seed"], name, v)
+            assert int(math.copysign(1, v)) in signs
+            if name == "torque_limit":
+                assert -0.8 <= v <= -0.05  # only lowered limits
+            if name == "brake_drag":
+                assert params["wheel"] in (4.0, 5.0)  # a free wheel
+        if isinstance(c["truth"], dict):
+            for name, params in c["truth"].items():
+                effect_class(name)(params)  # inside the catalogue's bounds
+
+
+def test_truth_mapping_for_loose_soil_torque_limit_and_rolling_radius(b: ModuleType) -> None:
+    """As the module docstring states: k_phi = preset k_phi x factor (regolith 8.14e5, dry
+    sand 1.52843e6); torque limit (1 + f) 2.8 / 3.0 - 1 (2.8 N m = 0.7 x 100 x 0.02 x 2 A at
+    the wheel here, 3.0 N m in the model); rolling radius f x 0.0761 / 0.085."""
+    soil = b.catalogue_truth("loose_soil", {"k_phi": 1.5, "sand": 0.0})
+    assert soil == {"k_phi": pytest.approx(1.5 * 8.14e5)}
+    sand = b.catalogue_truth("loose_soil", {"k_phi": 0.5, "sand": 1.0})
+    assert sand == {"k_phi": pytest.approx(0.5 * 1528.43e3)}
+    assert b.catalogue_truth("torque_limit", {"fraction": -0.5}) == {
+        "fraction": pytest.approx(0.5 * 2.8 / 3.0 - 1.0)
+    }
+    assert b.catalogue_truth("torque_limit", {"fraction": -0.05})["fraction"] == pytest.approx(
+        -0.11333, abs=1e-5
+    )
+    r_e = 0.085 - 16.41 * 9.81 / 6 / 1000.0 / 3
+    assert b.catalogue_truth("rolling_radius", {"fraction": -0.1}) == {
+        "fraction": pytest.approx(-0.1 * r_e / 0.085)
+    }
+    for name in ("friction", "command_delay", "rolling_resistance"):
+        p = b.generator_params(name, 5)
+        assert b.catalogue_truth(name, p) == p
+    slope = b.generator_params("slope", 5)
+    assert b.catalogue_truth("slope", slope) == slope and set(slope) == {"deg", "heading_deg"}
+    for c in b.cases():  # every case's truth column is the mapping of its drawn parameters
+        if isinstance(c["truth"], dict):
+            assert c["truth"] == {n: b.catalogue_truth(n, p) for n, p in c["effects"].items()}
+
+
+def test_load_dependent_friction_maps_to_the_same_slope_of_mu_over_load(b: ModuleType) -> None:
+    """Numerically: the catalogue's mu(F_z) with the mapped fall has the generator's relative
+    slope at the static load; the generator's level there is the recorded friction change."""
+    fall = 0.3
+    cat = b.catalogue_truth("load_dependent_friction", {"fall": fall})["fall"]
+    f0, h = b.F0_IND, 1e-3
+    ind = lambda f: 1 - fall * math.tanh(f / 60.0)  # noqa: E731
+    cat_mu = lambda f: 1 - cat * (f - f0) / (2 * 0.1 * f0)  # noqa: E731
+    slope_ind = (ind(f0 + h) - ind(f0 - h)) / (2 * h) / ind(f0)
+    slope_cat = (cat_mu(f0 + h) - cat_mu(f0 - h)) / (2 * h)
+    assert slope_cat == pytest.approx(slope_ind, rel=1e-6)
+    ldf = [c for c in b.cases() if "load_dependent_friction" in c["effects"]]
+    assert ldf
+    for c in ldf:
+        a = c["effects"]["load_dependent_friction"]["fall"]
+        level = 1 - a * math.tanh(f0 / 60.0)
+        assert c["equivalent"]["friction"]["fraction"] == pytest.approx(level - 1)
+
+
+def test_a_proposal_becomes_the_rows_drive_plan_writes(b: ModuleType) -> None:
+    from rover_env.calibration.drive_plan import command_rows
+
+    prop = Proposal("accel", 0, 20.0)
+    s = b.schedule(prop)
+    t, cmd, _ = command_rows("accel", 0, 20.0, 4.0, 50.0)
+    assert np.array_equal(s.t, t) and np.array_equal(s.cmd, cmd)
+    assert s.duration == 20.0 and np.abs(s.cmd).max() <= 4.0 and not s.cmd[-1].any()
+    assert np.array_equal(s.at(np.array([0.0, 0.02, 19.99])), cmd[[0, 1, -2]])
+
+
+def test_run_case_drives_every_proposal_with_the_same_rover(
+    b: ModuleType, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The case's plumbing, with a stand-in for diagnose (the matrix runs the real one): the
+    first report proposes a tie's drive and an evidence drive; both are driven by the same
+    build (truth.yaml's nuisance) as drives 3 and 4 of 1 s logs, the second diagnosis gets all
+    five logs, and the row carries its named effects and the fit against the truth."""
+    calls: list[list[str]] = []
+
+    def fake(paths: list[str], out: Path, opts: object) -> dict[str, object]:
+        calls.append(paths)
+        second = len(calls) == 2
+        fit = {"params": {"torque_limit": {"fraction": [-0.4, -0.45, -0.35]}}}
+        res = {
+            "named": ["torque_limit"] if second else [],
+            "tie": None
+            if second
+            else {
+                "effects": ["torque_limit", "friction"],
+                "plan": "accel",
+                "seed": 0,
+                "duration": 1.0,
+                "why": "x",
+            },
+            "evidence": []
+            if second
+            else [
+                {
+                    "effect": "slope",
+                    "plan": "reversals",
+                    "seed": 0,
+                    "duration": 1.0,
+                    "why": "y",
+                    "separates": True,
+                }
+            ],
+            "main_signal": "wheel_1L",
+            "main_reduction": 0.5,
+            "unexplained": [] if second else ["wheel_1L"],
+            "fits": {"torque_limit": {**fit, "threshold": {"-": 0.05}}},
+            "final": {"torque_limit": fit} if second else {},
+        }
+        Path(out).mkdir(parents=True)
+        (Path(out) / "result.json").write_text(json.dumps(res))
+        return res
+
+    monkeypatch.setattr(b, "diagnose", fake)
+    monkeypatch.setattr(b, "DURATION", 1.0)
+    case = next(c for c in b.cases() if c["kind"] == "single" and "torque_limit" in c["effects"])
+    row = b.run_case(case, tmp_path)
+    assert [len(c) for c in calls] == [3, 5]
+    assert [Path(p).name for p in calls[1][3:]] == ["drive_03.csv", "drive_04.csv"]
+    d = tmp_path / b.tag(case)
+    builds = [
+        json.dumps(yaml.safe_load((d / f).read_text())["nuisance"])
+        for f in ("logs/truth.yaml", "followup_0/truth.yaml", "followup_1/truth.yaml")
+    ]
+    assert builds[0] == builds[1] == builds[2]
+    assert [p["plan"] for p in row["followup"]] == ["accel", "reversals"]
+    assert (
+        row["named"] == ["torque_limit"]
+        and row["first_named"] == []
+        and row["gen"] == "independent"
+    )
+    f = row["fits"]["torque_limit"]
+    assert (f["value"], f["threshold"]) == (-0.4, 0.05) and f["truth"] == case["truth"][
+        "torque_limit"
+    ]["fraction"]
