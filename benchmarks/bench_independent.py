@@ -92,8 +92,12 @@ from rover_env.independent.generate import SAMPLE_HZ, make_independent_logs
 from rover_env.independent.model import G, RoverParams
 
 GEN = "independent"
-SEED0 = 47000
-"""Case seeds of this matrix: a block of their own, never looked at while building diagnose."""
+SEED0 = 47100
+"""Case seeds of this matrix: a block of their own, never looked at while building diagnose.
+47000-47064 was the development block: five of its cases (47003, 47006, 47008, 47045, 47064)
+were run and looked at, and one rule was changed after them (a traded signal must be 10 %
+worse: :func:`rover_env.calibration.diagnosis.judge.traded_signals`), so they are spent."""
+DEV_SEED0 = 47000
 EFFECTS = (
     "rolling_resistance",
     "slope",
@@ -114,7 +118,9 @@ SAND = (1, 3)
 N_CLEAN = 10
 N_PAIRS = 6
 OWN_RANGES: dict[str, tuple[str, float, float, tuple[int, ...]]] = {
-    "torque_limit": ("fraction", 0.05, 0.8, (-1,)),
+    # Cuts of 5-78 %: the largest whose catalogue truth, (1 + f) 2.8 / 3.0 - 1, stays inside
+    # diagnose's range (-0.8; a cut of 80 % maps to -0.813, which no fit can reach).
+    "torque_limit": ("fraction", 0.05, 0.78, (-1,)),
     "loose_soil": ("k_phi", 0.3, 3.0, (1,)),  # a factor on the preset's k_phi
 }
 """Ranges where the generator's parameter differs from ``bench_diagnose.RANGES``."""

@@ -178,6 +178,11 @@ def test_traded_signals_are_those_left_above_the_floor_and_made_worse() -> None:
     assert traded_signals(before, worse, [], 0.01) == {}  # at its floor: may move
     assert traded_signals(before, same, ["theta_4"], 0.01) == {}
     assert traded_signals(worse, before, ["theta_4"], 0.01) == {}  # better is no trade
+    # A consistent but immaterial worsening (0.5 % RMS) is no trade at naming's 10 % bar.
+    slight = _window_results([1e-4 * 1.01] * 12, 9, 0)
+    assert list(traded_signals(before, slight, ["theta_4"], 0.01)) == ["theta_4"]
+    assert traded_signals(before, slight, ["theta_4"], 0.01, 1.1) == {}
+    assert list(traded_signals(before, worse, ["theta_4"], 0.01, 1.1)) == ["theta_4"]
 
 
 def test_a_pair_that_trades_keeps_its_winner_if_the_winner_alone_does_not() -> None:

@@ -229,7 +229,7 @@ def trades(d: Diagnosis, ch: list[Scored]) -> tuple[dict[str, dict[str, float]],
     else:
         floor = model_floor(d, ev.config(merge(*(s.fit.ext for s in ch))))
     left_c = unexplained(rs.table(rs.stack(held_c, d.prepared), floor), floor)
-    return traded_signals(d.base_held, held_c, left_c, d.opts.alpha), floor
+    return traded_signals(d.base_held, held_c, left_c, d.opts.alpha, 1.0 + d.opts.min_gain), floor
 
 
 def settle(d: Diagnosis) -> None:
