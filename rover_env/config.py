@@ -515,7 +515,22 @@ class Replace(dict[Any, Any]):
 
 
 class _Loader(yaml.SafeLoader):
-    """PyYAML's safe loader plus the ``!replace`` tag."""
+    """PyYAML's safe loader plus the ``!replace`` tag, refusing merge-key lists."""
+
+    def flatten_mapping(self, node: yaml.MappingNode) -> None:
+        # ``<<: [*a, *b]``: PyYAML 6.0.3 lets the first map win a key both have, 6.0.4 the
+        # last, so one file trained two different recipes (stop 52, configs/ppo.yaml). One
+        # ``<<: *a`` per mapping, with the other keys written out, means the same everywhere.
+        for key, value in node.value:
+            if key.tag == "tag:yaml.org,2002:merge" and isinstance(value, yaml.SequenceNode):
+                raise yaml.constructor.ConstructorError(
+                    "while constructing a mapping",
+                    node.start_mark,
+                    "a merge key takes one mapping (<<: *a), not a list: PyYAML versions"
+                    " disagree on which of the list's maps wins a key they share",
+                    key.start_mark,
+                )
+        super().flatten_mapping(node)
 
 
 def _construct_replace(loader: yaml.SafeLoader, node: yaml.Node) -> Replace:

@@ -130,3 +130,16 @@ def test_shipped_variants_state_only_what_differs(tmp_path: Path) -> None:
         base_data = load_yaml(base_path(own[BASE_KEY], p))
         repeated += [f"{p.name}{k}" for k in _leaves(own, base_data, "")]
     assert not repeated, repeated
+
+
+def test_merge_key_lists_are_refused_with_file_and_line(tmp_path: Path) -> None:
+    """``<<: [*a, *b]`` resolves a shared key one way in PyYAML 6.0.3, the other in 6.0.4:
+    refused, naming the file and the line; a single ``<<: *a`` still merges."""
+    (f,) = _files(
+        tmp_path,
+        bad="a: &a {x: 1}\nb: &b {x: 2}\nc:\n  <<: [*a, *b]\n  y: 3\n",
+    ).values()
+    with pytest.raises(ConfigError, match=r"(?s)bad\.yaml.*merge key takes one mapping.*line 4"):
+        read_yaml(f)
+    (g,) = _files(tmp_path, good="a: &a {x: 1}\nc:\n  <<: *a\n  y: 3\n").values()
+    assert read_yaml(g)["c"] == {"x": 1, "y": 3}
