@@ -438,6 +438,15 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
                 cov.append(covers(r["fits"][name]))
         else:
             below.append(name in r["named"])
+    # The same, judged on the first diagnosis (before any proposed drive was added): the
+    # follow-up drive becomes the held-out one (the last log), so it can also lose an effect.
+    first = [
+        name in r["first_named"]
+        for r in single
+        for name in r["truth"]
+        if (_ratio(name, r["fits"].get(name)) or 0) >= 2
+    ]
+    lost = [bool(set(r["first_named"]) - set(r["named"])) for r in ok if r["followup"]]
     wrong = [bool(set(r["named"]) - set(r["truth"])) for r in single]
     clean = [r for r in ok if r["kind"] == "clean"]
     pairs = [r for r in ok if r["kind"] == "pair"]
@@ -464,6 +473,9 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
     return [
         f"- Single effect, truth ≥ 2 × its noise threshold: named right {_share(above)};"
         f" 95 % interval covering the truth {_share(cov)} (of those named)",
+        f"- The same on the first diagnosis, before any proposed drive: named right"
+        f" {_share(first)}; a follow-up diagnosis dropped an effect the first named"
+        f" {_share(lost)}",
         f"- Single effect below 2 × threshold: named {_share(below)}; no threshold reported"
         f" (not fitted): {unknown}",
         f"- Single effect: another effect named besides or instead {_share(wrong)}",
@@ -614,6 +626,9 @@ def main() -> int:
         " --merge then writes independent.md from all shards",
     )
     ap.add_argument("--merge", action="store_true", help="combine OUT/independent_shard_*.json")
+    ap.add_argument(
+        "--report", action="store_true", help="rewrite independent.md from independent.json"
+    )
     ap.add_argument("--seed0", type=int, default=SEED0, help=f"first case seed ({SEED0})")
     ap.add_argument("--workers", type=int, default=1, help="diagnose's worker processes per case")
     args = ap.parse_args()
@@ -630,6 +645,11 @@ def main() -> int:
         if not 0 <= shard_k < shard_n:
             ap.error(f"--shard {args.shard!r}: need 0 <= K < N")
     path = _rows_path(out, args.shard)
+    if args.report:
+        done = json.loads(path.read_text())
+        _order(done, todo)
+        write_report(out / "independent.md", summarise(done, _seconds(done), args.quick, len(todo)))
+        return 0
     rows: list[dict[str, Any]] = []
     if args.resume and path.is_file():
         rows = json.loads(path.read_text())
