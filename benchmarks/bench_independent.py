@@ -309,6 +309,12 @@ def fits(final: dict[str, Any], truth: Any) -> dict[str, dict[str, Any]]:
     return out
 
 
+def _identity(case: dict[str, Any]) -> dict[str, Any]:
+    """The fields that name a case in its row (a finished case's and a failed one's)."""
+    keys = ("kind", "seed", "effects", "truth")
+    return {"case": tag(case), "gen": GEN, **{k: case[k] for k in keys}}
+
+
 def run_case(case: dict[str, Any], root: Path, workers: int = 1) -> dict[str, Any]:
     d = root / tag(case)
     if d.exists():  # a fresh start: no logs or reports of an interrupted run mixed in
@@ -339,12 +345,7 @@ def run_case(case: dict[str, Any], root: Path, workers: int = 1) -> dict[str, An
     final = followed or res
     tie = res.get("tie")
     return {
-        "case": tag(case),
-        "gen": GEN,
-        "kind": case["kind"],
-        "seed": case["seed"],
-        "effects": case["effects"],
-        "truth": case["truth"],
+        **_identity(case),
         "equivalent": case.get("equivalent"),
         "named": final["named"],
         "first_named": res["named"],
@@ -374,12 +375,7 @@ def case_row(case: dict[str, Any], root: Path, workers: int) -> dict[str, Any]:
         return run_case(case, root, workers)
     except Exception as exc:  # recorded in the table, the matrix goes on
         return {
-            "case": tag(case),
-            "gen": GEN,
-            "kind": case["kind"],
-            "seed": case["seed"],
-            "effects": case["effects"],
-            "truth": case["truth"],
+            **_identity(case),
             "named": [],
             "tie": None,
             "followup": [],

@@ -6,7 +6,6 @@ in its own process with the same ``--workers``; the reference tree is a ``git wo
 tolerances (:mod:`rover_env.independent`), seeds from ``--seed0``: clean and one effect each.
 
     python benchmarks/diagnose_speed.py --against 512b331 --cases 4 --workers 2
-    python benchmarks/bench_diagnose.py --against 512b331   # the same, from the matrix script
 
 Prints each case's seconds and what each tree named, then the median ratio previous/current.
 """
