@@ -121,11 +121,20 @@ class JointSpec:
     damping: float = 0.5
     limit: float = 0.8
     """Mechanical stop (rad), symmetric."""
+    zero: float = 0.0
+    """The angle sensor's reading at the joint's true zero (rad): a potentiometer's zero is
+    set by hand on a real rover and is off by a fraction of a degree to a few degrees.
+    Changes what the sensor reads (:meth:`rover_env.sim.simulator.RoverSim.sensors`, the
+    calibration replay), never the physics; ``diagnose`` fits it (the ``joint_zero`` form)."""
 
     def __post_init__(self) -> None:
         _nonneg("joint.stiffness", self.stiffness)
         _nonneg("joint.damping", self.damping)
         _positive("joint.limit", self.limit)
+        if not abs(self.zero) < self.limit:
+            raise ConfigError(
+                f"joint.zero must lie inside the stops (+-{self.limit}), got {self.zero}"
+            )
 
 
 def _default_joints() -> dict[str, JointSpec]:

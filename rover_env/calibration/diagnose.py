@@ -61,6 +61,7 @@ def _cli(args: argparse.Namespace) -> int:
         model_form=not args.no_model_form,
         fit_anti_windup=args.fit_anti_windup,
         fit_slip_floor=args.fit_slip_floor,
+        fit_joint_zero=args.fit_joint_zero,
         fit_windup=args.fit_windup,
     )
     try:
@@ -97,6 +98,12 @@ def add_cli(sub: Any) -> None:
         default=Options.fit_anti_windup,
         help="choose the speed loop's anti-windup form (clamp or conditional integration)"
         " as model form (default: on; see Options.fit_anti_windup)",
+    )
+    p.add_argument(
+        "--fit-joint-zero",
+        action=argparse.BooleanOptionalAction,
+        default=Options.fit_joint_zero,
+        help="fit the joint sensors' zeros as model form (default: on; see Options.fit_joint_zero)",
     )
     p.add_argument(
         "--fit-slip-floor",

@@ -376,11 +376,14 @@ class Replayer:
         self._seg3 = int(s.index.seg_body[2])
         self._root_dofs = np.arange(6)
         self._nv = m.nv
+        self._zero = s.joint_zero
+        """The joint sensors' zeros: windows start from the logged angles less them, and the
+        replay's angles are compared as the sensors would read them."""
 
     def _init_window(self, p: PreparedLog, k0: int) -> None:
         s, m, d = self.sim, self.sim.model, self.sim.data
         log = p.log
-        th = log.theta[k0]
+        th = log.theta[k0] - self._zero  # the joints' true angles, as the sensors' zeros say
         # Heading of segment 1 = segment 3's minus the yaw joints between them (small angles):
         # R_3 = R_1 Rx(theta_1) Rz(theta_2) Rx(theta_3) Ry(theta_4) Rz(theta_5) (SPEC §1).
         # Until stop 31 the sign was +: every window started 2 (theta_2 + theta_5) off in
@@ -433,7 +436,9 @@ class Replayer:
         poses: dict[int, Array] = {}
         for k in range(w.k0, w.k1 + 1):
             if k in want:
-                rows[k] = np.concatenate([d.qpos[s.index.wheel_qpos], d.qpos[s.index.joint_qpos]])
+                rows[k] = np.concatenate(
+                    [d.qpos[s.index.wheel_qpos], d.qpos[s.index.joint_qpos] + self._zero]
+                )
                 if k in pose_k:
                     poses[k] = np.concatenate([d.xpos[self._seg3], d.xmat[self._seg3].reshape(9)])
             if k == w.k1:

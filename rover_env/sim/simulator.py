@@ -364,6 +364,8 @@ class RoverSim:
         self._hinge_ground = np.zeros(len(WHEELS))
         """The hinge effects' (the ground's) part of each wheel hinge's dry friction (N m)."""
         self._sensor = ix.sensor
+        self.joint_zero = np.array([self.cfg.joints[j].zero for j in JOINTS])
+        """Each joint sensor's reading at the joint's true zero (:attr:`JointSpec.zero`)."""
         self.radius = self.cfg.geometry.wheel_radius
         self._obstacle_names = {ob.name for ob in self.terrain_cfg.obstacles}
         self.tires = TireLayer(
@@ -741,7 +743,7 @@ class RoverSim:
             t=self.time,
             phi=np.array([sd[s[f"phi_{w}"]][0] for w in WHEELS]),
             phi_dot=np.array([sd[s[f"phidot_{w}"]][0] for w in WHEELS]),
-            theta=np.array([sd[s[j]][0] for j in JOINTS]),
+            theta=np.array([sd[s[j]][0] for j in JOINTS]) + self.joint_zero,
             theta_dot=np.array([sd[s[f"{j}_dot"]][0] for j in JOINTS]),
             imu_quat=np.stack([sd[s[f"imu_seg{i}_quat"]] for i in (1, 2, 3)]),
             imu_gyro=np.stack([sd[s[f"imu_seg{i}_gyro"]] for i in (1, 2, 3)]),

@@ -1,0 +1,93 @@
+"""The joint sensors' zeros (``JointSpec.zero``): what the sensors read, what the replay
+compares, and diagnose's closed-form fit of them (``form.fit_joint_zeros``), which must
+find zeros injected into the model's own logs and judge each on its own sensor."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rover_env.calibration import residuals as rs
+from rover_env.calibration.diagnosis.form import (
+    ZERO_PREFIX,
+    ZERO_TOL,
+    FormFit,
+    fit_joint_zeros,
+    forms_differ,
+    with_form,
+    with_joint_zero,
+)
+from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
+from rover_env.config import JOINTS, ConfigError, JointSpec, RoverConfig
+from rover_env.generators.make_logs import make_logs
+from rover_env.logs import read_log
+from rover_env.sim.simulator import RoverSim
+
+CFG = RoverConfig()
+ST = ReplaySettings()
+TRUTH = {"theta_1": 0.02, "theta_4": -0.015}
+"""Zeros injected (rad): about a degree, a hand-set potentiometer's error."""
+
+
+def test_a_zero_outside_the_stops_is_refused() -> None:
+    with pytest.raises(ConfigError, match="joint.zero"):
+        JointSpec(limit=0.6, zero=0.7)
+
+
+def test_the_sensor_reads_the_angle_plus_its_zero() -> None:
+    cfg = with_joint_zero(CFG, "theta_4", 0.03)
+    a, b = RoverSim(CFG), RoverSim(cfg)
+    a.reset()
+    b.reset()
+    a.step(200)
+    b.step(200)
+    np.testing.assert_allclose(b.joint_angles(), a.joint_angles(), atol=1e-12)  # physics
+    d = b.sensors().theta - a.sensors().theta
+    np.testing.assert_allclose(d, [0.0, 0.0, 0.0, 0.03, 0.0], atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory: pytest.TempPathFactory) -> list[FormFit]:
+    truth = CFG
+    for j, z in TRUTH.items():
+        truth = with_joint_zero(truth, j, z)
+    root = tmp_path_factory.mktemp("zeros")
+    paths = make_logs(
+        root, {}, drives=1, seed=3, duration=25.0, truth_rover=truth, progress=False
+    )
+    prepared = [prepare(read_log(p), CFG, p.name, ST) for p in paths]
+    windows = make_windows(prepared, ST)
+    return fit_joint_zeros(CFG, prepared, windows, ST, rs.noise_floor(prepared))
+
+
+def test_injected_zeros_are_found(fitted: list[FormFit]) -> None:
+    got = {f.name.removeprefix(ZERO_PREFIX): f.value for f in fitted}
+    assert list(got) == list(JOINTS)
+    for j in JOINTS:
+        assert abs(got[j] - TRUTH.get(j, 0.0)) < 1e-3, (j, got[j])
+
+
+def test_each_injected_zero_pays_for_itself_on_its_own_sensor(fitted: list[FormFit]) -> None:
+    by = {f.name.removeprefix(ZERO_PREFIX): f for f in fitted}
+    for j in TRUTH:
+        assert by[j].adopted and by[j].d_bic < -10 and by[j].gain > 0.9, by[j]
+
+
+def test_a_fitted_zero_goes_into_the_configuration(fitted: list[FormFit]) -> None:
+    cfg = CFG
+    for f in fitted:
+        cfg = with_form(cfg, f)
+    assert cfg.joints["theta_4"].zero == pytest.approx(fitted[3].value)
+    assert cfg.joints["theta_4"].stiffness == CFG.joints["theta_4"].stiffness
+
+
+def _zero(j: str, v: float) -> FormFit:
+    return FormFit(ZERO_PREFIX + j, "rad", 0.0, v, {}, 0.5, 0.01, -20.0, True)
+
+
+def test_zeros_that_move_less_than_the_tolerance_are_the_same_form() -> None:
+    a = [_zero("theta_4", -0.033)]
+    assert not forms_differ(a, [_zero("theta_4", -0.033 + 0.5 * ZERO_TOL)])
+    assert forms_differ(a, [_zero("theta_4", -0.033 + 2 * ZERO_TOL)])
+    kept = [FormFit(ZERO_PREFIX + "theta_4", "rad", 0.0, -0.033, {}, 0.0, 1.0, 3.0, False)]
+    assert forms_differ(a, kept)
