@@ -26,7 +26,14 @@ from rover_env.config import RoverConfig
 
 def baseline(d: Diagnosis) -> None:
     """Sets the evaluator, the replay floor, the baseline replays, scale and tables."""
-    d.ev = Evaluator(d.base, d.st, d.prepared, d.sets)
+    d.ev = Evaluator(
+        d.base,
+        d.st,
+        d.prepared,
+        d.sets,
+        profile_zeros=d.opts.fit_joint_zero
+        and (d.opts.model_form or d.opts.forms_reverted is not None),
+    )
     # Replay floor: what a perfect model leaves, from the model's own twin of each drive.
     d.noise = replay_floor(d.base, d.prepared, d.all_w, d.sensor_noise, d.st)
     d.say(

@@ -1,10 +1,12 @@
 """Stage 2, form, and every other piece of model-form logic: the model's own form, fitted
-before any effect (the speed loop's anti-windup, the tire's relaxation length and low-speed
-slip floor), fitted again beside the named effect, and re-judged beside the effects
+before any effect (the joint sensors' zeros, the speed loop's anti-windup, the tire's
+relaxation length and low-speed slip floor), fitted again beside the named effect, and re-judged beside the effects
 (:func:`form_rejudgement`); a form's fit widens a named interval (:func:`join_form_interval`).
 
 These are this project's simulator's implementation choices, not part of the rover's
-definition (SPEC), and another implementation of the same rover makes them differently:
+definition (SPEC), and another implementation of the same rover makes them differently
+(the joint zeros, :func:`fit_joint_zeros`, are the one calibration constant of a real
+rover among them: each rover's potentiometers are set by hand):
 
 * **The tire's relaxation length** sigma. The SPEC's tire (§3, Gim's eqs. 10-16) is steady
   state: its forces follow the slip at once. The simulator integrates a transient form whose
@@ -142,11 +144,6 @@ def with_anti_windup(cfg: RoverConfig, form: AntiWindup) -> RoverConfig:
 
 ZERO_PREFIX = "zero_"
 """A joint sensor's zero form is named ``zero_<joint>`` (:func:`fit_joint_zeros`)."""
-
-ZERO_TOL = 1e-3
-"""Joint zeros refitted beside a winner that move less than this (rad, under the
-potentiometers' 1.4 mrad resolution) do not count as the forms coming out otherwise
-(:func:`forms_differ`): a closed-form fit always moves a little."""
 
 
 def with_joint_zero(cfg: RoverConfig, joint: str, zero: float) -> RoverConfig:
@@ -434,20 +431,14 @@ def form_key(forms: list[FormFit]) -> list[tuple[str, float | None]]:
 
 
 def forms_differ(a: list[FormFit], b: list[FormFit]) -> bool:
-    """Whether two fits of the forms change the model differently: another form adopted,
-    another value, or a joint zero moved by more than :data:`ZERO_TOL`."""
-    ka, kb = form_key(a), form_key(b)
-    if [n for n, _ in ka] != [n for n, _ in kb]:
-        return True
-    for (name, va), (_, vb) in zip(ka, kb, strict=True):
-        if (va is None) != (vb is None):
-            return True
-        if va is None or vb is None:
-            continue
-        tol = ZERO_TOL if name.startswith(ZERO_PREFIX) else 0.0
-        if abs(va - vb) > tol:
-            return True
-    return False
+    """Whether two fits of the forms change the model differently. The joint zeros do not
+    count: every fit profiles its own (:attr:`rover_env.calibration.fit.Evaluator.profile_zeros`),
+    and the ones in the configuration only start the windows closer to the truth."""
+
+    def key(forms: list[FormFit]) -> list[tuple[str, float | None]]:
+        return form_key([f for f in forms if not f.name.startswith(ZERO_PREFIX)])
+
+    return key(a) != key(b)
 
 
 def fit_forms(
@@ -512,7 +503,7 @@ def fit_model_form(d: Diagnosis) -> None:
     if not opts.model_form:
         return
     given = opts.forms_given
-    beside = f" (fitted beside {opts.forms_beside})" if given is not None else ""
+    beside = f" (fitted beside {opts.forms_beside})" if opts.forms_beside is not None else ""
     d.forms, d.base, d.prepared = (
         fit_forms(
             d.base,
@@ -559,9 +550,17 @@ def judge_again(d: Diagnosis) -> Options | None:
                 " the diagnosis runs again under it"
             )
             return replace(opts, forms_given=again, forms_beside=winner.fit.name)
-    adopted = [f for f in d.forms if f.adopted]
+    # The joint zeros are profiled out of every fit (Evaluator.profile_zeros), the nominal
+    # form's too: they are no form to re-judge, and a revert keeps them.
+    adopted = [f for f in d.forms if f.adopted and not f.name.startswith(ZERO_PREFIX)]
+    zeros = [f for f in d.forms if f.name.startswith(ZERO_PREFIX)]
     if adopted and opts.rejudge_form > 0:
-        ev0 = Evaluator(d.base0, d.st, d.prepared0, d.sets, scale=d.scale)
+        base0 = d.base0
+        for z in zeros:  # the nominal form starts its windows from the same zeros
+            base0 = with_form(base0, z) if z.adopted else base0
+        ev0 = Evaluator(
+            base0, d.st, d.prepared0, d.sets, scale=d.scale, profile_zeros=d.ev.profile_zeros
+        )
         verdict = form_rejudgement(d.ev, ev0, winner, d.ranked, adopted, d.noise, opts, d.say)
         if verdict["revert"]:
             d.say(
@@ -569,6 +568,8 @@ def judge_again(d: Diagnosis) -> Options | None:
                 + verdict["text"]
                 + "; the forms are reverted and the diagnosis runs again without them"
             )
+            if zeros:
+                return replace(opts, forms_given=zeros, forms_reverted=verdict)
             return replace(opts, model_form=False, forms_reverted=verdict)
         d.say("model form re-judged beside the effects: " + verdict["text"] + "; kept")
     return None

@@ -81,8 +81,9 @@ class Options:
     evidence: int = 2
     """Candidates for which a deciding drive is proposed and simulated, at most."""
     model_form: bool = True
-    """Fit the model's own form first, in this order: the speed loop's anti-windup form,
-    the tire's relaxation length and its low-speed slip floor (:mod:`.form`)."""
+    """Fit the model's own form first, in this order: the joint sensors' zeros, the speed
+    loop's anti-windup form, the tire's relaxation length and its low-speed slip floor
+    (:mod:`.form`)."""
     fit_joint_zero: bool = True
     """Fit the joint sensors' zeros as model form, the first stage (:func:`.form.fit_joint_zeros`;
     stop 54: on the independent generator's clean logs a 33 mrad constant on theta_4 was

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 import yaml
+from numpy.typing import NDArray
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import merge
@@ -23,14 +24,17 @@ from rover_env.calibration.diagnosis.judge import fit_dict, strict_json, unexpla
 from rover_env.calibration.diagnosis.state import Diagnosis
 from rover_env.calibration.replay import SIGNALS, WindowResult, replay_config
 from rover_env.calibration.report import write_report
-from rover_env.config import load_rover, to_dict
+from rover_env.config import JOINTS, RoverConfig, load_rover, to_dict
 
 
 def write(d: Diagnosis) -> None:
     """Writes ``rover.yaml``, the held-out replays, ``result.json`` and the report; sets
     :attr:`Diagnosis.result`."""
     out, base, st, chosen = d.out, d.base, d.st, d.chosen
-    final_cfg = replace(base, extensions=merge(base.extensions, *(s.fit.ext for s in chosen)))
+    final_ext = merge(*(s.fit.ext for s in chosen)) if chosen else {}
+    final_cfg = replace(base, extensions=merge(base.extensions, final_ext))
+    if d.ev.profile_zeros:  # the zeros the final model's fit carries
+        final_cfg = with_zeros(final_cfg, d.ev.zero_shift(final_ext))
     cfg_path = out / "rover.yaml"
     cfg_path.write_text(
         "# Written by rover-env diagnose: the logs' rover plus the effects it found.\n"
@@ -43,7 +47,7 @@ def write(d: Diagnosis) -> None:
     arrays: dict[str, Any] = {f"before_{k}": v for k, v in replay_before.items()}
     arrays.update({f"after_{k}": v for k, v in replay_after.items()})
     np.savez(out / "replay_heldout.npz", **arrays)
-    d.held_final = d.ev.run(merge(*(s.fit.ext for s in chosen)) if chosen else {}, "held")
+    d.held_final = d.ev.run(final_ext, "held")
     d.table_held_after = rs.table(rs.stack(d.held_final, d.prepared), d.final_floor)
     d.result = result_of(d, str(cfg_path))
     (out / "result.json").write_text(json.dumps(strict_json(d.result), indent=2, allow_nan=False))
@@ -54,6 +58,23 @@ def write(d: Diagnosis) -> None:
         f" {r['main_signal']} {r['main_rms_before']:.4g} -> {r['main_rms_after']:.4g};"
         f" wrote {out}/report.md, rover.yaml ({r['seconds']:.0f}s)"
     )
+
+
+def with_zeros(cfg: RoverConfig, shift: NDArray[np.float64]) -> RoverConfig:
+    """``cfg`` with each joint sensor's zero moved by its profiled ``shift`` (sensor reads
+    ``shift`` more than ``cfg`` said, so its zero is ``shift`` less), within the stops."""
+    joints = {
+        j: replace(
+            cfg.joints[j],
+            zero=float(
+                np.clip(
+                    cfg.joints[j].zero - s, -0.5 * cfg.joints[j].limit, 0.5 * cfg.joints[j].limit
+                )
+            ),
+        )
+        for j, s in zip(JOINTS, shift, strict=True)
+    }
+    return replace(cfg, joints=joints)
 
 
 def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
