@@ -4,6 +4,8 @@ find zeros injected into the model's own logs and judge each on its own sensor."
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -16,7 +18,14 @@ from rover_env.calibration.diagnosis.form import (
     with_form,
     with_joint_zero,
 )
-from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
+from rover_env.calibration.evaluator import Evaluator
+from rover_env.calibration.replay import (
+    PreparedLog,
+    ReplaySettings,
+    WindowResult,
+    make_windows,
+    prepare,
+)
 from rover_env.config import JOINTS, ConfigError, JointSpec, RoverConfig
 from rover_env.generators.make_logs import make_logs
 from rover_env.logs import read_log
@@ -89,3 +98,37 @@ def test_zeros_alone_never_make_the_forms_differ() -> None:
     assert not forms_differ(a, [_zero("theta_4", -0.010)])
     sigma = FormFit("relaxation_length", "m", 0.02, 0.005, {}, 0.2, 0.01, -5.0, True)
     assert forms_differ([*a, sigma], a)
+
+
+@pytest.fixture(scope="module")
+def clean_logs(tmp_path_factory: pytest.TempPathFactory) -> list[PreparedLog]:
+    root = tmp_path_factory.mktemp("clean")
+    paths = make_logs(root, {}, drives=2, seed=5, duration=20.0, progress=False)
+    return [prepare(read_log(p), CFG, p.name, ST) for p in paths]
+
+
+def _rms(results: list[WindowResult]) -> np.ndarray:
+    return np.sqrt(np.mean(np.vstack([r.resid[:, 6:11] for r in results]) ** 2, axis=0))
+
+
+def test_profiled_fits_do_not_see_a_constant_sensor_offset(clean_logs: list[PreparedLog]) -> None:
+    """A joint sensor 20 mrad off is what profiling takes out, on the training windows and,
+    with the training windows' shift, on the held-out ones; unprofiled it dominates."""
+    off = np.array([0.02, 0.0, -0.02, 0.02, 0.0])
+    shifted = [
+        prepare(dataclasses.replace(p.log, theta=p.log.theta + off), CFG, p.name, ST)
+        for p in clean_logs
+    ]
+    windows = make_windows(clean_logs, ST)
+    sets = {
+        "train": [w for w in windows if w.log_index == 0],
+        "held": [w for w in windows if w.log_index == 1],
+    }
+    for which in ("train", "held"):
+        clean = Evaluator(CFG, ST, clean_logs, sets, profile_zeros=True).run({}, which)
+        ev = Evaluator(CFG, ST, shifted, sets, profile_zeros=True)
+        raw = Evaluator(CFG, ST, shifted, sets).run({}, which)
+        prof = ev.run({}, which)
+        assert np.all(_rms(raw)[off != 0] > 0.015)
+        np.testing.assert_allclose(_rms(prof), _rms(clean), rtol=0.3, atol=5e-4)
+        np.testing.assert_allclose(ev.zero_shift({}, which), -off, atol=2e-3)

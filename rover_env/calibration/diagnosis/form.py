@@ -432,7 +432,7 @@ def form_key(forms: list[FormFit]) -> list[tuple[str, float | None]]:
 
 def forms_differ(a: list[FormFit], b: list[FormFit]) -> bool:
     """Whether two fits of the forms change the model differently. The joint zeros do not
-    count: every fit profiles its own (:attr:`rover_env.calibration.fit.Evaluator.profile_zeros`),
+    count: every fit profiles its own (:attr:`rover_env.calibration.evaluator.Evaluator.profile_zeros`),
     and the ones in the configuration only start the windows closer to the truth."""
 
     def key(forms: list[FormFit]) -> list[tuple[str, float | None]]:
