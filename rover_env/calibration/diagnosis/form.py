@@ -291,7 +291,12 @@ def fit_joint_zeros(
     effects' rule on that sensor's per-window mean squares (BIC, one parameter, windows as
     observations): on the loss of all 14 signals, each in units of its own nominal
     residual, a perfect zero can win at most a fourteenth, and 38 % better training windows
-    did not pay for five parameters (dBIC +1.9 on case 47145)."""
+    did not pay for five parameters (dBIC +1.9 on case 47145).
+
+    Fitted here, before any effect, a zero takes whatever constant the nominal model leaves
+    on its joint, an effect's steady part too; so every later fit profiles its own zeros
+    (:attr:`rover_env.calibration.evaluator.Evaluator.profile_zeros`) and these only start
+    the windows closer to the truth."""
     del sensor_noise  # each zero is judged on its own signal's mean square
     nominal = np.array([cfg.joints[j].zero for j in JOINTS])
     bound = np.array([0.5 * cfg.joints[j].limit for j in JOINTS])
