@@ -27,7 +27,10 @@ def split(d: Diagnosis) -> None:
     """Sets the logs, the rover, the replay settings, the prepared logs and the windows."""
     if not d.paths:
         raise LogError("no logs given")
-    files = sorted(Path(p) for p in d.paths)
+    # The last by file name is held out, wherever it lies: a drive a report proposed, logged
+    # as drive_03 beside drive_00-02 in its own folder, is the new evidence. (Until stop 54
+    # the whole path was sorted, and "followup_0/drive_03.csv" went first, into training.)
+    files = sorted((Path(p) for p in d.paths), key=lambda p: (p.name, str(p)))
     logs = [read_log(p) for p in files]
     rovers = {lg.meta.rover for lg in logs}
     if len(rovers) > 1:

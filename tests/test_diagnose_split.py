@@ -1,0 +1,29 @@
+"""diagnose's split: the last log by file name is held out, wherever its folder sorts. A
+proposed drive is logged in its own folder as the next drive (drive_03 beside drive_00-02);
+it is the new evidence, and sorted by whole path it went into training instead."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+from rover_env.calibration.diagnosis import split
+from rover_env.calibration.diagnosis.state import Diagnosis, Options
+from rover_env.generators.make_logs import make_logs
+
+
+def test_the_last_drive_by_name_is_held_out_whatever_its_folder(tmp_path: Path) -> None:
+    made = make_logs(tmp_path / "made", {}, drives=3, seed=2, duration=12.0, progress=False)
+    first, later = tmp_path / "z_logs", tmp_path / "a_followup"
+    for folder, logs in ((first, made[:2]), (later, made[2:])):
+        folder.mkdir()
+        for p in logs:
+            shutil.copy(p, folder / p.name)
+            shutil.copy(p.with_suffix(".yaml"), folder / p.with_suffix(".yaml").name)
+    paths = [str(first / made[0].name), str(first / made[1].name), str(later / made[2].name)]
+    assert sorted(paths)[0].startswith(str(later))  # the whole path sorts it first
+    d = Diagnosis(paths, tmp_path / "out", Options(progress=False))
+    split.split(d)
+    held = {w.log_index for w in d.held_w}
+    assert [d.files[i].name for i in held] == [made[2].name]
+    assert {d.files[w.log_index].name for w in d.train_w} == {made[0].name, made[1].name}
