@@ -442,6 +442,7 @@ def _model_form_line(
             "mm/s",
         ),
         "max_angle_error": ("the speed loop's anti-windup bound", 1e3, "mrad"),
+        "yaw_spring": ("the yaw joints' leaf springs (SPEC gives none)", 1.0, "N m/rad"),
         "anti_windup": ("the speed loop's anti-windup form", 1.0, ""),
     }
     parts = []

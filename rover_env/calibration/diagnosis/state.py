@@ -82,12 +82,16 @@ class Options:
     """Candidates for which a deciding drive is proposed and simulated, at most."""
     model_form: bool = True
     """Fit the model's own form first, in this order: the joint sensors' zeros, the speed
-    loop's anti-windup form, the tire's relaxation length and its low-speed slip floor
-    (:mod:`.form`)."""
+    loop's anti-windup form, the tire's relaxation length, the yaw joints' springs and the
+    tire's low-speed slip floor (:mod:`.form`)."""
     fit_joint_zero: bool = True
     """Fit the joint sensors' zeros as model form, the first stage (:func:`.form.fit_joint_zeros`;
     stop 54: on the independent generator's clean logs a 33 mrad constant on theta_4 was
     the largest residual of every window)."""
+    fit_yaw_spring: bool = True
+    """Fit the yaw joints' leaf-spring stiffness as model form, after the relaxation length
+    (:func:`.form.fit_yaw_spring`; stop 54: another implementation's 15 N m/rad against
+    this configuration's 10 left the yaw joints 14-18 x their floor in turns)."""
     fit_slip_floor: bool = True
     """Fit the tire's low-speed slip floor (``TireParams.v_floor``) as model form, after the
     relaxation length (:func:`.form.fit_slip_floor`; stop 30: the second generator's

@@ -1,6 +1,8 @@
-"""The joint sensors' zeros (``JointSpec.zero``): what the sensors read, what the replay
-compares, and diagnose's closed-form fit of them (``form.fit_joint_zeros``), which must
-find zeros injected into the model's own logs and judge each on its own sensor."""
+"""The joints in diagnose's model form. The sensors' zeros (``JointSpec.zero``): what the
+sensors read, what the replay compares, diagnose's closed-form fit of them
+(``form.fit_joint_zeros``), which must find zeros injected into the model's own logs, and
+their profiling out of every fit. The yaw joints' leaf springs (``form.fit_yaw_spring``):
+kept on the model's own drive, found where the springs are stiffer."""
 
 from __future__ import annotations
 
@@ -11,9 +13,11 @@ import pytest
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.diagnosis.form import (
+    SPRING_LADDER,
     ZERO_PREFIX,
     FormFit,
     fit_joint_zeros,
+    fit_yaw_spring,
     forms_differ,
     with_form,
     with_joint_zero,
@@ -132,3 +136,38 @@ def test_profiled_fits_do_not_see_a_constant_sensor_offset(clean_logs: list[Prep
         assert np.all(_rms(raw)[off != 0] > 0.015)
         np.testing.assert_allclose(_rms(prof), _rms(clean), rtol=0.3, atol=5e-4)
         np.testing.assert_allclose(ev.zero_shift({}, which), -off, atol=2e-3)
+
+
+def test_the_yaw_spring_form_sets_both_yaw_joints() -> None:
+    cfg = with_form(CFG, FormFit("yaw_spring", "N m/rad", 10.0, 15.0, {}, 0.2, 0.01, -5.0, True))
+    assert cfg.joints["theta_2"].stiffness == cfg.joints["theta_5"].stiffness == 15.0
+    assert cfg.joints["theta_4"].stiffness == CFG.joints["theta_4"].stiffness
+
+
+@pytest.fixture(scope="module")
+def springs(tmp_path_factory: pytest.TempPathFactory) -> list[FormFit]:
+    """The yaw spring fitted on turning drives of the model itself at 10 N m/rad and of the
+    model with springs at 20."""
+    out = []
+    for k in (10.0, 20.0):
+        truth = with_form(CFG, FormFit("yaw_spring", "N m/rad", 10.0, k, {}, 0, 1, 0, True))
+        root = tmp_path_factory.mktemp(f"springs{k:.0f}")
+        paths = make_logs(
+            root, {}, drives=1, seed=4, duration=30.0, truth_rover=truth, progress=False
+        )
+        prepared = [prepare(read_log(p), CFG, p.name, ST) for p in paths]
+        windows = make_windows(prepared, ST)
+        out.append(fit_yaw_spring(CFG, prepared, windows, ST, rs.noise_floor(prepared)))
+    return out
+
+
+def test_the_yaw_spring_is_kept_on_the_models_own_drive(springs: list[FormFit]) -> None:
+    own = springs[0]
+    assert set(SPRING_LADDER) <= set(own.ladder)
+    assert not own.adopted, own
+
+
+def test_a_stiffer_yaw_spring_is_found(springs: list[FormFit]) -> None:
+    stiff = springs[1]
+    assert stiff.adopted and stiff.d_bic < 0, stiff
+    assert 17.0 < stiff.value < 23.5, stiff.value  # 20: a ladder point
