@@ -10,7 +10,7 @@ those drives added. The plan is turned into plain numbers here (``command_rows``
 targets at 50 Hz, clipped to the model rover's ``max_wheel_speed``, as ``drive-plan`` writes
 them) and handed to the generator as a :class:`~rover_env.independent.drive.Schedule`.
 
-Cases (seeds from 47200, magnitudes drawn by seed, log-uniform over each effect's range;
+Cases (seeds from 47300, magnitudes drawn by seed, log-uniform over each effect's range;
 nobody picks them): 5 singles of each of the 9 catalogue effects the generator implements
 (45), 10 clean (nuisance only), 6 pairs (never a tire-only effect with loose soil,
 ``INERT_ON_SOIL``), 4 outside the catalogue (``payload``, ``toe``, ``brake_drag``,
@@ -92,13 +92,14 @@ from rover_env.independent.generate import SAMPLE_HZ, make_independent_logs
 from rover_env.independent.model import G, RoverParams
 
 GEN = "independent"
-SEED0 = 47200
+SEED0 = 47300
 """Case seeds of this matrix: a block of their own, never looked at while building diagnose.
 Spent blocks: 47000-47064, the development block (five cases run and looked at, and one
 rule changed after them: a traded signal must be 10 % worse,
 :func:`rover_env.calibration.diagnosis.judge.traded_signals`); 47100-47164, run with stop
 53's code (26 cases), whose clean case 47145 was then studied to build the joint zeros
-and the encoder-step fix of stop 54."""
+and the encoder-step fix of stop 54; 47200-47264, run with those (12 cases), whose clean
+case 47245 was then studied to build the yaw-spring form."""
 DEV_SEED0 = 47000
 EFFECTS = (
     "rolling_resistance",
