@@ -147,7 +147,10 @@ ZERO_PREFIX = "zero_"
 
 
 def with_joint_zero(cfg: RoverConfig, joint: str, zero: float) -> RoverConfig:
-    """The configuration with joint sensor ``joint`` reading ``zero`` at the true zero."""
+    """The configuration with joint sensor ``joint`` reading ``zero`` at the true zero,
+    clipped to half the joint's stop (a zero beyond that is no potentiometer's error)."""
+    bound = 0.5 * cfg.joints[joint].limit
+    zero = float(np.clip(zero, -bound, bound))
     joints = {**cfg.joints, joint: replace(cfg.joints[joint], zero=zero)}
     return replace(cfg, joints=joints)
 
@@ -320,15 +323,14 @@ def fit_joint_zeros(
     the windows closer to the truth."""
     del sensor_noise  # each zero is judged on its own signal's mean square
     nominal = np.array([cfg.joints[j].zero for j in JOINTS])
-    bound = np.array([0.5 * cfg.joints[j].limit for j in JOINTS])
     base = Replayer(cfg, settings).run(prepared, windows)
     zeros, res = nominal.copy(), base
     for _ in range(2):
         zeros = zeros - np.vstack([r.resid[:, 6:11] for r in res]).mean(axis=0)
-        zeros = np.clip(zeros, -bound, bound)
         c = cfg
         for j, z in zip(JOINTS, zeros, strict=True):
             c = with_joint_zero(c, j, float(z))
+        zeros = np.array([c.joints[j].zero for j in JOINTS])  # as clipped
         res = Replayer(c, settings).run(prepared, windows)
     out = []
     for i, j in enumerate(JOINTS):

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import merge
+from rover_env.calibration.diagnosis.form import with_joint_zero
 from rover_env.calibration.diagnosis.judge import fit_dict, strict_json, unexplained
 from rover_env.calibration.diagnosis.state import Diagnosis
 from rover_env.calibration.replay import SIGNALS, WindowResult, replay_config
@@ -61,20 +62,11 @@ def write(d: Diagnosis) -> None:
 
 
 def with_zeros(cfg: RoverConfig, shift: NDArray[np.float64]) -> RoverConfig:
-    """``cfg`` with each joint sensor's zero moved by its profiled ``shift`` (sensor reads
-    ``shift`` more than ``cfg`` said, so its zero is ``shift`` less), within the stops."""
-    joints = {
-        j: replace(
-            cfg.joints[j],
-            zero=float(
-                np.clip(
-                    cfg.joints[j].zero - s, -0.5 * cfg.joints[j].limit, 0.5 * cfg.joints[j].limit
-                )
-            ),
-        )
-        for j, s in zip(JOINTS, shift, strict=True)
-    }
-    return replace(cfg, joints=joints)
+    """``cfg`` with each joint sensor's zero moved by its profiled ``shift`` (the sensor
+    reads ``shift`` more than ``cfg`` said, so its zero is ``shift`` less)."""
+    for j, s in zip(JOINTS, shift, strict=True):
+        cfg = with_joint_zero(cfg, j, cfg.joints[j].zero - float(s))
+    return cfg
 
 
 def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
