@@ -92,14 +92,16 @@ from rover_env.independent.generate import SAMPLE_HZ, make_independent_logs
 from rover_env.independent.model import G, RoverParams
 
 GEN = "independent"
-SEED0 = 47300
+SEED0 = 47400
 """Case seeds of this matrix: a block of their own, never looked at while building diagnose.
 Spent blocks: 47000-47064, the development block (five cases run and looked at, and one
 rule changed after them: a traded signal must be 10 % worse,
 :func:`rover_env.calibration.diagnosis.judge.traded_signals`); 47100-47164, run with stop
 53's code (26 cases), whose clean case 47145 was then studied to build the joint zeros
 and the encoder-step fix of stop 54; 47200-47264, run with those (12 cases), whose clean
-case 47245 was then studied to build the yaw-spring form."""
+case 47245 was then studied to build the yaw-spring form; 47300-47364, run with stop 54's
+code (12 cases), whose loose-soil case 47308 was then studied to build the soil forms of
+SOIL.md's regolith constants and the screen over the forms (stop 55)."""
 DEV_SEED0 = 47000
 EFFECTS = (
     "rolling_resistance",

@@ -146,19 +146,41 @@ SOIL_SIGMA_SHORT = 0.0025
 """The short relaxation length of the soil forms (m): an eighth of the tire's 2 cm, where the
 transient form is near SOIL.md's steady state (the model-form stage's shortest sigma)."""
 
+SOIL_LAMBDAS = (0.3, 0.6, 0.9)
+"""SOIL.md's exit-angle ratio lambda over the span it quotes (0.3 to 0.9; "the least
+certain" constant, which each implementation chooses per preset)."""
+
 SOIL_FORMS: tuple[tuple[str, Extensions], ...] = tuple(
-    (f"{mem_label}, {sig_label}", {"loose_soil": {"memory": mem, "sigma": sig}})
+    (
+        f"{mem_label}, {sig_label}",
+        {"loose_soil": {"memory": mem, "sigma": sig, "preset": 0.0, "lam": 0.0}},
+    )
     for mem_label, mem in (("ruts", 1.0), ("no memory", 0.0))
     for sig_label, sig in (("tire's relaxation", 0.0), ("short relaxation", SOIL_SIGMA_SHORT))
+) + tuple(
+    (
+        f"SOIL.md's regolith, lambda {lam:g}, no memory",
+        {"loose_soil": {"memory": 0.0, "sigma": 0.0, "preset": 1.0, "lam": lam}},
+    )
+    for lam in SOIL_LAMBDAS
 )
-"""The soil's dynamic designs, which SOIL.md leaves open: whether the surface remembers
-passes (this project's ruts and dug holes, or virgin soil under every wheel) and how fast
-the forces follow the slip (the tire's 2 cm relaxation length, or a short one near the
-steady state). On a straight at 2 rad/s on k_phi 2.2e6 the two memories put the rear hubs
-5.8 mm apart, and after reversing the front ones 10 mm; the second generator's soil (no
-memory, steady state) is matched by the memoryless one to 0.11 mm at rest. In a reversing
-turn on k_phi 2.35e5 its driven wheels replay at 0.27 rad RMS with the tire's relaxation
-length and 0.003 with 5 mm (docs/calibration, stop 32)."""
+"""The soil's designs, which SOIL.md leaves open, and the soil's other constants.
+
+The first four: mars-sand's constants (this project's soil scenarios), with or without the
+surface's memory of passes (this project's ruts and dug holes, or virgin soil under every
+wheel) and with the tire's 2 cm relaxation length or a short one near the steady state. On
+a straight at 2 rad/s on k_phi 2.2e6 the two memories put the rear hubs 5.8 mm apart, and
+after reversing the front ones 10 mm; the second generator's soil (no memory, steady state)
+is matched by the memoryless one to 0.11 mm at rest. In a reversing turn on k_phi 2.35e5
+its driven wheels replay at 0.27 rad RMS with the tire's relaxation length and 0.003 with
+5 mm (docs/calibration, stop 32).
+
+The last three: SOIL.md's reference constants (regolith) at each of :data:`SOIL_LAMBDAS`,
+memoryless. Why (stop 55): k_phi alone cannot carry another soil's shear modulus K,
+cohesion and lambda. On the independent generator's regolith (k_phi 5.1e5) no mars-sand
+soil of any k_phi or lambda replayed the training windows better than hard ground (the
+joints moved with the free wheels' resistance), while rolling resistance took the slip.
+"""
 
 
 def _loose_soil() -> Candidate:

@@ -503,30 +503,76 @@ def carry_form_pad(f: Fit, singles: list[Fit]) -> None:
         i += n
 
 
+FORMS_FITTED = 2
+"""Forms of a candidate searched in full: the best by the screen (:func:`_fit_forms`)."""
+
+
+def _curve_cost(f: Fit, x: float) -> float | None:
+    """The summed loss of ``f``'s search at ``x``, if it evaluated that point."""
+    if f.curve is None:
+        return None
+    xs, L = f.curve
+    hit = np.flatnonzero(xs == x)
+    return float(L[hit[0]].sum()) if hit.size else None
+
+
+def _screen_forms(
+    ev: Evaluator, c: Candidate, which: str, fixed: Extensions, first: Fit
+) -> tuple[dict[str, float], float, float | None]:
+    """Every form of ``c`` at one rung: the first form's best point, or the ladder's middle
+    rung when the first form is best at "off". Returns the forms' costs there, the rung,
+    and the cost at "off" (None when the first form's search did not reach it)."""
+    xs0, l0 = first.curve if first.curve is not None else (np.zeros(0), np.zeros((0, 0)))
+    ladder = [float(p[0]) for p in (c.ladder or ())]
+    best = float(xs0[int(np.argmin(l0.sum(axis=1)))]) if xs0.size else c.off[0]
+    rung = ladder[len(ladder) // 2] if best == c.off[0] and ladder else best
+    out: dict[str, float] = {}
+    for label, _ in c.forms:
+        if label == c.forms[0][0]:
+            v = _curve_cost(first, rung)
+            out[label] = math.inf if v is None else v
+            continue
+        cf = c.with_form(label)
+        try:
+            res = ev.run(merge(fixed, cf.to_ext(np.array([rung]))), which)
+            out[label] = float(group_losses(res, ev.scale).sum())
+        except (EffectError, SimulationError) as exc:
+            ev.log(f"  {c.name} ({label}) at {rung:.4g}: {exc}; screened out")
+            out[label] = math.inf
+    return out, rung, _curve_cost(first, c.off[0])
+
+
 def _fit_forms(
     ev: Evaluator, c: Candidate, which: str, fixed: Extensions, refine: int, t0: float
 ) -> Fit:
-    """:func:`_fit_1d` in each of ``c``'s forms (:attr:`Candidate.forms`); the form whose
-    refined minimum fits best is kept. Its interval is its own block bootstrap joined with
-    the bootstrap over the forms (:func:`bootstrap_over_forms`); how far the latter reaches
-    beyond the former is kept as :attr:`Fit.form_pad`. The choice costs the fit one
-    parameter (:attr:`Candidate.k`).
+    """:func:`_fit_1d` in the first of ``c``'s forms (:attr:`Candidate.forms`), every other
+    form screened at one rung (:func:`_screen_forms`), and the :data:`FORMS_FITTED` best by
+    the screen searched in full; the form whose refined minimum fits best is kept. Its
+    interval is its own block bootstrap joined with the bootstrap over the searched forms
+    (:func:`bootstrap_over_forms`); how far the latter reaches beyond the former is kept as
+    :attr:`Fit.form_pad`. The choice costs the fit one parameter (:attr:`Candidate.k`).
 
     Until stop 33 the form was chosen by its best ladder rung, before any refinement: the
     rungs are a factor 3 apart, so a flat form beat a sharp one whose minimum fell between
     rungs (own soil, k_phi 4.4e6: the truth's form reaches 4119 at 4e6, the short-relaxation
-    form 4732; by rungs the latter won, and k_phi was fitted at 2.4e6 [1.5e6, 2.8e6])."""
+    form 4732; by rungs the latter won, and k_phi was fitted at 2.4e6 [1.5e6, 2.8e6]).
+    Until stop 55 a first form best at "off" ended the search (hard ground: every form is
+    the same model there), and every form was otherwise searched in full (4 soil forms, 48
+    replays on a clean case). With the soil's constants among the forms, the first form can
+    be best at "off" where another is not (the independent generator's regolith under the
+    mars-sand constants), and a full search of seven forms would cost 7 x."""
     first = _fit_1d(ev, c.with_form(c.forms[0][0]), which, fixed, refine, t0)
-    xs0, l0 = first.curve if first.curve is not None else (np.zeros(0), np.zeros((0, 0)))
-    if xs0.size and float(xs0[int(np.argmin(l0.sum(axis=1)))]) == c.off[0]:
-        # Screened: the first form's search, every rung of its ladder tried, is best at
-        # "off" (hard ground for the soil), where every form is the same model; the others
-        # would refine around the same point. Why: the soil's four forms cost a clean
-        # case 48 replays, a third of its time (issue 47; clean independent case, seed 1).
-        ev.log(f"  {c.name}: best at off in form {c.forms[0][0]!r}; other forms not tried")
+    screen, rung, off_cost = _screen_forms(ev, c, which, fixed, first)
+    order = sorted(screen, key=lambda lab: screen[lab])
+    shown = ", ".join(f"{lab} {screen[lab]:.4g}" for lab in order)
+    if off_cost is not None and screen[order[0]] >= off_cost:
+        # Screened: no form beats "off" at the rung where the first form does best.
+        ev.log(f"  {c.name}: best at off ({off_cost:.4g}) in every form at {rung:.3g} ({shown})")
         return first
-    fits = [first] + [
-        _fit_1d(ev, c.with_form(label), which, fixed, refine, t0) for label, _ in c.forms[1:]
+    keep = order[:FORMS_FITTED]
+    fits = [
+        first if lab == c.forms[0][0] else _fit_1d(ev, c.with_form(lab), which, fixed, refine, t0)
+        for lab in keep
     ]
     curves = [f.curve for f in fits if f.curve is not None]
     if len(curves) != len(fits):
@@ -542,10 +588,10 @@ def _fit_forms(
         side = ""  # a bound reached in one view only: the widened interval is two-sided
     f.form_pad = (max(float(f.ci_lo[0]) - lo, 0.0), max(hi - float(f.ci_hi[0]), 0.0))
     ev.log(
-        f"  {c.name}: form {c.forms[best][0]!r} ("
+        f"  {c.name}: form {keep[best]!r} (screened at {rung:.3g}: {shown}; searched: "
         + ", ".join(
             f"{lab} {min(fi.curve[1].sum(axis=1)):.4g}"
-            for (lab, _), fi in zip(c.forms, fits, strict=True)
+            for lab, fi in zip(keep, fits, strict=True)
             if fi.curve is not None
         )
         + ")"
@@ -554,7 +600,7 @@ def _fit_forms(
     f.ci_lo, f.ci_hi = np.array([lo]), np.array([hi])
     f.se = np.array([(hi - lo) / (2 * 1.96)])
     f.sided = (side,)
-    f.nfev = sum(fi.nfev for fi in fits)
+    f.nfev = sum(fi.nfev for fi in fits) + len(screen) - 1
     f.seconds = time.perf_counter() - t0
     return f
 

@@ -575,9 +575,13 @@ class LoadDependentFriction(TireEffect):
         return mu_x * k, mu_y * k
 
 
-LOOSE_SOIL_BASE = "mars-sand"
-"""The soil preset whose other constants (c, k_c, n1, K, lambda, ...) a ``loose_soil`` effect
-on hard ground takes: the sand of the soil scenarios (configs/soil/mars-sand.yaml)."""
+LOOSE_SOIL_PRESETS = ("mars-sand", "regolith")
+"""The soil presets whose other constants (c, k_c, n1, K, lambda, ...) a ``loose_soil`` effect
+on hard ground takes, by its ``preset`` index: the sand of the soil scenarios
+(configs/soil/mars-sand.yaml) and SOIL.md's reference set (configs/soil/regolith.yaml)."""
+
+LOOSE_SOIL_BASE = LOOSE_SOIL_PRESETS[0]
+"""The default preset (``preset`` 0)."""
 
 
 @register
@@ -588,9 +592,12 @@ class LooseSoil(Effect):
     k_phi) z^n (N/m^(n+2); Wong, *Theory of Ground Vehicles*), ``phi_deg`` the soil's
     internal friction angle of Mohr-Coulomb's shear strength c + p tan(phi) and ``n0`` the
     sinkage exponent at zero slip (n = n0 + n1 |s|). ``k_phi`` 0 is off: hard ground, the Gim
-    tire. On hard ground the other soil constants are ``mars-sand``'s (LOOSE_SOIL_BASE); on
-    a terrain that already has loose soil over the ground, its constants, with these three
-    replaced ("softer than modelled"). Soil patches keep their own soil.
+    tire. On hard ground the other soil constants are those of the preset ``preset`` names
+    (:data:`LOOSE_SOIL_PRESETS`: 0 ``mars-sand``, 1 ``regolith``, SOIL.md's reference set);
+    on a terrain that already has loose soil over the ground, its constants. ``phi_deg``,
+    ``n0`` and ``lam`` (SOIL.md's exit-angle ratio, which it calls the least certain
+    constant) replace the soil's own where they are not 0 ("softer than modelled"). Soil
+    patches keep their own soil.
 
     Only ``k_phi`` is fitted by ``diagnose``, as u = 1e6 / k_phi (a log-spaced ladder over
     u's range, as every magnitude; ``calibration.candidates``); ``phi_deg`` and ``n0`` are
@@ -615,8 +622,25 @@ class LooseSoil(Effect):
             "Bekker's frictional modulus; 0: hard ground",
             moderate=2.2591e6,
         ),
-        Param("phi_deg", "deg", 15.0, 45.0, 35.0, "internal friction angle"),
-        Param("n0", "-", 0.5, 1.5, 0.92, "sinkage exponent at zero slip"),
+        Param("phi_deg", "deg", 0.0, 45.0, 0.0, "internal friction angle; 0: the soil's own"),
+        Param("n0", "-", 0.0, 1.5, 0.0, "sinkage exponent at zero slip; 0: the soil's own"),
+        Param(
+            "preset",
+            "-",
+            0.0,
+            1.0,
+            0.0,
+            "the other soil constants on hard ground: 0 mars-sand, 1 regolith (SOIL.md's set)",
+            discrete=True,
+        ),
+        Param(
+            "lam",
+            "-",
+            0.0,
+            1.0,
+            0.0,
+            "SOIL.md's exit-angle ratio lambda (theta_r = -lambda theta_f); 0: the soil's own",
+        ),
         Param(
             "memory",
             "-",
@@ -642,7 +666,10 @@ class LooseSoil(Effect):
     def soil_changes(self) -> dict[str, float]:
         if self.is_off:
             return {}
-        return {k: self[k] for k in ("k_phi", "phi_deg", "n0", "memory", "sigma")}
+        out = {k: self[k] for k in ("k_phi", "memory", "sigma", "preset")}
+        # 0 is "the soil's own" for these (none of them is 0 in a real soil).
+        out.update({k: self[k] for k in ("phi_deg", "n0", "lam") if self[k] != 0.0})
+        return out
 
 
 # --------------------------------------------------------------------------- helpers

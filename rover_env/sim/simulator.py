@@ -33,7 +33,7 @@ from rover_env.config import (
     load_terrain,
 )
 from rover_env.effects import (
-    LOOSE_SOIL_BASE,
+    LOOSE_SOIL_PRESETS,
     CommandEffect,
     Effect,
     HingeEffect,
@@ -234,14 +234,16 @@ def physical_config(cfg: RoverConfig, effects: Sequence[Effect] | None = None) -
 
 def effect_soil(terrain: TerrainConfig, effects: Sequence[Effect]) -> SoilParams | None:
     """The loose soil the model extensions put over the whole ground (``loose_soil``): the
-    terrain's own ground soil, or ``LOOSE_SOIL_BASE`` on hard ground, with their changes;
+    terrain's own ground soil, or the effect's preset (``LOOSE_SOIL_PRESETS``) on hard
+    ground, with their changes;
     None when no extension changes the soil."""
     changes: dict[str, float] = {}
     for e in effects:
         changes.update(e.soil_changes())
     if not changes:
         return None
-    base = load_soil(terrain.soil if terrain.soil else LOOSE_SOIL_BASE)
+    preset = LOOSE_SOIL_PRESETS[int(changes.pop("preset", 0.0))]
+    base = load_soil(terrain.soil if terrain.soil else preset)
     return dataclasses.replace(base, name=f"{base.name} (loose_soil)", **changes)
 
 
