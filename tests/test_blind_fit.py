@@ -306,7 +306,8 @@ def test_signal_groups_that_disagree_give_their_spread() -> None:
 
 
 def test_a_candidates_form_is_fixed_counted_and_recovered_from_its_extensions() -> None:
-    """The soil candidate carries two forms (its memory of passes); fixing one adds it to
+    """The soil candidate carries forms (its memory of passes, its relaxation, its other
+    constants: :data:`~rover_env.calibration.candidates.SOIL_FORMS`); fixing one adds it to
     every value the fit tries, counts it as a parameter, and a worker's fit (which sends
     back extensions, not closures) gets its form back from them."""
     import numpy as np
@@ -315,11 +316,13 @@ def test_a_candidates_form_is_fixed_counted_and_recovered_from_its_extensions() 
 
     (soil,) = catalogue(["loose_soil"])
     labels = [f for f, _ in soil.forms]
-    assert len(labels) == 4 and soil.k == 1
+    assert len(labels) == 7 and soil.k == 1
     forget = soil.with_form("no memory, short relaxation")
     assert forget.k == 2 and forget.forms == ()
     ext = forget.to_ext(np.array([1.0]))
-    assert ext == {"loose_soil": {"k_phi": 1e6, "memory": 0.0, "sigma": 0.0025}}
+    assert ext == {
+        "loose_soil": {"k_phi": 1e6, "memory": 0.0, "sigma": 0.0025, "preset": 0.0, "lam": 0.0}
+    }
     for label in labels:
         assert soil.adopt_form(soil.with_form(label).to_ext(np.array([1.0]))).form == label
     (lag,) = catalogue(["command_lag"])
