@@ -50,28 +50,39 @@ def _fake_fit(c, best_at_off: bool) -> fit_mod.Fit:
 
 
 @pytest.mark.parametrize("best_at_off", [True, False])
-def test_soil_forms_screened_only_at_hard_ground(
+def test_soil_forms_searched_in_full_only_where_the_screen_finds_soil(
     monkeypatch: pytest.MonkeyPatch, best_at_off: bool
 ) -> None:
+    """The first form is searched in full, every other one screened at one rung; none more
+    when no form beats hard ground there, else the :data:`FORMS_FITTED` best."""
     (soil,) = catalogue(["loose_soil"])
-    assert len(soil.forms) >= 2
+    assert len(soil.forms) > fit_mod.FORMS_FITTED
     calls: list[str] = []
 
     def fake(ev, c, which, fixed, refine, t0):  # type: ignore[no-untyped-def]
         calls.append(c.form)
         return _fake_fit(c, best_at_off)
 
+    def screen(ev, c, which, fixed, first):  # type: ignore[no-untyped-def]
+        # Hard ground costs 2 (the fake curve's "off", two windows); the forms cost more
+        # there, or less and in reverse order of the catalogue.
+        n = len(c.forms)
+        costs = [5.0] * n if best_at_off else [1.0 - 0.1 * i for i in range(n)]
+        return {lab: v for (lab, _), v in zip(c.forms, costs, strict=True)}, 1.0, 2.0
+
     monkeypatch.setattr(fit_mod, "_fit_1d", fake)
+    monkeypatch.setattr(fit_mod, "_screen_forms", screen)
 
     class _Ev:
         def log(self, msg: str) -> None:
             pass
 
     fit_mod._fit_forms(_Ev(), soil, "train", {}, 3, 0.0)  # type: ignore[arg-type]
+    labels = [label for label, _ in soil.forms]
     if best_at_off:
-        assert calls == [soil.forms[0][0]]
+        assert calls == [labels[0]]
     else:
-        assert calls == [label for label, _ in soil.forms]
+        assert calls == [labels[0], *labels[::-1][: fit_mod.FORMS_FITTED]]
 
 
 def test_disagreeing_groups_are_reported() -> None:

@@ -62,6 +62,7 @@ def _cli(args: argparse.Namespace) -> int:
         fit_anti_windup=args.fit_anti_windup,
         fit_slip_floor=args.fit_slip_floor,
         fit_joint_zero=args.fit_joint_zero,
+        fit_free_gain=args.fit_free_gain,
         fit_yaw_spring=args.fit_yaw_spring,
         fit_windup=args.fit_windup,
     )
@@ -105,6 +106,13 @@ def add_cli(sub: Any) -> None:
         action=argparse.BooleanOptionalAction,
         default=Options.fit_joint_zero,
         help="fit the joint sensors' zeros as model form (default: on; see Options.fit_joint_zero)",
+    )
+    p.add_argument(
+        "--fit-free-gain",
+        action=argparse.BooleanOptionalAction,
+        default=Options.fit_free_gain,
+        help="profile the free wheels' left/right reading difference out of every fit"
+        " (default: on; see Options.fit_free_gain)",
     )
     p.add_argument(
         "--fit-yaw-spring",

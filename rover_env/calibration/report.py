@@ -262,6 +262,7 @@ def write_report(d: Diagnosis) -> Path:
         f" {_f(result['main_floor_after'])} after): {100 * result['main_gap_reduction']:.0f} % closed.",
         "",
         f"Updated configuration: `{Path(result['config']).name}` (loads in `RoverSim` and the environments as is).",
+        *_free_gain_lines(result.get("free_wheel_gain")),
         "",
         *_method_lines(result, opts, prepared[0].log.meta.rover),
         "",
@@ -474,3 +475,15 @@ def _model_form_line(
         + ". These are not effects; the adopted values are written into the updated"
         " configuration."
     )
+
+
+def _free_gain_lines(g: float | None) -> list[str]:
+    """The free wheels' profiled reading difference, which ``rover.yaml`` does not carry."""
+    if g is None:
+        return []
+    return [
+        "",
+        f"Free wheels' reading difference (profiled out of every fit): wheel_3L reads"
+        f" {100 * g:+.2f} % and wheel_3R {-100 * g:+.2f} % against the model (radius or load"
+        " differences between the two; not written into the configuration).",
+    ]

@@ -617,7 +617,13 @@ def judge_again(d: Diagnosis) -> Options | None:
         for z in zeros:  # the nominal form starts its windows from the same zeros
             base0 = with_form(base0, z) if z.adopted else base0
         ev0 = Evaluator(
-            base0, d.st, d.prepared0, d.sets, scale=d.scale, profile_zeros=d.ev.profile_zeros
+            base0,
+            d.st,
+            d.prepared0,
+            d.sets,
+            scale=d.scale,
+            profile_zeros=d.ev.profile_zeros,
+            profile_free_gain=d.ev.profile_free_gain,
         )
         verdict = form_rejudgement(d.ev, ev0, winner, d.ranked, adopted, d.noise, opts, d.say)
         if verdict["revert"]:

@@ -88,6 +88,11 @@ class Options:
     """Fit the joint sensors' zeros as model form, the first stage (:func:`.form.fit_joint_zeros`;
     stop 54: on the independent generator's clean logs a 33 mrad constant on theta_4 was
     the largest residual of every window)."""
+    fit_free_gain: bool = True
+    """Profile the free wheels' left/right reading difference out of every fit
+    (:attr:`rover_env.calibration.evaluator.Evaluator.profile_free_gain`; stop 55: a 1 %
+    wheel-radius tolerance left the independent generator's straight clean drive's free
+    wheels 2-3 x their floor)."""
     fit_yaw_spring: bool = True
     """Fit the yaw joints' leaf-spring stiffness as model form, after the relaxation length
     (:func:`.form.fit_yaw_spring`; stop 54: another implementation's 15 N m/rad against

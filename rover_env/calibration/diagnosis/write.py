@@ -117,6 +117,11 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "model_form": None if not opts.model_form else {f.name: f.as_json() for f in d.forms},
         "model_form_reverted": opts.forms_reverted,
         "model_form_beside": opts.forms_beside,
+        "free_wheel_gain": (
+            d.ev.free_gain(merge(*(s.fit.ext for s in d.chosen)) if d.chosen else {})
+            if d.ev.profile_free_gain
+            else None
+        ),
     }
 
 
