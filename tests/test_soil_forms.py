@@ -124,3 +124,7 @@ def test_hard_ground_stops_after_the_screen() -> None:
     f = fit_mod.fit(ev, [soil], "train", max_nfev=4)  # type: ignore[arg-type]
     assert f.x[0] == 0.0
     assert f.candidates[0].form == SOIL_FORMS[0][0]
+    # The first form's search alone, then one replay per other form.
+    alone = Hard()
+    fit_mod.fit(alone, [soil.with_form(SOIL_FORMS[0][0])], "train", max_nfev=4)  # type: ignore[arg-type]
+    assert ev.runs == alone.runs + len(SOIL_FORMS) - 1

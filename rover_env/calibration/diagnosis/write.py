@@ -19,7 +19,7 @@ import yaml
 from numpy.typing import NDArray
 
 from rover_env.calibration import residuals as rs
-from rover_env.calibration.candidates import merge
+from rover_env.calibration.candidates import Extensions, merge
 from rover_env.calibration.diagnosis.form import with_joint_zero
 from rover_env.calibration.diagnosis.judge import fit_dict, strict_json, unexplained
 from rover_env.calibration.diagnosis.state import Diagnosis
@@ -31,8 +31,8 @@ from rover_env.config import JOINTS, RoverConfig, load_rover, to_dict
 def write(d: Diagnosis) -> None:
     """Writes ``rover.yaml``, the held-out replays, ``result.json`` and the report; sets
     :attr:`Diagnosis.result`."""
-    out, base, st, chosen = d.out, d.base, d.st, d.chosen
-    final_ext = merge(*(s.fit.ext for s in chosen)) if chosen else {}
+    out, base, st = d.out, d.base, d.st
+    final_ext = final_extensions(d)
     final_cfg = replace(base, extensions=merge(base.extensions, final_ext))
     if d.ev.profile_zeros:  # the zeros the final model's fit carries
         final_cfg = with_zeros(final_cfg, d.ev.zero_shift(final_ext))
@@ -59,6 +59,11 @@ def write(d: Diagnosis) -> None:
         f" {r['main_signal']} {r['main_rms_before']:.4g} -> {r['main_rms_after']:.4g};"
         f" wrote {out}/report.md, rover.yaml ({r['seconds']:.0f}s)"
     )
+
+
+def final_extensions(d: Diagnosis) -> Extensions:
+    """The named effects' extensions together (none named: no extensions)."""
+    return merge(*(s.fit.ext for s in d.chosen))
 
 
 def with_zeros(cfg: RoverConfig, shift: NDArray[np.float64]) -> RoverConfig:
@@ -118,9 +123,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "model_form_reverted": opts.forms_reverted,
         "model_form_beside": opts.forms_beside,
         "free_wheel_gain": (
-            d.ev.free_gain(merge(*(s.fit.ext for s in d.chosen)) if d.chosen else {})
-            if d.ev.profile_free_gain
-            else None
+            d.ev.free_gain(final_extensions(d)) if d.ev.profile_free_gain else None
         ),
     }
 
