@@ -65,6 +65,7 @@ def _cli(args: argparse.Namespace) -> int:
         fit_free_gain=args.fit_free_gain,
         fit_yaw_spring=args.fit_yaw_spring,
         fit_windup=args.fit_windup,
+        screen=args.screen,
     )
     try:
         diagnose(args.logs, args.out, opts)
@@ -134,6 +135,13 @@ def add_cli(sub: Any) -> None:
         help="also fit the speed loop's anti-windup bound as model form (experimental: with"
         " the clamp form it biases rolling resistance low on a conditionally integrating"
         " loop)",
+    )
+    p.add_argument(
+        "--screen",
+        action=argparse.BooleanOptionalAction,
+        default=Options.screen,
+        help="screen each candidate on half the training windows before its full fit"
+        " (default: on; see Options.screen)",
     )
     p.add_argument("--candidates", default=None, help="comma-separated subset of the catalogue")
     p.add_argument("--quiet", action="store_true")

@@ -139,7 +139,7 @@ def _figures(
 
 def _sig(s: Scored) -> str:
     if not s.significant:
-        return "no"
+        return "no (screened)" if s.screened else "no"
     return "yes" if s.test in ("", "windows") else f"yes, {s.test}"
 
 
@@ -166,7 +166,15 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
         '- Fit, blind to magnitude: one parameter is searched over its whole physical range ("off" and a'
         " log-spaced ladder of 5 values per sign from 1.2 % to 100 % of the range, then a bounded Brent search"
         " between the best value's neighbours); several parameters start from the best ladder point or the"
-        " single fits and are refined by bounded least squares (`scipy.optimize.least_squares`). Residuals"
+        " single fits and are refined by bounded least squares (`scipy.optimize.least_squares`)."
+        + (
+            f" Each candidate is screened first on one training window in {opts.numpy_every}, fitted"
+            " on all of them only if it lowers that subset's BIC by half its parameters' cost or"
+            f' improves the held-out drive by {50 * opts.min_gain:.0f} % ("no (screened)" below).'
+            if opts.screen
+            else ""
+        )
+        + " Residuals"
         " scaled per signal by the larger of the baseline training RMS and the sensor noise; a candidate"
         " that improves the training drives (BIC) is refitted with each signal scaled by its residual under that fit"
         f" (iteratively reweighted, up to {opts.reweigh} times), so the signals it fixes keep their weight."

@@ -26,6 +26,7 @@ from rover_env.calibration.diagnosis.judge import (
     passes_window_test,
     plugin_capable,
     score,
+    screened,
     unexplained,
 )
 from rover_env.calibration.diagnosis.parallel import map_candidates
@@ -55,14 +56,19 @@ def fit_one(d: Diagnosis, c: Candidate) -> Scored:
     """One candidate fitted alone, scored against the model without effects."""
     opts = d.opts
     # Numpy-only effects cost ~20x a plugin replay: a continuous one is fitted on a
-    # subset of the training windows; a switch needs one replay, on all of them.
+    # subset of the training windows; a switch needs one replay, on all of them. The
+    # others are screened on that subset first (Options.screen).
     which = "train" if plugin_capable(c) or c.discrete else "train_sub"
-    f = fit(d.ev, [c], which, max_nfev=fit_budget([c], opts))
-    s = score(d, f, d.held0, {})
-    s.threshold = noise_threshold(d.ev, c, which, d.noise)
-    if opts.reweigh > 0 and f.x.size and s.d_bic < 0:  # training only: not held-out
-        s = reweighed(d, s, opts.reweigh)
-    s.significant = passes_window_test(s, opts)
+
+    def fit_at(w: str) -> Scored:
+        s = score(d, fit(d.ev, [c], w, max_nfev=fit_budget([c], opts)), d.held0, {})
+        s.threshold = noise_threshold(d.ev, c, w, d.noise)
+        return s
+
+    s = screened(fit_at, which, c.discrete, opts)
+    if opts.reweigh > 0 and s.fit.x.size and s.d_bic < 0 and not s.screened:
+        s = reweighed(d, s, opts.reweigh)  # training only: not held-out
+    s.significant = passes_window_test(s, opts) and not s.screened
     s.test = "windows" if s.significant else ""
     return s
 

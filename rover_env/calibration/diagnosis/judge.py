@@ -8,6 +8,8 @@ Kept apart from the stages: fit, select, form and evidence all judge by the same
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -32,6 +34,30 @@ def fit_budget(cands: list[Candidate], opts: Options) -> int:
 def passes_window_test(s: Scored, opts: Options) -> bool:
     """The held-out window test that names a candidate: gain, Wilcoxon p, training BIC."""
     return s.gain >= opts.min_gain and s.p < opts.alpha and s.d_bic < 0
+
+
+def promising(s: Scored, opts: Options) -> bool:
+    """Whether a fit on the screening subset earns a fit on every training window: it lowers
+    the subset's BIC by half its parameters' cost (``d_bic < k ln n / 2``), or the held-out
+    drive improves by half the naming gain. Both are half of what naming asks (``d_bic < 0``
+    on all training windows, the gain in full), so an effect near the line is still fitted
+    in full; one that cannot reach half on half the windows cannot be named on all."""
+    half_cost = 0.5 * s.fit.k * math.log(max(s.n_train, 2))
+    return s.d_bic < half_cost or s.gain >= 0.5 * opts.min_gain
+
+
+def screened(fit_at: Callable[[str], Scored], which: str, discrete: bool, opts: Options) -> Scored:
+    """A candidate's scored fit on ``which`` (``fit_at(window set)``), screened first on
+    ``train_sub`` where :attr:`Options.screen` asks and the fit would use every training
+    window: the full fit only when the screen is :func:`promising`. A switch (one replay)
+    is never screened."""
+    if not opts.screen or which != "train" or discrete:
+        return fit_at(which)
+    s = fit_at("train_sub")
+    if promising(s, opts):
+        return fit_at("train")
+    s.screened = True
+    return s
 
 
 def log_ratios(before: Array, after: Array) -> Array:
@@ -89,7 +115,7 @@ def floor_test(d: Diagnosis, s: Scored, ref_left: list[str], ref_floor: dict[str
     """The fallback held-out test: see :func:`noise_test`. Each signal is judged against
     its own floor, so a candidate need not reach the window test's overall gain (a
     rolling radius shows in the pose alone); it must not make the held-out drive worse."""
-    if s.gain < 0.0 or s.d_bic >= 0 or not ref_left:
+    if s.gain < 0.0 or s.d_bic >= 0 or s.screened or not ref_left:
         return False
     after = rs.table(rs.stack(d.ev.run(s.fit.ext, "held"), d.prepared), ref_floor)
     cleared = noise_test(ref_left, unexplained(after, ref_floor))
@@ -254,6 +280,7 @@ def fit_dict(s: Scored) -> dict[str, Any]:
         "d_bic": s.d_bic,
         "significant": s.significant,
         "test": s.test,
+        "screened": s.screened,
         "threshold": s.threshold,
         "nfev": s.fit.nfev,
         "seconds": s.fit.seconds,

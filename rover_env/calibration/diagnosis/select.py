@@ -32,6 +32,7 @@ from rover_env.calibration.diagnosis.judge import (
     passes_window_test,
     plugin_capable,
     score,
+    screened,
     traded_signals,
     unexplained,
 )
@@ -168,8 +169,12 @@ def blind_partners(d: Diagnosis) -> list[Scored]:
         c = pool[i]
         plug = plugin_capable(c) and all(plugin_capable(w) for w in w_cands)
         which = "train" if plug or c.discrete else "train_sub"
-        f = fit(ev_w, [c], which, max_nfev=fit_budget([c], opts), hold=winner.fit.ext)
-        return score(d, f, winner.held_losses, winner.fit.ext, tscale=scale_w)
+
+        def fit_at(w: str) -> Scored:
+            f = fit(ev_w, [c], w, max_nfev=fit_budget([c], opts), hold=winner.fit.ext)
+            return score(d, f, winner.held_losses, winner.fit.ext, tscale=scale_w)
+
+        return screened(fit_at, which, c.discrete, opts)
 
     def report_partner(s: Scored) -> None:
         d.say(
@@ -190,7 +195,7 @@ def blind_partners(d: Diagnosis) -> list[Scored]:
     best = sorted([s for s in d.partners if s.gain > 0.0], key=lambda s: -s.gain)
     others = [replace(s, fit=stack_fits(winner.fit, s.fit)) for s in best[: opts.second]]
     for s in others:
-        s.significant = passes_window_test(s, opts)
+        s.significant = passes_window_test(s, opts) and not s.screened
         s.test = "windows" if s.significant else ""
     return others
 

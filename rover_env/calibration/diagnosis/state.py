@@ -39,6 +39,13 @@ class Options:
     tie_alpha: float = 0.05
     numpy_every: int = 2
     """Numpy-only candidates are fitted on every n-th training window (they are ~20x slower)."""
+    screen: bool = True
+    """Screen each plugin-replayed candidate, and each partner beside the winner, on the
+    numpy candidates' subset of the training windows (every :attr:`numpy_every`-th) before
+    its full fit; only a promising one (:func:`.judge.promising`) is fitted again on all of
+    them. Why (issue 47, item 4): on a clean case every candidate's full fit was spent
+    (stop 55: 77 of 96 s, 10 fits of 12-25 replays), and a fit that cannot reach half of the
+    naming rule on half the windows cannot be named on all of them."""
     max_nfev: int = 4
     second: int = 4
     """Partners judged as pairs with the winner in forward selection: those that improve the
@@ -218,6 +225,9 @@ class Scored:
     fit_scale: dict[str, float] | None = None
     """The signal scale the fit was made with when it is not the stage's own (a reweighed
     refit, :attr:`Options.reweigh`): the replay's bias is measured with the same weights."""
+    screened: bool = False
+    """Fitted on the screening subset only (:attr:`Options.screen`): not promising there,
+    so never fitted on every training window (and never named)."""
 
 
 @dataclass

@@ -1,0 +1,73 @@
+"""The candidate screen (issue 47, item 4): a fit on half the training windows decides whether
+a candidate is fitted on all of them. A promising screen must lead to the full fit (so nothing
+nameable is lost), an unpromising one must not (that is the saving), and a screened candidate
+can never be named."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rover_env.calibration.candidates import catalogue
+from rover_env.calibration.diagnosis.judge import floor_test, promising, screened
+from rover_env.calibration.diagnosis.state import Options, Scored
+from rover_env.calibration.fit import Fit
+
+
+def _scored(which: str, d_bic: float, gain: float, n: int = 16) -> Scored:
+    (c,) = catalogue(["rolling_resistance"])
+    z = np.zeros(1)
+    f = Fit([c], z, z, z, z, 1.0, 11, {}, 0.0, which)
+    return Scored(f, 1.0, np.ones(3), gain, 0.5, d_bic, d_bic, n)
+
+
+def _fit_at(results: dict[str, Scored], calls: list[str]):  # type: ignore[no-untyped-def]
+    def fit_at(which: str) -> Scored:
+        calls.append(which)
+        return results[which]
+
+    return fit_at
+
+
+def test_promising_is_half_the_naming_rule() -> None:
+    opts = Options()
+    half = 0.5 * math.log(16)  # one parameter, 16 screening windows
+    assert promising(_scored("train_sub", half - 0.01, 0.0), opts)
+    assert not promising(_scored("train_sub", half + 0.01, 0.0), opts)
+    assert promising(_scored("train_sub", 10.0, 0.5 * opts.min_gain), opts)
+    assert not promising(_scored("train_sub", 10.0, 0.5 * opts.min_gain - 0.001), opts)
+
+
+@pytest.mark.parametrize("good", [True, False])
+def test_screen_fits_in_full_only_what_it_finds_promising(good: bool) -> None:
+    sub = _scored("train_sub", -8.0 if good else 4.0, 0.2 if good else 0.01)
+    full = _scored("train", -20.0, 0.3, n=32)
+    calls: list[str] = []
+    s = screened(_fit_at({"train_sub": sub, "train": full}, calls), "train", False, Options())
+    if good:
+        assert calls == ["train_sub", "train"] and s is full and not s.screened
+    else:
+        assert calls == ["train_sub"] and s is sub and s.screened
+
+
+def test_no_screen_where_it_saves_nothing() -> None:
+    """A switch (one replay), a fit already on the subset (numpy-only), or the screen off:
+    one fit, on the windows asked for."""
+    full = _scored("train", 4.0, 0.0, n=32)
+    sub = _scored("train_sub", 4.0, 0.0)
+    for which, discrete, opts, want in [
+        ("train", True, Options(), "train"),
+        ("train_sub", False, Options(), "train_sub"),
+        ("train", False, Options(screen=False), "train"),
+    ]:
+        calls: list[str] = []
+        s = screened(_fit_at({"train": full, "train_sub": sub}, calls), which, discrete, opts)
+        assert calls == [want] and not s.screened
+
+
+def test_a_screened_candidate_is_never_named_by_the_floor_test() -> None:
+    s = _scored("train_sub", -1.0, 0.01)
+    s.screened = True
+    assert not floor_test(None, s, ["wheel_1L"], {})  # type: ignore[arg-type]
