@@ -48,6 +48,7 @@ def test_screen_fits_in_full_only_what_it_finds_promising(good: bool) -> None:
     s = screened(_fit_at({"train_sub": sub, "train": full}, calls), "train", False, Options())
     if good:
         assert calls == ["train_sub", "train"] and s is full and not s.screened
+        assert s.fit.nfev == 22  # the screen's replays are counted with the full fit's
     else:
         assert calls == ["train_sub"] and s is sub and s.screened
 
@@ -71,3 +72,18 @@ def test_a_screened_candidate_is_never_named_by_the_floor_test() -> None:
     s = _scored("train_sub", -1.0, 0.01)
     s.screened = True
     assert not floor_test(None, s, ["wheel_1L"], {})  # type: ignore[arg-type]
+
+
+def test_the_gap_is_what_lies_beyond_the_clean_tolerance(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A signal above its floor is a gap only beyond its group's tolerance; one within it is
+    listed apart (above the floor, not a gap)."""
+    from rover_env.calibration import residuals as rs
+    from rover_env.calibration.diagnosis import judge
+    from rover_env.calibration.replay import SIGNALS
+
+    monkeypatch.setitem(judge.GAP_TOLERANCE, "driven wheels", 4.0)
+    monkeypatch.setitem(judge.GAP_TOLERANCE, "joints", 2.0)
+    ratios = {s: 1.0 for s in SIGNALS} | {"wheel_1L": 3.0, "wheel_2R": 5.0, "theta_4": 2.5}
+    table = {s: {"all": rs.Cell(r, 100, r, 1e-9 if r > 1.5 else 0.5)} for s, r in ratios.items()}
+    assert judge.unexplained(table, {}) == ["wheel_1L", "wheel_2R", "theta_4"]
+    assert judge.gap(table, {}) == ["wheel_2R", "theta_4"]

@@ -236,14 +236,22 @@ def _headline(
     if tie:
         L.append("\n" + tie_text(tie))
     un = result["unexplained"]
+    within = [s for s in result.get("above_floor", []) if s not in un]
     if un:
         L.append(
             f"\n**A significant gap remains unexplained** in: {', '.join(un)} (held-out residual"
-            " more than 1.5 times the replay floor, p < 0.001 after the named effects)."
+            " above its replay floor, p < 0.001 after the named effects, and beyond what clean"
+            " logs of other implementations of this rover leave: docs/calibration/gap.md)."
         )
     else:
         L.append(
-            "\nAfter the named effects no held-out signal exceeds 1.5 times its replay floor significantly."
+            "\nAfter the named effects no held-out signal exceeds its replay floor beyond what"
+            " clean logs of other implementations of this rover leave (docs/calibration/gap.md)."
+        )
+    if within:
+        L.append(
+            f"Above the replay floor but within that tolerance: {', '.join(within)} (the model's"
+            " own form against the logs' implementation, not an effect)."
         )
     return L
 

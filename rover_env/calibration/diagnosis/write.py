@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import Extensions, merge
 from rover_env.calibration.diagnosis.form import with_joint_zero
-from rover_env.calibration.diagnosis.judge import fit_dict, strict_json, unexplained
+from rover_env.calibration.diagnosis.judge import fit_dict, gap, strict_json, unexplained
 from rover_env.calibration.diagnosis.state import Diagnosis
 from rover_env.calibration.replay import SIGNALS, WindowResult, replay_config
 from rover_env.calibration.report import write_report
@@ -115,7 +115,8 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "replays": d.ev.replays,
         "replay_seconds": d.ev.seconds,
         "config": cfg_path,
-        "unexplained": unexplained(table_held_after, final_floor),
+        "unexplained": gap(table_held_after, final_floor),
+        "above_floor": unexplained(table_held_after, final_floor),
         "evidence": d.evidence,
         "not_named": d.traded,
         "second_dropped": d.dropped,
