@@ -73,26 +73,28 @@ class Evaluator:
             self.seconds += time.perf_counter() - t0
         return self.cache[key]
 
-    def zero_shift(self, ext: Extensions, which: str = "held") -> Array:
+    def zero_shift(self, ext: Extensions, which: str = "held", ref: str | None = None) -> Array:
         """(5,) what profiling takes off each joint's residual (rad): the mean over the
         training windows under ``ext``; on a training set its own windows, elsewhere the
-        full training set's (the subset's where only it was replayed: a numpy-only model's
-        full training replay would cost 20 x)."""
-        rows = np.vstack([r.resid[:, 6:11] for r in self._replay(ext, self._reference(ext, which))])
+        training set ``ref`` (default :meth:`reference`)."""
+        ref = ref or self.reference(ext, which)
+        rows = np.vstack([r.resid[:, 6:11] for r in self._replay(ext, ref)])
         return np.asarray(rows.mean(axis=0), dtype=np.float64)
 
-    def _reference(self, ext: Extensions, which: str) -> str:
-        """The training set a profile under ``ext`` is taken over, for window set ``which``."""
+    def reference(self, ext: Extensions, which: str) -> str:
+        """The training set a profile under ``ext`` is taken over, for window set ``which``:
+        a training set's own; elsewhere the full training set, or the subset where only it
+        was replayed under ``ext`` (a numpy-only model's or a screened fit's)."""
         if which.startswith("train"):
             return which
         key = json.dumps(ext, sort_keys=True)
         sub_only = (key, "train_sub") in self.cache and (key, "train") not in self.cache
         return "train_sub" if sub_only else "train"
 
-    def free_gain(self, ext: Extensions, which: str = "held") -> float:
+    def free_gain(self, ext: Extensions, which: str = "held", ref: str | None = None) -> float:
         """g of :attr:`profile_free_gain` under ``ext``: the least-squares difference of
         the free wheels' reading gains over the training windows (as :meth:`zero_shift`)."""
-        res = self._replay(ext, self._reference(ext, which))
+        res = self._replay(ext, ref or self.reference(ext, which))
         r = np.vstack([w.resid[:, 4:6] for w in res])
         sim = np.vstack([w.sim[:, 4:6] for w in res])
         den = float(np.sum(sim**2))
@@ -101,14 +103,18 @@ class Evaluator:
         g = -(float(np.sum(r[:, 0] * sim[:, 0])) - float(np.sum(r[:, 1] * sim[:, 1]))) / den
         return float(np.clip(g, -FREE_GAIN_MAX, FREE_GAIN_MAX))
 
-    def run(self, ext: Extensions, which: str) -> list[WindowResult]:
+    def run(self, ext: Extensions, which: str, ref: str | None = None) -> list[WindowResult]:
+        """``which`` replayed under ``ext``, read through the profiled sensors; ``ref``: the
+        training set the profile is taken over, where it is not ``which`` itself (default
+        :meth:`reference`). Two models' held-out losses compare only under the same ``ref``."""
         raw = self._replay(ext, which)
         if not (self.profile_zeros or self.profile_free_gain):
             return raw
-        key = (json.dumps(ext, sort_keys=True), which + " (profiled)")
+        ref = which if which.startswith("train") else ref or self.reference(ext, which)
+        key = (json.dumps(ext, sort_keys=True), f"{which} (profiled on {ref})")
         if key not in self.cache:
-            shift = self.zero_shift(ext, which) if self.profile_zeros else np.zeros(5)
-            g = self.free_gain(ext, which) if self.profile_free_gain else 0.0
+            shift = self.zero_shift(ext, which, ref) if self.profile_zeros else np.zeros(5)
+            g = self.free_gain(ext, which, ref) if self.profile_free_gain else 0.0
             self.cache[key] = [profiled(r, shift, g) for r in raw]
         return self.cache[key]
 

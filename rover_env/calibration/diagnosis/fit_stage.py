@@ -49,7 +49,7 @@ def fit_candidates(d: Diagnosis) -> None:
             f"no candidate passes the window test; held-out above the floor: {', '.join(base_left)}"
         )
         for s in d.ranked:
-            floor_test(d, s, base_left, d.noise)
+            floor_test(d, s, base_left, d.noise, {})
 
 
 def fit_one(d: Diagnosis, c: Candidate) -> Scored:

@@ -86,6 +86,7 @@ from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import Extensions, merge
 from rover_env.calibration.diagnosis.judge import (
     better_worse,
+    comparable_held,
     fit_budget,
     fit_dict,
     fmt_phys,
@@ -683,7 +684,8 @@ def form_rejudgement(
         c_which = pool[i].fit.which
         f = fit(ev0, cands, c_which, max_nfev=fit_budget(cands, opts))
         hl = rs.window_losses(ev0.run(f.ext, "held"), noise)
-        s = Scored(f, float(hl.sum()), hl, gain(h_nom, hl), p_improved(h_nom, hl), 0.0, 0.0, n)
+        h0 = comparable_held(ev0, f.ext, {}, h_nom, noise)
+        s = Scored(f, float(hl.sum()), hl, gain(h0, hl), p_improved(h0, hl), 0.0, 0.0, n)
         s.d_bic = d_bic(ev0, f.ext, f.k)
         s.significant = passes_window_test(s, opts)
         return s

@@ -129,7 +129,7 @@ def forward_selection(d: Diagnosis) -> None:
         )
     if not any(s.significant for s in d.tried):
         for s2 in sorted(d.tried, key=lambda s: -s.gain):
-            floor_test(d, s2, d.left, d.w_floor)
+            floor_test(d, s2, d.left, d.w_floor, winner.fit.ext)
     w_names = {c.name for c in winner.fit.candidates}
     second = first_confident(
         sorted([s for s in d.tried if s.significant], key=lambda s: -s.gain),
