@@ -10,7 +10,7 @@ those drives added. The plan is turned into plain numbers here (``command_rows``
 targets at 50 Hz, clipped to the model rover's ``max_wheel_speed``, as ``drive-plan`` writes
 them) and handed to the generator as a :class:`~rover_env.independent.drive.Schedule`.
 
-Cases (seeds from 47300, magnitudes drawn by seed, log-uniform over each effect's range;
+Cases (seeds from 47500, magnitudes drawn by seed, log-uniform over each effect's range;
 nobody picks them): 5 singles of each of the 9 catalogue effects the generator implements
 (45), 10 clean (nuisance only), 6 pairs (never a tire-only effect with loose soil,
 ``INERT_ON_SOIL``), 4 outside the catalogue (``payload``, ``toe``, ``brake_drag``,
@@ -92,7 +92,7 @@ from rover_env.independent.generate import SAMPLE_HZ, make_independent_logs
 from rover_env.independent.model import G, RoverParams
 
 GEN = "independent"
-SEED0 = 47400
+SEED0 = 47500
 """Case seeds of this matrix: a block of their own, never looked at while building diagnose.
 Spent blocks: 47000-47064, the development block (five cases run and looked at, and one
 rule changed after them: a traded signal must be 10 % worse,
@@ -101,7 +101,9 @@ rule changed after them: a traded signal must be 10 % worse,
 and the encoder-step fix of stop 54; 47200-47264, run with those (12 cases), whose clean
 case 47245 was then studied to build the yaw-spring form; 47300-47364, run with stop 54's
 code (12 cases), whose loose-soil case 47308 was then studied to build the soil forms of
-SOIL.md's regolith constants and the screen over the forms (stop 55)."""
+SOIL.md's regolith constants and the screen over the forms (stop 55); 47400-47464, run
+with stop 55's code (20 cases), whose clean cases 47445 and 47446 were then studied for the
+motor and spring forms (stop 56, none adopted)."""
 DEV_SEED0 = 47000
 EFFECTS = (
     "rolling_resistance",

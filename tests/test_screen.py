@@ -96,7 +96,8 @@ def test_held_out_losses_compare_under_one_profile(monkeypatch: pytest.MonkeyPat
     from rover_env.calibration.diagnosis import judge
 
     class _Ev:
-        calls: list[tuple[object, str, object]] = []
+        def __init__(self) -> None:
+            self.calls: list[tuple[object, str, object]] = []
 
         def reference(self, ext: dict[str, object], which: str) -> str:
             return "train_sub" if ext else "train"

@@ -196,14 +196,20 @@ GAP_GROUPS: dict[str, tuple[str, ...]] = {
 """The signal groups the gap test's tolerance is set for."""
 
 GAP_TOLERANCE: dict[str, float] = {
-    "driven wheels": 1.5,
-    "free wheels": 1.5,
-    "joints": 1.5,
-    "pose": 1.5,
+    "driven wheels": 87.8,
+    "free wheels": 326.0,
+    "joints": 40.2,
+    "pose": 7.67,
 }
 """Held-out residual over replay floor that clean logs of other implementations reach, per
-signal group (``benchmarks/gap_calibration.py``, docs/calibration/gap.md): a gap is
-reported only beyond it."""
+signal group: a gap is reported only beyond it. Measured by ``benchmarks/gap_calibration.py``
+(docs/calibration/gap.md, stop 56) on 8 clean cases of the independent generator with build
+tolerances, 3 of the second generator and 3 of this simulator: per generator, the 98.75 %
+quantile of a log-normal fitted to the cases' group maxima (5 % over the four groups), the
+largest over the generators. The independent generator's clean drives set every group: their
+driven wheels sat 2-36 x their floor, one case's free wheels 354 x; this simulator's own
+logs at most 1.7 x. So a gap now means a residual beyond what another implementation of
+the same rover leaves; a smaller one is listed as above the floor, not as a gap."""
 
 
 def gap(table: dict[str, dict[str, rs.Cell]], noise: dict[str, float]) -> list[str]:
