@@ -14,6 +14,10 @@ replayed in interleaved rounds (the machine is shared: medians of the rounds) by
   for a held command are computed in Python and queued in the plugin's state, which feeds
   them to the motors inside one ``mj_step`` call (until stop 45: one call per substep,
   1.9 x a plain replay).
+* ``row by row``: the replay as it drove the log before stop 57, one
+  ``set_speed_targets`` and one checked ``step`` per log row, against
+  :meth:`RoverSim.drive` (the rows between two read-outs, checked once): plain, and with a
+  hinge effect (rolling resistance); the same numbers to the bit, checked here.
 
 Prints seconds per replay and the ratios; nothing is timed in the tests.
 """
@@ -39,6 +43,16 @@ from rover_env.calibration.replay import (
 from rover_env.config import RoverConfig
 from rover_env.generators.make_logs import make_logs
 from rover_env.logs import read_log
+from rover_env.sim.simulator import RoverSim
+
+DRIVE = RoverSim.drive
+
+
+def row_by_row(sim: RoverSim, targets: np.ndarray, steps: np.ndarray) -> None:
+    """The replay's loop before stop 57: each row's targets set and stepped, checked."""
+    for u, n in zip(np.asarray(targets).reshape(-1, 4), np.asarray(steps).reshape(-1), strict=True):
+        sim.set_speed_targets(u)
+        sim.step(int(n))
 
 
 def main() -> None:
@@ -55,24 +69,30 @@ def main() -> None:
     windows = make_windows([p], st)[: args.windows]
     lag = replace(base, extensions={"command_lag": {"tau": 0.15}})
     delay = replace(base, extensions={"command_delay": {"delay": 0.15}})
+    rr = replace(base, extensions={"rolling_resistance": {"c_rr": 0.03}})
     variants = {
         "contacts on (reference)": (base, True, True),
         "contacts off": (base, False, True),
         "contacts, sensors off (diagnose)": (base, False, False),
         "command_lag, diagnose's": (lag, False, False),
         "command_delay, diagnose's": (delay, False, False),
+        "row by row (before stop 57)": (base, False, False),
+        "rolling_resistance, diagnose's": (rr, False, False),
+        "rolling_resistance, row by row": (rr, False, False),
     }
     times: dict[str, list[float]] = {k: [] for k in variants}
     outputs: dict[str, dict[str, np.ndarray]] = {}
     for _ in range(args.rounds):
         for name, (cfg, contacts, sensors) in variants.items():
+            RoverSim.drive = row_by_row if "row by row" in name else DRIVE  # type: ignore[method-assign]
             t0 = time.perf_counter()
             res = Replayer(cfg, st, contacts=contacts, sensors=sensors).run([p], windows)
             times[name].append(time.perf_counter() - t0)
             outputs[name] = replay_arrays(res)
+    RoverSim.drive = DRIVE  # type: ignore[method-assign]
     ref = outputs["contacts on (reference)"]
 
-    def same(name: str) -> bool:
+    def same(name: str, ref: dict[str, np.ndarray] = ref) -> bool:
         return all(np.array_equal(ref[k], outputs[name][k]) for k in ref)
 
     med = {k: statistics.median(v) for k, v in times.items()}
@@ -97,6 +117,16 @@ def main() -> None:
     delay_s = med["command_delay, diagnose's"]
     print(f"command_lag / plain (diagnose's replay): {lag_s / dia:.2f}")
     print(f"command_delay / plain (diagnose's replay): {delay_s / dia:.2f}")
+    row = med["row by row (before stop 57)"]
+    print(
+        f"diagnose's replay / row by row: {dia / row:.2f} of the time; identical to the bit:"
+        f" {same('row by row (before stop 57)', outputs['contacts, sensors off (diagnose)'])}"
+    )
+    rr_d, rr_r = med["rolling_resistance, diagnose's"], med["rolling_resistance, row by row"]
+    print(
+        f"with rolling resistance: {rr_d / rr_r:.2f} of the time; identical to the bit:"
+        f" {same('rolling_resistance, row by row', outputs['rolling_resistance, diagnose' + chr(39) + 's'])}"
+    )
 
 
 if __name__ == "__main__":

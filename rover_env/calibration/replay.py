@@ -424,9 +424,8 @@ class Replayer:
         step_of = np.round(t / s.dt).astype(np.int64)
         k_lead = int(np.searchsorted(t, t[w.k0] - self.lead - 1e-9)) if self.lead > 0 else w.k0
         self._init_window(p, k_lead)
-        for k in range(k_lead, w.k0):  # on soil: sink and rut before the window (unscored)
-            s.set_speed_targets(log.cmd[k])
-            s.step(int(step_of[k + 1] - step_of[k]))
+        # On soil: sink and rut before the window (unscored).
+        s.drive(log.cmd[k_lead : w.k0], np.diff(step_of[k_lead : w.k0 + 1]))
         kb = int(np.searchsorted(t, t[w.k0] + st.burn_in - 1e-9))
         stride = max(1, round(st.stride * log.meta.sample_rate_hz))
         scored = np.arange(kb, w.k1 + 1, stride)
@@ -434,17 +433,16 @@ class Replayer:
         want = set(scored.tolist()) | set(pose_k)
         rows: dict[int, Array] = {}
         poses: dict[int, Array] = {}
-        for k in range(w.k0, w.k1 + 1):
-            if k in want:
-                rows[k] = np.concatenate(
-                    [d.qpos[s.index.wheel_qpos], d.qpos[s.index.joint_qpos] + self._zero]
-                )
-                if k in pose_k:
-                    poses[k] = np.concatenate([d.xpos[self._seg3], d.xmat[self._seg3].reshape(9)])
-            if k == w.k1:
-                break
-            s.set_speed_targets(log.cmd[k])
-            s.step(int(step_of[k + 1] - step_of[k]))
+        pose_set = set(pose_k)
+        k = w.k0
+        for r in sorted(want):  # driven from read-out to read-out (all at or after k0)
+            s.drive(log.cmd[k:r], np.diff(step_of[k : r + 1]))
+            k = r
+            rows[r] = np.concatenate(
+                [d.qpos[s.index.wheel_qpos], d.qpos[s.index.joint_qpos] + self._zero]
+            )
+            if r in pose_set:
+                poses[r] = np.concatenate([d.xpos[self._seg3], d.xmat[self._seg3].reshape(9)])
         simv = np.array([rows[int(k)] for k in scored])
         logv = np.hstack([log.phi[scored], log.theta[scored]])
         # Wheel angles as increments since the end of the burn-in.

@@ -536,6 +536,34 @@ class RoverSim:
             mujoco.mj_step2(m, d)
         self.check()
 
+    def drive(self, targets: ArrayLike, steps: ArrayLike) -> None:
+        """``targets[i]`` (1L 1R 2L 2R) held for ``steps[i]`` substeps, row after row: to the
+        bit :meth:`set_speed_targets` then :meth:`step` per row, checked once at the end (a
+        replay window's rows: a fifth of its time went to per-row checks, bench_replay.py)."""
+        tt = np.asarray(targets, dtype=float).reshape(-1, 4)
+        nn = np.asarray(steps, dtype=np.int64).reshape(-1)
+        if not np.all(np.isfinite(tt)):
+            i, j = np.argwhere(~np.isfinite(tt))[0]
+            raise ValueError(f"speed targets not finite in row {i} for wheel {DRIVEN_WHEELS[j]}")
+        lim = self.cfg.motor.max_wheel_speed
+        tt = np.clip(tt, -lim, lim)
+        if self._plugin is None:
+            for u, n in zip(tt, nn, strict=True):
+                self.speed_targets[:] = u
+                self.step(int(n))
+            return
+        if self._cmd_effects or self._hinge_effects:
+            for u, n in zip(tt, nn, strict=True):
+                self.speed_targets[:] = u
+                self._step_commanded(int(n), check=False)
+            self.check()
+            return
+        m, d, vel = self.model, self.data, self._ctrl_vel
+        for u, n in zip(tt, nn, strict=True):
+            self.speed_targets[:] = d.ctrl[vel] = u
+            mujoco.mj_step(m, d, int(n))
+        self.check()
+
     def _advance_setpoints(self, u: Array) -> None:
         """One substep of the speed loop's setpoints (:func:`advance_setpoints`)."""
         d = self.data
@@ -589,7 +617,7 @@ class RoverSim:
         torque = (per_dof[self._wheel_dof] * share)[:, None] * d.xaxis[self._wheel_jnt]
         d.xfrc_applied[self._carriers, 3:] = self._carrier_of_wheel @ torque
 
-    def _step_commanded(self, n: int) -> None:
+    def _step_commanded(self, n: int, check: bool = True) -> None:
         """``step`` substep by substep where needed: command effects change the motors'
         targets on every substep; hinge effects set the wheel hinges' friction from the
         tire loads every ``HINGE_EVERY`` substeps (identically on both backends; with hinge
@@ -605,7 +633,8 @@ class RoverSim:
                 self._plugin.queue_commands(d.plugin_state, chunk)
                 mujoco.mj_step(m, d, len(chunk))
             self._substep += n
-            self.check()
+            if check:
+                self.check()
             return
         k = HINGE_EVERY
         left = n
@@ -643,7 +672,8 @@ class RoverSim:
             mujoco.mj_step2(m, d)
             if share is not None and self.tires.last is not None:
                 self._react_on_ground(share)
-        self.check()
+        if check:
+            self.check()
 
     def prime_commands(self, t: ArrayLike, cmd: ArrayLike) -> None:
         """Fill the command effects' memory as if ``cmd[k]`` had been sent from ``t[k]``.
