@@ -256,6 +256,21 @@ def _headline(
     return L
 
 
+def _torque_note(named: list[str], armature: float) -> list[str]:
+    """Why a named torque limit is as good as the configured rotor inertia (stop 57)."""
+    if "torque_limit" not in named:
+        return []
+    return [
+        "",
+        "A torque limit seen only where the drive accelerates is measured as the torque over"
+        f" the wheel's rotor inertia (`motor.armature`, {armature:g} kg m² reflected to the"
+        " wheel in this configuration): with a rotor twice as heavy the same logs give about"
+        " half the cut. Set `motor.armature` from the motor's and the gearhead's data: only a"
+        " test that holds a motor at its limit without accelerating it (a blocked wheel)"
+        " measures the limit alone; on hard ground the tires slip first (docs/independent.md).",
+    ]
+
+
 def write_report(d: Diagnosis) -> Path:
     """``report.md`` and its figures in ``d.out``, from a finished diagnosis (its
     :attr:`~Diagnosis.result` and the fits, tables and replays behind it)."""
@@ -267,6 +282,7 @@ def write_report(d: Diagnosis) -> Path:
     L: list[str] = ["# Model-discrepancy diagnosis", ""]
     named = result["named"]
     L += _headline(result, d.chosen, d.demoted, d.tie)
+    L += _torque_note(named, base.motor.armature)
     L += [
         "",
         f"Main residual ({result['main_signal']}, largest held-out ratio to noise): RMS "
