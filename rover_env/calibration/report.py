@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from rover_env.calibration.diagnosis.judge import form_mismatch
+from rover_env.calibration.diagnosis.rotor import rotor_text
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
 from rover_env.calibration.residuals import REGIMES, Cell
@@ -256,8 +257,9 @@ def _headline(
     return L
 
 
-def _torque_note(named: list[str], armature: float) -> list[str]:
-    """Why a named torque limit is as good as the configured rotor inertia (stop 57)."""
+def _torque_note(named: list[str], armature: float, alt: dict[str, Any] | None = None) -> list[str]:
+    """Why a named torque limit is as good as the configured rotor inertia (stop 57), and
+    the rotor inertia fitted in its place (:func:`.diagnosis.rotor.rotor_alternative`)."""
     if "torque_limit" not in named:
         return []
     return [
@@ -268,6 +270,7 @@ def _torque_note(named: list[str], armature: float) -> list[str]:
         " half the cut. Set `motor.armature` from the motor's and the gearhead's data: only a"
         " test that holds a motor at its limit without accelerating it (a blocked wheel)"
         " measures the limit alone; on hard ground the tires slip first (docs/independent.md).",
+        *([] if alt is None else [rotor_text(alt)]),
     ]
 
 
@@ -282,7 +285,7 @@ def write_report(d: Diagnosis) -> Path:
     L: list[str] = ["# Model-discrepancy diagnosis", ""]
     named = result["named"]
     L += _headline(result, d.chosen, d.demoted, d.tie)
-    L += _torque_note(named, base.motor.armature)
+    L += _torque_note(named, base.motor.armature, d.rotor)
     L += [
         "",
         f"Main residual ({result['main_signal']}, largest held-out ratio to noise): RMS "

@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 from rover_env.calibration import evidence, fit
+from rover_env.calibration.diagnosis.rotor import rotor_alternative, rotor_text
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.fit import Evaluator
 from rover_env.config import RoverConfig
@@ -20,6 +21,9 @@ from rover_env.config import RoverConfig
 def seek_evidence(d: Diagnosis) -> None:
     """Sets :attr:`Diagnosis.evidence`."""
     d.evidence = missing_evidence(d.ev, d.ranked, d.chosen, d.noise, d.base, d.opts, d.say)
+    d.rotor = rotor_alternative(d)
+    if d.rotor is not None:
+        d.say(rotor_text(d.rotor))
 
 
 def missing_evidence(

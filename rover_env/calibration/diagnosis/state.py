@@ -287,6 +287,8 @@ class Diagnosis:
     final_floor: dict[str, float] = field(default_factory=dict)
     # evidence (:mod:`.evidence_stage`)
     evidence: list[dict[str, Any]] = field(default_factory=list)
+    rotor: dict[str, Any] | None = None
+    """Beside a named torque limit, the rotor inertia fitted in its place (:mod:`.rotor`)."""
     # write (:mod:`.write`)
     held_final: list[WindowResult] = field(default_factory=list)
     table_held_after: Table = field(default_factory=dict)

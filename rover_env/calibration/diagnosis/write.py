@@ -118,6 +118,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "unexplained": gap(table_held_after, final_floor),
         "above_floor": unexplained(table_held_after, final_floor),
         "evidence": d.evidence,
+        "rotor_alternative": d.rotor,
         "not_named": d.traded,
         "second_dropped": d.dropped,
         "model_form": None if not opts.model_form else {f.name: f.as_json() for f in d.forms},
