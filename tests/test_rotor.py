@@ -4,8 +4,6 @@ the training drives better than the truth; without a torque limit nothing is fit
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
