@@ -373,6 +373,7 @@ def run_case(case: dict[str, Any], root: Path, workers: int = 1) -> dict[str, An
         "diagnose_s": t2 - t1,
         "followup_s": t3 - t2,
         "fits": fits(final, case["truth"]),
+        "rotor_alternative": final.get("rotor_alternative"),
     }
 
 
@@ -396,6 +397,33 @@ def case_row(case: dict[str, Any], root: Path, workers: int) -> dict[str, Any]:
 
 
 # --------------------------------------------------------------------------- the report
+
+
+def rotor_rule(row: dict[str, Any]) -> bool | None:
+    """The rule registered in stop 57 (docs/calibration/README.md), not applied by
+    diagnose: a named torque limit is withdrawn when the rotor inertia alone has a training
+    dBIC at or below the torque limit's. None where no torque limit was named."""
+    alt = row.get("rotor_alternative")
+    if not alt or "torque_limit" not in row["named"]:
+        return None
+    return bool(alt["rotor"]["d_bic"] <= alt["torque_limit"]["d_bic"])
+
+
+def _rotor_line(rows: list[dict[str, Any]]) -> str:
+    """What the registered rotor rule would do, per kind of case."""
+    parts = []
+    for kind, label in (("clean", "clean"), ("single", "singles"), ("pair", "pairs")):
+        got = [rotor_rule(r) for r in rows if r["kind"] == kind]
+        judged = [g for g in got if g is not None]
+        truth = [r for r in rows if r["kind"] == kind and "torque_limit" in r.get("truth", {})]
+        parts.append(
+            f"{label} {sum(judged)} of {len(judged)} named (true torque cuts among them:"
+            f" {sum(rotor_rule(r) is not None for r in truth)})"
+        )
+    return (
+        "- Registered rotor rule (stop 57, not applied): a named torque limit withdrawn in "
+        + "; ".join(parts)
+    )
 
 
 def _share(xs: list[bool]) -> str:
@@ -500,6 +528,7 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
         f" logs {med('make_logs_s'):.0f} s, diagnose {med('diagnose_s'):.0f} s, follow-up"
         f" drives and diagnosis {med('followup_s'):.0f} s; a follow-up driven in"
         f" {sum(bool(r['followup']) for r in ok)} of {len(ok)} cases",
+        _rotor_line(ok),
         f"- Cases that failed to run: {len(rows) - len(ok)}",
     ]
 

@@ -224,3 +224,20 @@ def test_run_case_drives_every_proposal_with_the_same_rover(
     assert (f["value"], f["threshold"]) == (-0.4, 0.05) and f["truth"] == case["truth"][
         "torque_limit"
     ]["fraction"]
+
+
+def test_the_registered_rotor_rule_reads_the_stored_comparison() -> None:
+    """Stop 57's rule is scored from ``result.json`` alone: withdrawn when the rotor's
+    training dBIC is at or below the torque limit's; no verdict where none was named."""
+    b = _load("bench_independent")
+
+    def row(kind: str, named: list[str], rotor: float, torque: float) -> dict:
+        alt = {"rotor": {"d_bic": rotor}, "torque_limit": {"d_bic": torque}}
+        return {"kind": kind, "named": named, "truth": {}, "rotor_alternative": alt}
+
+    assert b.rotor_rule(row("clean", ["torque_limit"], -3.0, -1.0)) is True
+    assert b.rotor_rule(row("clean", ["torque_limit"], -1.0, -1.0)) is True
+    assert b.rotor_rule(row("clean", ["torque_limit"], -0.2, -1.2)) is False
+    assert b.rotor_rule(row("clean", ["slope"], -3.0, -1.0)) is None
+    line = b._rotor_line([row("clean", ["torque_limit"], -3.0, -1.0), row("clean", [], 0, 0)])
+    assert "clean 1 of 1 named" in line
