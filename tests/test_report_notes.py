@@ -13,3 +13,15 @@ def test_a_named_torque_limit_names_the_rotor_inertia_it_rests_on() -> None:
 
 def test_no_note_without_a_torque_limit() -> None:
     assert _torque_note(["rolling_resistance", "slope"], 0.025) == []
+
+
+def test_the_rotor_fitted_in_its_place_is_reported_beside_it() -> None:
+    alt = {
+        "armature_configured": 0.025,
+        "armature": 0.0707,
+        "rotor": {"train_gain": 0.082, "d_bic": -0.2, "held_gain": 0.45},
+        "torque_limit": {"train_gain": 0.100, "d_bic": -1.2, "held_gain": 0.477},
+    }
+    text = " ".join(_torque_note(["torque_limit"], 0.025, alt))
+    assert "`motor.armature` 0.0707 kg m² for 0.025" in text
+    assert "training windows 8.2 % better (dBIC -0.2)" in text and "held-out 47.7 % better" in text
