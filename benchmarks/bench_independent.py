@@ -411,6 +411,7 @@ def rotor_rule(row: dict[str, Any]) -> bool | None:
 
 def _rotor_line(rows: list[dict[str, Any]]) -> str:
     """What the registered rotor rule would do, per kind of case."""
+    unrecorded = sum("torque_limit" in r["named"] and not r.get("rotor_alternative") for r in rows)
     parts = []
     for kind, label in (("clean", "clean"), ("single", "singles"), ("pair", "pairs")):
         got = [rotor_rule(r) for r in rows if r["kind"] == kind]
@@ -423,6 +424,7 @@ def _rotor_line(rows: list[dict[str, Any]]) -> str:
     return (
         "- Registered rotor rule (stop 57, not applied): a named torque limit withdrawn in "
         + "; ".join(parts)
+        + f"; torque limits named by code before stop 57 (no comparison stored): {unrecorded}"
     )
 
 
