@@ -201,7 +201,7 @@ def reprepare(
 Variant = Callable[[RoverConfig, float], tuple[RoverConfig, list[PreparedLog]]]
 
 
-def _baseline(
+def baseline(
     cfg: RoverConfig,
     prepared: list[PreparedLog],
     windows: list[Window],
@@ -227,7 +227,7 @@ def _fit_ladder(
     settings: ReplaySettings,
     sensor_noise: dict[str, float],
 ) -> FormFit:
-    scale, l0, eps = _baseline(cfg, prepared, windows, settings, sensor_noise)
+    scale, l0, eps = baseline(cfg, prepared, windows, settings, sensor_noise)
 
     def losses_at(x: float) -> Array:
         c, p = variant(cfg, x)
@@ -462,7 +462,7 @@ def fit_anti_windup(
     numbers (one parameter), so a tie keeps the configuration's form."""
     forms = list(ANTI_WINDUP_FORMS)
     nominal = float(forms.index(cfg.motor.anti_windup))
-    scale, l0, eps = _baseline(cfg, prepared, windows, settings, sensor_noise)
+    scale, l0, eps = baseline(cfg, prepared, windows, settings, sensor_noise)
     losses = {nominal: l0}
     for i, form in enumerate(forms):
         if float(i) != nominal:

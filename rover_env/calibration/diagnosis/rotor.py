@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from rover_env.calibration import residuals as rs
+from rover_env.calibration.diagnosis.form import baseline
 from rover_env.calibration.diagnosis.judge import gain, log_ratios
 from rover_env.calibration.diagnosis.state import Diagnosis
 from rover_env.calibration.fit import information_criteria
@@ -42,16 +43,14 @@ def rotor_alternative(d: Diagnosis) -> dict[str, Any] | None:
         return None
     tl = named[0]
     base = d.base
-    scale = rs.signal_scale(
-        rs.stack(Replayer(base, d.st).run(d.prepared, d.train_w), d.prepared), d.sensor_noise
-    )
+    scale, l_train, _ = baseline(base, d.prepared, d.train_w, d.st, d.sensor_noise)
 
     def losses(cfg: RoverConfig, which: str) -> np.ndarray:
         windows = d.train_w if which == "train" else d.held_w
         res = Replayer(cfg, d.st).run(d.prepared, windows)
         return rs.window_losses(res, scale if which == "train" else d.noise)
 
-    l0 = {w: losses(base, w) for w in ("train", "held")}
+    l0 = {"train": l_train, "held": losses(base, "held")}
     a0 = base.motor.armature
     tried = {f: losses(with_armature(base, a0 * f), "train") for f in FACTORS if f != 1.0}
     best = min(tried, key=lambda f: float(np.mean(log_ratios(l0["train"], tried[f]))))
