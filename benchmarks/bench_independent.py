@@ -316,6 +316,30 @@ def fits(final: dict[str, Any], truth: Any) -> dict[str, dict[str, Any]]:
     return out
 
 
+def named_fits(final: dict[str, Any]) -> dict[str, dict[str, list[float]]]:
+    """Every named effect's fitted parameters (value, 95 % interval) in the final diagnosis,
+    truth or not: what a false alarm claimed, for the clean and outside tables."""
+    out: dict[str, dict[str, list[float]]] = {}
+    for key, f in final.get("final", {}).items():
+        for name in key.split(" + "):
+            if name in f.get("params", {}):
+                out[name] = {k: list(v) for k, v in f["params"][name].items()}
+    return out
+
+
+def backfill_named_fits(rows: list[dict[str, Any]], work: Path) -> None:
+    """Rows of older code lack :func:`named_fits`: read them from the case's result.json
+    under ``work`` where it is still there (rows whose files are gone stay without)."""
+    for r in rows:
+        if "named_fits" in r or not r.get("named"):
+            continue
+        for sub in ("out_followup", "out"):
+            res = work / r["case"] / sub / "result.json"
+            if res.is_file():
+                r["named_fits"] = named_fits(json.loads(res.read_text()))
+                break
+
+
 def _identity(case: dict[str, Any]) -> dict[str, Any]:
     """The fields that name a case in its row (a finished case's and a failed one's)."""
     keys = ("kind", "seed", "effects", "truth")
@@ -373,6 +397,7 @@ def run_case(case: dict[str, Any], root: Path, workers: int = 1) -> dict[str, An
         "diagnose_s": t2 - t1,
         "followup_s": t3 - t2,
         "fits": fits(final, case["truth"]),
+        "named_fits": named_fits(final),
         "rotor_alternative": final.get("rotor_alternative"),
     }
 
@@ -535,6 +560,26 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
     ]
 
 
+def _named(r: dict[str, Any]) -> str:
+    """The named effects, each with its fitted parameters where the row has them."""
+    if not r["named"]:
+        return "—"
+    nf = r.get("named_fits") or {}
+
+    def one(name: str) -> str:
+        ps = nf.get(name)
+        if not ps:
+            return name
+        return (
+            name
+            + " ("
+            + "; ".join(f"{k} {v[0]:.3g} [{v[1]:.3g}, {v[2]:.3g}]" for k, v in ps.items())
+            + ")"
+        )
+
+    return ", ".join(one(n) for n in r["named"])
+
+
 def _params(p: dict[str, float]) -> str:
     return ", ".join(f"{k} {v:.4g}" for k, v in p.items())
 
@@ -562,7 +607,7 @@ def _effect_table(rows: list[dict[str, Any]], name: str) -> list[str]:
         thr = f"{f['threshold']:.3g}" if f.get("threshold") else "—"
         ratio = f"{x:.2f}" if x is not None else "—"
         cov = ("yes" if covers(f) else "no") if f.get("value") is not None else "—"
-        named = ", ".join(r["named"]) or "—"
+        named = _named(r)
         plans = ", ".join(p["plan"] for p in r["followup"]) or "—"
         err = f" error: {r['error']}" if "error" in r else ""
         out.append(
@@ -586,7 +631,7 @@ def _other_table(rows: list[dict[str, Any]], kind: str) -> list[str]:
         secs = r["make_logs_s"] + r["diagnose_s"] + r["followup_s"]
         err = f" error: {r['error']}" if "error" in r else ""
         out.append(
-            f"| {r['seed']} | {drawn} | {', '.join(r['named']) or '—'} | {fitted} |"
+            f"| {r['seed']} | {drawn} | {_named(r)} | {fitted} |"
             f" {', '.join(r['unexplained']) or '—'} | {' / '.join(r['tie'] or []) or '—'} |"
             f" {', '.join(p['plan'] for p in r['followup']) or '—'} | {secs:.0f} |{err}"
         )
@@ -669,7 +714,7 @@ def main() -> int:
     out = Path(args.out)
     todo = planned(args.quick, args.seed0)
     if args.merge:
-        return merge(out, args.quick, todo)
+        return merge(out, args.quick, todo, Path(args.work))
     shard_k, shard_n = 0, 1
     if args.shard:
         try:
@@ -681,12 +726,15 @@ def main() -> int:
     path = _rows_path(out, args.shard)
     if args.report:
         done = json.loads(path.read_text())
+        backfill_named_fits(done, Path(args.work))
+        path.write_text(json.dumps(done, indent=1, default=finite))
         _order(done, todo)
         write_report(out / "independent.md", summarise(done, _seconds(done), args.quick, len(todo)))
         return 0
     rows: list[dict[str, Any]] = []
     if args.resume and path.is_file():
         rows = json.loads(path.read_text())
+        backfill_named_fits(rows, Path(args.work))
     mine = [
         c
         for i, c in enumerate(todo)
@@ -718,13 +766,14 @@ def main() -> int:
     return 0
 
 
-def merge(out: Path, quick: bool, todo: list[dict[str, Any]]) -> int:
+def merge(out: Path, quick: bool, todo: list[dict[str, Any]], work: Path) -> int:
     """independent.json and independent.md from the shards' rows, in the planned order."""
     rows: list[dict[str, Any]] = []
     for f in sorted(out.glob("independent_shard_*.json")):
         rows.extend(json.loads(f.read_text()))
     if not rows:
         raise SystemExit(f"--merge: no independent_shard_*.json in {out}")
+    backfill_named_fits(rows, work)
     _order(rows, todo)
     (out / "independent.json").write_text(json.dumps(rows, indent=1, default=finite))
     # shards ran side by side: the sum is CPU-side time over cases, not the wall time

@@ -241,3 +241,33 @@ def test_the_registered_rotor_rule_reads_the_stored_comparison() -> None:
     assert b.rotor_rule(row("clean", ["slope"], -3.0, -1.0)) is None
     line = b._rotor_line([row("clean", ["torque_limit"], -3.0, -1.0), row("clean", [], 0, 0)])
     assert "clean 1 of 1 named" in line
+
+
+def test_named_effects_keep_their_fits_for_the_false_alarm_tables(tmp_path: Path) -> None:
+    """A named effect that is not the truth (a clean case's false alarm) is listed with its
+    fitted value and interval, from the row or, for older rows, the case's result.json."""
+    b = _load("bench_independent")
+    final = {
+        "final": {
+            "rolling_resistance + slope": {
+                "params": {
+                    "rolling_resistance": {"c_rr": [0.013, 0.01, 0.016]},
+                    "slope": {"deg": [1.5, 1.2, 1.8], "heading_deg": [30.0, 20.0, 40.0]},
+                }
+            }
+        }
+    }
+    got = b.named_fits(final)
+    assert got["rolling_resistance"] == {"c_rr": [0.013, 0.01, 0.016]}
+    assert set(got["slope"]) == {"deg", "heading_deg"}
+    old = {"case": "clean_none_1", "named": ["rolling_resistance", "slope"]}
+    skip = {"case": "clean_none_2", "named": []}
+    gone = {"case": "clean_none_3", "named": ["slope"]}
+    (tmp_path / "clean_none_1" / "out").mkdir(parents=True)
+    (tmp_path / "clean_none_1" / "out" / "result.json").write_text(json.dumps(final))
+    b.backfill_named_fits([old, skip, gone], tmp_path)
+    assert old["named_fits"] == got
+    assert "named_fits" not in skip and "named_fits" not in gone
+    text = b._named(old)
+    assert "rolling_resistance (c_rr 0.013 [0.01, 0.016])" in text
+    assert b._named(gone) == "slope" and b._named(skip) == "—"
