@@ -52,3 +52,34 @@ def test_the_common_part_stays_for_the_effects() -> None:
 def test_the_difference_is_bounded_by_the_tolerance() -> None:
     ev = _evaluator(1.2, 0.8)
     assert ev.free_gain({}) == FREE_GAIN_MAX
+
+
+def _common(k_left: float, k_right: float, bound: float) -> Evaluator:
+    ev = _evaluator(k_left, k_right)
+    ev.free_common_max = bound
+    return ev
+
+
+def test_a_common_reading_within_the_tolerance_is_profiled_out() -> None:
+    """Stop 58: both free wheels 0.6 % larger than the driven ones (a 1 % radius tolerance)
+    read as a rolling resistance unless their common reading is profiled too."""
+    ev = _common(0.994, 0.994, 0.01)
+    assert ev.free_gains({}) == pytest.approx((0.0, -0.006), abs=1e-12)
+    for r in ev.run({}, "held"):
+        assert np.abs(r.resid[:, 4:6]).max() < 1e-12
+
+
+def test_common_and_difference_together() -> None:
+    ev = _common(1.015, 0.995, 0.01)
+    g, c = ev.free_gains({})
+    assert c == pytest.approx(0.005, rel=1e-9) and g == pytest.approx(0.01, rel=1e-9)
+
+
+def test_the_common_part_beyond_the_tolerance_stays_for_the_effects() -> None:
+    """Both 3 % slow: 1 % is profiled, the other 2 % is left for the effects to explain."""
+    ev = _common(0.97, 0.97, 0.01)
+    g, c = ev.free_gains({})
+    assert c == -0.01 and g == pytest.approx(0.0, abs=1e-12)
+    held = ev.run({}, "held")
+    s = held[0].sim[:, 4] / 0.99  # the model's own increments, before reading them 1 % slow
+    assert np.allclose(held[0].resid[:, 4], 0.02 * s, rtol=1e-9, atol=1e-12)

@@ -63,6 +63,7 @@ def _cli(args: argparse.Namespace) -> int:
         fit_slip_floor=args.fit_slip_floor,
         fit_joint_zero=args.fit_joint_zero,
         fit_free_gain=args.fit_free_gain,
+        free_common=args.free_common,
         fit_yaw_spring=args.fit_yaw_spring,
         fit_windup=args.fit_windup,
         screen=args.screen,
@@ -114,6 +115,15 @@ def add_cli(sub: Any) -> None:
         default=Options.fit_free_gain,
         help="profile the free wheels' left/right reading difference out of every fit"
         " (default: on; see Options.fit_free_gain)",
+    )
+    p.add_argument(
+        "--free-common",
+        type=float,
+        default=Options.free_common,
+        metavar="FRACTION",
+        help="profile the free wheels' common reading gain within +-FRACTION out of every fit"
+        f" (default {Options.free_common:g}: a 1 %% wheel-radius tolerance; 0: off; see"
+        " Options.free_common)",
     )
     p.add_argument(
         "--fit-yaw-spring",

@@ -297,7 +297,7 @@ def write_report(d: Diagnosis) -> Path:
         f" {_f(result['main_floor_after'])} after): {100 * result['main_gap_reduction']:.0f} % closed.",
         "",
         f"Updated configuration: `{Path(result['config']).name}` (loads in `RoverSim` and the environments as is).",
-        *_free_gain_lines(result.get("free_wheel_gain")),
+        *_free_gain_lines(result.get("free_wheel_gain"), result.get("free_wheel_common")),
         "",
         *_method_lines(result, opts, prepared[0].log.meta.rover),
         "",
@@ -512,13 +512,21 @@ def _model_form_line(
     )
 
 
-def _free_gain_lines(g: float | None) -> list[str]:
-    """The free wheels' profiled reading difference, which ``rover.yaml`` does not carry."""
-    if g is None:
-        return []
-    return [
-        "",
-        f"Free wheels' reading difference (profiled out of every fit): wheel_3L reads"
-        f" {100 * g:+.2f} % and wheel_3R {-100 * g:+.2f} % against the model (radius or load"
-        " differences between the two; not written into the configuration).",
-    ]
+def _free_gain_lines(g: float | None, c: float | None = None) -> list[str]:
+    """The free wheels' profiled reading gains, which ``rover.yaml`` does not carry."""
+    out: list[str] = []
+    if g is not None:
+        out += [
+            "",
+            f"Free wheels' reading difference (profiled out of every fit): wheel_3L reads"
+            f" {100 * g:+.2f} % and wheel_3R {-100 * g:+.2f} % against the model (radius or"
+            " load differences between the two; not written into the configuration).",
+        ]
+    if c is not None:
+        out += [
+            "",
+            f"Free wheels' common reading (profiled out of every fit, within the wheel-radius"
+            f" tolerance): both read {100 * c:+.2f} % against the model (their radius against"
+            " the driven wheels'; an effect is seen only beyond it or in other signals).",
+        ]
+    return out

@@ -625,6 +625,7 @@ def judge_again(d: Diagnosis) -> Options | None:
             scale=d.scale,
             profile_zeros=d.ev.profile_zeros,
             profile_free_gain=d.ev.profile_free_gain,
+            free_common_max=d.ev.free_common_max,
         )
         verdict = form_rejudgement(d.ev, ev0, winner, d.ranked, adopted, d.noise, opts, d.say)
         if verdict["revert"]:

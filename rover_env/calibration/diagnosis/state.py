@@ -100,6 +100,11 @@ class Options:
     (:attr:`rover_env.calibration.evaluator.Evaluator.profile_free_gain`; stop 55: a 1 %
     wheel-radius tolerance left the independent generator's straight clean drive's free
     wheels 2-3 x their floor)."""
+    free_common: float = 0.01
+    """Largest common reading gain of the free wheels profiled out of every fit
+    (:attr:`rover_env.calibration.evaluator.Evaluator.free_common_max`; 0: none). Why (stop
+    58): a 1 % wheel-radius tolerance put the independent generator's clean free wheels
+    0.6 % off the driven ones, which read as a rolling resistance of c_rr 0.013-0.019."""
     fit_yaw_spring: bool = True
     """Fit the yaw joints' leaf-spring stiffness as model form, after the relaxation length
     (:func:`.form.fit_yaw_spring`; stop 54: another implementation's 15 N m/rad against

@@ -127,6 +127,9 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "free_wheel_gain": (
             d.ev.free_gain(final_extensions(d)) if d.ev.profile_free_gain else None
         ),
+        "free_wheel_common": (
+            d.ev.free_gains(final_extensions(d))[1] if d.ev.free_common_max > 0 else None
+        ),
     }
 
 
