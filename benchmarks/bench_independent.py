@@ -73,6 +73,7 @@ from typing import Any
 
 import numpy as np
 from _report import write_report
+from _rules import evidence_line, rotor_line, strong_unconfirmed
 from bench_diagnose import INERT_ON_SOIL, RANGES, covers, draw, finite, magnitude
 
 from rover_env.calibration.diagnose import Options, diagnose
@@ -327,10 +328,14 @@ def named_fits(final: dict[str, Any]) -> dict[str, dict[str, list[float]]]:
     return out
 
 
-def backfill_named_fits(rows: list[dict[str, Any]], work: Path) -> None:
-    """Rows of older code lack :func:`named_fits`: read them from the case's result.json
-    under ``work`` where it is still there (rows whose files are gone stay without)."""
+def backfill(rows: list[dict[str, Any]], work: Path) -> None:
+    """Rows of older code lack :func:`named_fits` and the registered rules' inputs: read
+    them from the case's result.json under ``work`` where it is still there (rows whose
+    files are gone stay without)."""
     for r in rows:
+        first = work / r["case"] / "out" / "result.json"
+        if "strong_unconfirmed" not in r and first.is_file():
+            r["strong_unconfirmed"] = strong_unconfirmed(json.loads(first.read_text()))
         if "named_fits" in r or not r.get("named"):
             continue
         for sub in ("out_followup", "out"):
@@ -399,6 +404,7 @@ def run_case(case: dict[str, Any], root: Path, workers: int = 1) -> dict[str, An
         "fits": fits(final, case["truth"]),
         "named_fits": named_fits(final),
         "rotor_alternative": final.get("rotor_alternative"),
+        "strong_unconfirmed": strong_unconfirmed(res),
     }
 
 
@@ -422,35 +428,6 @@ def case_row(case: dict[str, Any], root: Path, workers: int) -> dict[str, Any]:
 
 
 # --------------------------------------------------------------------------- the report
-
-
-def rotor_rule(row: dict[str, Any]) -> bool | None:
-    """The rule registered in stop 57 (docs/calibration/README.md), not applied by
-    diagnose: a named torque limit is withdrawn when the rotor inertia alone has a training
-    dBIC at or below the torque limit's. None where no torque limit was named."""
-    alt = row.get("rotor_alternative")
-    if not alt or "torque_limit" not in row["named"]:
-        return None
-    return bool(alt["rotor"]["d_bic"] <= alt["torque_limit"]["d_bic"])
-
-
-def _rotor_line(rows: list[dict[str, Any]]) -> str:
-    """What the registered rotor rule would do, per kind of case."""
-    unrecorded = sum("torque_limit" in r["named"] and not r.get("rotor_alternative") for r in rows)
-    parts = []
-    for kind, label in (("clean", "clean"), ("single", "singles"), ("pair", "pairs")):
-        got = [rotor_rule(r) for r in rows if r["kind"] == kind]
-        judged = [g for g in got if g is not None]
-        truth = [r for r in rows if r["kind"] == kind and "torque_limit" in r.get("truth", {})]
-        parts.append(
-            f"{label} {sum(judged)} of {len(judged)} named (true torque cuts among them:"
-            f" {sum(rotor_rule(r) is not None for r in truth)})"
-        )
-    return (
-        "- Registered rotor rule (stop 57, not applied): a named torque limit withdrawn in "
-        + "; ".join(parts)
-        + f"; torque limits named by code before stop 57 (no comparison stored): {unrecorded}"
-    )
 
 
 def _share(xs: list[bool]) -> str:
@@ -555,7 +532,8 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
         f" logs {med('make_logs_s'):.0f} s, diagnose {med('diagnose_s'):.0f} s, follow-up"
         f" drives and diagnosis {med('followup_s'):.0f} s; a follow-up driven in"
         f" {sum(bool(r['followup']) for r in ok)} of {len(ok)} cases",
-        _rotor_line(ok),
+        rotor_line(ok),
+        evidence_line(ok),
         f"- Cases that failed to run: {len(rows) - len(ok)}",
     ]
 
@@ -726,7 +704,7 @@ def main() -> int:
     path = _rows_path(out, args.shard)
     if args.report:
         done = json.loads(path.read_text())
-        backfill_named_fits(done, Path(args.work))
+        backfill(done, Path(args.work))
         path.write_text(json.dumps(done, indent=1, default=finite))
         _order(done, todo)
         write_report(out / "independent.md", summarise(done, _seconds(done), args.quick, len(todo)))
@@ -734,7 +712,7 @@ def main() -> int:
     rows: list[dict[str, Any]] = []
     if args.resume and path.is_file():
         rows = json.loads(path.read_text())
-        backfill_named_fits(rows, Path(args.work))
+        backfill(rows, Path(args.work))
     mine = [
         c
         for i, c in enumerate(todo)
@@ -773,7 +751,7 @@ def merge(out: Path, quick: bool, todo: list[dict[str, Any]], work: Path) -> int
         rows.extend(json.loads(f.read_text()))
     if not rows:
         raise SystemExit(f"--merge: no independent_shard_*.json in {out}")
-    backfill_named_fits(rows, work)
+    backfill(rows, work)
     _order(rows, todo)
     (out / "independent.json").write_text(json.dumps(rows, indent=1, default=finite))
     # shards ran side by side: the sum is CPU-side time over cases, not the wall time

@@ -229,7 +229,7 @@ def test_run_case_drives_every_proposal_with_the_same_rover(
 def test_the_registered_rotor_rule_reads_the_stored_comparison() -> None:
     """Stop 57's rule is scored from ``result.json`` alone: withdrawn when the rotor's
     training dBIC is at or below the torque limit's; no verdict where none was named."""
-    b = _load("bench_independent")
+    b = _load("_rules")
 
     def row(kind: str, named: list[str], rotor: float, torque: float) -> dict:
         alt = {"rotor": {"d_bic": rotor}, "torque_limit": {"d_bic": torque}}
@@ -239,7 +239,7 @@ def test_the_registered_rotor_rule_reads_the_stored_comparison() -> None:
     assert b.rotor_rule(row("clean", ["torque_limit"], -1.0, -1.0)) is True
     assert b.rotor_rule(row("clean", ["torque_limit"], -0.2, -1.2)) is False
     assert b.rotor_rule(row("clean", ["slope"], -3.0, -1.0)) is None
-    line = b._rotor_line([row("clean", ["torque_limit"], -3.0, -1.0), row("clean", [], 0, 0)])
+    line = b.rotor_line([row("clean", ["torque_limit"], -3.0, -1.0), row("clean", [], 0, 0)])
     assert "clean 1 of 1 named" in line
 
 
@@ -265,9 +265,39 @@ def test_named_effects_keep_their_fits_for_the_false_alarm_tables(tmp_path: Path
     gone = {"case": "clean_none_3", "named": ["slope"]}
     (tmp_path / "clean_none_1" / "out").mkdir(parents=True)
     (tmp_path / "clean_none_1" / "out" / "result.json").write_text(json.dumps(final))
-    b.backfill_named_fits([old, skip, gone], tmp_path)
+    b.backfill([old, skip, gone], tmp_path)
     assert old["named_fits"] == got
     assert "named_fits" not in skip and "named_fits" not in gone
     text = b._named(old)
     assert "rolling_resistance (c_rr 0.013 [0.01, 0.016])" in text
     assert b._named(gone) == "slope" and b._named(skip) == "—"
+
+
+def test_the_registered_evidence_rule_reads_the_first_diagnosis() -> None:
+    """Stop 58's rule: a candidate with strong training evidence (ΔBIC <= -6) that the
+    held-out drive favours without confirming, not named and without a drive, gets one."""
+    r = _load("_rules")
+
+    def fit(d_bic: float, gain: float, significant: bool = False) -> dict:
+        return {"d_bic": d_bic, "held_gain": gain, "significant": significant}
+
+    first = {
+        "named": ["slope"],
+        "evidence": [{"effect": "command_lag"}],
+        "fits": {
+            "torque_limit": fit(-6.7, 0.085),
+            "slope": fit(-20.0, 0.5, True),
+            "command_lag": fit(-9.0, 0.05),
+            "friction": fit(-5.9, 0.2),
+            "rolling_radius": fit(-8.0, -0.01),
+        },
+    }
+    assert r.strong_unconfirmed(first) == ["torque_limit"]
+    rows = [
+        {"kind": "single", "truth": {"torque_limit": {}}, "strong_unconfirmed": ["torque_limit"]},
+        {"kind": "clean", "truth": "none", "strong_unconfirmed": ["friction"]},
+        {"kind": "clean", "truth": "none", "strong_unconfirmed": []},
+        {"kind": "clean", "truth": "none"},
+    ]
+    line = r.evidence_line(rows)
+    assert "in 2 of 3 cases" in line and "among them in 1" in line and "clean cases 1" in line

@@ -1,0 +1,74 @@
+"""Rules registered before a block scores them (docs/calibration/README.md), not applied by
+``diagnose``: each reads what a case's ``result.json`` stored, so a block run with the code
+that registered it scores it without a rerun."""
+
+from __future__ import annotations
+
+from typing import Any
+
+STRONG_BIC = -6.0
+"""Training ΔBIC at or below which the evidence is "strong" (Kass & Raftery's scale)."""
+
+
+def rotor_rule(row: dict[str, Any]) -> bool | None:
+    """Stop 57: a named torque limit is withdrawn when the rotor inertia alone has a training
+    dBIC at or below the torque limit's. None where no torque limit was named."""
+    alt = row.get("rotor_alternative")
+    if not alt or "torque_limit" not in row["named"]:
+        return None
+    return bool(alt["rotor"]["d_bic"] <= alt["torque_limit"]["d_bic"])
+
+
+def rotor_line(rows: list[dict[str, Any]]) -> str:
+    """What the registered rotor rule would do, per kind of case."""
+    unrecorded = sum("torque_limit" in r["named"] and not r.get("rotor_alternative") for r in rows)
+    parts = []
+    for kind, label in (("clean", "clean"), ("single", "singles"), ("pair", "pairs")):
+        got = [rotor_rule(r) for r in rows if r["kind"] == kind]
+        judged = [g for g in got if g is not None]
+        truth = [r for r in rows if r["kind"] == kind and "torque_limit" in r.get("truth", {})]
+        parts.append(
+            f"{label} {sum(judged)} of {len(judged)} named (true torque cuts among them:"
+            f" {sum(rotor_rule(r) is not None for r in truth)})"
+        )
+    return (
+        "- Registered rotor rule (stop 57, not applied): a named torque limit withdrawn in "
+        + "; ".join(parts)
+        + f"; torque limits named by code before stop 57 (no comparison stored): {unrecorded}"
+    )
+
+
+def strong_unconfirmed(first: dict[str, Any]) -> list[str]:
+    """Stop 58: the candidates of a first diagnosis (its ``result.json``) that the rule would
+    give an evidence drive: not named and not already given one, training ΔBIC at or below
+    :data:`STRONG_BIC`, the held-out drive better but the window test not passed. Why: a
+    torque cut of -0.66 (case 47603) fitted -0.742 with ΔBIC -6.7 and held-out 8.5 % better
+    at p 0.3 got neither a name nor a drive, since its held-out drive excites the limit."""
+    named = set(first.get("named", []))
+    have = {e.get("effect") for e in first.get("evidence", [])}
+    return sorted(
+        name
+        for name, f in first.get("fits", {}).items()
+        if name not in named | have
+        and not f.get("significant")
+        and f.get("d_bic") is not None
+        and f["d_bic"] <= STRONG_BIC
+        and (f.get("held_gain") or 0.0) > 0.0
+    )
+
+
+def evidence_line(rows: list[dict[str, Any]]) -> str:
+    """What the registered evidence rule would add, and how often the truth is among it."""
+    got = [r for r in rows if r.get("strong_unconfirmed")]
+    truth = [
+        r
+        for r in got
+        if isinstance(r.get("truth"), dict) and set(r["truth"]) & set(r["strong_unconfirmed"])
+    ]
+    clean = [r for r in got if r["kind"] == "clean"]
+    stored = sum("strong_unconfirmed" in r for r in rows)
+    return (
+        "- Registered evidence rule (stop 58, not applied): a drive proposed for a strong but"
+        f" unconfirmed candidate in {len(got)} of {stored} cases that stored it (the true"
+        f" effect among them in {len(truth)}; clean cases {len(clean)})"
+    )
