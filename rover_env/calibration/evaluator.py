@@ -57,8 +57,8 @@ class Evaluator:
     signature of a rolling resistance of c_rr ~0.015 (the driven wheels slip, the body lags
     them). On the independent generator's clean cases 47551 and 47553 (block 47500) the two
     rolling-resistance false alarms, c_rr 0.013 and 0.019, were the two builds whose free
-    wheels were 0.6 % larger than the driven ones; c_rr 0.013 took the common reading
-    difference from +0.67 % to +0.02 %. Bounded, the profile takes only what a build can
+    wheels were 0.6 % larger than the driven ones; c_rr 0.013 took their common reading
+    from -0.67 % to -0.02 % of the model's. Bounded, the profile takes only what a build can
     explain: an effect is seen beyond it, or in the other signals."""
 
     profile_free_gain: bool = False
