@@ -36,7 +36,7 @@ def _evaluator(k_left: float, k_right: float) -> Evaluator:
 
 def test_a_left_right_difference_is_profiled_out() -> None:
     ev = _evaluator(1.01, 0.99)
-    assert ev.free_gain({}) == pytest.approx(0.01, rel=1e-9)
+    assert ev.free_gains({})[0] == pytest.approx(0.01, rel=1e-9)
     for r in ev.run({}, "held"):
         assert np.abs(r.resid[:, 4:6]).max() < 1e-12
 
@@ -44,14 +44,14 @@ def test_a_left_right_difference_is_profiled_out() -> None:
 def test_the_common_part_stays_for_the_effects() -> None:
     """Both free wheels 2 % slow (a rolling radius, slip): nothing profiled."""
     ev = _evaluator(0.98, 0.98)
-    assert ev.free_gain({}) == pytest.approx(0.0, abs=1e-12)
+    assert ev.free_gains({})[0] == pytest.approx(0.0, abs=1e-12)
     held = ev.run({}, "held")
     assert np.abs(held[0].resid[:, 4:6]).max() > 0.05
 
 
 def test_the_difference_is_bounded_by_the_tolerance() -> None:
     ev = _evaluator(1.2, 0.8)
-    assert ev.free_gain({}) == FREE_GAIN_MAX
+    assert ev.free_gains({})[0] == FREE_GAIN_MAX
 
 
 def _common(k_left: float, k_right: float, bound: float) -> Evaluator:

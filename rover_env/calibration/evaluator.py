@@ -63,7 +63,7 @@ class Evaluator:
 
     profile_free_gain: bool = False
     """Profile the free wheels' left/right reading difference out of every replay
-    (:meth:`free_gain`): wheel 3L's increments read 1 + g times the model's, 3R's 1 - g,
+    (:meth:`free_gains`): wheel 3L's increments read 1 + g times the model's, 3R's 1 - g,
     with g each fit's own least-squares value over the training windows (at most
     :data:`FREE_GAIN_MAX`).
 
@@ -132,10 +132,6 @@ class Evaluator:
             g = -float(b[0] + c * a[0] - b[1] - c * a[1]) / float(a[0] + a[1])
             g = float(np.clip(g, -FREE_GAIN_MAX, FREE_GAIN_MAX))
         return g, c
-
-    def free_gain(self, ext: Extensions, which: str = "held", ref: str | None = None) -> float:
-        """g of :meth:`free_gains`: the free wheels' left/right reading difference."""
-        return self.free_gains(ext, which, ref)[0]
 
     def run(self, ext: Extensions, which: str, ref: str | None = None) -> list[WindowResult]:
         """``which`` replayed under ``ext``, read through the profiled sensors; ``ref``: the

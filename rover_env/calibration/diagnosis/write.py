@@ -90,6 +90,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
     ma = median_window_rms(d.held_final, jm)
     elapsed = time.perf_counter() - d.t_start
     named = [n for s in d.chosen for n in (c.name for c in s.fit.candidates)]
+    free_g, free_c = d.ev.free_gains(final_extensions(d))
     return {
         "logs": [str(f) for f in d.files],
         "split": d.split,
@@ -124,12 +125,8 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "model_form": None if not opts.model_form else {f.name: f.as_json() for f in d.forms},
         "model_form_reverted": opts.forms_reverted,
         "model_form_beside": opts.forms_beside,
-        "free_wheel_gain": (
-            d.ev.free_gain(final_extensions(d)) if d.ev.profile_free_gain else None
-        ),
-        "free_wheel_common": (
-            d.ev.free_gains(final_extensions(d))[1] if d.ev.free_common_max > 0 else None
-        ),
+        "free_wheel_gain": free_g if d.ev.profile_free_gain else None,
+        "free_wheel_common": free_c if d.ev.free_common_max > 0 else None,
     }
 
 
