@@ -79,6 +79,8 @@ class Timers:
         self.seconds: dict[str, float] = dict.fromkeys(STAGES, 0.0)
         self.calls: dict[str, int] = dict.fromkeys(STAGES, 0)
         self._stack: list[float] = []  # child time accumulated by each open call
+        self.outer_s = 0.0
+        """Inclusive seconds of the outermost timed calls: what the rows add up to."""
 
     def wrap(self, stage: str, fn: Callable[..., Any]) -> Callable[..., Any]:
         """``fn`` with its exclusive time added to ``stage``."""
@@ -98,6 +100,8 @@ class Timers:
                 self.calls[stage] += 1
                 if self._stack:
                     self._stack[-1] += dt
+                else:
+                    self.outer_s += dt
 
         return timed
 
@@ -114,6 +118,9 @@ class Profile:
     seconds: dict[str, float]
     load_before: float
     load_after: float
+    timed_s: float = float("nan")
+    """Inclusive seconds inside the outermost timer (``learn``): the rows' sum. ``wall_s``
+    exceeds it by the timer's start-up, and by any preemption between the two clocks."""
 
     @property
     def steps_per_s(self) -> float:
@@ -259,6 +266,7 @@ def profile_training(
         dict(timers.seconds),
         load0,
         os.getloadavg()[0],
+        timers.outer_s,
     )
 
 
