@@ -1,6 +1,8 @@
-"""Rules registered before a block scores them (docs/calibration/README.md), not applied by
-``diagnose``: each reads what a case's ``result.json`` stored, so a block run with the code
-that registered it scores it without a rerun."""
+"""Rules registered before a block scores them (docs/calibration/README.md): each reads what
+a case's ``result.json`` stored, so a block run with the code that registered it scores it
+without a rerun. The rotor rule is not applied by ``diagnose``; the evidence rule is, since
+stop 59 (``Options.strong_bic``), and on rows of that code lists only what the cap on
+drives (``Options.evidence``) left without one."""
 
 from __future__ import annotations
 
@@ -68,7 +70,7 @@ def evidence_line(rows: list[dict[str, Any]]) -> str:
     clean = [r for r in got if r["kind"] == "clean"]
     stored = sum("strong_unconfirmed" in r for r in rows)
     return (
-        "- Registered evidence rule (stop 58, not applied): a drive proposed for a strong but"
-        f" unconfirmed candidate in {len(got)} of {stored} cases that stored it (the true"
+        "- Evidence rule (registered stop 58, applied since stop 59): a drive for a strong but"
+        f" unconfirmed candidate left without one in {len(got)} of {stored} cases that stored it (the true"
         f" effect among them in {len(truth)}; clean cases {len(clean)})"
     )

@@ -404,6 +404,7 @@ def run_case(case: dict[str, Any], root: Path, workers: int = 1) -> dict[str, An
         "fits": fits(final, case["truth"]),
         "named_fits": named_fits(final),
         "rotor_alternative": final.get("rotor_alternative"),
+        "rotor_profile": final.get("rotor_profile"),
         "strong_unconfirmed": strong_unconfirmed(res),
     }
 

@@ -71,12 +71,12 @@ def test_a_leaning_held_out_drive_asks_for_the_deciding_drive(monkeypatch) -> No
         },
     )
 
-    def scored(name: str, gain: float, p: float) -> Scored:
+    def scored(name: str, gain: float, p: float, d_bic: float = -5.0) -> Scored:
         f = fit.Fit(
             [cand[name]], np.array([-0.14]), np.array([-0.2]), np.array([-0.1]),
             np.array([0.02]), 1.0, 3, {name: {}}, 0.0, "train",
         )  # fmt: skip
-        return Scored(f, 1.0, np.ones(16), gain, p, -6.0, -6.0, 32)
+        return Scored(f, 1.0, np.ones(16), gain, p, d_bic, d_bic, 32)
 
     opts = Options(progress=False)
     ev = SimpleNamespace(settings=ReplaySettings())  # only its ground is read here
@@ -87,3 +87,52 @@ def test_a_leaning_held_out_drive_asks_for_the_deciding_drive(monkeypatch) -> No
     # Confirmed at alpha: the held-out drive judged it, nothing to ask.
     ranked = [scored("torque_limit", 0.41, 0.001)]
     assert missing_evidence(ev, ranked, [], {}, RoverConfig(), opts, lambda m: None) == []  # type: ignore[arg-type]
+
+
+def test_strong_training_evidence_the_held_out_drive_does_not_contradict_asks_for_a_drive(
+    monkeypatch,
+) -> None:
+    """Stop 58's registered rule, applied since stop 59: a candidate with a training ΔBIC at
+    or below Options.strong_bic whose held-out drive is better at all, short of the window
+    test, gets the deciding drive; one just above that line, or one the held-out drive
+    makes worse, does not."""
+    import numpy as np
+
+    from rover_env.calibration import evidence, fit
+    from rover_env.calibration.candidates import catalogue
+    from rover_env.calibration.diagnosis.evidence_stage import missing_evidence
+    from rover_env.calibration.diagnosis.state import Options, Scored
+    from rover_env.config import RoverConfig
+
+    cand = {c.name: c for c in catalogue()}
+    monkeypatch.setattr(fit, "signal_change", lambda *a, **k: {"wheel_2R": 5.0})
+    monkeypatch.setattr(
+        evidence, "propose", lambda base, name, *a, **kw: {"effect": name, "plan": "accel",
+        "best_signal": "wheel_2R", "best_per_window": 3.0, "best_floor_units": 9.0,
+        "held_out_best_signal": "wheel_2R", "held_out_floor_units": 5.0},
+    )  # fmt: skip
+
+    def scored(name: str, gain: float, d_bic: float) -> Scored:
+        f = fit.Fit(
+            [cand[name]], np.array([-0.7]), np.array([-0.75]), np.array([-0.65]),
+            np.array([0.02]), 1.0, 3, {name: {}}, 0.0, "train",
+        )  # fmt: skip
+        return Scored(f, 1.0, np.ones(16), gain, 0.3, d_bic, d_bic, 32)
+
+    opts = Options(progress=False)
+    ev = SimpleNamespace(settings=ReplaySettings())
+
+    def asked(*ranked: Scored) -> list[str]:
+        got = missing_evidence(ev, list(ranked), [], {}, RoverConfig(), opts, lambda m: None)  # type: ignore[arg-type]
+        return [e["effect"] for e in got]
+
+    # Case 47603's numbers: ΔBIC -6.7, held-out 8.5 % better at p 0.3.
+    assert asked(scored("torque_limit", 0.085, -6.7)) == ["torque_limit"]
+    got = missing_evidence(
+        ev, [scored("torque_limit", 0.085, -6.7)], [], {}, RoverConfig(), opts, lambda m: None
+    )  # type: ignore[arg-type]
+    assert "dBIC -6.7" in got[0]["reason"]
+    assert asked(scored("torque_limit", 0.085, -5.9)) == []
+    assert asked(scored("torque_limit", -0.02, -12.0)) == []
+    opts = Options(progress=False, strong_bic=-8.0)  # the line is the option's
+    assert asked(scored("torque_limit", 0.085, -6.7)) == []

@@ -25,3 +25,20 @@ def test_the_rotor_fitted_in_its_place_is_reported_beside_it() -> None:
     text = " ".join(_torque_note(["torque_limit"], 0.025, alt))
     assert "`motor.armature` 0.0707 kg m² for 0.025" in text
     assert "training windows 8.2 % better (dBIC -0.2)" in text and "held-out 47.7 % better" in text
+
+
+def test_the_limit_refitted_at_the_rotor_tolerance_s_ends_is_reported() -> None:
+    prof = {
+        "torque_limit": {
+            "armature_configured": 0.025,
+            "range": 2.0,
+            "refits": [
+                {"armature": 0.0125, "x": [-0.81], "lo": [-0.83], "hi": [-0.79]},
+                {"armature": 0.05, "x": [-0.64], "lo": [-0.67], "hi": [-0.61]},
+            ],
+        }
+    }
+    text = " ".join(_torque_note(["torque_limit"], 0.025, None, prof))
+    assert "(x 2)" in text
+    assert "0.0125 kg m²: -0.81 [-0.83, -0.79]; 0.05 kg m²: -0.64 [-0.67, -0.61]" in text
+    assert _torque_note(["slope"], 0.025, None, prof) == []

@@ -1,15 +1,23 @@
 """The rotor inertia fitted beside a named torque limit (``diagnosis.rotor``): on this
 project's own logs with a torque cut the stand-in is a heavier rotor, and it does not fit
-the training drives better than the truth; without a torque limit nothing is fitted."""
+the training drives better than the truth; without a torque limit nothing is fitted. A
+named limit's interval is profiled over the rotor inertia's tolerance."""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from rover_env.calibration.candidates import catalogue
 from rover_env.calibration.diagnosis import floor, form, split
-from rover_env.calibration.diagnosis.rotor import FACTORS, rotor_alternative, rotor_text
+from rover_env.calibration.diagnosis.rotor import (
+    FACTORS,
+    profile_rotor,
+    rotor_alternative,
+    rotor_text,
+)
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.fit import Fit
 from rover_env.generators.make_logs import make_logs
@@ -54,3 +62,30 @@ def test_nothing_fitted_without_a_torque_limit(cut_case: Diagnosis) -> None:
     d = cut_case
     d.chosen = [named(d, {"rolling_resistance": {"c_rr": 0.05}})]
     assert rotor_alternative(d) is None
+
+
+def test_a_named_limit_s_interval_holds_its_refits_over_the_rotor_tolerance(
+    cut_case: Diagnosis,
+) -> None:
+    """profile_rotor (stop 59): refits at half and twice the rotor inertia, the heavier
+    rotor needing the smaller cut (its wheels already accelerate slower), and an interval
+    that holds all three; once per fit, only for a torque limit, off at range 1."""
+    d = cut_case
+    d.rotor_profile = {}
+    s = named(d, CUT)
+    x0 = s.fit.x.copy()
+    prof = profile_rotor(d, s)
+    assert prof is not None and d.rotor_profile["torque_limit"] is prof
+    light, heavy = prof["refits"]
+    a0 = d.base.motor.armature
+    assert light["armature"] == pytest.approx(a0 / 2) and heavy["armature"] == pytest.approx(2 * a0)
+    assert light["x"][0] < heavy["x"][0] < 0.0  # a heavier rotor: a smaller cut
+    assert s.fit.x == pytest.approx(x0)  # the value stays the configured rotor's
+    for r in (light, heavy):
+        assert s.fit.ci_lo[0] <= r["lo"][0] and r["hi"][0] <= s.fit.ci_hi[0]
+    assert s.fit.ci_lo[0] <= -0.7 and s.fit.ci_hi[0] >= -0.5
+    assert profile_rotor(d, s) is None  # profiled already
+    assert profile_rotor(d, named(d, {"rolling_resistance": {"c_rr": 0.05}})) is None
+    d.rotor_profile = {}
+    d.opts = replace(d.opts, rotor_range=1.0)
+    assert profile_rotor(d, named(d, CUT)) is None

@@ -64,6 +64,7 @@ def _cli(args: argparse.Namespace) -> int:
         fit_joint_zero=args.fit_joint_zero,
         fit_free_gain=args.fit_free_gain,
         free_common=args.free_common,
+        rotor_range=args.rotor_range,
         fit_yaw_spring=args.fit_yaw_spring,
         fit_windup=args.fit_windup,
         screen=args.screen,
@@ -124,6 +125,15 @@ def add_cli(sub: Any) -> None:
         help="profile the free wheels' common reading gain within +-FRACTION out of every fit"
         f" (default {Options.free_common:g}: a 1 %% wheel-radius tolerance; 0: off; see"
         " Options.free_common)",
+    )
+    p.add_argument(
+        "--rotor-range",
+        type=float,
+        default=Options.rotor_range,
+        metavar="FACTOR",
+        help="a named torque limit's interval holds its refits with the rotor inertia"
+        f" (motor.armature) divided and multiplied by FACTOR (default {Options.rotor_range:g};"
+        " 1: off; see Options.rotor_range)",
     )
     p.add_argument(
         "--fit-yaw-spring",

@@ -257,11 +257,31 @@ def _headline(
     return L
 
 
-def _torque_note(named: list[str], armature: float, alt: dict[str, Any] | None = None) -> list[str]:
-    """Why a named torque limit is as good as the configured rotor inertia (stop 57), and
-    the rotor inertia fitted in its place (:func:`.diagnosis.rotor.rotor_alternative`)."""
+def _torque_note(
+    named: list[str],
+    armature: float,
+    alt: dict[str, Any] | None = None,
+    profile: dict[str, Any] | None = None,
+) -> list[str]:
+    """Why a named torque limit is as good as the configured rotor inertia (stop 57), the
+    rotor inertia fitted in its place (:func:`.diagnosis.rotor.rotor_alternative`), and the
+    limit refitted at the ends of the rotor's tolerance (:func:`.diagnosis.rotor.profile_rotor`)."""
     if "torque_limit" not in named:
         return []
+    refits = []
+    for name, prof in (profile or {}).items():
+        ends = "; ".join(
+            f"{r['armature']:.3g} kg m²: "
+            + ", ".join(
+                f"{x:.3g} [{lo:.3g}, {hi:.3g}]"
+                for x, lo, hi in zip(r["x"], r["lo"], r["hi"], strict=True)
+            )
+            for r in prof["refits"]
+        )
+        refits.append(
+            f"`{name}` refitted with the rotor inertia at the ends of its tolerance (x"
+            f" {prof['range']:g}), the interval above holding them: {ends}."
+        )
     return [
         "",
         "A torque limit seen only where the drive accelerates is measured as the torque over"
@@ -271,6 +291,7 @@ def _torque_note(named: list[str], armature: float, alt: dict[str, Any] | None =
         " test that holds a motor at its limit without accelerating it (a blocked wheel)"
         " measures the limit alone; on hard ground the tires slip first (docs/independent.md).",
         *([] if alt is None else [rotor_text(alt)]),
+        *refits,
     ]
 
 
@@ -285,7 +306,7 @@ def write_report(d: Diagnosis) -> Path:
     L: list[str] = ["# Model-discrepancy diagnosis", ""]
     named = result["named"]
     L += _headline(result, d.chosen, d.demoted, d.tie)
-    L += _torque_note(named, base.motor.armature, d.rotor)
+    L += _torque_note(named, base.motor.armature, d.rotor, d.rotor_profile)
     L += [
         "",
         f"Main residual ({result['main_signal']}, largest held-out ratio to noise): RMS "

@@ -40,7 +40,9 @@ def missing_evidence(
     A candidate qualifies when it is not named, lowers the training BIC, moves some training
     signal by at least one replay floor, and on the held-out drive either moves no signal
     by a floor (not excited), or only the 1 Hz pose (a sparse signal), or improves it by the
-    window test's margin at a p the held-out windows cannot bring under alpha (leaning).
+    window test's margin at a p the held-out windows cannot bring under alpha (leaning), or
+    improves it at all while not significant and its training ΔBIC is "strong"
+    (:attr:`Options.strong_bic`).
     For each (at most ``opts.evidence``, best training BIC first) the drive that would
     decide is proposed and simulated (:func:`rover_env.calibration.evidence.propose`).
     """
@@ -62,15 +64,24 @@ def missing_evidence(
         sparse = bool(strong) and all(k.startswith("pose_") for k in strong)
         # The held-out drive leans towards it (better by the window test's margin) but its
         # few windows cannot confirm it at alpha: more of the drive that excites it decides.
-        leaning = s.gain >= opts.min_gain and s.p >= opts.alpha
+        # So does strong training evidence (ΔBIC at or below Options.strong_bic) that the
+        # held-out drive does not contradict (better at all) but did not confirm.
+        strong_bic = s.d_bic <= opts.strong_bic and s.gain > 0.0 and not s.significant
+        leaning = (s.gain >= opts.min_gain and s.p >= opts.alpha) or strong_bic
         if strong and not sparse and not leaning:
             continue  # the held-out drive could judge it, and did
         if sparse:
             why = "only the 1 Hz pose carries it on the held-out drive"
-        elif strong:
+        elif strong and s.gain >= opts.min_gain:
             why = (
                 f"the held-out drive leans towards it ({100 * s.gain:.0f} % better) but cannot"
                 f" confirm it (p {s.p:.2g} against {opts.alpha:g})"
+            )
+        elif strong:
+            why = (
+                f"the training drives support it strongly (dBIC {s.d_bic:+.1f}) and the"
+                f" held-out drive is {100 * s.gain:.1f} % better, short of confirming it"
+                f" (p {s.p:.2g})"
             )
         else:
             why = "the held-out drive does not excite it"

@@ -37,26 +37,30 @@ from rover_env.calibration.diagnosis.judge import (
     unexplained,
 )
 from rover_env.calibration.diagnosis.parallel import map_parallel
+from rover_env.calibration.diagnosis.rotor import profile_rotor
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
 from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
-from rover_env.calibration.fit import carry_form_pad, fit, stack_fits, widen_by_groups
+from rover_env.calibration.fit import Evaluator, carry_form_pad, fit, stack_fits, widen_by_groups
 from rover_env.calibration.noise_interval import noise_se, widen_by_noise
 
 
 def name_winner(d: Diagnosis) -> None:
     """Sets the winner: the best significant candidate whose interval, the replay's bias in
-    it, keeps clear of "off" (one that reaches it is not named with confidence)."""
+    it (and a torque limit's rotor inertia, :func:`.rotor.profile_rotor`), keeps clear of
+    "off" (one that reaches it is not named with confidence)."""
     ev = d.ev
-    d.winner = first_confident(
-        [s for s in d.ranked if s.significant],
-        lambda s: bias_correct(
+
+    def correct(s: Scored) -> None:
+        bias_correct(
             ev if s.fit_scale is None else replace(ev, scale=s.fit_scale, replays=0, seconds=0.0),
             s,
             d.sensor_noise,
             d.st,
-        ),
-        lambda s: None,
-        d.say,
+        )
+        profile_rotor(d, s)
+
+    d.winner = first_confident(
+        [s for s in d.ranked if s.significant], correct, lambda s: None, d.say
     )
 
 
@@ -133,7 +137,7 @@ def forward_selection(d: Diagnosis) -> None:
     w_names = {c.name for c in winner.fit.candidates}
     second = first_confident(
         sorted([s for s in d.tried if s.significant], key=lambda s: -s.gain),
-        lambda s: bias_correct(ev, s, d.sensor_noise, d.st),
+        lambda s: _bias_and_rotor(d, ev, s),
         lambda s: {c.name for c in s.fit.candidates} - w_names,
         d.say,
     )
@@ -142,6 +146,12 @@ def forward_selection(d: Diagnosis) -> None:
         if d.tie is not None and set(d.tie["effects"]) <= {c.name for c in second.fit.candidates}:
             d.say(f"tie resolved: {' and '.join(d.tie['effects'])} are both named")
             d.tie = None
+
+
+def _bias_and_rotor(d: Diagnosis, ev: Evaluator, s: Scored) -> None:
+    """A partner's interval widened as the winner's: the replay's bias, the rotor inertia."""
+    bias_correct(ev, s, d.sensor_noise, d.st)
+    profile_rotor(d, s)
 
 
 def blind_partners(d: Diagnosis) -> list[Scored]:

@@ -87,6 +87,17 @@ class Options:
     ray_address: str | None = None
     evidence: int = 2
     """Candidates for which a deciding drive is proposed and simulated, at most."""
+    strong_bic: float = -6.0
+    """Training ΔBIC at or below which a candidate that is not named, but improves the
+    held-out drive at all, is given a deciding drive (:mod:`.evidence_stage`; Kass and
+    Raftery's "strong"). Why (stop 58, registered; applied since stop 59): a torque cut of
+    -0.66 fitted -0.742 with ΔBIC -6.7 and its held-out drive 8.5 % better at p 0.3 got
+    neither a name nor a drive, since that drive excites the limit (case 47603)."""
+    rotor_range: float = 2.0
+    """Factor of the rotor inertia's tolerance: a named torque limit is refitted with
+    ``motor.armature`` divided and multiplied by it, and its interval holds theirs
+    (:func:`.rotor.profile_rotor`; 1: off). Why (stop 59): the limit is measured as the
+    torque over the rotor inertia, which a build's data give to about a factor 2."""
     model_form: bool = True
     """Fit the model's own form first, in this order: the joint sensors' zeros, the speed
     loop's anti-windup form, the tire's relaxation length, the yaw joints' springs and the
@@ -293,6 +304,9 @@ class Diagnosis:
     # evidence (:mod:`.evidence_stage`)
     evidence: list[dict[str, Any]] = field(default_factory=list)
     rotor: dict[str, Any] | None = None
+    rotor_profile: dict[str, Any] = field(default_factory=dict)
+    """Per named torque-limit fit: its refits over the rotor inertia's tolerance
+    (:func:`.rotor.profile_rotor`)."""
     """Beside a named torque limit, the rotor inertia fitted in its place (:mod:`.rotor`)."""
     # write (:mod:`.write`)
     held_final: list[WindowResult] = field(default_factory=list)

@@ -120,6 +120,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "above_floor": unexplained(table_held_after, final_floor),
         "evidence": d.evidence,
         "rotor_alternative": d.rotor,
+        "rotor_profile": d.rotor_profile,
         "not_named": d.traded,
         "second_dropped": d.dropped,
         "model_form": None if not opts.model_form else {f.name: f.as_json() for f in d.forms},
