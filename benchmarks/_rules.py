@@ -74,3 +74,20 @@ def evidence_line(rows: list[dict[str, Any]]) -> str:
         f" unconfirmed candidate left without one in {len(got)} of {stored} cases that stored it (the true"
         f" effect among them in {len(truth)}; clean cases {len(clean)})"
     )
+
+
+def untested_torque(first: dict[str, Any], resolution: float = 0.05) -> list[dict[str, Any]]:
+    """Stop 59's untested-limit drive (``diagnose``'s ``untested``) as a first diagnosis of
+    older code would have got it, from its ``result.json``: no torque limit named or given
+    an evidence drive, and its cut threshold beyond ``resolution``
+    (``Options.limit_resolution``). Without the simulation: effect, plan and reason only."""
+    named = set(first.get("named", []))
+    asked = {e.get("effect") for e in first.get("evidence", [])}
+    tl = first.get("fits", {}).get("torque_limit")
+    if tl is None or "torque_limit" in named | asked:
+        return []
+    thr = (tl.get("threshold") or {}).get("-")
+    if thr is not None and thr <= resolution:
+        return []
+    seen = "no cut" if thr is None else f"only cuts beyond {100 * thr:.0f} %"
+    return [{"effect": "torque_limit", "plan": "accel", "reason": f"{seen} (backfilled)"}]

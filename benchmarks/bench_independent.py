@@ -73,7 +73,7 @@ from typing import Any
 
 import numpy as np
 from _report import write_report
-from _rules import evidence_line, rotor_line, strong_unconfirmed
+from _rules import evidence_line, rotor_line, strong_unconfirmed, untested_torque
 from bench_diagnose import INERT_ON_SOIL, RANGES, covers, draw, finite, magnitude
 
 from rover_env.calibration.diagnose import Options, diagnose
@@ -287,9 +287,12 @@ def schedule(prop: Proposal) -> Schedule:
 
 
 def proposals(out: Path) -> list[Proposal]:
-    """Every drive the diagnosis in ``out`` proposes (tie and evidence), as drive-plan reads them."""
+    """Every drive the diagnosis in ``out`` proposes for what its logs show (tie and
+    evidence), as drive-plan reads them. Not the drives for what they never tested (an
+    unreached torque limit): those would make nearly every case's held-out drive a hard
+    acceleration; the row records them (``untested``)."""
     try:
-        return proposals_from_report(out)
+        return proposals_from_report(out, untested=False)
     except DrivePlanError:  # it proposes none
         return []
 
@@ -336,6 +339,8 @@ def backfill(rows: list[dict[str, Any]], work: Path) -> None:
         first = work / r["case"] / "out" / "result.json"
         if "strong_unconfirmed" not in r and first.is_file():
             r["strong_unconfirmed"] = strong_unconfirmed(json.loads(first.read_text()))
+        if "untested" not in r and first.is_file():
+            r["untested"] = untested_torque(json.loads(first.read_text()))
         if "named_fits" in r or not r.get("named"):
             continue
         for sub in ("out_followup", "out"):
@@ -397,6 +402,10 @@ def run_case(case: dict[str, Any], root: Path, workers: int = 1) -> dict[str, An
         "evidence": [
             {k: e.get(k) for k in ("effect", "plan", "reason", "best_signal", "best_floor_units")}
             for e in res.get("evidence", [])
+        ],
+        "untested": [
+            {k: e.get(k) for k in ("effect", "plan", "reason", "best_signal", "best_floor_units")}
+            for e in res.get("untested", [])
         ],
         "make_logs_s": t1 - t0,
         "diagnose_s": t2 - t1,
@@ -497,6 +506,17 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
         ("torque_limit" in r["named"] and covers(r["fits"]["torque_limit"])) or bool(r["followup"])
         for r in _singles(ok, "torque_limit")
     ]
+    # Issue 47's own line: where the drives reach the limit (the cut at or beyond its noise
+    # threshold) named with a covering interval; where they do not, a torque drive proposed
+    # (an evidence drive for it, or the untested-limit drive).
+    reached, unreached = [], []
+    for r in _singles(ok, "torque_limit"):
+        f = r["fits"].get("torque_limit")
+        if (_ratio("torque_limit", f) or 0.0) >= 1.0:
+            reached.append("torque_limit" in r["named"] and covers(f))
+        else:
+            asked = r.get("untested", []) + r.get("evidence", [])
+            unreached.append(any(e.get("effect") == "torque_limit" for e in asked))
     soil = [
         "loose_soil" in r["named"] and _within2(r["fits"].get("loose_soil"))
         for r in _singles(ok, "loose_soil")
@@ -527,7 +547,8 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
         f" named {_share([not r['named'] for r in outside])}, gap reported"
         f" {_share([bool(r['unexplained']) for r in outside])})",
         "- Torque-limit cuts: named with a covering interval, or a drive proposed"
-        f" {_share(torque)}",
+        f" {_share(torque)}; reached (cut ≥ its threshold): named covering {_share(reached)};"
+        f" not reached: a torque drive proposed {_share(unreached)}",
         f"- Loose soil: named with k_phi within a factor of 2 {_share(soil)}",
         f"- Seconds per case (median): {np.median(total) if total else float('nan'):.0f} s in all;"
         f" logs {med('make_logs_s'):.0f} s, diagnose {med('diagnose_s'):.0f} s, follow-up"

@@ -192,6 +192,8 @@ def test_run_case_drives_every_proposal_with_the_same_rover(
                     "separates": True,
                 }
             ],
+            # recorded, never driven: it would make the held-out drive a hard acceleration
+            "untested": [] if second else [{"effect": "torque_limit", "plan": "steps", "why": "z"}],
             "main_signal": "wheel_1L",
             "main_reduction": 0.5,
             "unexplained": [] if second else ["wheel_1L"],
@@ -215,6 +217,7 @@ def test_run_case_drives_every_proposal_with_the_same_rover(
     ]
     assert builds[0] == builds[1] == builds[2]
     assert [p["plan"] for p in row["followup"]] == ["accel", "reversals"]
+    assert [u["plan"] for u in row["untested"]] == ["steps"]
     assert (
         row["named"] == ["torque_limit"]
         and row["first_named"] == []
@@ -301,3 +304,30 @@ def test_the_registered_evidence_rule_reads_the_first_diagnosis() -> None:
     ]
     line = r.evidence_line(rows)
     assert "in 2 of 3 cases" in line and "among them in 1" in line and "clean cases 1" in line
+
+
+def test_the_torque_line_splits_reached_limits_from_unreached_ones(b: ModuleType) -> None:
+    """Issue 47's torque line: a cut at or beyond its threshold must be named with a covering
+    interval; one below it needs a torque drive proposed (evidence or untested), not just
+    any follow-up."""
+
+    def row(truth: float, thr: float, named: bool, asked: str = "", followup: bool = False) -> dict:
+        fit = {"truth": truth, "value": truth, "lo": truth - 0.05, "hi": truth + 0.05}
+        return {
+            "kind": "single", "effects": {"torque_limit": {}}, "truth": {"torque_limit": {}}, "named": ["torque_limit"] * named,
+            "first_named": [], "fits": {"torque_limit": fit | {"threshold": thr}},
+            "followup": [{"plan": "reversals"}] * followup, "unexplained": [],
+            "evidence": [{"effect": "slope"}],
+            "untested": [{"effect": asked}] if asked else [],
+            "make_logs_s": 1.0, "diagnose_s": 1.0, "followup_s": 0.0,
+        }  # fmt: skip
+
+    rows = [
+        row(-0.6, 0.2, True),  # reached, named, covering
+        row(-0.6, 0.2, False, "torque_limit"),  # reached, not named: a drive does not excuse it
+        row(-0.1, 0.4, False, "torque_limit"),  # not reached, the drive proposed
+        row(-0.1, 0.4, False, "", followup=True),  # not reached, only another effect's drive
+    ]
+    (line,) = [x for x in b.acceptance(rows) if x.startswith("- Torque")]
+    assert "reached (cut ≥ its threshold): named covering 1/2" in line
+    assert "not reached: a torque drive proposed 1/2" in line

@@ -251,3 +251,19 @@ def test_cli_main(tmp_path: Path) -> None:
     assert main(["drive-plan", "--plan", "accel", "--duration", "5", "--out", str(out)]) == 0
     assert {p.name for p in out.iterdir()} == {"accel.csv", "accel.md", "accel_bag"}
     assert main(["drive-plan", "--plan", "nope", "--out", str(out)]) == 2
+
+
+def test_untested_drives_are_read_unless_left_out(tmp_path: Path) -> None:
+    """The drive for what the logs never tested (stop 59: an unreached torque limit) is a
+    proposal drive-plan writes; the benchmark leaves it out (``untested=False``)."""
+    untested = _evidence() | {
+        "reason": "these drives reach the motors' limit for only cuts beyond 30 %"
+    }
+    (tmp_path / "result.json").write_text(
+        json.dumps({"tie": None, "evidence": [], "untested": [untested]})
+    )
+    (prop,) = dp.proposals_from_report(tmp_path)
+    assert prop.plan == "accel" and prop.effects == {"torque_limit"}
+    assert "untested torque_limit" in prop.why[0] and "beyond 30 %" in prop.why[0]
+    with pytest.raises(dp.DrivePlanError, match="nothing untested"):
+        dp.proposals_from_report(tmp_path, untested=False)

@@ -136,3 +136,46 @@ def test_strong_training_evidence_the_held_out_drive_does_not_contradict_asks_fo
     assert asked(scored("torque_limit", -0.02, -12.0)) == []
     opts = Options(progress=False, strong_bic=-8.0)  # the line is the option's
     assert asked(scored("torque_limit", 0.085, -6.7)) == []
+
+
+def test_a_limit_the_drives_never_reach_gets_the_drive_that_asks_for_it(monkeypatch) -> None:
+    """Stop 59: when the torque limit's cut threshold on these drives is beyond
+    Options.limit_resolution and none is named or asked for, the accel drive is proposed
+    with a cut of that resolution; not when the drives reach a 5 % cut, when it is named,
+    when an evidence drive asks for it already, or when the resolution is 0."""
+    import numpy as np
+
+    from rover_env.calibration import evidence, fit
+    from rover_env.calibration.candidates import catalogue
+    from rover_env.calibration.diagnosis.evidence_stage import untested_limit
+    from rover_env.calibration.diagnosis.state import Options, Scored
+    from rover_env.config import RoverConfig
+
+    asked: list[dict] = []
+
+    def propose(base, name, ext, noise, held, **kw):
+        asked.append(ext)
+        return {"effect": name, "plan": "accel", "best_signal": "wheel_1L", "best_floor_units": 7.0}
+
+    monkeypatch.setattr(evidence, "propose", propose)
+    (c,) = catalogue(["torque_limit"])
+    z = np.zeros(1)
+    tl = Scored(fit.Fit([c], z, z, z, z, 1.0, 3, {}, 0.0, "train"), 1.0, z, 0.0, 0.5, 2.0, 2.0, 16)
+
+    def d(thr: dict, chosen=(), ev_list=(), res: float = 0.05) -> SimpleNamespace:
+        tl.threshold = thr
+        return SimpleNamespace(
+            opts=Options(progress=False, limit_resolution=res), chosen=list(chosen),
+            evidence=list(ev_list), ranked=[tl], base=RoverConfig(), noise={},
+            ev=SimpleNamespace(settings=ReplaySettings()), say=lambda m: None,
+        )  # fmt: skip
+
+    (p,) = untested_limit(d({"-": 0.30, "+": 2.0}))  # type: ignore[arg-type]
+    assert p["plan"] == "accel" and "only cuts beyond 30 %" in p["reason"]
+    assert "a cut of 5 %" in p["reason"]
+    assert asked == [{"torque_limit": {"fraction": -0.05}}]
+    assert "no cut moved" in untested_limit(d({}))[0]["reason"]  # type: ignore[arg-type]
+    assert untested_limit(d({"-": 0.04})) == []  # type: ignore[arg-type]
+    assert untested_limit(d({"-": 0.3}, chosen=[tl])) == []  # type: ignore[arg-type]
+    assert untested_limit(d({"-": 0.3}, ev_list=[{"effect": "torque_limit"}])) == []  # type: ignore[arg-type]
+    assert untested_limit(d({"-": 0.3}, res=0.0)) == []  # type: ignore[arg-type]

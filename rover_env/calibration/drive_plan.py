@@ -184,10 +184,11 @@ def parse_joint_names(text: str | None) -> tuple[str, ...]:
     return out
 
 
-def proposals_from_report(path: str | Path) -> list[Proposal]:
-    """Every drive a diagnosis proposes (its tie and its evidence rows), merged by
-    (plan, seed, duration); reports from before the seed and duration were recorded used
-    :data:`PLAN_SEED` and :data:`PLAN_DURATION`."""
+def proposals_from_report(path: str | Path, untested: bool = True) -> list[Proposal]:
+    """Every drive a diagnosis proposes (its tie, its evidence rows and, with ``untested``,
+    the drives for what its logs never tested), merged by (plan, seed, duration); reports
+    from before the seed and duration were recorded used :data:`PLAN_SEED` and
+    :data:`PLAN_DURATION`."""
     p = Path(path)
     f = p / "result.json" if p.is_dir() else p
     if not f.is_file():
@@ -207,8 +208,14 @@ def proposals_from_report(path: str | Path) -> list[Proposal]:
         if isinstance(e, dict) and e.get("plan"):
             why = f"evidence for {e['effect']} ({e.get('reason', 'unconfirmed')}): {e['why']}"
             raw.append((e, why, {e["effect"]}))
+    for e in (result.get("untested") or []) if untested else []:
+        if isinstance(e, dict) and e.get("plan"):
+            why = f"untested {e['effect']} ({e.get('reason', '')}): {e.get('why', '')}"
+            raw.append((e, why, {e["effect"]}))
     if not raw:
-        raise DrivePlanError(f"--report {f}: the diagnosis proposes no drive (no tie, no evidence)")
+        raise DrivePlanError(
+            f"--report {f}: the diagnosis proposes no drive (no tie, no evidence, nothing untested)"
+        )
     out: dict[tuple[str, int, float], Proposal] = {}
     for d, why, effects in raw:
         key = (

@@ -381,6 +381,7 @@ def write_report(d: Diagnosis) -> Path:
             "",
         ]
     L += evidence_lines(result.get("evidence") or [])
+    L += untested_lines(result.get("untested") or [])
     L += ["## Held-out drive before / after (RMS residual / replay floor)", "", "Before:", ""]
     L += _ratio_table(table_held_before, SIGNALS)
     L += ["", "After:", ""]
@@ -433,6 +434,22 @@ def tie_text(tie: dict[str, Any]) -> str:
         f" them. Separating drive: plan `{tie['plan']}` (seed {seed}, {duration:g} s):"
         f" {tie['why']}. " + drive_it_text([(tie["plan"], seed, duration)])
     )
+
+
+def untested_lines(props: list[dict[str, Any]]) -> list[str]:
+    """The report's section on what the drives never tested (a torque limit never reached)."""
+    if not props:
+        return []
+    L = ["## What these drives did not test", ""]
+    for e in props:
+        seed, duration = _seed_duration(e)
+        L.append(
+            f"- **{e['effect']}**: {e['reason']}. Proposed drive `{e['plan']}` (seed {seed},"
+            f" {duration:g} s): {e['why']}; in simulation it moves {e['best_signal']} by"
+            f" {e['best_floor_units']:.1f}× its floor over the drive."
+        )
+    plans = [(e["plan"], *_seed_duration(e)) for e in props]
+    return [*L, "", drive_it_text(plans), ""]
 
 
 def evidence_lines(ev_list: list[dict[str, Any]]) -> list[str]:

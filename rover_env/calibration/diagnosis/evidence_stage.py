@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from rover_env.calibration import evidence, fit
 from rover_env.calibration.diagnosis.rotor import rotor_alternative, rotor_text
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
@@ -21,6 +23,7 @@ from rover_env.config import RoverConfig
 def seek_evidence(d: Diagnosis) -> None:
     """Sets :attr:`Diagnosis.evidence`."""
     d.evidence = missing_evidence(d.ev, d.ranked, d.chosen, d.noise, d.base, d.opts, d.say)
+    d.untested = untested_limit(d)
     d.rotor = rotor_alternative(d)
     if d.rotor is not None:
         d.say(rotor_text(d.rotor))
@@ -95,3 +98,42 @@ def missing_evidence(
             f" {p['held_out_best_signal']} {p['held_out_floor_units']:.1f}x per window)"
         )
     return out
+
+
+def untested_limit(d: Diagnosis) -> list[dict[str, Any]]:
+    """The drive that asks the motors for their torque, when the logs never did.
+
+    Proposed (at most one) when no torque limit is named or already given an evidence
+    drive, and the torque limit's noise threshold on these drives (the smallest cut that
+    moves a signal by one replay floor) exceeds :attr:`Options.limit_resolution`: the logs
+    then reach the limit only for cuts beyond it. Simulated like an evidence drive, with a
+    cut of that resolution. Kept apart from the evidence: it is about what these drives did
+    not test, not about a candidate they support.
+    """
+    res = d.opts.limit_resolution
+    named = {c.name for s in d.chosen for c in s.fit.candidates}
+    asked = {e["effect"] for e in d.evidence}
+    tl = next((s for s in d.ranked if s.fit.name == "torque_limit"), None)
+    if res <= 0 or tl is None or "torque_limit" in named | asked:
+        return []
+    thr = (tl.threshold or {}).get("-")
+    if thr is not None and thr <= res:
+        return []
+    (c,) = tl.fit.candidates
+    ext = c.to_ext(np.array([-res]))
+    p = evidence.propose(d.base, c.name, ext, d.noise, {}, ground=d.ev.settings.terrain)
+    seen = (
+        "no cut moved a signal by its floor"
+        if thr is None
+        else f"only cuts beyond {100 * thr:.0f} %"
+    )
+    p["reason"] = (
+        f"these drives reach the motors' limit for {seen}; a cut of {100 * res:.0f} % needs a"
+        " drive that asks for it"
+    )
+    d.say(
+        f"torque limit untested ({p['reason']}): propose a drive of plan {p['plan']!r}; in"
+        f" simulation a cut of {100 * res:.0f} % moves {p['best_signal']} by"
+        f" {p['best_floor_units']:.1f}x its floor over the drive"
+    )
+    return [p]

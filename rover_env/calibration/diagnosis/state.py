@@ -93,6 +93,13 @@ class Options:
     Raftery's "strong"). Why (stop 58, registered; applied since stop 59): a torque cut of
     -0.66 fitted -0.742 with ΔBIC -6.7 and its held-out drive 8.5 % better at p 0.3 got
     neither a name nor a drive, since that drive excites the limit (case 47603)."""
+    limit_resolution: float = 0.05
+    """Smallest torque cut worth testing, as a fraction of the limit (issue 47: cuts from
+    5 %; 0: never asked). When the drives reach the motors' limit only for larger cuts (the
+    torque limit's noise threshold) and none is named, the drive that reaches it is
+    proposed as ``untested`` (:func:`.evidence_stage.untested_limit`). Why (stop 59): a
+    limit acts only where it is reached, unlike the catalogue's other effects, which act on
+    every drive; a drive that never asks the motors for their torque says nothing of it."""
     rotor_range: float = 2.0
     """Factor of the rotor inertia's tolerance: a named torque limit is refitted with
     ``motor.armature`` divided and multiplied by it, and its interval holds theirs
@@ -304,6 +311,8 @@ class Diagnosis:
     # evidence (:mod:`.evidence_stage`)
     evidence: list[dict[str, Any]] = field(default_factory=list)
     rotor: dict[str, Any] | None = None
+    untested: list[dict[str, Any]] = field(default_factory=list)
+    """Drives proposed for what the logs never tested (:func:`.evidence_stage.untested_limit`)."""
     rotor_profile: dict[str, Any] = field(default_factory=dict)
     """Per named torque-limit fit: its refits over the rotor inertia's tolerance
     (:func:`.rotor.profile_rotor`)."""

@@ -119,6 +119,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "unexplained": gap(table_held_after, final_floor),
         "above_floor": unexplained(table_held_after, final_floor),
         "evidence": d.evidence,
+        "untested": d.untested,
         "rotor_alternative": d.rotor,
         "rotor_profile": d.rotor_profile,
         "not_named": d.traded,
