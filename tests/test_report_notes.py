@@ -42,3 +42,18 @@ def test_the_limit_refitted_at_the_rotor_tolerance_s_ends_is_reported() -> None:
     assert "(x 2)" in text
     assert "0.0125 kg m²: -0.81 [-0.83, -0.79]; 0.05 kg m²: -0.64 [-0.67, -0.61]" in text
     assert _torque_note(["slope"], 0.025, None, prof) == []
+
+
+def test_the_report_tables_each_effect_s_threshold_beside_its_detection_limit() -> None:
+    from rover_env.calibration.report import visibility_lines
+
+    fits = {
+        "torque_limit": {"threshold": {"-": 0.178, "+": 44.0}, "detectable": {"-": 0.971}},
+        "slope": {"threshold": {"deg": 0.754}, "detectable": {"deg": 5.97}},
+        "combined_slip": {"threshold": {}, "detectable": {}},
+    }
+    text = "\n".join(visibility_lines(fits))
+    assert "| slope | deg 0.754 | deg 5.97 |" in text
+    assert "| torque_limit | + 44, - 0.178 | - 0.971 |" in text
+    assert "combined_slip" not in text
+    assert visibility_lines({}) == []

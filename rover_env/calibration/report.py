@@ -382,6 +382,7 @@ def write_report(d: Diagnosis) -> Path:
         ]
     L += evidence_lines(result.get("evidence") or [])
     L += untested_lines(result.get("untested") or [])
+    L += visibility_lines(result.get("fits") or {})
     L += ["## Held-out drive before / after (RMS residual / replay floor)", "", "Before:", ""]
     L += _ratio_table(table_held_before, SIGNALS)
     L += ["", "After:", ""]
@@ -434,6 +435,38 @@ def tie_text(tie: dict[str, Any]) -> str:
         f" them. Separating drive: plan `{tie['plan']}` (seed {seed}, {duration:g} s):"
         f" {tie['why']}. " + drive_it_text([(tie["plan"], seed, duration)])
     )
+
+
+def visibility_lines(fits: dict[str, dict[str, Any]]) -> list[str]:
+    """The report's table of how large each effect must be to be seen on these logs."""
+    rows = []
+    for name, f in sorted(fits.items()):
+        thr, det = f.get("threshold") or {}, f.get("detectable") or {}
+        sides = sorted(set(thr) | set(det))
+        if not sides:
+            continue
+
+        def cell(d: dict[str, float], sides: list[str] = sides) -> str:
+            return ", ".join(f"{s} {d[s]:.3g}" for s in sides if s in d) or "–"
+
+        rows.append(f"| {name} | {cell(thr)} | {cell(det)} |")
+    if not rows:
+        return []
+    return [
+        "## How large an effect these logs can show",
+        "",
+        "Per effect and side of off (a slope: degrees): the noise threshold, the magnitude that"
+        " moves its most sensitive signal by one replay floor (what a perfect model leaves),"
+        " and the detection limit, the magnitude that would pay the training BIC's price"
+        " against what this model leaves on these logs (its form, the noise). Where the"
+        " second is far above the first, the model's form, not the sensors, limits what a"
+        " diagnosis can name.",
+        "",
+        "| effect | noise threshold | detection limit on these logs |",
+        "|---|---|---|",
+        *rows,
+        "",
+    ]
 
 
 def untested_lines(props: list[dict[str, Any]]) -> list[str]:

@@ -127,9 +127,15 @@ def untested_limit(d: Diagnosis) -> list[dict[str, Any]]:
         if thr is None
         else f"only cuts beyond {100 * thr:.0f} %"
     )
+    det = (tl.detectable or {}).get("-")
+    beside = (
+        ""
+        if det is None
+        else f" (against what the model leaves on these logs, one shows only beyond {100 * det:.0f} %)"
+    )
     p["reason"] = (
-        f"these drives reach the motors' limit for {seen}; a cut of {100 * res:.0f} % needs a"
-        " drive that asks for it"
+        f"these drives reach the motors' limit for {seen}{beside}; a cut of {100 * res:.0f} %"
+        " needs a drive that asks for it"
     )
     d.say(
         f"torque limit untested ({p['reason']}): propose a drive of plan {p['plan']!r}; in"

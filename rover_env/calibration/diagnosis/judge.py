@@ -362,6 +362,7 @@ def fit_dict(s: Scored) -> dict[str, Any]:
         "test": s.test,
         "screened": s.screened,
         "threshold": s.threshold,
+        "detectable": s.detectable,
         "nfev": s.fit.nfev,
         "seconds": s.fit.seconds,
         "reweighed_from": s.reweighed_from,

@@ -243,6 +243,9 @@ class Scored:
     """Which held-out test named it (the window test, or the noise-floor test and what it cleared)."""
     threshold: dict[str, float] = field(default_factory=dict)
     """Noise threshold of the effect on these drives (:func:`rover_env.calibration.diagnosis.fit_stage.noise_threshold`)."""
+    detectable: dict[str, float] = field(default_factory=dict)
+    """Smallest magnitude that would pay the training BIC's price against the residual these
+    logs leave (:func:`rover_env.calibration.diagnosis.fit_stage.detection_limit`)."""
     reweighed_from: dict[str, dict[str, list[float]]] | None = None
     """The fit under the stage's own signal scale, before :attr:`Options.reweigh`'s refits."""
     fit_scale: dict[str, float] | None = None

@@ -1,0 +1,60 @@
+"""The detection limit diagnose reports beside the noise threshold (stop 59): the magnitude
+at which an effect, were it in the logs, would pay its training BIC price against the
+residual the logs leave. Built on stand-in replays whose answer is known in closed form."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from rover_env.calibration.candidates import catalogue
+from rover_env.calibration.diagnosis.fit_stage import detection_limit
+from rover_env.calibration.replay import SIGNALS
+
+N = 64  # windows
+T = 10  # scored rows per window
+
+
+class FakeEv:
+    """Replays whose residual is ``base`` on wheel_1L everywhere plus, for a torque cut of
+    fraction f, f * ``gain`` on wheel_2L in the windows ``where``."""
+
+    def __init__(self, base: float, gain: float, where: range) -> None:
+        self.scale = dict.fromkeys(SIGNALS, 1.0)
+        self.base, self.gain, self.where = base, gain, where
+
+    def run(self, ext: dict, which: str) -> list:
+        f = ext.get("torque_limit", {}).get("fraction", 0.0)
+        out = []
+        for w in range(N):
+            resid = np.zeros((T, 11))
+            resid[:, 0] = self.base
+            if w in self.where:
+                resid[:, 2] = f * self.gain
+            out.append(SimpleNamespace(resid=resid, pose_resid=np.zeros((1, 3))))
+        return out
+
+
+def limit(base: float, gain: float, where: range) -> float:
+    (c,) = catalogue(["torque_limit"])
+    return detection_limit(FakeEv(base, gain, where), c, "train")["-"]  # type: ignore[arg-type]
+
+
+def test_the_limit_is_where_the_effect_pays_its_price_against_the_residual_left() -> None:
+    # Every window: E = T (g m)^2 against R = T base^2, so N log(1 + (g m / base)^2) = ln N.
+    want = math.sqrt(math.expm1(math.log(N) / N))  # base 1, gain 1
+    assert limit(1.0, 1.0, range(N)) == pytest.approx(want, rel=1e-6)
+    # Four times the residual (a model whose form is further off): twice the limit.
+    assert limit(2.0, 1.0, range(N)) == pytest.approx(2 * limit(1.0, 1.0, range(N)), rel=1e-6)
+    # Seen in 4 windows of 64 (a limit reached in a few accelerations): far less visible.
+    assert limit(1.0, 1.0, range(4)) > 3 * limit(1.0, 1.0, range(N))
+
+
+def test_no_limit_for_an_effect_that_moves_nothing_or_a_switch() -> None:
+    (c,) = catalogue(["torque_limit"])
+    assert detection_limit(FakeEv(1.0, 0.0, range(N)), c, "train") == {}  # type: ignore[arg-type]
+    (sw,) = catalogue(["combined_slip"])
+    assert detection_limit(FakeEv(1.0, 1.0, range(N)), sw, "train") == {}  # type: ignore[arg-type]
