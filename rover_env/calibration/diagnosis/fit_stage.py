@@ -89,6 +89,7 @@ def reweighed(d: Diagnosis, w: Scored, passes: int) -> Scored:
         f = fit(ev_r, cands_r, cur.fit.which, max_nfev=fit_budget(cands_r, d.opts))
         ns = score(d, f, d.held0, {})
         ns.fit_scale, ns.threshold, ns.reweighed_from = sc, cur.threshold, before
+        ns.detectable = cur.detectable  # a property of the drives and the model, not the fit
         width = np.maximum(np.abs(cur.fit.ci_hi - cur.fit.ci_lo), 1e-12)
         moved = float((np.abs(ns.fit.x - cur.fit.x) / width).max())
         d.say(
