@@ -33,7 +33,7 @@ from rover_env.calibration.diagnosis.judge import (
 from rover_env.calibration.diagnosis.parallel import map_candidates
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
 from rover_env.calibration.fit import Evaluator, fit, signal_change
-from rover_env.calibration.replay import ReplaySettings, prepare
+from rover_env.calibration.replay import ReplaySettings, WindowResult, prepare
 from rover_env.effects import EffectError
 from rover_env.sim.simulator import SimulationError
 
@@ -188,6 +188,11 @@ def _ladder_magnitudes(c: Candidate) -> list[tuple[np.ndarray, str, float]]:
     return out
 
 
+def _window_change(a: WindowResult, b: WindowResult, scale: dict[str, float]) -> float:
+    """One window's squared change between two replays, in the fit's signal scale."""
+    return float(np.sum((rs.residual_vector([a], scale) - rs.residual_vector([b], scale)) ** 2))
+
+
 def _price_gap(f: float, q: np.ndarray, price: float) -> float:
     return float(np.sum(np.log1p(f * q))) - price
 
@@ -202,8 +207,9 @@ def detection_limit(ev: Evaluator, c: Candidate, which: str) -> dict[str, float]
     loss on that window now (the form it lacks, the noise). The BIC falls once
     sum_w log(1 + E_w / R_w) exceeds k ln n; E grows as m^2 near "off", so each rung's E,
     scaled by the factor f that makes that sum the price, gives m sqrt(f), and the rung
-    whose sum is nearest the price decides (a slope: the median over its directions). Why (stop 59): the noise threshold measures an effect
-    against the replay floor, what a perfect model leaves; against another implementation's
+    whose sum is nearest the price decides (a slope: the median over its directions).
+    Why (stop 59): the noise threshold measures an effect against the replay floor, what a
+    perfect model leaves; against another implementation's
     logs the model leaves 4-20 x that, and an effect 3 x its noise threshold can be
     invisible (block 47700's torque cut of -0.61, case 47721: threshold 0.18, the cut
     itself bettering the training windows by 0.1 in sum of log ratios, against a price of
@@ -221,20 +227,13 @@ def detection_limit(ev: Evaluator, c: Candidate, which: str) -> dict[str, float]
             res = ev.run(c.to_ext(x), which)
         except (EffectError, SimulationError):
             continue
-        e = np.array(
-            [
-                float(
-                    np.sum(
-                        (rs.residual_vector([a], ev.scale) - rs.residual_vector([b], ev.scale)) ** 2
-                    )
-                )
-                for a, b in zip(res, ref, strict=True)
-            ]
-        )
+        e = np.array([_window_change(a, b, ev.scale) for a, b in zip(res, ref, strict=True)])
         q = np.nan_to_num(e) / r_ref
         d = float(np.sum(np.log1p(q)))
         if d > 0:
             # E_w scales as m^2: the factor on this rung's E whose sum pays the price exactly
+            if _price_gap(1e12, q, price) <= 0:  # a change too small to ever pay the price
+                continue
             f = optimize.brentq(_price_gap, 1e-12, 1e12, args=(q, price))
             groups.setdefault(key, []).append((mag, mag * math.sqrt(f), abs(math.log(d / price))))
     out = {}
