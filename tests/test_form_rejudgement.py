@@ -16,13 +16,11 @@ import numpy as np
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue
-from rover_env.calibration.diagnosis.form import (
+from rover_env.calibration.diagnosis.form import form_key, reprepare, with_anti_windup
+from rover_env.calibration.diagnosis.form_judge import (
     FORM_JOIN_BIC,
-    form_key,
     form_rejudgement,
     join_if_seen,
-    reprepare,
-    with_anti_windup,
 )
 from rover_env.calibration.diagnosis.judge import gain, p_improved
 from rover_env.calibration.diagnosis.state import FormFit, Options, Scored

@@ -146,10 +146,10 @@ def test_the_yaw_spring_form_sets_both_yaw_joints() -> None:
 
 @pytest.fixture(scope="module")
 def springs(tmp_path_factory: pytest.TempPathFactory) -> list[FormFit]:
-    """The yaw spring fitted on turning drives of the model itself at 10 N m/rad and of the
-    model with springs at 20."""
+    """The yaw spring fitted on turning drives of the model itself at 10 N m/rad, of the
+    model with springs at 20, and with springs at 100 (beyond the ladder's 40)."""
     out = []
-    for k in (10.0, 20.0):
+    for k in (10.0, 20.0, 100.0):
         truth = with_form(CFG, FormFit("yaw_spring", "N m/rad", 10.0, k, {}, 0, 1, 0, True))
         root = tmp_path_factory.mktemp(f"springs{k:.0f}")
         paths = make_logs(
@@ -171,3 +171,12 @@ def test_a_stiffer_yaw_spring_is_found(springs: list[FormFit]) -> None:
     stiff = springs[1]
     assert stiff.adopted and stiff.d_bic < 0, stiff
     assert 17.0 < stiff.value < 23.5, stiff.value  # 20: a ladder point
+
+
+def test_a_spring_beyond_the_ladder_is_reported_not_adopted(springs: list[FormFit]) -> None:
+    """The windows ask for more than the ladder's top: the best rung is that end, which the
+    stage reports (``at_end``) and does not adopt, since the form cannot supply it."""
+    beyond = springs[2]
+    assert beyond.value == max(SPRING_LADDER), beyond
+    assert beyond.d_bic < 0 and beyond.at_end and not beyond.adopted, beyond
+    assert not springs[1].at_end

@@ -91,7 +91,7 @@ class Fit:
     form_pad: tuple[float, float] = (0.0, 0.0)
     """One parameter: how far forms moved the interval beyond the chosen form's own (below,
     above): the candidate's own forms the windows cannot reject, and the model's forms
-    (:func:`~rover_env.calibration.diagnosis.form.join_form_interval`); carried by fits that keep the forms."""
+    (:func:`~rover_env.calibration.diagnosis.form_judge.join_form_interval`); carried by fits that keep the forms."""
     noise_se: Array | None = None
     """Per free variable: the uncertainty the sensor noise alone puts on it, scatter and
     bias in quadrature, from simulated noise draws
@@ -490,7 +490,7 @@ def stack_fits(held: Fit, added: Fit) -> Fit:
 def carry_form_pad(f: Fit, singles: list[Fit]) -> None:
     """Widen ``f``'s interval of each variable of a candidate whose single fit (one of
     ``singles``) was widened for a form (its own soil form, or the model's forms:
-    :func:`~rover_env.calibration.diagnosis.form.join_form_interval`) by that fit's :attr:`Fit.form_pad`: a fit with more effects
+    :func:`~rover_env.calibration.diagnosis.form_judge.join_form_interval`) by that fit's :attr:`Fit.form_pad`: a fit with more effects
     keeps the forms, and knows them no better than the single fit did."""
     i = 0
     for c in f.candidates:

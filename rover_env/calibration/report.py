@@ -558,6 +558,11 @@ def _model_form_line(
         change = 100 * f["training_gain"]
         words = f"{change:.1f} % better" if change >= 0 else f"{-change:.1f} % worse"
         verdict = "adopted" if f["adopted"] else "kept the nominal value"
+        if f.get("at_end"):
+            verdict += (
+                " (the end of the range tried: the windows ask for more than this form gives,"
+                " so something else must supply it)"
+            )
         if f.get("choices"):  # a choice (the anti-windup form): names, no unit
             fitted, nominal = f"{f['fitted']}", f"{f['nominal']}"
         else:

@@ -148,7 +148,7 @@ class Options:
     training drives at a lower BIC than the winner and the adopted form together (the
     form's parameters counted) and passes the held-out window test against the nominal
     model, the adopted forms are reverted and the diagnosis runs again without them
-    (:func:`.form.form_rejudgement`). Why: a form stage is judged before any effect, so it can
+    (:func:`.form_judge.form_rejudgement`). Why: a form stage is judged before any effect, so it can
     absorb part of one (stop 30, case 10005: a 17 ms command delay on the model's own logs;
     the conditional anti-windup form was adopted at dBIC -1.7, the delay fitted 5 ms under
     it and a lag was named; under the nominal form the delay fits 18.8 ms at dBIC -17)."""
@@ -198,6 +198,9 @@ class FormFit:
     """Whether diagnose uses ``value``: it differs from the nominal one and ``d_bic`` < 0."""
     labels: tuple[str, ...] = ()
     """A choice's names (``value`` and ``nominal`` index them), empty for a number."""
+    at_end: bool = False
+    """The best value is an open end of the form's ladder, so it is not adopted (the windows
+    ask for more than the form's range: :func:`.form._fit_ladder`)."""
 
     def text(self, x: float) -> str:
         """``x`` in words: a choice's name, or the number with its unit."""
@@ -223,6 +226,8 @@ class FormFit:
         }
         if self.labels:
             out["choices"] = list(self.labels)
+        if self.at_end:
+            out["at_end"] = True
         return out
 
 
