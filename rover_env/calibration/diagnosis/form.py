@@ -259,7 +259,7 @@ def _fit_ladder(
         best = nominal  # a tie (a bound the drives never reach) keeps the configuration's
     form = _judged(name, unit, nominal, best, tried, l0, losses[best], eps)
     ends = (min(ladder), max(ladder))
-    if best != nominal and any(o and best == e for o, e in zip(open_ends, ends, strict=True)):
+    if form.adopted and any(o and best == e for o, e in zip(open_ends, ends, strict=True)):
         form = replace(form, at_end=True, adopted=False)
     return form
 

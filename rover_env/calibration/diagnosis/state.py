@@ -199,8 +199,8 @@ class FormFit:
     labels: tuple[str, ...] = ()
     """A choice's names (``value`` and ``nominal`` index them), empty for a number."""
     at_end: bool = False
-    """The best value is an open end of the form's ladder, so it is not adopted (the windows
-    ask for more than the form's range: :func:`.form._fit_ladder`)."""
+    """The best value pays its BIC but is an open end of the form's ladder, so it is not
+    adopted (the windows ask for more than the form's range: :func:`.form._fit_ladder`)."""
 
     def text(self, x: float) -> str:
         """``x`` in words: a choice's name, or the number with its unit."""
