@@ -57,3 +57,29 @@ def test_the_report_tables_each_effect_s_threshold_beside_its_detection_limit() 
     assert "| torque_limit | + 44, - 0.178 | - 0.971 |" in text
     assert "combined_slip" not in text
     assert visibility_lines({}) == []
+
+
+def test_a_form_at_the_end_of_its_range_is_said_so() -> None:
+    """A form kept nominal because its best value is an open end of its ladder says why;
+    one kept nominal because it does not pay its BIC does not."""
+    from rover_env.calibration.diagnosis.state import FormFit
+    from rover_env.calibration.report import _model_form_line
+
+    def form(at_end: bool, d_bic: float) -> dict[str, object]:
+        f = FormFit(
+            "yaw_spring",
+            "N m/rad",
+            10.0,
+            40.0,
+            {10.0: 0.0, 40.0: -0.2},
+            0.17,
+            1e-8,
+            d_bic,
+            False,
+            at_end=at_end,
+        )
+        return f.as_json()
+
+    line = _model_form_line({"yaw_spring": form(True, -2.6)})
+    assert "the end of the range tried" in line and "40 N m/rad" in line, line
+    assert "end of the range" not in _model_form_line({"yaw_spring": form(False, 1.2)})
