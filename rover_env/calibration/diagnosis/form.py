@@ -1,8 +1,9 @@
-"""Stage 2, form, and every other piece of model-form logic: the model's own form, fitted
-before any effect (the joint sensors' zeros, the speed loop's anti-windup, the tire's
-relaxation length and low-speed slip floor), fitted again beside the named effect, and re-judged beside the effects
-(:func:`.form_judge.form_rejudgement`); a form's fit widens a named interval
-(:func:`.form_judge.join_form_interval`).
+"""Stage 2, form: the model's own form, fitted before any effect (the joint sensors' zeros,
+the speed loop's anti-windup, the tire's relaxation length, the yaw springs and the
+low-speed slip floor) and fitted again beside the named effect. Re-judging the forms beside
+the effects and joining a form's fit into a named interval live in :mod:`.form_judge`
+(:func:`.form_judge.form_rejudgement`, :func:`.form_judge.join_form_interval`); this module
+calls the re-judgement from :func:`judge_again`.
 
 These are this project's simulator's implementation choices, not part of the rover's
 definition (SPEC), and another implementation of the same rover makes them differently
