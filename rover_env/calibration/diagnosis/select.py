@@ -33,6 +33,7 @@ from rover_env.calibration.diagnosis.judge import (
     plugin_capable,
     score,
     screened,
+    trade_share,
     traded_signals,
     unexplained,
 )
@@ -244,7 +245,12 @@ def trades(d: Diagnosis, ch: list[Scored]) -> tuple[dict[str, dict[str, float]],
     else:
         floor = model_floor(d, ev.config(merge(*(s.fit.ext for s in ch))))
     left_c = unexplained(rs.table(rs.stack(held_c, d.prepared), floor), floor)
-    return traded_signals(d.base_held, held_c, left_c, d.opts.alpha, 1.0 + d.opts.min_gain), floor
+    worse = traded_signals(d.base_held, held_c, left_c, d.opts.alpha, 1.0 + d.opts.min_gain)
+    if worse:
+        share = trade_share(d.base_held, held_c, worse, floor)
+        for v in worse.values():
+            v["share"] = share
+    return worse, floor
 
 
 def settle(d: Diagnosis) -> None:
@@ -275,6 +281,7 @@ def settle(d: Diagnosis) -> None:
             + ", ".join(
                 f"{k} worse ({v['rms_ratio']:.2f}x RMS, p {v['p']:.2g})" for k, v in worse.items()
             )
+            + f" (lost {next(iter(worse.values()))['share']:.3g} of what the rest gained)"
             + ", left above its floor: an effect outside the catalogue may be standing"
             " behind it"
         )
