@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -183,6 +184,30 @@ def test_traded_signals_are_those_left_above_the_floor_and_made_worse() -> None:
     assert list(traded_signals(before, slight, ["theta_4"], 0.01)) == ["theta_4"]
     assert traded_signals(before, slight, ["theta_4"], 0.01, 1.1) == {}
     assert list(traded_signals(before, worse, ["theta_4"], 0.01, 1.1)) == ["theta_4"]
+
+
+def test_a_trade_is_weighed_against_what_the_other_signals_gained() -> None:
+    """The trade's share: what the traded signal lost over what the rest gained, each in
+    units of its floor. A wheel from 1 to 0.01 (floor 0.1) against a joint from 1e-4 to 2e-4
+    (floor 0.01): lost 1 per window, gained 99, share 1/99; gaining nothing is infinite."""
+    from rover_env.calibration.diagnosis.judge import trade_share
+    from rover_env.calibration.replay import SIGNALS, Window, WindowResult
+
+    def windows(wheel: float, joint: float) -> list:
+        resid = np.zeros((20, 11))
+        resid[:, 0] = np.sqrt(wheel) * np.resize([1.0, -1.0], 20)
+        resid[:, 9] = np.sqrt(joint) * np.resize([1.0, -1.0], 20)
+        none, pose = np.zeros(0, np.intp), np.zeros((0, 3))
+        return [
+            WindowResult(Window(0, i, i + 150), np.arange(20), resid, resid, none, pose, pose)
+            for i in range(12)
+        ]
+
+    floor = dict.fromkeys(SIGNALS, 1.0) | {"wheel_1L": 0.1, "theta_4": 0.01}
+    worse = {"theta_4": {"rms_ratio": 1.41, "p": 1e-4, "windows": 12}}
+    share = trade_share(windows(1.0, 1e-4), windows(0.01, 2e-4), worse, floor)
+    assert share == pytest.approx(1 / 99, rel=1e-9)
+    assert trade_share(windows(1.0, 1e-4), windows(1.0, 2e-4), worse, floor) == math.inf
 
 
 def test_a_pair_that_trades_keeps_its_winner_if_the_winner_alone_does_not() -> None:

@@ -201,8 +201,9 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
         f"{opts.tie_alpha:g} is reported as a tie. Second effect by forward selection under the same rules."
         " Named with confidence only if the chosen effects make no held-out signal they leave"
         " above its floor worse (per-window mean squares, one-sided Wilcoxon at p <"
-        f" {opts.alpha:g}): an effect that trades one signal for another stands in for"
-        " something outside the catalogue.",
+        f" {opts.alpha:g}) by at least {opts.trade_share:g} of what the other signals gain"
+        " (each in units of its floor): an effect that trades one signal for another stands"
+        " in for something outside the catalogue.",
         f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay, {result['seconds']:.0f} s in all.",
     ]
 
@@ -218,6 +219,15 @@ def _headline(
     named = result["named"]
     if named:
         L.append(f"**Named:** {' + '.join(named)} — {'; '.join(_phys(s) for s in chosen)}.")
+        ex = result.get("trade_excused")
+        if ex:
+            worse = ", ".join(f"{k} {v['rms_ratio']:.2f}x" for k, v in ex["worse"].items())
+            share = next(iter(ex["worse"].values()))["share"]
+            L.append(
+                f"\nIt makes {worse} worse (RMS before), signals left above their floor; they"
+                f" lost {share:.2g} of what the other signals gained, too little to stand for"
+                " an effect outside the catalogue. Read them as the model's form there."
+            )
     elif result.get("not_named"):
         nn = result["not_named"]
         worse = "; ".join(

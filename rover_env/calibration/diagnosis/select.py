@@ -250,6 +250,16 @@ def trades(d: Diagnosis, ch: list[Scored]) -> tuple[dict[str, dict[str, float]],
         share = trade_share(d.base_held, held_c, worse, floor)
         for v in worse.values():
             v["share"] = share
+        if share < d.opts.trade_share:
+            names = " + ".join(s.fit.name for s in ch)
+            d.say(
+                f"{names} makes {', '.join(worse)} worse, but the traded signals lost"
+                f" {share:.2g} of what the rest gained (under {d.opts.trade_share:g}):"
+                " not a trade that refuses the naming"
+            )
+            d.trade_excused = {"effects": names, "worse": worse}
+            return {}, floor
+    d.trade_excused = None
     return worse, floor
 
 

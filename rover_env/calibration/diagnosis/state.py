@@ -37,6 +37,14 @@ class Options:
     min_gain: float = 0.10
     """Smallest relative held-out improvement that can name an effect."""
     tie_alpha: float = 0.05
+    trade_share: float = 0.1
+    """A trade keeps an effect from being named only if the traded signals lost at least
+    this share of what the other signals gained (:func:`.judge.trade_share`, each signal in
+    units of its floor; 0: any trade). Why (issue 47): on another implementation's logs the
+    trade test refused right fits whose worsened joint lost a thousandth of what the wheels
+    gained (block 49000: a 0.10 s lag for 0.102, theta_4 1.15 x, share 0.0007; block 47600:
+    a torque limit, theta_4 1.63 x, share 0.0009), and the second generator's soil (k_phi 3e5,
+    fitted 3.05e5 [2.86e5, 5.36e5]; wheel_1L 1.18 x, share 0.012)."""
     numpy_every: int = 2
     """Numpy-only candidates are fitted on every n-th training window (they are ~20x slower)."""
     screen: bool = True
@@ -314,6 +322,9 @@ class Diagnosis:
     chosen: list[Scored] = field(default_factory=list)
     demoted: list[Scored] = field(default_factory=list)
     traded: dict[str, Any] | None = None
+    trade_excused: dict[str, Any] | None = None
+    """A trade too small to refuse the naming (:attr:`Options.trade_share`): what it made
+    worse, reported beside the named effects."""
     dropped: dict[str, Any] | None = None
     final_floor: dict[str, float] = field(default_factory=dict)
     # evidence (:mod:`.evidence_stage`)

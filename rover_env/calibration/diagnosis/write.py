@@ -123,6 +123,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "rotor_alternative": d.rotor,
         "rotor_profile": d.rotor_profile,
         "not_named": d.traded,
+        "trade_excused": d.trade_excused,
         "second_dropped": d.dropped,
         "model_form": None if not opts.model_form else {f.name: f.as_json() for f in d.forms},
         "model_form_reverted": opts.forms_reverted,
