@@ -15,13 +15,15 @@ from rover_env.config import RoverConfig
 from rover_env.generators.make_logs import make_logs
 
 
-@pytest.mark.slow  # ~100 s of one core: kept out of the default suite's 10 minutes
-def test_a_heavier_rover_is_not_named_friction_with_confidence(tmp_path: Path) -> None:
-    """Outside the catalogue: a rover 20 % heavier. Friction stands in for it (held-out
-    better) but the fit leaves the rocker joint theta_4 above its floor and worse in every
-    window (the sag of a heavier rover on its springs): nothing is named, the gap is reported
-    (issue 16: named "friction +15 %" in every matrix, stops 29-33). The same drives with a
-    real +15 % friction name it."""
+@pytest.mark.slow  # ~200 s of one core: kept out of the default suite's 10 minutes
+def test_a_heavier_rover_is_not_named_friction_on_drives_that_accelerate(tmp_path: Path) -> None:
+    """Outside the catalogue: a rover 20 % heavier. A tire feels friction times load, so on
+    the default test drives friction +18 % [17, 19] stands in for the mass, and since the
+    joint sensors' zeros are fitted (stop 54) the rocker's static sag is a zero, not a trade
+    (issue 16 had caught it by theta_4 made worse; stop 61 found that gone). The extra mass's
+    inertia is what friction cannot give: on the ``accel`` plan's hard accelerations and
+    reversals nothing is named, while a real +15 % friction on the same drives is named
+    with its interval covering."""
     from dataclasses import replace as dc_replace
 
     c = RoverConfig()
@@ -37,17 +39,16 @@ def test_a_heavier_rover_is_not_named_friction_with_confidence(tmp_path: Path) -
         forms_beside_winner=False,  # not this test's subject (suite time)
         noise_draws=0,
     )
-    paths = make_logs(tmp_path / "heavy", {}, drives=2, seed=41, duration=36.0,
+    paths = make_logs(tmp_path / "heavy", {}, drives=2, seed=41, duration=36.0, plan="accel",
                       truth_rover=heavy, progress=False)  # fmt: skip
     result = diagnose([str(p) for p in paths], tmp_path / "heavy_out", opts)
     assert result["named"] == [], result["named"]
-    assert result["not_named"] is not None and result["unexplained"]
-    assert set(result["not_named"]["worse"]) <= set(result["unexplained"])
-    assert "Nothing named with confidence" in (tmp_path / "heavy_out" / "report.md").read_text()
     paths = make_logs(tmp_path / "fric", {"friction": {"fraction": 0.15}}, drives=2, seed=41,
-                      duration=36.0, progress=False)  # fmt: skip
+                      duration=36.0, plan="accel", progress=False)  # fmt: skip
     result = diagnose([str(p) for p in paths], tmp_path / "fric_out", opts)
-    assert result["named"] == ["friction"] and result["not_named"] is None, result
+    assert result["named"] == ["friction"], result
+    _, lo, hi = result["final"]["friction"]["params"]["friction"]["fraction"]
+    assert lo < 0.15 < hi, (lo, hi)
 
 
 def test_a_partner_the_winner_hides_is_found_beside_it(tmp_path: Path) -> None:
