@@ -91,3 +91,49 @@ def untested_torque(first: dict[str, Any], resolution: float = 0.05) -> list[dic
         return []
     seen = "no cut" if thr is None else f"only cuts beyond {100 * thr:.0f} %"
     return [{"effect": "torque_limit", "plan": "accel", "reason": f"{seen} (backfilled)"}]
+
+
+TRADE_SHARE = 0.1
+"""Stop 61's rule (``Options.trade_share``): a trade refuses a naming only at this share."""
+
+
+def trades(result: dict[str, Any]) -> dict[str, Any]:
+    """What the trade test did in a diagnosis (its ``result.json``): ``excused``, the effects
+    named despite a small trade, and ``refused``, those left unnamed, each with the worsened
+    signals' RMS ratio and share (no share on rows of code before stop 61)."""
+
+    def brief(t: dict[str, Any] | None) -> dict[str, Any] | None:
+        if not t:
+            return None
+        worse = {
+            k: {"rms_ratio": v.get("rms_ratio"), "share": v.get("share")}
+            for k, v in t["worse"].items()
+        }
+        return {"effects": t["effects"], "worse": worse}
+
+    return {
+        "excused": brief(result.get("trade_excused")),
+        "refused": brief(result.get("not_named")),
+    }
+
+
+def trade_line(rows: list[dict[str, Any]]) -> str:
+    """How often the trade test refused a naming and how often stop 61's share excused one,
+    and whether the effect there was the truth."""
+
+    def effects(t: dict[str, Any]) -> set[str]:
+        e = t["effects"]
+        return set(e) if isinstance(e, list) else set(e.split(" + "))
+
+    def tally(key: str) -> str:
+        got = [r for r in rows if (r.get("trades") or {}).get(key)]
+        true = [r for r in got if effects(r["trades"][key]) & set(r.get("truth") or {})]
+        other = sum(r["kind"] in ("clean", "outside") for r in got)
+        return f"{len(got)} (the truth among its effects in {len(true)}; clean or outside {other})"
+
+    stored = sum("trades" in r for r in rows)
+    return (
+        f"- Trade test, in {stored} cases that stored it: a naming refused in {tally('refused')};"
+        f" a trade under {TRADE_SHARE:g} of what the rest gained excused (named) in"
+        f" {tally('excused')}"
+    )

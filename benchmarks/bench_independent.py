@@ -72,8 +72,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from _cells import fitted_cell, named_cell, params_cell
 from _report import write_report
-from _rules import evidence_line, rotor_line, strong_unconfirmed, untested_torque
+from _rules import (
+    evidence_line,
+    rotor_line,
+    strong_unconfirmed,
+    trade_line,
+    trades,
+    untested_torque,
+)
 from bench_diagnose import INERT_ON_SOIL, RANGES, covers, draw, finite, magnitude
 
 from rover_env.calibration.diagnose import Options, diagnose
@@ -342,6 +350,10 @@ def backfill(rows: list[dict[str, Any]], work: Path) -> None:
             r["strong_unconfirmed"] = strong_unconfirmed(json.loads(first.read_text()))
         if "untested" not in r and first.is_file():
             r["untested"] = untested_torque(json.loads(first.read_text()))
+        fu = work / r["case"] / "out_followup" / "result.json"
+        last = fu if fu.is_file() else first
+        if "trades" not in r and last.is_file():
+            r["trades"] = trades(json.loads(last.read_text()))
         if "named_fits" in r or not r.get("named"):
             continue
         for sub in ("out_followup", "out"):
@@ -416,6 +428,7 @@ def run_case(case: dict[str, Any], root: Path, workers: int = 1) -> dict[str, An
         "rotor_alternative": final.get("rotor_alternative"),
         "rotor_profile": final.get("rotor_profile"),
         "strong_unconfirmed": strong_unconfirmed(res),
+        "trades": trades(final),
     }
 
 
@@ -451,14 +464,6 @@ def _ratio(name: str, f: dict[str, Any] | None, key: str = "threshold") -> float
     if not f or not f.get(key):
         return None
     return magnitude(name, f["truth"]) / f[key]
-
-
-def _fitted(f: dict[str, Any]) -> str:
-    if f.get("value") is None or f.get("lo") is None or f.get("hi") is None:
-        return "—"
-    if f.get("side") == "upper":
-        return f"< {f['hi']:.3g}"
-    return f"{f['value']:.3g} [{f['lo']:.3g}, {f['hi']:.3g}]"
 
 
 def _within2(f: dict[str, Any] | None) -> bool:
@@ -566,32 +571,9 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
         f" {sum(bool(r['followup']) for r in ok)} of {len(ok)} cases",
         rotor_line(ok),
         evidence_line(ok),
+        trade_line(ok),
         f"- Cases that failed to run: {len(rows) - len(ok)}",
     ]
-
-
-def _named(r: dict[str, Any]) -> str:
-    """The named effects, each with its fitted parameters where the row has them."""
-    if not r["named"]:
-        return "—"
-    nf = r.get("named_fits") or {}
-
-    def one(name: str) -> str:
-        ps = nf.get(name)
-        if not ps:
-            return name
-        return (
-            name
-            + " ("
-            + "; ".join(f"{k} {v[0]:.3g} [{v[1]:.3g}, {v[2]:.3g}]" for k, v in ps.items())
-            + ")"
-        )
-
-    return ", ".join(one(n) for n in r["named"])
-
-
-def _params(p: dict[str, float]) -> str:
-    return ", ".join(f"{k} {v:.4g}" for k, v in p.items())
 
 
 def _effect_table(rows: list[dict[str, Any]], name: str) -> list[str]:
@@ -608,21 +590,21 @@ def _effect_table(rows: list[dict[str, Any]], name: str) -> list[str]:
     for r in _singles(rows, name):
         f = r["fits"].get(name) or {}
         x = _ratio(name, f)
-        truth = _params(r["truth"][name])
+        truth = params_cell(r["truth"][name])
         if r.get("equivalent"):
             truth += f" (and friction {r['equivalent']['friction']['fraction']:+.3f})"
-        fitted = _fitted(f)
+        fitted = fitted_cell(f)
         if f.get("heading"):
             fitted += f"; heading {f['heading'][0]:.0f}"
         thr = f"{f['threshold']:.3g}" if f.get("threshold") else "—"
         ratio = f"{x:.2f}" if x is not None else "—"
         det = f"{f['detectable']:.3g}" if f.get("detectable") else "—"
         cov = ("yes" if covers(f) else "no") if f.get("value") is not None else "—"
-        named = _named(r)
+        named = named_cell(r)
         plans = ", ".join(p["plan"] for p in r["followup"]) or "—"
         err = f" error: {r['error']}" if "error" in r else ""
         out.append(
-            f"| {r['seed']} | {_params(r['effects'][name])} | {truth} | {thr} | {ratio} |"
+            f"| {r['seed']} | {params_cell(r['effects'][name])} | {truth} | {thr} | {ratio} |"
             f" {det} | {named} | {fitted} | {cov} | {plans} |{err}"
         )
     return [*out, ""]
@@ -637,12 +619,12 @@ def _other_table(rows: list[dict[str, Any]], kind: str) -> list[str]:
     for r in rows:
         if r["kind"] != kind:
             continue
-        drawn = "; ".join(f"{n}: {_params(p)}" for n, p in r["effects"].items()) or "—"
-        fitted = "; ".join(f"{n} {_fitted(f)}" for n, f in r["fits"].items()) or "—"
+        drawn = "; ".join(f"{n}: {params_cell(p)}" for n, p in r["effects"].items()) or "—"
+        fitted = "; ".join(f"{n} {fitted_cell(f)}" for n, f in r["fits"].items()) or "—"
         secs = r["make_logs_s"] + r["diagnose_s"] + r["followup_s"]
         err = f" error: {r['error']}" if "error" in r else ""
         out.append(
-            f"| {r['seed']} | {drawn} | {_named(r)} | {fitted} |"
+            f"| {r['seed']} | {drawn} | {named_cell(r)} | {fitted} |"
             f" {', '.join(r['unexplained']) or '—'} | {' / '.join(r['tie'] or []) or '—'} |"
             f" {', '.join(p['plan'] for p in r['followup']) or '—'} | {secs:.0f} |{err}"
         )

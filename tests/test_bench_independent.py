@@ -271,9 +271,9 @@ def test_named_effects_keep_their_fits_for_the_false_alarm_tables(tmp_path: Path
     b.backfill([old, skip, gone], tmp_path)
     assert old["named_fits"] == got
     assert "named_fits" not in skip and "named_fits" not in gone
-    text = b._named(old)
+    text = b.named_cell(old)
     assert "rolling_resistance (c_rr 0.013 [0.01, 0.016])" in text
-    assert b._named(gone) == "slope" and b._named(skip) == "—"
+    assert b.named_cell(gone) == "slope" and b.named_cell(skip) == "—"
 
 
 def test_the_registered_evidence_rule_reads_the_first_diagnosis() -> None:
@@ -331,3 +331,23 @@ def test_the_torque_line_splits_reached_limits_from_unreached_ones(b: ModuleType
     (line,) = [x for x in b.acceptance(rows) if x.startswith("- Torque")]
     assert "reached (cut ≥ its threshold): named covering 1/2" in line
     assert "not reached: a torque drive proposed 1/2" in line
+
+
+def test_the_trade_line_counts_refused_and_excused_namings() -> None:
+    """Stop 61's trade share is scored from ``result.json``: a refused naming (``not_named``)
+    and an excused one (``trade_excused``), each against the case's truth."""
+    r = _load("_rules")
+    worse = {"theta_4": {"rms_ratio": 1.15, "p": 0.006, "windows": 16, "share": 0.0007}}
+    lag = r.trades({"trade_excused": {"effects": "command_lag", "worse": worse}})
+    assert lag["refused"] is None and lag["excused"]["worse"]["theta_4"]["share"] == 0.0007
+    soil = r.trades({"not_named": {"effects": ["loose_soil", "command_delay"], "worse": worse}})
+    rows = [
+        {"kind": "single", "truth": {"command_lag": {}}, "trades": lag},
+        {"kind": "single", "truth": {"loose_soil": {}}, "trades": soil},
+        {"kind": "clean", "truth": {}, "trades": lag},
+        {"kind": "clean", "truth": {}},
+    ]
+    line = r.trade_line(rows)
+    assert "in 3 cases that stored it" in line
+    assert "refused in 1 (the truth among its effects in 1; clean or outside 0)" in line
+    assert "excused (named) in 2 (the truth among its effects in 1; clean or outside 1)" in line
