@@ -471,3 +471,16 @@ def test_tasks_handed_out_longest_first_come_back_in_task_order() -> None:
     assert [s.fit.cost for s in out] == [0.0, 1.0, 2.0]
     assert [s.fit.ext["command_lag"]["tau"] for s in out] == [0.0, 0.01, 0.02]
     assert sorted(seen) == [0.0, 1.0, 2.0]
+
+
+@pytest.mark.parametrize("bad", ["-0.1", "nan", "tenth"])
+def test_a_bad_trade_share_is_refused_naming_the_flag(
+    bad: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--trade-share`` takes a share of 0 or more; anything else stops before any log is
+    read, with the flag and the value named."""
+    with pytest.raises(SystemExit) as exit_:
+        main(["diagnose", str(tmp_path / "none.csv"), "--out", str(tmp_path), "--trade-share", bad])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert "--trade-share" in err and bad in err, err

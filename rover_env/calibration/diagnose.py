@@ -49,6 +49,17 @@ from rover_env.logs import LogError
 __all__ = ["Options", "add_cli", "diagnose"]
 
 
+def _share(text: str) -> float:
+    """``--trade-share``: a share, 0 or more."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not v >= 0.0:  # also NaN
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text}")
+    return v
+
+
 def _cli(args: argparse.Namespace) -> int:
     st = ReplaySettings(window=args.window, burn_in=args.burn_in)
     opts = Options(
@@ -65,6 +76,7 @@ def _cli(args: argparse.Namespace) -> int:
         fit_free_gain=args.fit_free_gain,
         free_common=args.free_common,
         rotor_range=args.rotor_range,
+        trade_share=args.trade_share,
         fit_yaw_spring=args.fit_yaw_spring,
         fit_windup=args.fit_windup,
         screen=args.screen,
@@ -134,6 +146,15 @@ def add_cli(sub: Any) -> None:
         help="a named torque limit's interval holds its refits with the rotor inertia"
         f" (motor.armature) divided and multiplied by FACTOR (default {Options.rotor_range:g};"
         " 1: off; see Options.rotor_range)",
+    )
+    p.add_argument(
+        "--trade-share",
+        type=_share,
+        default=Options.trade_share,
+        metavar="SHARE",
+        help="an effect that makes signals left above their floor worse is named only if they"
+        f" lost less than SHARE of what the other signals gained (default {Options.trade_share:g};"
+        " 0: any such trade leaves it unnamed; see Options.trade_share)",
     )
     p.add_argument(
         "--fit-yaw-spring",
