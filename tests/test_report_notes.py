@@ -83,3 +83,14 @@ def test_a_form_at_the_end_of_its_range_is_said_so() -> None:
     line = _model_form_line({"yaw_spring": form(True, -2.6)})
     assert "the end of the range tried" in line and "40 N m/rad" in line, line
     assert "end of the range" not in _model_form_line({"yaw_spring": form(False, 1.2)})
+
+
+def test_a_small_trade_is_reported_beside_the_named_effect() -> None:
+    """A trade under the share (``trade_excused``) is said with its signals, their RMS
+    ratios and the share, so the user sees what the named effect made worse."""
+    from rover_env.calibration.report import trade_note
+
+    worse = {"theta_4": {"rms_ratio": 1.155, "p": 0.006, "windows": 16, "share": 0.0007}}
+    text = trade_note({"effects": "command_lag", "worse": worse})
+    assert text.startswith("command_lag takes signals left above their floor")
+    assert "theta_4 to 1.16 x their RMS before" in text and "lost 0.0007 of" in text

@@ -208,6 +208,18 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
     ]
 
 
+def trade_note(excused: dict[str, Any]) -> str:
+    """The paragraph on a trade too small to refuse the naming (:attr:`Options.trade_share`)."""
+    worse = ", ".join(f"{k} to {v['rms_ratio']:.2f} x" for k, v in excused["worse"].items())
+    share = next(iter(excused["worse"].values()))["share"]
+    return (
+        f"{excused['effects']} takes signals left above their floor further from the logs"
+        f" ({worse} their RMS before), but they lost {share:.2g} of what the other signals"
+        " gained (each in units of its floor): too little to stand for an effect outside the"
+        " catalogue. Read them as where the model's form differs from the rover's."
+    )
+
+
 def _headline(
     result: dict[str, Any],
     chosen: list[Scored],
@@ -219,15 +231,8 @@ def _headline(
     named = result["named"]
     if named:
         L.append(f"**Named:** {' + '.join(named)} — {'; '.join(_phys(s) for s in chosen)}.")
-        ex = result.get("trade_excused")
-        if ex:
-            worse = ", ".join(f"{k} {v['rms_ratio']:.2f}x" for k, v in ex["worse"].items())
-            share = next(iter(ex["worse"].values()))["share"]
-            L.append(
-                f"\nIt makes {worse} worse (RMS before), signals left above their floor; they"
-                f" lost {share:.2g} of what the other signals gained, too little to stand for"
-                " an effect outside the catalogue. Read them as the model's form there."
-            )
+        if result.get("trade_excused"):
+            L.append("\n" + trade_note(result["trade_excused"]))
     elif result.get("not_named"):
         nn = result["not_named"]
         worse = "; ".join(
