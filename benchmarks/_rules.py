@@ -1,6 +1,7 @@
 """Rules registered before a block scores them (docs/calibration/README.md): each reads what
 a case's ``result.json`` stored, so a block run with the code that registered it scores it
-without a rerun. The rotor rule is not applied by ``diagnose``; the evidence rule is, since
+without a rerun. Stop 57's rotor rule is not applied by ``diagnose`` (stop 62's rotor test
+is, and :func:`rotor_test_line` scores it); the evidence rule is, since
 stop 59 (``Options.strong_bic``), and on rows of that code lists only what the cap on
 drives (``Options.evidence``) left without one."""
 
@@ -37,6 +38,25 @@ def rotor_line(rows: list[dict[str, Any]]) -> str:
         "- Registered rotor rule (stop 57, not applied): a named torque limit withdrawn in "
         + "; ".join(parts)
         + f"; torque limits named by code before stop 57 (no comparison stored): {unrecorded}"
+    )
+
+
+def rotor_test_line(rows: list[dict[str, Any]]) -> str:
+    """Stop 62's rotor test as ``diagnose`` applied it (``Options.rotor_alpha``): the cases
+    where it withdrew a torque limit, on the first diagnosis or the final one, against the
+    truth, and the torque limits that stood it."""
+    stored = [r for r in rows if "rotor_withdrawn" in r]
+
+    def tally(got: list[dict[str, Any]]) -> str:
+        true = sum("torque_limit" in (r.get("truth") or {}) for r in got)
+        other = sum(r["kind"] in ("clean", "outside") for r in got)
+        return f"{len(got)} (true torque cuts {true}; clean or outside {other})"
+
+    withdrawn = [r for r in stored if any(r["rotor_withdrawn"])]
+    kept = [r for r in stored if "torque_limit" in r["named"]]
+    return (
+        f"- Rotor test (stop 62, applied), in {len(stored)} cases that stored it: a torque limit"
+        f" withdrawn in {tally(withdrawn)}; a torque limit named in the end in {tally(kept)}"
     )
 
 

@@ -77,6 +77,7 @@ from _report import write_report
 from _rules import (
     evidence_line,
     rotor_line,
+    rotor_test_line,
     strong_unconfirmed,
     trade_line,
     trades,
@@ -429,6 +430,7 @@ def run_case(case: dict[str, Any], root: Path, workers: int = 1) -> dict[str, An
         "rotor_profile": final.get("rotor_profile"),
         "strong_unconfirmed": strong_unconfirmed(res),
         "trades": trades(final),
+        "rotor_withdrawn": [x.get("rotor_withdrawn") for x in (res, final)],
     }
 
 
@@ -570,6 +572,7 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
         f" drives and diagnosis {med('followup_s'):.0f} s; a follow-up driven in"
         f" {sum(bool(r['followup']) for r in ok)} of {len(ok)} cases",
         rotor_line(ok),
+        rotor_test_line(ok),
         evidence_line(ok),
         trade_line(ok),
         f"- Cases that failed to run: {len(rows) - len(ok)}",

@@ -246,6 +246,28 @@ def test_the_registered_rotor_rule_reads_the_stored_comparison() -> None:
     assert "clean 1 of 1 named" in line
 
 
+def test_the_rotor_test_line_counts_withdrawals_against_the_truth() -> None:
+    """Stop 62's applied rotor test, scored from the rows: withdrawn on the first or the
+    final diagnosis, true cuts and clean cases told apart; rows of older code not counted."""
+    b = _load("_rules")
+    w = {"effects": ["torque_limit"], "p_torque_better": 0.4, "armature": 0.05}
+    rows = [
+        {"kind": "clean", "named": [], "truth": {}, "rotor_withdrawn": [w, None]},
+        {"kind": "single", "named": [], "truth": {"slope": {}}, "rotor_withdrawn": [None, w]},
+        {
+            "kind": "single",
+            "named": ["torque_limit"],
+            "truth": {"torque_limit": {"fraction": -0.5}},
+            "rotor_withdrawn": [None, None],
+        },
+        {"kind": "single", "named": ["torque_limit"], "truth": {}},  # older code
+    ]
+    line = b.rotor_test_line(rows)
+    assert "in 3 cases that stored it" in line
+    assert "withdrawn in 2 (true torque cuts 0; clean or outside 1)" in line
+    assert "named in the end in 1 (true torque cuts 1; clean or outside 0)" in line
+
+
 def test_named_effects_keep_their_fits_for_the_false_alarm_tables(tmp_path: Path) -> None:
     """A named effect that is not the truth (a clean case's false alarm) is listed with its
     fitted value and interval, from the row or, for older rows, the case's result.json."""

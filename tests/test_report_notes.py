@@ -94,3 +94,24 @@ def test_a_small_trade_is_reported_beside_the_named_effect() -> None:
     text = trade_note({"effects": "command_lag", "worse": worse})
     assert text.startswith("command_lag takes signals left above their floor")
     assert "theta_4 to 1.16 x their RMS before" in text and "lost 0.0007 of" in text
+
+
+def test_a_limit_the_rotor_test_withdrew_is_reported_as_not_named() -> None:
+    """The headline for stop 62's rotor test: nothing named, the rotor that did as well and
+    the p that the limit is better; the comparison sentence carries that p too."""
+    from rover_env.calibration.diagnosis.rotor import rotor_text
+    from rover_env.calibration.report import rotor_note
+
+    w = {"effects": ["torque_limit"], "p_torque_better": 0.42, "armature": 0.0707}
+    text = rotor_note(w, None)
+    assert text.startswith("**Nothing named with confidence.**")
+    assert "torque_limit" in text and "`motor.armature` 0.0707 kg m²" in text and "p 0.42" in text
+    alt = {
+        "armature_configured": 0.025,
+        "armature": 0.05,
+        "beside": ["slope"],
+        "rotor": {"train_gain": 0.1, "d_bic": -1.0, "held_gain": 0.2},
+        "torque_limit": {"train_gain": 0.1, "d_bic": -1.0, "held_gain": 0.2},
+        "p_torque_better": 0.31,
+    }
+    assert "slope kept as fitted" in rotor_text(alt) and "at p 0.31" in rotor_text(alt)

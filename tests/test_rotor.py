@@ -1,11 +1,14 @@
 """The rotor inertia fitted beside a named torque limit (``diagnosis.rotor``): on this
 project's own logs with a torque cut the stand-in is a heavier rotor, and it does not fit
-the training drives better than the truth; without a torque limit nothing is fitted. A
-named limit's interval is profiled over the rotor inertia's tolerance."""
+the training drives better than the truth, and the limit stands the rotor test; on logs of
+a rover whose rotor is twice the configured one and no cut, the cut that mimics it does not
+(stop 62); without a torque limit nothing is fitted. A named limit's interval is profiled
+over the rotor inertia's tolerance."""
 
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,13 +19,25 @@ from rover_env.calibration.diagnosis.rotor import (
     FACTORS,
     profile_rotor,
     rotor_alternative,
+    rotor_test,
     rotor_text,
+    with_armature,
 )
+from rover_env.calibration.diagnosis.select import rotor_check
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.fit import Fit
+from rover_env.config import load_rover
 from rover_env.generators.make_logs import make_logs
 
 CUT = {"torque_limit": {"fraction": -0.6}}
+
+
+def _through_floor(root: Path, paths: list[Path]) -> Diagnosis:
+    d = Diagnosis([str(p) for p in paths], root / "out", Options(progress=False, workers=1))
+    split.split(d)
+    form.fit_model_form(d)
+    floor.baseline(d)
+    return d
 
 
 @pytest.fixture(scope="module")
@@ -30,11 +45,20 @@ def cut_case(tmp_path_factory: pytest.TempPathFactory) -> Diagnosis:
     """The model's own 2 drives of 24 s under a torque cut of 60 %, through the floor stage."""
     root = tmp_path_factory.mktemp("rotor")
     paths = make_logs(root / "logs", CUT, drives=2, seed=6, duration=24.0, progress=False)
-    d = Diagnosis([str(p) for p in paths], root / "out", Options(progress=False, workers=1))
-    split.split(d)
-    form.fit_model_form(d)
-    floor.baseline(d)
-    return d
+    return _through_floor(root, paths)
+
+
+@pytest.fixture(scope="module")
+def heavy_rotor_case(tmp_path_factory: pytest.TempPathFactory) -> Diagnosis:
+    """The same drives of a rover whose reflected rotor is twice the configured one, no
+    cut (the independent generator's build against this configuration), through the floor."""
+    root = tmp_path_factory.mktemp("heavy_rotor")
+    nominal = load_rover("proto_explorer")
+    heavy = with_armature(nominal, 2.0 * nominal.motor.armature)
+    paths = make_logs(
+        root / "logs", {}, drives=2, seed=6, duration=24.0, progress=False, truth_rover=heavy
+    )
+    return _through_floor(root, paths)
 
 
 def named(d: Diagnosis, ext: dict) -> Scored:
@@ -56,6 +80,38 @@ def test_a_torque_cut_is_mimicked_by_a_heavier_rotor_not_better(cut_case: Diagno
     assert tq["d_bic"] < 0 and tq["train_gain"] > 0.5  # the truth explains the drives
     assert tq["train_gain"] >= rotor["train_gain"]  # and the stand-in not better
     assert "motor.armature" in rotor_text(alt)
+
+
+def test_a_true_cut_stands_the_rotor_test(cut_case: Diagnosis) -> None:
+    """The limit's held-out windows beat the best rotor in its place (stop 62's test), and
+    the test leaves the named effects as they are."""
+    d = cut_case
+    d.chosen = [named(d, CUT)]
+    assert rotor_test(d)
+    assert d.rotor is not None and d.rotor["p_torque_better"] < d.opts.rotor_alpha
+    rotor_check(d)
+    assert [c.name for s in d.chosen for c in s.fit.candidates] == ["torque_limit"]
+    assert d.rotor_withdrawn is None
+
+
+def test_a_heavier_rotor_s_stand_in_cut_is_withdrawn(heavy_rotor_case: Diagnosis) -> None:
+    """No cut, a rotor twice the configured one: the cut that gives the same accelerations
+    with the configured rotor (half the limit) does not beat the rotor in its place on the
+    held-out windows, so nothing is named; with the test off (rotor_alpha 1) it stays."""
+    d = heavy_rotor_case
+    stand_in = {"torque_limit": {"fraction": -0.5}}
+    d.opts = replace(d.opts, rotor_alpha=1.0)
+    d.chosen = [named(d, stand_in)]
+    assert rotor_test(d)  # off: the limit stands, the comparison is still made
+    d.opts = replace(d.opts, rotor_alpha=Options.rotor_alpha)
+    d.chosen = [named(d, stand_in)]
+    rotor_check(d)
+    assert d.rotor is not None and d.rotor["p_torque_better"] >= Options.rotor_alpha
+    assert d.rotor["armature"] > d.base.motor.armature
+    assert d.chosen == [] and [c.name for s in d.demoted for c in s.fit.candidates] == [
+        "torque_limit"
+    ]
+    assert d.rotor_withdrawn is not None and d.rotor_withdrawn["effects"] == ["torque_limit"]
 
 
 def test_nothing_fitted_without_a_torque_limit(cut_case: Diagnosis) -> None:

@@ -22,7 +22,8 @@ Steps (each printed as it runs):
    winner alone. The chosen effects are named with confidence only if they make no held-out
    signal that they leave above its floor worse, window by window
    (:func:`.diagnosis.judge.traded_signals`): one that trades a signal for another stands in
-   for an effect outside the catalogue.
+   for an effect outside the catalogue. A torque limit is named only if the held-out
+   windows favour it over the rotor inertia fitted in its place (:func:`.diagnosis.rotor.rotor_test`).
 6. Write the updated rover configuration (``rover.yaml``: the logs' rover plus the chosen
    effects with fitted values, loadable by RoverSim and the environments as it is), the
    held-out replay before/after, a Markdown report with figures (:mod:`.report`) and
@@ -47,6 +48,17 @@ from rover_env.executor import add_executor_args
 from rover_env.logs import LogError
 
 __all__ = ["Options", "add_cli", "diagnose"]
+
+
+def _p_level(text: str) -> float:
+    """``--rotor-alpha``: a p level above 0 and at most 1."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not 0.0 < v <= 1.0:  # also NaN
+        raise argparse.ArgumentTypeError(f"must be above 0 and at most 1, got {text}")
+    return v
 
 
 def _share(text: str) -> float:
@@ -77,6 +89,7 @@ def _cli(args: argparse.Namespace) -> int:
         free_common=args.free_common,
         rotor_range=args.rotor_range,
         trade_share=args.trade_share,
+        rotor_alpha=args.rotor_alpha,
         fit_yaw_spring=args.fit_yaw_spring,
         fit_windup=args.fit_windup,
         screen=args.screen,
@@ -146,6 +159,15 @@ def add_cli(sub: Any) -> None:
         help="a named torque limit's interval holds its refits with the rotor inertia"
         f" (motor.armature) divided and multiplied by FACTOR (default {Options.rotor_range:g};"
         " 1: off; see Options.rotor_range)",
+    )
+    p.add_argument(
+        "--rotor-alpha",
+        type=_p_level,
+        default=Options.rotor_alpha,
+        metavar="P",
+        help="a named torque limit stays named only if the held-out windows favour it over the"
+        f" rotor inertia (motor.armature) in its place at p < P (default {Options.rotor_alpha:g};"
+        " 1: off; see Options.rotor_alpha)",
     )
     p.add_argument(
         "--trade-share",

@@ -220,6 +220,21 @@ def trade_note(excused: dict[str, Any]) -> str:
     )
 
 
+def rotor_note(withdrawn: dict[str, Any], demoted: list[Scored] | None) -> str:
+    """Why a torque limit the rotor test withdrew is not named (:func:`.diagnosis.select.rotor_check`)."""
+    return (
+        f"**Nothing named with confidence.** The best fit, {' + '.join(withdrawn['effects'])}"
+        f" ({'; '.join(_phys(s) for s in demoted or [])}), improves the held-out drive, but a"
+        f" heavier or lighter rotor in the torque limit's place (`motor.armature`"
+        f" {withdrawn['armature']:.3g} kg m²) does as well there (p {_p(withdrawn['p_torque_better'])}"
+        " that the limit is better, window by window): these drives reach the limit only while"
+        " the wheels accelerate, where it is measured as the torque over the rotor inertia."
+        " The configuration is left as it was; the rotor inertia from the motor's and the"
+        " gearhead's data, or a drive that holds a motor at its limit without accelerating it,"
+        " decides."
+    )
+
+
 def _headline(
     result: dict[str, Any],
     chosen: list[Scored],
@@ -247,6 +262,8 @@ def _headline(
             " catalogue that trades one signal for another is standing in for something"
             " outside it (a mass, a spring, a tire stiffness); the configuration is left as it was."
         )
+    elif result.get("rotor_withdrawn"):
+        L.append(rotor_note(result["rotor_withdrawn"], demoted))
     else:
         L.append("**No candidate explains the gap significantly.**")
     if tie:
@@ -321,7 +338,8 @@ def write_report(d: Diagnosis) -> Path:
     L: list[str] = ["# Model-discrepancy diagnosis", ""]
     named = result["named"]
     L += _headline(result, d.chosen, d.demoted, d.tie)
-    L += _torque_note(named, base.motor.armature, d.rotor, d.rotor_profile)
+    withdrawn = (result.get("rotor_withdrawn") or {}).get("effects", [])
+    L += _torque_note(named or withdrawn, base.motor.armature, d.rotor, d.rotor_profile)
     L += [
         "",
         f"Main residual ({result['main_signal']}, largest held-out ratio to noise): RMS "

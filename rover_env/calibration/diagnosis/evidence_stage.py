@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 
 from rover_env.calibration import evidence, fit
-from rover_env.calibration.diagnosis.rotor import rotor_alternative, rotor_text
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.fit import Evaluator
 from rover_env.config import RoverConfig
@@ -24,9 +23,6 @@ def seek_evidence(d: Diagnosis) -> None:
     """Sets :attr:`Diagnosis.evidence`."""
     d.evidence = missing_evidence(d.ev, d.ranked, d.chosen, d.noise, d.base, d.opts, d.say)
     d.untested = untested_limit(d)
-    d.rotor = rotor_alternative(d)
-    if d.rotor is not None:
-        d.say(rotor_text(d.rotor))
 
 
 def missing_evidence(

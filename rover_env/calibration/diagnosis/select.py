@@ -6,7 +6,8 @@ drive that separates them, forward selection of a second effect beside the winne
 trade test (an effect that makes a signal it leaves above its floor worse is not named with
 confidence) and the named effects' finished intervals (signal groups' disagreement, sensor
 noise). Why one stage: each step can undo the one before (a second effect replaces the
-winner alone, a trade drops the second effect or names nothing).
+winner alone, a trade drops the second effect or names nothing, and a torque limit the rotor
+inertia explains as well names nothing).
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from rover_env.calibration.diagnosis.judge import (
     unexplained,
 )
 from rover_env.calibration.diagnosis.parallel import map_parallel
-from rover_env.calibration.diagnosis.rotor import profile_rotor
+from rover_env.calibration.diagnosis.rotor import profile_rotor, rotor_test
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
 from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
 from rover_env.calibration.fit import Evaluator, carry_form_pad, fit, stack_fits, widen_by_groups
@@ -70,7 +71,32 @@ def select(d: Diagnosis) -> None:
     d.tie = tie(d)
     forward_selection(d)
     settle(d)
+    rotor_check(d)
     finish_intervals(d)
+
+
+def rotor_check(d: Diagnosis) -> None:
+    """The rotor test (:func:`.rotor.rotor_test`): a named torque limit the rotor inertia
+    in its place explains as well on the held-out windows is not named with confidence, nor
+    is what was named with it (their fits were made beside it)."""
+    if rotor_test(d):
+        return
+    assert d.rotor is not None
+    names = [c.name for s in d.chosen for c in s.fit.candidates]
+    d.rotor_withdrawn = {
+        "effects": names,
+        "fits": {s.fit.name: fit_dict(s) for s in d.chosen},
+        "p_torque_better": d.rotor["p_torque_better"],
+        "armature": d.rotor["armature"],
+    }
+    d.say(
+        f"not named with confidence: {' + '.join(names)}; the rotor inertia"
+        f" {d.rotor['armature']:.3g} kg m² in the torque limit's place does as well on the"
+        f" held-out windows (p {d.rotor['p_torque_better']:.2g} that the limit is better)"
+    )
+    d.demoted, d.chosen = d.chosen, []
+    d.trade_excused = None
+    d.final_floor = d.noise
 
 
 def tie(d: Diagnosis) -> dict[str, Any] | None:

@@ -113,6 +113,12 @@ class Options:
     ``motor.armature`` divided and multiplied by it, and its interval holds theirs
     (:func:`.rotor.profile_rotor`; 1: off). Why (stop 59): the limit is measured as the
     torque over the rotor inertia, which a build's data give to about a factor 2."""
+    rotor_alpha: float = 0.05
+    """A named torque limit stays named only if the held-out windows favour it over the
+    rotor inertia in its place at this one-sided Wilcoxon p (:func:`.rotor.rotor_test`; 1:
+    off, the limit is named as before). Why (stop 62): a limit the drives reach only when
+    accelerating is measured as the torque over the rotor inertia, and a configured rotor
+    that is off reads as a cut (13 limits named on the independent generator, none right)."""
     model_form: bool = True
     """Fit the model's own form first, in this order: the joint sensors' zeros, the speed
     loop's anti-windup form, the tire's relaxation length, the yaw joints' springs and the
@@ -330,12 +336,14 @@ class Diagnosis:
     # evidence (:mod:`.evidence_stage`)
     evidence: list[dict[str, Any]] = field(default_factory=list)
     rotor: dict[str, Any] | None = None
+    """Beside a named torque limit, the rotor inertia fitted in its place (:mod:`.rotor`)."""
+    rotor_withdrawn: dict[str, Any] | None = None
+    """The effects the rotor test left unnamed (:func:`.select.rotor_check`)."""
     untested: list[dict[str, Any]] = field(default_factory=list)
     """Drives proposed for what the logs never tested (:func:`.evidence_stage.untested_limit`)."""
     rotor_profile: dict[str, Any] = field(default_factory=dict)
     """Per named torque-limit fit: its refits over the rotor inertia's tolerance
     (:func:`.rotor.profile_rotor`)."""
-    """Beside a named torque limit, the rotor inertia fitted in its place (:mod:`.rotor`)."""
     # write (:mod:`.write`)
     held_final: list[WindowResult] = field(default_factory=list)
     table_held_after: Table = field(default_factory=dict)
