@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+import tempfile
 from typing import Any
 
 import pytest
@@ -63,8 +64,12 @@ def _tiny(algo: str, **over: Any) -> AlgoConfig:
 
 @needs_cc
 @pytest.mark.parametrize("algo", ["ppo", "sac"])
-def test_profile_attributes_the_run_to_its_stages(algo: str) -> None:
+def test_profile_attributes_the_run_to_its_stages(
+    algo: str, tmp_path: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     p = profiling.profile_training(ENV, _tiny(algo), 16, warmup=8 if algo == "sac" else 0)
+    assert not list(tmp_path.glob("SB3-*"))  # no logger folder left in the temp dir
     assert p.steps == 16
     for stage in ("physics", "env Python (episodes)", "adapter + VecMonitor", "VecNormalize"):
         assert p.seconds[stage] > 0, stage

@@ -40,6 +40,7 @@ from typing import Any
 
 import torch
 from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.utils import set_random_seed
 from stable_baselines3.common.vec_env import (
@@ -242,6 +243,8 @@ def profile_training(
     try:
         vn = normalized(venv, cfg, training=True)
         model = build_model(cfg, vn)
+        # No output: left to itself, learn() opens a logger folder in the temp dir per call.
+        model.set_logger(Logger(None, []))
         model.action_space.seed(seed)
         if warmup > 0:
             model.learn(total_timesteps=warmup, reset_num_timesteps=False)
