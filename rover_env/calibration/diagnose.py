@@ -50,24 +50,24 @@ from rover_env.logs import LogError
 __all__ = ["Options", "add_cli", "diagnose"]
 
 
-def _p_level(text: str) -> float:
-    """``--rotor-alpha``: a p level above 0 and at most 1."""
+def _number(text: str) -> float:
+    """A command-line number, refused by argparse (naming the flag) if it is none."""
     try:
-        v = float(text)
+        return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not 0.0 < v <= 1.0:  # also NaN
+
+
+def _p_level(text: str) -> float:
+    """``--rotor-alpha``: a p level above 0 and at most 1."""
+    if not 0.0 < (v := _number(text)) <= 1.0:  # also NaN
         raise argparse.ArgumentTypeError(f"must be above 0 and at most 1, got {text}")
     return v
 
 
 def _share(text: str) -> float:
     """``--trade-share``: a share, 0 or more."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not v >= 0.0:  # also NaN
+    if not (v := _number(text)) >= 0.0:  # also NaN
         raise argparse.ArgumentTypeError(f"must be 0 or more, got {text}")
     return v
 
