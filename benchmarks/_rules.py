@@ -54,9 +54,15 @@ def rotor_test_line(rows: list[dict[str, Any]]) -> str:
 
     withdrawn = [r for r in stored if any(r["rotor_withdrawn"])]
     kept = [r for r in stored if "torque_limit" in r["named"]]
+    partner = [r for r in withdrawn if any((w or {}).get("kept") for w in r["rotor_withdrawn"])]
+    partner_right = sum(
+        any((w or {}).get("kept") in (r.get("truth") or {}) for w in r["rotor_withdrawn"])
+        for r in partner
+    )
     return (
         f"- Rotor test (stop 62, applied), in {len(stored)} cases that stored it: a torque limit"
-        f" withdrawn in {tally(withdrawn)}; a torque limit named in the end in {tally(kept)}"
+        f" withdrawn in {tally(withdrawn)}; its partner named alone (stop 63) in {len(partner)}"
+        f" ({partner_right} the truth); a torque limit named in the end in {tally(kept)}"
     )
 
 

@@ -261,10 +261,17 @@ def test_the_rotor_test_line_counts_withdrawals_against_the_truth() -> None:
             "rotor_withdrawn": [None, None],
         },
         {"kind": "single", "named": ["torque_limit"], "truth": {}},  # older code
+        {
+            "kind": "single",
+            "named": ["loose_soil"],
+            "truth": {"loose_soil": {"k_phi": 5e5}},
+            "rotor_withdrawn": [None, {**w, "kept": "loose_soil"}],
+        },
     ]
     line = b.rotor_test_line(rows)
-    assert "in 3 cases that stored it" in line
-    assert "withdrawn in 2 (true torque cuts 0; clean or outside 1)" in line
+    assert "in 4 cases that stored it" in line
+    assert "withdrawn in 3 (true torque cuts 0; clean or outside 1)" in line
+    assert "its partner named alone (stop 63) in 1 (1 the truth)" in line
     assert "named in the end in 1 (true torque cuts 1; clean or outside 0)" in line
 
 

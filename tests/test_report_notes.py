@@ -115,3 +115,18 @@ def test_a_limit_the_rotor_test_withdrew_is_reported_as_not_named() -> None:
         "p_torque_better": 0.31,
     }
     assert "slope kept as fitted" in rotor_text(alt) and "at p 0.31" in rotor_text(alt)
+    assert "refitted beside" not in rotor_text(alt)
+    alt["torque_limit_armature"] = 0.05
+    assert "the torque limit (refitted beside the rotor inertia 0.05 kg m²" in rotor_text(alt)
+
+
+def test_a_partner_named_alone_after_the_limit_s_withdrawal_is_explained() -> None:
+    """Stop 63: the limit withdrawn, its partner named from its own fit; the headline says
+    both, with the rotor and the p."""
+    from rover_env.calibration.report import rotor_kept_note
+
+    w = {"effects": ["loose_soil", "torque_limit"], "p_torque_better": 0.57, "armature": 0.1}
+    text = rotor_kept_note({**w, "kept": "loose_soil"})
+    assert text.startswith("A torque limit fitted beside loose_soil was not named")
+    assert "`motor.armature` 0.1 kg m²" in text and "p 0.57" in text
+    assert "loose_soil is named from its own fit" in text

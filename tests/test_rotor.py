@@ -25,7 +25,7 @@ from rover_env.calibration.diagnosis.rotor import (
 )
 from rover_env.calibration.diagnosis.select import rotor_check
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
-from rover_env.calibration.fit import Fit
+from rover_env.calibration.fit import Fit, fit
 from rover_env.config import load_rover
 from rover_env.generators.make_logs import make_logs
 
@@ -145,3 +145,122 @@ def test_a_named_limit_s_interval_holds_its_refits_over_the_rotor_tolerance(
     d.rotor_profile = {}
     d.opts = replace(d.opts, rotor_range=1.0)
     assert profile_rotor(d, named(d, CUT)) is None
+
+
+CUT40 = {"torque_limit": {"fraction": -0.4}}
+
+
+@pytest.fixture(scope="module")
+def heavy_rotor_cut_case(tmp_path_factory: pytest.TempPathFactory) -> Diagnosis:
+    """A rover whose rotor is twice the configured one *and* whose limit is cut by 40 %
+    (as the independent generator's case 50112: -0.42)."""
+    root = tmp_path_factory.mktemp("heavy_rotor_cut")
+    nominal = load_rover("proto_explorer")
+    heavy = with_armature(nominal, 2.0 * nominal.motor.armature)
+    paths = make_logs(
+        root / "logs", CUT40, drives=2, seed=6, duration=24.0, progress=False, truth_rover=heavy
+    )
+    return _through_floor(root, paths)
+
+
+def test_a_cut_beside_a_heavier_rotor_stands_at_that_rotor(
+    heavy_rotor_cut_case: Diagnosis,
+) -> None:
+    """Stop 63: the limit is tested at the rotor inertia its refits favour on the training
+    windows. The limit fitted with the configured rotor stands in for both (about -0.63);
+    refitted from there beside twice the rotor it comes out near the truth, the training
+    windows favour it, and it beats the best rotor alone on the held-out windows."""
+    d = heavy_rotor_cut_case
+    s = named(d, CUT40)
+    s.fit = fit(d.ev, catalogue(["torque_limit"]), "train")  # the magnitude-blind search
+    assert s.fit.x[0] < -0.5  # the stand-in for the cut and the rotor together
+    d.chosen = [s]
+    rotor_check(d)
+    assert d.rotor is not None
+    a0 = d.base.motor.armature
+    assert d.rotor["torque_limit_armature"] == pytest.approx(2.0 * a0)
+    assert d.rotor["torque_limit"]["train_gain"] > d.rotor["rotor"]["train_gain"]
+    assert d.rotor["p_torque_better"] < Options.rotor_alpha
+    assert d.chosen == [s] and d.rotor_withdrawn is None
+    assert "refitted beside the rotor inertia 0.05 kg m²" in rotor_text(d.rotor)
+
+
+def test_a_heavier_rotor_alone_stays_withdrawn_with_the_limit_refitted_beside_it(
+    heavy_rotor_case: Diagnosis,
+) -> None:
+    """No cut, a rotor twice the configured one: the limit refitted at that rotor explains
+    nothing the rotor alone does not, so the stand-in cut is still withdrawn."""
+    d = heavy_rotor_case
+    d.opts = replace(d.opts, rotor_alpha=Options.rotor_alpha)
+    d.rotor_withdrawn = None
+    s = named(d, {"torque_limit": {"fraction": -0.5}})
+    d.chosen = [s]
+    rotor_check(d)
+    assert d.rotor is not None and d.rotor["p_torque_better"] >= Options.rotor_alpha
+    assert d.chosen == [] and d.rotor_withdrawn is not None
+
+
+RR = {"rolling_resistance": {"c_rr": 0.05}}
+
+
+@pytest.fixture(scope="module")
+def rr_case(tmp_path_factory: pytest.TempPathFactory) -> Diagnosis:
+    """The model's own drives with rolling resistance 0.05, through the floor stage."""
+    root = tmp_path_factory.mktemp("rotor_rr")
+    paths = make_logs(root / "logs", RR, drives=2, seed=6, duration=24.0, progress=False)
+    return _through_floor(root, paths)
+
+
+def _pair(d: Diagnosis) -> Scored:
+    """A torque limit and rolling resistance named together (as forward selection would)."""
+    cands = catalogue(["rolling_resistance", "torque_limit"])
+    x = np.array([0.05, -0.5])
+    ext = {"rolling_resistance": {"c_rr": 0.05}, "torque_limit": {"fraction": -0.5}}
+    f = Fit(cands, x, x - 0.01, x + 0.01, np.full(2, 0.005), 1.0, 3, ext, 0.0, "train")
+    return Scored(f, 0.0, np.zeros(1), 0.5, 1e-4, -10.0, -10.0, len(d.train_w), significant=True)
+
+
+def _withdrawing(d: Diagnosis, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The rotor test made to withdraw whatever limit is named (its own tests are above)."""
+    from rover_env.calibration.diagnosis import select
+
+    def withdraw(dd: Diagnosis) -> bool:
+        dd.rotor = {"p_torque_better": 0.6, "armature": 2.0 * dd.base.motor.armature}
+        return False
+
+    monkeypatch.setattr(select, "rotor_test", withdraw)
+
+
+def test_a_withdrawn_limit_s_partner_named_alone_stays_named(
+    rr_case: Diagnosis, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Stop 63: the rotor test withdraws the limit of a pair; the partner's own single fit,
+    named by itself (significant, clear of off, trading nothing), is named instead of nothing."""
+    d = rr_case
+    _withdrawing(d, monkeypatch)
+    rr = named(d, RR)
+    rr.fit.x, rr.fit.ci_lo, rr.fit.ci_hi = np.array([0.05]), np.array([0.045]), np.array([0.055])
+    d.winner, d.ranked, d.chosen = rr, [rr], [_pair(d)]
+    d.w_floor = d.noise
+    rotor_check(d)
+    assert d.chosen == [rr]
+    assert d.rotor_withdrawn is not None and d.rotor_withdrawn["kept"] == "rolling_resistance"
+    assert d.rotor_withdrawn["effects"] == ["rolling_resistance", "torque_limit"]
+
+
+def test_a_withdrawn_limit_s_partner_not_named_alone_goes_with_it(
+    rr_case: Diagnosis, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The partner's single fit did not pass the window test (or was never fitted alone):
+    nothing is named, as before stop 63."""
+    d = rr_case
+    _withdrawing(d, monkeypatch)
+    rr = named(d, RR)
+    rr.significant = False
+    d.winner, d.ranked, d.chosen, d.rotor_withdrawn = None, [rr], [_pair(d)], None
+    rotor_check(d)
+    assert d.chosen == [] and d.rotor_withdrawn is not None
+    assert "kept" not in d.rotor_withdrawn
+    d.ranked, d.chosen = [], [_pair(d)]
+    rotor_check(d)
+    assert d.chosen == []

@@ -235,6 +235,16 @@ def rotor_note(withdrawn: dict[str, Any], demoted: list[Scored] | None) -> str:
     )
 
 
+def rotor_kept_note(withdrawn: dict[str, Any]) -> str:
+    """Why a torque limit fitted beside the named effect is not named with it."""
+    return (
+        f"A torque limit fitted beside {withdrawn.get('kept', 'it')} was not named: a heavier or"
+        f" lighter rotor in its place (`motor.armature` {withdrawn['armature']:.3g} kg m²) does"
+        f" as well on the held-out windows (p {_p(withdrawn['p_torque_better'])} that the limit is"
+        f" better). {withdrawn.get('kept', 'It')} is named from its own fit, without the limit."
+    )
+
+
 def _headline(
     result: dict[str, Any],
     chosen: list[Scored],
@@ -248,6 +258,8 @@ def _headline(
         L.append(f"**Named:** {' + '.join(named)} — {'; '.join(_phys(s) for s in chosen)}.")
         if result.get("trade_excused"):
             L.append("\n" + trade_note(result["trade_excused"]))
+        if result.get("rotor_withdrawn"):
+            L.append("\n" + rotor_kept_note(result["rotor_withdrawn"]))
     elif result.get("not_named"):
         nn = result["not_named"]
         worse = "; ".join(

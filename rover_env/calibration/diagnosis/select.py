@@ -78,7 +78,8 @@ def select(d: Diagnosis) -> None:
 def rotor_check(d: Diagnosis) -> None:
     """The rotor test (:func:`.rotor.rotor_test`): a named torque limit the rotor inertia
     in its place explains as well on the held-out windows is not named with confidence, nor
-    is what was named with it (their fits were made beside it)."""
+    is what was named with it (their fits were made beside it), unless that effect is named
+    by itself (:func:`partner_alone`)."""
     if rotor_test(d):
         return
     assert d.rotor is not None
@@ -97,6 +98,39 @@ def rotor_check(d: Diagnosis) -> None:
     d.demoted, d.chosen = d.chosen, []
     d.trade_excused = None
     d.final_floor = d.noise
+    kept = partner_alone(d, [n for n in names if n != "torque_limit"])
+    if kept is not None:
+        partner, d.final_floor = kept
+        d.rotor_withdrawn["kept"] = partner.fit.name
+        d.say(f"{partner.fit.name} stands alone (its own fit, without the limit): named")
+        d.chosen = [partner]
+
+
+def partner_alone(d: Diagnosis, partners: list[str]) -> tuple[Scored, dict[str, float]] | None:
+    """After the rotor test withdrew a torque limit named beside another effect: that
+    effect's own single fit and its model's floor, if it is named by itself (significant,
+    its interval clear of "off" with the replay's bias in it, no signal traded), else None.
+    Why (stop 63): withdrawing the whole choice lost a loose soil named beside the limit
+    (case 50126), which the limit, not the soil, made doubtful."""
+    if len(partners) != 1:
+        return None
+    singles = [s for s in d.ranked if [c.name for c in s.fit.candidates] == partners]
+    if not singles or not singles[0].significant:
+        return None
+    s = singles[0]
+
+    def correct(x: Scored) -> None:
+        if x is not d.winner:  # the winner's interval holds the bias already
+            ev = d.ev if x.fit_scale is None else replace(d.ev, scale=x.fit_scale)
+            bias_correct(ev, x, d.sensor_noise, d.st)
+
+    if first_confident([s], correct, lambda x: None, d.say) is None:
+        return None
+    worse, floor = trades(d, [s])
+    if worse:
+        d.say(f"{s.fit.name} alone trades {', '.join(worse)}: not named")
+        return None
+    return s, floor
 
 
 def tie(d: Diagnosis) -> dict[str, Any] | None:
