@@ -112,8 +112,9 @@ def limit_beside_rotor(
     independent generator's rotor is twice this configuration's), and a true cut of -0.42
     was withdrawn at p 0.94 (case 50112). On this project's own drives of a rover with twice
     the rotor and a 60 % cut the truth replays the training windows 63 % better than the
-    model, the best rotor alone 18 %, the limit alone 45 % (at its bound, -0.8), and a
-    magnitude-blind refit at twice the rotor stopped at +0.45 across the ridge."""
+    model, the best rotor alone 18 %, the limit alone with the configured rotor 45 % (at
+    -0.75), and a magnitude-blind refit at twice the rotor stopped at +0.45 across the
+    ridge; with a 40 % cut the refit from the ridge found -0.41."""
     out: dict[float, RoverConfig] = {}
     a0 = d.ev.base.motor.armature
     r = d.opts.rotor_range
