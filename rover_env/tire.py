@@ -31,6 +31,7 @@ __all__ = [
     "TireForces",
     "TireParams",
     "gim_magnitudes",
+    "lateral_factor",
     "lateral_slip",
     "normal_force",
     "slip_ratio",
@@ -48,7 +49,7 @@ ParamValue = float | FloatArray
 _X_FLOOR = 1e-300
 
 # Fields that are damping coefficients: zero damping is a legitimate (undamped) tire.
-_MAY_BE_ZERO = frozenset({"D_x", "D_y", "D_z", "k_re", "v_floor"})
+_MAY_BE_ZERO = frozenset({"D_x", "D_y", "D_z", "k_re", "v_floor", "lateral_split"})
 
 
 @dataclass(frozen=True, slots=True)
@@ -85,6 +86,20 @@ class TireParams:
     model form (:func:`rover_env.calibration.diagnosis.form.fit_slip_floor`). Hard ground only:
     on loose soil the soil's own floor (``rover_env.soil.V_EPS``) holds (tried in stop 30:
     a 5 cm/s floor there did not bring the two generators' soils closer)."""
+    lateral_split: float = 0.0
+    """How the transient form's lateral slip treats a spinning wheel. 0 (the default): the
+    lateral deflection relaxes at max(|v_x|, |v_w|, v_floor) / sigma_y, so in steady state
+    its slip is |v_y| / max(|v_x|, |v_w|): eq. (11) wherever v_x and v_w share a sign, a
+    blend where they do not. 1: eq. (11) for every sign, as SPEC writes it: the deflection
+    holds tan(alpha) (relaxing at max(|v_x|, v_floor) / sigma_y) and the force sees
+    (1 - |S|) of it while the wheel spins (S < 0 of :func:`slip_ratio`), all of it while it
+    skids. The two differ where a wheel turns against its hub's travel, as the driven
+    wheels do in a pivot: on a pivot after a straight the free wheels of segment 3 roll at
+    0.81 and 1.27 rad/s with 0 and 0.62 and 1.28 with 1, another implementation of SPEC
+    0.58 and 1.24 (stop 63). Hard ground only (the soil's lateral slip is tan(alpha)).
+    Diagnose does not choose it: on three of that implementation's logs with pivots it
+    replayed the free wheels closer and the yaw joints further, the training windows 13-35 %
+    worse (assets/README.md)."""
 
     def __post_init__(self) -> None:
         # Reject bad constants here, once, so the hot per-substep paths need no checks.
@@ -105,6 +120,8 @@ class TireParams:
                 raise ValueError(f"TireParams.{f.name} must be > 0, got {value!r}")
         if self.k_re > 1.0:
             raise ValueError(f"TireParams.k_re must be in [0, 1], got {self.k_re!r}")
+        if self.lateral_split not in (0.0, 1.0):
+            raise ValueError(f"TireParams.lateral_split must be 0 or 1, got {self.lateral_split!r}")
 
     def as_arrays(self, n: int | None = None) -> TireArrays:
         """Plain-number view for the hot path: floats, or shape-(n,) arrays if n is given."""
@@ -135,6 +152,7 @@ class TireArrays(NamedTuple):
     D_y: ParamValue
     k_re: ParamValue
     v_floor: ParamValue
+    lateral_split: ParamValue = 0.0
 
 
 def stack_params(params: Sequence[TireParams]) -> TireArrays:
@@ -319,6 +337,25 @@ def tire_forces(
 # ---------------------------------------------------------------------------------------
 
 
+LATERAL_FACTOR_MIN = 0.2
+"""With ``lateral_split`` 1, the lateral deflection stops growing at the critical slip over
+max(1 - |S|, this): a wheel that has lost its lateral grip to spinning does not wind up
+an unbounded deflection (at most 5 critical slips) that would hold it sideways long after
+it stops spinning."""
+
+
+def lateral_factor(v_x: npt.ArrayLike, v_w: npt.ArrayLike, params: Params) -> FloatArray:
+    """Share of the lateral deflection the force sees (``TireParams.lateral_split``):
+    1 - |S| while the wheel spins (S < 0, :func:`slip_ratio`), 1 while it skids, and 1
+    everywhere with the split off (0)."""
+    vx = np.asarray(v_x, dtype=np.float64)
+    split = np.asarray(params.lateral_split, dtype=np.float64) != 0.0
+    if not split.any():
+        return np.ones_like(vx)
+    s = slip_ratio(vx, v_w, params.v_eps)
+    return np.asarray(np.where(split & (s < 0.0), 1.0 - np.abs(s), 1.0), dtype=np.float64)
+
+
 def transient_step(
     u_x: npt.ArrayLike,
     u_y: npt.ArrayLike,
@@ -364,7 +401,12 @@ def transient_step(
     # Flooring x at a tiny positive number is the safe divisor: -expm1(-x) / x is 1 to
     # within x / 2, so phi = dt exactly at standstill (lambda = 0), no 0/0, no branch.
     x = np.maximum(speed * (dt / sx), _X_FLOOR)
-    y = np.maximum(speed * (dt / sy), _X_FLOOR)
+    split = np.asarray(params.lateral_split, dtype=np.float64) != 0.0
+    if split.any():  # eq. (11)'s tan(alpha): the hub's speed alone relaxes it
+        speed_y = np.where(split, np.maximum(np.abs(v_x), params.v_floor), speed)
+        y = np.maximum(speed_y * (dt / sy), _X_FLOOR)
+    else:
+        y = np.maximum(speed * (dt / sy), _X_FLOOR)
     em_x = np.expm1(-x)
     em_y = np.expm1(-y)
     ux_new = ux * (em_x + 1.0) - np.subtract(v_x, v_w) * (dt * em_x / x)
@@ -373,6 +415,8 @@ def transient_step(
     fz = np.maximum(F_z, 0.0)  # a negative F_z would invert the clamp below
     lim_x = sx * np.minimum(np.multiply(fz, mu_x) * (3.0 / params.C_s), 1.0)
     lim_y = np.multiply(fz, mu_y) * (3.0 * sy / params.C_alpha)
+    if split.any():
+        lim_y = lim_y / np.maximum(lateral_factor(v_x, v_w, params), LATERAL_FACTOR_MIN)
     ux_new = np.minimum(np.maximum(ux_new, -lim_x), lim_x)
     uy_new = np.minimum(np.maximum(uy_new, -lim_y), lim_y)
     return (
@@ -392,8 +436,12 @@ def transient_forces(
     params: Params,
     mu_x: npt.ArrayLike | None = None,
     mu_y: npt.ArrayLike | None = None,
+    lat_factor: npt.ArrayLike = 1.0,
 ) -> tuple[FloatArray, FloatArray]:
     """Ground-on-wheel (F_x, F_y) from the patch deflections of :func:`transient_step`.
+
+    ``lat_factor``: :func:`lateral_factor` of the same step (``TireParams.lateral_split``);
+    the lateral deflection and its rate count times it.
 
     The deflection stands in for the slip: kappa = |u_x| / sigma_x and S_alpha' =
     |u_y| / sigma_y go through the same Gim magnitudes, opposing the deflection, plus
@@ -405,9 +453,10 @@ def transient_forces(
     mu_y = params.mu_y if mu_y is None else mu_y
     fz = np.maximum(F_z, 0.0)  # a negative F_z would invert the friction bound
     mag_x, bound_x = _gim_magnitude(np.abs(u_x) / params.sigma_x, fz, mu_x, params.C_s)
-    mag_y, bound_y = _gim_magnitude(np.abs(u_y) / params.sigma_y, fz, mu_y, params.C_alpha)
+    uy = np.multiply(u_y, lat_factor)
+    mag_y, bound_y = _gim_magnitude(np.abs(uy) / params.sigma_y, fz, mu_y, params.C_alpha)
     f_x = -np.sign(u_x) * mag_x - np.multiply(params.D_x, u_x_dot)
-    f_y = -np.sign(u_y) * mag_y - np.multiply(params.D_y, u_y_dot)
+    f_y = -np.sign(uy) * mag_y - np.multiply(params.D_y, np.multiply(u_y_dot, lat_factor))
     return (
         np.asarray(np.minimum(np.maximum(f_x, -bound_x), bound_x), dtype=np.float64),
         np.asarray(np.minimum(np.maximum(f_y, -bound_y), bound_y), dtype=np.float64),

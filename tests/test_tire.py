@@ -23,6 +23,7 @@ from rover_env.tire import (
     TireForces,
     TireParams,
     gim_magnitudes,
+    lateral_factor,
     lateral_slip,
     normal_force,
     slip_ratio,
@@ -123,7 +124,7 @@ def test_params_error_message_format() -> None:
 
 @pytest.mark.parametrize("name", ALL_FIELDS)
 def test_params_zero_allowed_only_for_dampings(name: str) -> None:
-    if name in (*DAMPINGS, "k_re", "v_floor"):
+    if name in (*DAMPINGS, "k_re", "v_floor", "lateral_split"):
         assert getattr(TireParams(**{name: 0.0}), name) == 0.0
     else:
         with pytest.raises(ValueError, match=rf"TireParams\.{name} must be > 0, got 0.0"):
@@ -664,3 +665,39 @@ def test_patch_damping_adds_minus_d_times_rate() -> None:
     f_x, f_y = transient_forces(0.0, 0.0, rate, -rate, 27.0, undamped)
     np.testing.assert_array_equal(f_x, 0.0)
     np.testing.assert_array_equal(f_y, 0.0)
+
+
+def test_lateral_split_is_a_switch() -> None:
+    assert TireParams(lateral_split=1.0).lateral_split == 1.0
+    with pytest.raises(ValueError, match=r"TireParams\.lateral_split must be 0 or 1, got 0\.5"):
+        TireParams(lateral_split=0.5)
+
+
+@pytest.mark.parametrize(
+    ("v_x", "v_w"),
+    [(0.05, -0.12), (0.10, 0.14), (0.12, 0.05), (-0.04, 0.10), (0.10, -0.06)],
+    ids=["spins-against-travel", "spins", "skids", "spins-backward-hub", "turns-against-hub"],
+)
+def test_lateral_split_settles_on_eq_11_for_every_sign(v_x: float, v_w: float) -> None:
+    """With lateral_split 1 the transient form settles on SPEC's steady forces (eq. 11's
+    spin/skid split with tan(alpha) = v_y / v_x) for every sign of v_x and v_w; the default
+    form does only where they share a sign or the hub's speed dominates (stop 63: a pivot's
+    driven wheels turn against their hubs, faster)."""
+    v_y, delta = 0.01, 0.027
+    F_z = P.C_z * delta
+    split = dataclasses.replace(P, lateral_split=1.0)
+
+    def settled(params: TireParams) -> float:
+        ux = uy = np.zeros(1)
+        for _ in range(20000):  # 20 s of 1 ms steps: hundreds of relaxation times
+            ux, uy, uxd, uyd = transient_step(ux, uy, v_x, v_y, v_w, F_z, 1e-3, params)
+        lat = lateral_factor(v_x, v_w, params)
+        return float(transient_forces(ux, uy, uxd, uyd, F_z, params, lat_factor=lat)[1][0])
+
+    want = tire_forces(v_x, v_y, v_w, delta, 0.0, split).F_y
+    assert abs(float(want)) > 0.0 or v_w * v_x < 0  # a lateral force to compare (or none: spun)
+    np.testing.assert_allclose(settled(split), want, rtol=1e-6, atol=1e-9)
+    if np.sign(v_x) != np.sign(v_w) and abs(v_w) > abs(v_x):  # the wheel's speed dominates
+        assert abs(settled(P) - float(want)) > 0.05 * abs(float(want)) + 1e-3
+    else:  # both forms divide by the hub's speed or agree on eq. (11)
+        np.testing.assert_allclose(settled(P), want, rtol=1e-6, atol=1e-9)

@@ -279,3 +279,21 @@ def test_env_estimate_tracks_the_true_speed_driving_straight(env_run: dict) -> N
     v_est = float(obs[k, 0, OBS_NAMES.index("speed_estimate")])
     assert v_true > 0.15 and abs(v_est - v_true) < 0.02 * v_true, (v_est, v_true)
     assert np.abs(obs[k, 0, 34:38]).max() < 0.03
+
+
+def test_warp_lateral_split_pivot_equals_c_plugin() -> None:
+    """TireParams.lateral_split (eq. 11 for every sign, stop 63) in Warp as in the C
+    plugin: 1 s straight, then a 2 s pivot, where the driven wheels turn against their hubs."""
+    cfg = dataclasses.replace(CFG, tire=dataclasses.replace(CFG.tire, lateral_split=1.0))
+    ws = WarpRoverSim(1, rover=cfg, terrain="flat", device="cpu", contacts=False)
+    cs = RoverSim(cfg, "flat", backend="plugin", contacts=False, sensors=False)
+    plain = RoverSim(CFG, "flat", backend="plugin", contacts=False, sensors=False)
+    for targets, n in ((np.full(4, 2.45), 1000), (np.array([-1.5, 1.5, -1.5, 1.5]), 2000)):
+        ws.set_speed_targets(targets[None, :])
+        ws.step(n)
+        for sim in (cs, plain):
+            sim.set_speed_targets(targets)
+            sim.step(n)
+    pos_w = ws.d.qpos.numpy()[0, :3].astype(np.float64)
+    assert np.abs(pos_w - cs.data.qpos[:3]).max() < TOL["pos"]
+    assert np.abs(plain.data.qpos[:3] - cs.data.qpos[:3]).max() > 10 * TOL["pos"]  # it matters

@@ -186,7 +186,10 @@ class TireLayer:
         self.u_x, self.u_y, ux_dot, uy_dot = tire.transient_step(
             self.u_x, self.u_y, v_x, v_y, v_w, F_z, self.dt, tp, mu_x, mu_y
         )
-        F_x, F_y = tire.transient_forces(self.u_x, self.u_y, ux_dot, uy_dot, F_z, tp, mu_x, mu_y)
+        lat = tire.lateral_factor(v_x, v_w, tp)
+        F_x, F_y = tire.transient_forces(
+            self.u_x, self.u_y, ux_dot, uy_dot, F_z, tp, mu_x, mu_y, lat_factor=lat
+        )
         for e in self.effects:
             F_x, F_y = e.forces(F_x, F_y, F_z, mu_x, mu_y)
         n = len(self.bodies)

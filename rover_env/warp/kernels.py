@@ -24,6 +24,8 @@ import warp as wp
 
 # tire parameter indices (TireParams field order)
 MU_X, MU_Y, C_S, C_ALPHA, C_Z, D_Z, V_EPS, SIGMA_X, SIGMA_Y, D_X, D_Y, K_RE, V_FLOOR = range(13)
+LAT_SPLIT = 13
+LATERAL_FACTOR_MIN = 0.2  # rover_env.tire.LATERAL_FACTOR_MIN
 # soil parameter indices (SoilParams.numbers() order)
 S_C, S_PHI, S_KC, S_KPHI, S_N0, S_N1, S_KX, S_KY, S_A0, S_A1, S_LAM, S_DAMP, S_KDIG = range(13)
 S_MEMORY, S_SIGMA = 14, 15

@@ -21,6 +21,8 @@ from rover_env.warp.kernels import (
     D_Z,
     DEG_TO_RAD,
     K_RE,
+    LAT_SPLIT,
+    LATERAL_FACTOR_MIN,
     RUT_WRITE_EVERY,
     S_DAMP,
     S_KDIG,
@@ -32,6 +34,7 @@ from rover_env.warp.kernels import (
     SOIL_MAX_TAN_BETA,
     SOIL_V_BLEND,
     SOIL_V_EPS,
+    V_EPS,
     V_FLOOR,
     X_FLOOR,
     expm1,
@@ -46,9 +49,9 @@ from rover_env.warp.kernels import (
     wheel_contact,
 )
 
-# indices into the layer's parameter row after the 13 tire numbers
-P_RADIUS, P_WIDTH, P_MAX_ERR, P_COND, P_KI, P_KD, P_TAU, P_STALL, P_W0, P_DT = range(13, 23)
-NPAR = 23
+# indices into the layer's parameter row after the 14 tire numbers
+P_RADIUS, P_WIDTH, P_MAX_ERR, P_COND, P_KI, P_KD, P_TAU, P_STALL, P_W0, P_DT = range(14, 24)
+NPAR = 24
 
 
 @wp.kernel
@@ -130,8 +133,21 @@ def hard_ground(
     sx = par[SIGMA_X]
     sy = par[SIGMA_Y]
     speed = wp.max(wp.max(wp.abs(v_x), wp.abs(v_w)), par[V_FLOOR])
+    split = par[LAT_SPLIT] != 0.0  # TireParams.lateral_split
+    speed_y = speed
+    lat = float(1.0)  # tire.lateral_factor
+    if split:
+        speed_y = wp.max(wp.abs(v_x), par[V_FLOOR])
+        total = v_x + v_w
+        direction = np_sign(total)
+        if total == 0.0:
+            direction = np_sign(v_x)
+        den = wp.max(wp.max(wp.abs(v_x), wp.abs(v_w)), par[V_EPS])
+        s_r = wp.min(wp.max(direction * (v_x - v_w) / den, -1.0), 1.0)
+        if s_r < 0.0:
+            lat = 1.0 - wp.abs(s_r)
     x = wp.max(speed * (dt / sx), X_FLOOR)
-    y = wp.max(speed * (dt / sy), X_FLOOR)
+    y = wp.max(speed_y * (dt / sy), X_FLOOR)
     em_x = expm1(-x)
     em_y = expm1(-y)
     ux_new = ux * (em_x + 1.0) - (v_x - v_w) * (dt * em_x / x)
@@ -141,14 +157,17 @@ def hard_ground(
     three_over_ca = 3.0 / par[C_ALPHA]
     lim_x = sx * wp.min((fz * mu_x) * three_over_cs, 1.0)
     lim_y = (fz * mu_y) * (3.0 * sy / par[C_ALPHA])
+    if split:
+        lim_y = lim_y / wp.max(lat, LATERAL_FACTOR_MIN)
     ux_new = wp.min(wp.max(ux_new, -lim_x), lim_x)
     uy_new = wp.min(wp.max(uy_new, -lim_y), lim_y)
     ux_dot = (ux_new - ux) / dt
     uy_dot = (uy_new - uy) / dt
     mag_x = gim_magnitude(wp.abs(ux_new) / sx, fz, mu_x, three_over_cs)
-    mag_y = gim_magnitude(wp.abs(uy_new) / sy, fz, mu_y, three_over_ca)
+    uy_seen = uy_new * lat
+    mag_y = gim_magnitude(wp.abs(uy_seen) / sy, fz, mu_y, three_over_ca)
     f_x = -np_sign(ux_new) * mag_x - par[D_X] * ux_dot
-    f_y = -np_sign(uy_new) * mag_y - par[D_Y] * uy_dot
+    f_y = -np_sign(uy_seen) * mag_y - par[D_Y] * (uy_dot * lat)
     bx = mu_x * fz
     by = mu_y * fz
     return wp.vec4(ux_new, uy_new, wp.min(wp.max(f_x, -bx), bx), wp.min(wp.max(f_y, -by), by))

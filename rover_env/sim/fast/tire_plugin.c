@@ -96,7 +96,8 @@
 #include <mujoco/mujoco.h>
 
 #define PLUGIN_NAME "rover_env.tire"
-#define NTIRE 13
+#define NTIRE 14
+#define LATERAL_FACTOR_MIN 0.2  // rover_env.tire.LATERAL_FACTOR_MIN
 #define TERRAIN_VERSION 3
 #define TERRAIN_HEADER 19
 #define WAVE_STRIDE 5
@@ -121,7 +122,8 @@
 #define SCHED_ROWS 64         // rover_env.sim.fast.plugin.SCHEDULE_ROWS
 
 // tire parameter indices (TireParams field order)
-enum { MU_X, MU_Y, C_S, C_ALPHA, C_Z, D_Z, V_EPS, SIGMA_X, SIGMA_Y, D_X, D_Y, K_RE, V_FLOOR };
+enum { MU_X, MU_Y, C_S, C_ALPHA, C_Z, D_Z, V_EPS, SIGMA_X, SIGMA_Y, D_X, D_Y, K_RE, V_FLOOR,
+       LAT_SPLIT };
 
 // truth block field offsets, in units of nw
 enum { T_VX = 0, T_VY = 1, T_VW = 2, T_FX = 3, T_FY = 4, T_FZ = 5, T_DELTA = 6,
@@ -200,6 +202,14 @@ static inline double np_min(double a, double b) { return (a <= b || isnan(a)) ? 
 static inline int sign_of(double x) { return (x > 0) - (x < 0); }
 static inline double np_sign(double a) {
   return a > 0.0 ? 1.0 : (a < 0.0 ? -1.0 : (a == 0.0 ? 0.0 : a));
+}
+
+// tire.slip_ratio: sign(v_x + v_w) (v_x - v_w) / max(|v_x|, |v_w|, v_eps) in [-1, 1]
+static double slip_ratio(double vx, double vw, double v_eps) {
+  double total = vx + vw;
+  double dir = np_sign(total == 0.0 ? vx : total);
+  double den = np_max(np_max(fabs(vx), fabs(vw)), v_eps);
+  return np_min(np_max(dir*(vx - vw)/den, -1.0), 1.0);
 }
 
 // numpy's pairwise summation (add.reduce of a contiguous double array)
@@ -954,7 +964,7 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
     return fail(c, "config 'anti_windup' must be \"clamp\" or \"conditional\", got: ", aw);
   }
   if (!parse_numbers(config(m, instance, "tire"), c->tire, NTIRE)) {
-    return fail(c, "config 'tire' must hold the 11 TireParams numbers", NULL);
+    return fail(c, "config 'tire' must hold the 14 TireParams numbers", NULL);
   }
   const char* eff = config(m, instance, "effects");
   double ev[4] = {0.0, 0.0, 1.0, 1.0};
@@ -1153,15 +1163,23 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
     double ux_new = 0.0, uy_new = 0.0, F_x = 0.0, F_y = 0.0;
     if (soil == 0) {  // hard ground (a soil wheel's Gim forces would be discarded)
     double speed = np_max(np_max(fabs(v_x), fabs(v_w)), tp[V_FLOOR]);  // TireParams.v_floor
+    const int split = tp[LAT_SPLIT] != 0.0;  // TireParams.lateral_split: eq. (11) as SPEC
+    double speed_y = split ? np_max(fabs(v_x), tp[V_FLOOR]) : speed;
     double x = np_max(speed*dt_sx, X_FLOOR);
-    double y = np_max(speed*dt_sy, X_FLOOR);
+    double y = np_max(speed_y*dt_sy, X_FLOOR);
     double em_x = expm1(-x);
     double em_y = y == x ? em_x : expm1(-y);  // sigma_x == sigma_y by default: one call
     ux_new = ux*(em_x + 1.0) - (v_x - v_w)*(dt*em_x/x);
     uy_new = uy*(em_y + 1.0) - v_y*(dt*em_y/y);
+    double lat = 1.0;  // tire.lateral_factor
+    if (split) {
+      double s_r = slip_ratio(v_x, v_w, tp[V_EPS]);
+      if (s_r < 0.0) lat = 1.0 - fabs(s_r);
+    }
     double fz = np_max(F_z, 0.0);
     double lim_x = sx*np_min((fz*mu_x)*c->three_over_cs, 1.0);
     double lim_y = (fz*mu_y)*c->three_sy_over_calpha;
+    if (split) lim_y = lim_y/np_max(lat, LATERAL_FACTOR_MIN);
     ux_new = np_min(np_max(ux_new, -lim_x), lim_x);
     uy_new = np_min(np_max(uy_new, -lim_y), lim_y);
     double ux_dot = (ux_new - ux)/dt;
@@ -1170,9 +1188,10 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
     // tire.transient_forces
     double bound_x, bound_y;
     double mag_x = gim_magnitude(fabs(ux_new)/sx, fz, mu_x, c->three_over_cs, &bound_x);
-    double mag_y = gim_magnitude(fabs(uy_new)/sy, fz, mu_y, c->three_over_calpha, &bound_y);
+    double uy_seen = uy_new*lat;
+    double mag_y = gim_magnitude(fabs(uy_seen)/sy, fz, mu_y, c->three_over_calpha, &bound_y);
     double f_x = -np_sign(ux_new)*mag_x - tp[D_X]*ux_dot;
-    double f_y = -np_sign(uy_new)*mag_y - tp[D_Y]*uy_dot;
+    double f_y = -np_sign(uy_seen)*mag_y - tp[D_Y]*(uy_dot*lat);
     F_x = np_min(np_max(f_x, -bound_x), bound_x);
     F_y = np_min(np_max(f_y, -bound_y), bound_y);
     if (c->combined_on != 0.0) {  // effects.CombinedSlip.forces: the friction ellipse
