@@ -125,6 +125,7 @@ class TireLayer:
         # Each soil's memory by soil index (0: hard ground, never written), looked up per substep.
         self._memory = np.array([0.0, *(sp.memory for sp in terrain.soils)])
         self.params = params
+        self._lateral_split = bool(np.any(np.asarray(params.lateral_split) != 0.0))
         self.effects = list(effects)
         self.dt = float(model.opt.timestep)
         n = len(self.bodies)
@@ -186,7 +187,8 @@ class TireLayer:
         self.u_x, self.u_y, ux_dot, uy_dot = tire.transient_step(
             self.u_x, self.u_y, v_x, v_y, v_w, F_z, self.dt, tp, mu_x, mu_y
         )
-        lat = tire.lateral_factor(v_x, v_w, tp)
+        # eq. (11)'s split (TireParams.lateral_split): off by default, not computed then
+        lat = tire.lateral_factor(v_x, v_w, tp) if self._lateral_split else 1.0
         F_x, F_y = tire.transient_forces(
             self.u_x, self.u_y, ux_dot, uy_dot, F_z, tp, mu_x, mu_y, lat_factor=lat
         )
