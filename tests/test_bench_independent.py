@@ -156,13 +156,15 @@ def test_a_proposal_becomes_the_rows_drive_plan_writes(b: ModuleType) -> None:
     assert np.array_equal(s.at(np.array([0.0, 0.02, 19.99])), cmd[[0, 1, -2]])
 
 
+@pytest.mark.parametrize("untested", [False, True])
 def test_run_case_drives_every_proposal_with_the_same_rover(
-    b: ModuleType, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    b: ModuleType, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, untested: bool
 ) -> None:
     """The case's plumbing, with a stand-in for diagnose (the matrix runs the real one): the
     first report proposes a tie's drive and an evidence drive; both are driven by the same
     build (truth.yaml's nuisance) as drives 3 and 4 of 1 s logs, the second diagnosis gets all
-    five logs, and the row carries its named effects and the fit against the truth."""
+    five logs, and the row carries its named effects and the fit against the truth. The
+    untested-limit drive is recorded, and driven (drive 5, six logs) only with ``untested``."""
     calls: list[list[str]] = []
 
     def fake(paths: list[str], out: Path, opts: object) -> dict[str, object]:
@@ -192,8 +194,12 @@ def test_run_case_drives_every_proposal_with_the_same_rover(
                     "separates": True,
                 }
             ],
-            # recorded, never driven: it would make the held-out drive a hard acceleration
-            "untested": [] if second else [{"effect": "torque_limit", "plan": "steps", "why": "z"}],
+            # recorded; driven only with untested=True (--untested)
+            "untested": []
+            if second
+            else [
+                {"effect": "torque_limit", "plan": "steps", "seed": 0, "duration": 1.0, "why": "z"}
+            ],
             "main_signal": "wheel_1L",
             "main_reduction": 0.5,
             "unexplained": [] if second else ["wheel_1L"],
@@ -207,16 +213,20 @@ def test_run_case_drives_every_proposal_with_the_same_rover(
     monkeypatch.setattr(b, "diagnose", fake)
     monkeypatch.setattr(b, "DURATION", 1.0)
     case = next(c for c in b.cases() if c["kind"] == "single" and "torque_limit" in c["effects"])
-    row = b.run_case(case, tmp_path)
-    assert [len(c) for c in calls] == [3, 5]
-    assert [Path(p).name for p in calls[1][3:]] == ["drive_03.csv", "drive_04.csv"]
+    row = b.run_case(case, tmp_path, untested=untested)
+    plans = ["accel", "reversals", *(["steps"] if untested else [])]
+    assert [len(c) for c in calls] == [3, 3 + len(plans)]
+    assert [Path(p).name for p in calls[1][3:]] == [
+        f"drive_0{3 + j}.csv" for j in range(len(plans))
+    ]
     d = tmp_path / b.tag(case)
     builds = [
         json.dumps(yaml.safe_load((d / f).read_text())["nuisance"])
-        for f in ("logs/truth.yaml", "followup_0/truth.yaml", "followup_1/truth.yaml")
+        for f in ("logs/truth.yaml", *(f"followup_{j}/truth.yaml" for j in range(len(plans))))
     ]
-    assert builds[0] == builds[1] == builds[2]
-    assert [p["plan"] for p in row["followup"]] == ["accel", "reversals"]
+    assert len(set(builds)) == 1 and len(builds) == 1 + len(plans)
+    assert [p["plan"] for p in row["followup"]] == plans
+    assert row["untested_driven"] is untested
     assert [u["plan"] for u in row["untested"]] == ["steps"]
     assert (
         row["named"] == ["torque_limit"]
