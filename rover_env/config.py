@@ -63,10 +63,27 @@ class Geometry:
     chassis_height: float = 0.16
     chassis_lift: float = 0.01
     """Height of the chassis floor above the wheel hubs."""
+    joint_height: float = 0.0
+    """Height of the joints between segments above the axle line. SPEC gives none; it sets
+    the lever of the pull one segment passes to the next, so how a climb or an acceleration
+    pitches the rear segment (theta_4)."""
+    com_height: float | None = None
+    """Height of each segment body's centre of mass (without its wheels) above its axle.
+    None: that of the chassis box and the motors on the axle line (0.078-0.09 m here). SPEC
+    gives none; it sets how much load a slope or an acceleration moves between the wheels."""
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
-            _positive(f"geometry.{f.name}", getattr(self, f.name))
+            if f.name not in ("joint_height", "com_height"):
+                _positive(f"geometry.{f.name}", getattr(self, f.name))
+        reach = self.wheel_radius + self.chassis_lift + self.chassis_height
+        for name in ("joint_height", "com_height"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and -self.wheel_radius < v < reach):
+                raise ConfigError(
+                    f"geometry.{name} must lie between the ground (-wheel_radius,"
+                    f" {-self.wheel_radius:g}) and the chassis top ({reach:g}), got {v!r}"
+                )
         if self.chassis_width / 2 > self.half_track - self.wheel_width / 2:
             raise ConfigError("geometry.chassis_width overlaps the wheels (half_track too small)")
         if self.axle_spacing <= 2 * self.wheel_radius:

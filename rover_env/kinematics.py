@@ -9,7 +9,7 @@ measured rate minus it is the slippage (9), from which the slip ratio (10) follo
 Layout (mirrors ``rover_env.sim.model``, all numbers from the :class:`RoverConfig`): each
 segment's origin is its axle centre; a child segment's origin sits at ``c = (-axle_spacing,
 0, 0)`` in its parent's axes when its joints are zero; its joints share one anchor ``j =
-(joint_offset, 0, 0)`` in the child's axes and compose in the order of SPEC §1's table,
+(joint_offset, 0, joint_height)`` in the child's axes and compose in the order of SPEC §1's table,
 ``R_child = R_parent · R_a(θ_a) · R_b(θ_b) ...``. The paper's link vectors are the two
 pieces of ``c``: ``a = c + j`` (parent origin → anchor, parent axes) and ``b = -j``
 (anchor → child origin, child axes).
@@ -140,7 +140,7 @@ class ChainGeometry:
             half_track=g.half_track,
             wheel_radii=tuple(float(x) for x in r),
             child_offset=(-g.axle_spacing, 0.0, 0.0),
-            joint_anchor=(g.joint_offset, 0.0, 0.0),
+            joint_anchor=(g.joint_offset, 0.0, g.joint_height),
         )
 
     @property

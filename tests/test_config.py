@@ -80,6 +80,23 @@ def test_wheel_radius_is_a_configuration_value(tmp_path: Path) -> None:
     assert cfg.geometry.wheel_radius == 0.17
 
 
+def test_joint_and_mass_heights_are_configuration_values(tmp_path: Path) -> None:
+    """Heights SPEC does not give: a rover's own go in its YAML, and one below the ground
+    or above the chassis is refused naming the key."""
+    from rover_env.sim.model import robot_xml, segment_inertia
+
+    cfg = load_rover(_write(tmp_path, {"geometry": {"joint_height": 0.05, "com_height": 0.03}}))
+    assert (cfg.geometry.joint_height, cfg.geometry.com_height) == (0.05, 0.03)
+    assert [segment_inertia(cfg, s).com[2] for s in (1, 2, 3)] == [0.03] * 3
+    assert 'pos="0.18 0 0.05"' in robot_xml(cfg)
+    nominal = load_rover()
+    assert nominal.geometry.com_height is None and nominal.geometry.joint_height == 0.0
+    assert 0.07 < segment_inertia(nominal, 1).com[2] < 0.1  # the chassis box's and motors'
+    for key, bad in (("joint_height", -0.1), ("com_height", 0.5), ("com_height", float("nan"))):
+        with pytest.raises(ConfigError, match=rf"geometry\.{key}"):
+            load_rover(_write(tmp_path, {"geometry": {key: bad}}))
+
+
 def test_terrain_friction_patch_validation(tmp_path: Path) -> None:
     p = tmp_path / "t.yaml"
     p.write_text(

@@ -13,12 +13,15 @@ import pytest
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.diagnosis.form import (
+    JOINT_HEIGHT_LADDER,
     SPRING_LADDER,
     ZERO_PREFIX,
     FormFit,
+    fit_joint_height,
     fit_joint_zeros,
     fit_yaw_spring,
     forms_differ,
+    nominal_com_height,
     with_form,
     with_joint_zero,
 )
@@ -180,3 +183,40 @@ def test_a_spring_beyond_the_ladder_is_reported_not_adopted(springs: list[FormFi
     assert beyond.value == max(SPRING_LADDER), beyond
     assert beyond.d_bic < 0 and beyond.at_end and not beyond.adopted, beyond
     assert not springs[1].at_end
+
+
+@pytest.fixture(scope="module")
+def heights(tmp_path_factory: pytest.TempPathFactory) -> list[FormFit]:
+    """The joints' height fitted on drives of the model itself (joints on the axle line) and
+    of the model with its joints 6 cm above the axles."""
+    out = []
+    for h in (0.0, 0.06):
+        truth = with_form(CFG, FormFit("joint_height", "m", 0.0, h, {}, 0, 1, 0, True))
+        root = tmp_path_factory.mktemp(f"height{h:.2f}")
+        paths = make_logs(
+            root, {}, drives=1, seed=4, duration=30.0, truth_rover=truth, progress=False
+        )
+        prepared = [prepare(read_log(p), CFG, p.name, ST) for p in paths]
+        windows = make_windows(prepared, ST)
+        out.append(fit_joint_height(CFG, prepared, windows, ST, rs.noise_floor(prepared)))
+    return out
+
+
+def test_the_geometry_forms_set_the_heights() -> None:
+    cfg = with_form(CFG, FormFit("joint_height", "m", 0.0, 0.05, {}, 0.2, 0.01, -5.0, True))
+    cfg = with_form(cfg, FormFit("com_height", "m", 0.08, 0.03, {}, 0.2, 0.01, -5.0, True))
+    assert (cfg.geometry.joint_height, cfg.geometry.com_height) == (0.05, 0.03)
+    assert nominal_com_height(cfg) == 0.03
+    assert 0.07 < nominal_com_height(CFG) < 0.1
+
+
+def test_the_joint_height_is_kept_on_the_models_own_drive(heights: list[FormFit]) -> None:
+    own = heights[0]
+    assert set(JOINT_HEIGHT_LADDER) <= set(own.ladder)
+    assert not own.adopted, own
+
+
+def test_a_raised_joint_is_found(heights: list[FormFit]) -> None:
+    raised = heights[1]
+    assert raised.adopted and raised.d_bic < 0, raised
+    assert 0.045 < raised.value < 0.075, raised.value  # 0.06: a ladder point

@@ -266,3 +266,36 @@ def test_per_wheel_radii_enter_eq1_and_eq7(cfg: RoverConfig) -> None:
     assert w3[2] == pytest.approx((0.056 - 0.054) * 2.0 / (2 * ch.half_track))
     m = kin.chain_motion(np.zeros(3), np.array([1.0, 0, 0]), np.zeros(5), np.zeros(5), ch)
     np.testing.assert_allclose(kin.nominal_wheel_rates(m, ch), 1.0 / np.array(radii[:4]))
+
+
+@pytest.mark.parametrize("joint_height", [0.0, 0.05])
+def test_segment_positions_match_the_simulator_bodies(joint_height: float) -> None:
+    """The chain here and the MJCF built from the same configuration place the segments
+    alike at any joint angles, with the joints on the axle line or above it
+    (``geometry.joint_height``): a height set in one and not the other shows here."""
+    from dataclasses import replace
+
+    import mujoco
+
+    from rover_env.sim.model import robot_xml
+
+    base = load_rover()
+    cfg = replace(base, geometry=replace(base.geometry, joint_height=joint_height))
+    m = mujoco.MjModel.from_xml_string(robot_xml(cfg))
+    d = mujoco.MjData(m)
+    chain = kin.ChainGeometry.from_config(cfg)
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        th = rng.uniform(-0.4, 0.4, 5)
+        for j, v in zip(kin.JOINTS, th, strict=True):
+            d.qpos[m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)]] = v
+        mujoco.mj_kinematics(m, d)
+        seg = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"seg{i}") for i in (1, 2, 3)]
+        r3 = d.xmat[seg[2]].reshape(3, 3)
+        sim = np.array([r3.T @ (d.xpos[b] - d.xpos[seg[2]]) for b in seg])
+        np.testing.assert_allclose(kin.segment_positions(th, chain), sim, atol=1e-9)
+    # the height matters: a pitch of theta_4 lifts segment 2 about a higher anchor
+    pitched = np.array([0, 0, 0, 0.3, 0])
+    on_axle = kin.ChainGeometry.from_config(base)
+    shift = kin.segment_positions(pitched, chain) - kin.segment_positions(pitched, on_axle)
+    assert (np.abs(shift).max() > 0.005) == (joint_height != 0.0)

@@ -91,6 +91,7 @@ def _cli(args: argparse.Namespace) -> int:
         trade_share=args.trade_share,
         rotor_alpha=args.rotor_alpha,
         fit_yaw_spring=args.fit_yaw_spring,
+        fit_geometry=args.fit_geometry,
         fit_windup=args.fit_windup,
         screen=args.screen,
     )
@@ -184,6 +185,13 @@ def add_cli(sub: Any) -> None:
         default=Options.fit_yaw_spring,
         help="fit the yaw joints' leaf-spring stiffness as model form (default: on; see"
         " Options.fit_yaw_spring)",
+    )
+    p.add_argument(
+        "--fit-geometry",
+        action=argparse.BooleanOptionalAction,
+        default=Options.fit_geometry,
+        help="fit the joints' and the centres of mass's heights above the axles as model form"
+        " (default: on; see Options.fit_geometry)",
     )
     p.add_argument(
         "--fit-slip-floor",

@@ -595,6 +595,12 @@ def _model_form_line(
         ),
         "max_angle_error": ("the speed loop's anti-windup bound", 1e3, "mrad"),
         "yaw_spring": ("the yaw joints' leaf springs (SPEC gives none)", 1.0, "N m/rad"),
+        "joint_height": ("the joints' height above the axles (SPEC gives none)", 1e3, "mm"),
+        "com_height": (
+            "the segments' centres of mass above the axles (SPEC gives none)",
+            1e3,
+            "mm",
+        ),
         "anti_windup": ("the speed loop's anti-windup form", 1.0, ""),
     }
     parts = []

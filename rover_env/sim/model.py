@@ -75,6 +75,8 @@ def segment_inertia(cfg: RoverConfig, seg: int) -> SegmentInertia:
         inertia += pi + pm * np.array(
             [r[1] ** 2 + r[2] ** 2, r[0] ** 2 + r[2] ** 2, r[0] ** 2 + r[1] ** 2]
         )
+    if g.com_height is not None:  # a measured height: the same body, its mass placed there
+        com = np.array([com[0], com[1], g.com_height])
     return SegmentInertia(mass=float(mass), com=com, diaginertia=inertia)
 
 
@@ -223,7 +225,7 @@ def robot_xml(cfg: RoverConfig) -> str:
         for j in SEGMENT_JOINTS[seg]:
             js = cfg.joints[j]
             add(
-                f'{indent}<joint name="{j}" type="hinge" pos="{_f(g.joint_offset)} 0 0" axis="{JOINT_AXES[j]}"'
+                f'{indent}<joint name="{j}" type="hinge" pos="{_f(g.joint_offset)} 0 {_f(g.joint_height)}" axis="{JOINT_AXES[j]}"'
                 f' stiffness="{_f(js.stiffness)}" damping="{_f(js.damping)}" range="{_f(-js.limit)} {_f(js.limit)}"/>'
             )
         add(

@@ -141,6 +141,11 @@ class Options:
     """Fit the yaw joints' leaf-spring stiffness as model form, after the relaxation length
     (:func:`.form.fit_yaw_spring`; stop 54: another implementation's 15 N m/rad against
     this configuration's 10 left the yaw joints 14-18 x their floor in turns)."""
+    fit_geometry: bool = True
+    """Fit the heights SPEC does not give as model form: the joints between segments
+    (:func:`.form.fit_joint_height`) and the segments' centres of mass
+    (:func:`.form.fit_com_height`; stop 64: the independent generator's slopes were fitted
+    at 0.5-0.9 x the truth, its centres of mass sit 5 cm lower than this model's)."""
     fit_slip_floor: bool = True
     """Fit the tire's low-speed slip floor (``TireParams.v_floor``) as model form, after the
     relaxation length (:func:`.form.fit_slip_floor`; stop 30: the second generator's
