@@ -7,6 +7,7 @@ kept on the model's own drive, found where the springs are stiffer."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,6 +18,7 @@ from rover_env.calibration.diagnosis.form import (
     SPRING_LADDER,
     ZERO_PREFIX,
     FormFit,
+    fit_com_height,
     fit_joint_height,
     fit_joint_zeros,
     fit_yaw_spring,
@@ -220,3 +222,25 @@ def test_a_raised_joint_is_found(heights: list[FormFit]) -> None:
     raised = heights[1]
     assert raised.adopted and raised.d_bic < 0, raised
     assert 0.045 < raised.value < 0.075, raised.value  # 0.06: a ladder point
+
+
+def test_the_centre_of_mass_is_found_beside_a_slope(tmp_path: Path) -> None:
+    """On a 6 deg slope across the drive, a rover whose centres of mass sit 3 cm above the
+    axles (this model's: 8-9 cm): fitted beside the slope (as the forms are fitted again
+    beside a named one) the height is found; on the same logs without the slope in the
+    model it is not adopted (it cannot stand in for the slope)."""
+    slope = {"slope": {"deg": 6.0, "heading_deg": 90.0}}
+    truth = with_form(CFG, FormFit("com_height", "m", 0.08, 0.03, {}, 0, 1, 0, True))
+    paths = make_logs(
+        tmp_path, slope, drives=1, seed=4, duration=30.0, truth_rover=truth, progress=False
+    )
+    beside = dataclasses.replace(CFG, extensions=slope)
+    prepared = [prepare(read_log(p), beside, p.name, ST) for p in paths]
+    windows = make_windows(prepared, ST)
+    noise = rs.noise_floor(prepared)
+    found = fit_com_height(beside, prepared, windows, ST, noise)
+    assert found.adopted and 0.015 < found.value < 0.045, found
+    alone = fit_com_height(
+        CFG, [prepare(read_log(p), CFG, p.name, ST) for p in paths], windows, ST, noise
+    )
+    assert not alone.adopted, alone

@@ -174,8 +174,10 @@ JOINT_HEIGHT_LADDER = tuple(float(0.03 * k) for k in range(-2, 5))
 apart, around the configuration's 0 (SPEC gives none; the chassis spans 1-17 cm)."""
 
 COM_HEIGHT_STEP = 0.03
-"""Centre-of-mass heights are tried 3 cm apart, from 9 cm below the configuration's (never
-below the axle) to 9 cm above it."""
+"""Centre-of-mass heights are tried 3 cm apart, from 12 cm below the configuration's to 9 cm
+above it, never lower than :data:`COM_HEIGHT_LOWEST` (a battery slung below the axles can
+put a segment's centre of mass there)."""
+COM_HEIGHT_LOWEST = -0.04
 
 
 def with_joint_height(cfg: RoverConfig, h: float) -> RoverConfig:
@@ -483,7 +485,9 @@ def fit_com_height(
     forms are fitted again beside a named slope (:attr:`Options.forms_beside_winner`)."""
     h0 = nominal_com_height(cfg)
     ladder = tuple(
-        float(h0 + COM_HEIGHT_STEP * k) for k in range(-3, 4) if h0 + COM_HEIGHT_STEP * k >= 0
+        float(h0 + COM_HEIGHT_STEP * k)
+        for k in range(-4, 4)
+        if h0 + COM_HEIGHT_STEP * k >= COM_HEIGHT_LOWEST
     )
     return _fit_ladder(
         "com_height",
