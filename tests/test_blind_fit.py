@@ -271,6 +271,24 @@ def test_the_anti_windup_form_is_fitted_unless_asked_not_to() -> None:
     ).fit_anti_windup
 
 
+def test_every_switch_defaults_to_its_option_and_turns_off() -> None:
+    """The on/off options on the command line (``SWITCHES``): each defaults to its
+    :class:`Options` field, and ``--no-...`` turns it off without touching the others."""
+    import argparse
+
+    from rover_env.calibration.diagnose import SWITCHES, Options, add_cli
+
+    ap = argparse.ArgumentParser()
+    add_cli(ap.add_subparsers())
+    names = [n for n, _ in SWITCHES]
+    assert "fit_geometry" in names and len(set(names)) == len(names)
+    base = ap.parse_args(["diagnose", "a.csv", "--out", "o"])
+    for name in names:
+        assert getattr(base, name) is getattr(Options(), name) is True, name
+        off = ap.parse_args(["diagnose", "a.csv", "--out", "o", "--no-" + name.replace("_", "-")])
+        assert [n for n in names if not getattr(off, n)] == [name]
+
+
 def _group_curves(minima: list[float], noise: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Per-window quadratic loss curves of four signal groups, (points, windows, groups):
     group g's windows have their minima at ``minima[g]`` plus window noise."""

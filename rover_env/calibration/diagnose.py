@@ -82,18 +82,12 @@ def _cli(args: argparse.Namespace) -> int:
         executor=args.executor,
         ray_address=args.ray_address,
         model_form=not args.no_model_form,
-        fit_anti_windup=args.fit_anti_windup,
-        fit_slip_floor=args.fit_slip_floor,
-        fit_joint_zero=args.fit_joint_zero,
-        fit_free_gain=args.fit_free_gain,
         free_common=args.free_common,
         rotor_range=args.rotor_range,
         trade_share=args.trade_share,
         rotor_alpha=args.rotor_alpha,
-        fit_yaw_spring=args.fit_yaw_spring,
-        fit_geometry=args.fit_geometry,
         fit_windup=args.fit_windup,
-        screen=args.screen,
+        **{name: getattr(args, name) for name, _ in SWITCHES},
     )
     try:
         diagnose(args.logs, args.out, opts)
@@ -101,6 +95,24 @@ def _cli(args: argparse.Namespace) -> int:
         print(f"rover-env diagnose: bad log: {exc}")
         return 2
     return 0
+
+
+SWITCHES: tuple[tuple[str, str], ...] = (
+    (
+        "fit_anti_windup",
+        "choose the speed loop's anti-windup form (clamp or conditional integration) as model form",
+    ),
+    ("fit_joint_zero", "fit the joint sensors' zeros as model form"),
+    ("fit_free_gain", "profile the free wheels' left/right reading difference out of every fit"),
+    ("fit_yaw_spring", "fit the yaw joints' leaf-spring stiffness as model form"),
+    (
+        "fit_geometry",
+        "fit the joints' and the centres of mass's heights above the axles as model form",
+    ),
+    ("fit_slip_floor", "fit the tire's low-speed slip floor as model form"),
+    ("screen", "screen each candidate on half the training windows before its full fit"),
+)
+"""The on/off options of :class:`Options` the command line sets, ``--name`` / ``--no-name``."""
 
 
 def add_cli(sub: Any) -> None:
@@ -122,26 +134,6 @@ def add_cli(sub: Any) -> None:
         action="store_true",
         help="keep the configuration's tire relaxation length and speed-loop anti-windup"
         " (no model-form stage)",
-    )
-    p.add_argument(
-        "--fit-anti-windup",
-        action=argparse.BooleanOptionalAction,
-        default=Options.fit_anti_windup,
-        help="choose the speed loop's anti-windup form (clamp or conditional integration)"
-        " as model form (default: on; see Options.fit_anti_windup)",
-    )
-    p.add_argument(
-        "--fit-joint-zero",
-        action=argparse.BooleanOptionalAction,
-        default=Options.fit_joint_zero,
-        help="fit the joint sensors' zeros as model form (default: on; see Options.fit_joint_zero)",
-    )
-    p.add_argument(
-        "--fit-free-gain",
-        action=argparse.BooleanOptionalAction,
-        default=Options.fit_free_gain,
-        help="profile the free wheels' left/right reading difference out of every fit"
-        " (default: on; see Options.fit_free_gain)",
     )
     p.add_argument(
         "--free-common",
@@ -179,40 +171,20 @@ def add_cli(sub: Any) -> None:
         f" lost less than SHARE of what the other signals gained (default {Options.trade_share:g};"
         " 0: any such trade leaves it unnamed; see Options.trade_share)",
     )
-    p.add_argument(
-        "--fit-yaw-spring",
-        action=argparse.BooleanOptionalAction,
-        default=Options.fit_yaw_spring,
-        help="fit the yaw joints' leaf-spring stiffness as model form (default: on; see"
-        " Options.fit_yaw_spring)",
-    )
-    p.add_argument(
-        "--fit-geometry",
-        action=argparse.BooleanOptionalAction,
-        default=Options.fit_geometry,
-        help="fit the joints' and the centres of mass's heights above the axles as model form"
-        " (default: on; see Options.fit_geometry)",
-    )
-    p.add_argument(
-        "--fit-slip-floor",
-        action=argparse.BooleanOptionalAction,
-        default=Options.fit_slip_floor,
-        help="fit the tire's low-speed slip floor as model form (default: on; see"
-        " Options.fit_slip_floor)",
-    )
+    for name, what in SWITCHES:
+        on = getattr(Options, name)
+        p.add_argument(
+            "--" + name.replace("_", "-"),
+            action=argparse.BooleanOptionalAction,
+            default=on,
+            help=f"{what} (default: {'on' if on else 'off'}; see Options.{name})",
+        )
     p.add_argument(
         "--fit-windup",
         action="store_true",
         help="also fit the speed loop's anti-windup bound as model form (experimental: with"
         " the clamp form it biases rolling resistance low on a conditionally integrating"
         " loop)",
-    )
-    p.add_argument(
-        "--screen",
-        action=argparse.BooleanOptionalAction,
-        default=Options.screen,
-        help="screen each candidate on half the training windows before its full fit"
-        " (default: on; see Options.screen)",
     )
     p.add_argument("--candidates", default=None, help="comma-separated subset of the catalogue")
     p.add_argument("--quiet", action="store_true")
