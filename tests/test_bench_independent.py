@@ -164,7 +164,8 @@ def test_run_case_drives_every_proposal_with_the_same_rover(
     first report proposes a tie's drive and an evidence drive; both are driven by the same
     build (truth.yaml's nuisance) as drives 3 and 4 of 1 s logs, the second diagnosis gets all
     five logs, and the row carries its named effects and the fit against the truth. The
-    untested-limit drive is recorded, and driven (drive 5, six logs) only with ``untested``."""
+    untested-limit drive is recorded, and driven only with ``untested``: twice, last (drives 5
+    and 6, seven logs), so one is a training drive."""
     calls: list[list[str]] = []
 
     def fake(paths: list[str], out: Path, opts: object) -> dict[str, object]:
@@ -214,7 +215,7 @@ def test_run_case_drives_every_proposal_with_the_same_rover(
     monkeypatch.setattr(b, "DURATION", 1.0)
     case = next(c for c in b.cases() if c["kind"] == "single" and "torque_limit" in c["effects"])
     row = b.run_case(case, tmp_path, untested=untested)
-    plans = ["accel", "reversals", *(["steps"] if untested else [])]
+    plans = ["accel", "reversals", *(["steps", "steps"] if untested else [])]
     assert [len(c) for c in calls] == [3, 3 + len(plans)]
     assert [Path(p).name for p in calls[1][3:]] == [
         f"drive_0{3 + j}.csv" for j in range(len(plans))
