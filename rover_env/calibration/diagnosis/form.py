@@ -253,8 +253,8 @@ def _fit_ladder(
     linear: bool = False,
 ) -> FormFit:
     """The form's best value on ``ladder`` (refined by a parabola, in log x or, ``linear``,
-    in x) judged against ``nominal`` (:func:`_judged`). ``open_ends``: whether the ladder's lowest and highest
-    rungs are ends of the search only, not of the physics. A best value there is reported
+    in x) judged against ``nominal`` (:func:`_judged`). ``open_ends``: whether the ladder's
+    lowest and highest rungs are ends of the search only, not of the physics. A best value there is reported
     but not adopted (:attr:`FormFit.at_end`): the windows ask for more than the form's
     physical range gives, which something outside the form (an effect) must supply. Why
     (stop 60): on the independent generator's dry sand (case 47717) the yaw springs went to
@@ -486,9 +486,10 @@ def fit_com_height(
     Why (stop 64): SPEC gives none, and it sets how much load a slope moves between the
     wheels. Across a 6 deg side slope this model (centres of mass 8-9 cm above the axles)
     yaws downhill 0.0199 rad in 7 s, the independent generator (3 cm) 0.0141, this model at
-    3 cm 0.0124; all 8 of its spent slopes of 4 deg or more were fitted below the truth (0.48-0.98 x, median 0.77). On
-    flat ground the height shows only through accelerations, so it is mostly decided when the
-    forms are fitted again beside a named slope (:attr:`Options.forms_beside_winner`)."""
+    3 cm 0.0124; all 8 of its spent slopes of 4 deg or more were fitted below the truth
+    (0.48-0.98 x, median 0.77). On flat ground the height shows only through accelerations,
+    so it is mostly decided when the forms are fitted again beside a named slope
+    (:attr:`Options.forms_beside_winner`)."""
     h0 = nominal_com_height(cfg)
     ladder = tuple(
         float(h0 + COM_HEIGHT_STEP * k)

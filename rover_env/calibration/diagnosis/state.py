@@ -145,7 +145,8 @@ class Options:
     """Fit the heights SPEC does not give as model form: the joints between segments
     (:func:`.form.fit_joint_height`) and the segments' centres of mass
     (:func:`.form.fit_com_height`; stop 64: the independent generator's slopes were fitted
-    below the truth, 0.48-0.98 x in all 8 spent cases of 4 deg or more; its centres of mass sit 5 cm lower than this model's)."""
+    below the truth, 0.48-0.98 x in all 8 spent cases of 4 deg or more; its centres of
+    mass sit 5 cm lower than this model's)."""
     fit_slip_floor: bool = True
     """Fit the tire's low-speed slip floor (``TireParams.v_floor``) as model form, after the
     relaxation length (:func:`.form.fit_slip_floor`; stop 30: the second generator's
