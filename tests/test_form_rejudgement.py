@@ -10,13 +10,20 @@ re-judgement reverts the first and keeps the second.
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue
-from rover_env.calibration.diagnosis.form import form_key, reprepare, with_anti_windup
+from rover_env.calibration.diagnosis.form import (
+    LEADER_GAIN,
+    form_key,
+    leader,
+    reprepare,
+    with_anti_windup,
+)
 from rover_env.calibration.diagnosis.form_judge import (
     FORM_JOIN_BIC,
     form_rejudgement,
@@ -187,3 +194,29 @@ def test_forms_beside_the_winner_rerun_only_when_they_change_the_model() -> None
     assert form_key([form(0.005, False)]) == form_key(first)
     assert form_key([form(0.00125, True)]) != form_key(first)
     assert form_key([form(0.00152, True)]) != form_key([form(0.00125, True)])
+
+
+def test_the_leader_is_the_fully_fitted_plugin_candidate_with_the_lowest_bic() -> None:
+    """With nothing named, the forms are fitted again beside the leading candidate
+    (``Options.forms_beside_leader``): fully fitted, replayed by the plugin,
+    lowering the training BIC or improving the held-out drive by ``LEADER_GAIN``."""
+    a = np.array
+
+    def scored(name: str, d_bic: float, gain: float, screened: bool = False) -> Scored:
+        (c,) = catalogue([name])
+        f = Fit([c], a([0.1]), a([0.0]), a([0.2]), a([0.05]), 1.0, 1, {}, 0.0, "train")
+        s = Scored(f, 1.0, np.ones(3), gain, 0.3, d_bic, d_bic, 3)
+        s.screened = screened
+        return s
+
+    def lead(*ranked: Scored) -> str | None:
+        s = leader(SimpleNamespace(ranked=list(ranked)))  # type: ignore[arg-type]
+        return None if s is None else s.fit.name
+
+    friction = scored("friction", -9.0, 0.3, screened=True)  # screened out: never leads
+    slope = scored("slope", -2.8, -0.06)  # training BIC lower, held-out worse
+    lag = scored("command_lag", 5.3, 0.338)  # training BIC higher, held-out 34 % better
+    weak = scored("rolling_resistance", 2.0, LEADER_GAIN / 2)
+    assert lead(friction, lag, slope, weak) == "slope"
+    assert lead(friction, lag, weak) == "command_lag"
+    assert lead(friction, weak) is None

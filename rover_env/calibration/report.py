@@ -624,13 +624,22 @@ def _model_form_line(
             f", training windows {words} (Wilcoxon p {f['p']:.2g}, dBIC"
             f" {f['d_bic']:+.1f}): {verdict}"
         )
-    when = (
-        f"fitted beside {beside} (named in a first pass, under forms fitted before any effect"
-        " that came out otherwise beside it)"
-        if beside
-        else "fitted before any effect"
-        + (" (and, where an effect was named, again beside it, unchanged)" if refit_beside else "")
-    )
+    lead = " (leading, not named)"  # rover_env.calibration.diagnosis.form.judge_again
+    if beside and beside.endswith(lead):
+        when = (
+            f"fitted beside {beside.removesuffix(lead)} (the leading candidate of a first pass"
+            " that named nothing, under forms fitted before any effect that came out otherwise"
+            " beside it)"
+        )
+    elif beside:
+        when = (
+            f"fitted beside {beside} (named in a first pass, under forms fitted before any"
+            " effect that came out otherwise beside it)"
+        )
+    else:
+        when = "fitted before any effect" + (
+            " (and, beside an effect named or leading, again, unchanged)" if refit_beside else ""
+        )
     return (
         f"- Model form, {when} (the implementation's choices, not the rover's definition): "
         + "; ".join(parts)

@@ -90,7 +90,7 @@ from rover_env.calibration.diagnosis.judge import (
     better_worse,
     plugin_capable,
 )
-from rover_env.calibration.diagnosis.state import Diagnosis, FormFit, Options
+from rover_env.calibration.diagnosis.state import Diagnosis, FormFit, Options, Scored
 from rover_env.calibration.fit import Evaluator, information_criteria, parabola_min
 from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window, prepare
 from rover_env.config import ANTI_WINDUP_FORMS, JOINTS, AntiWindup, RoverConfig
@@ -696,37 +696,66 @@ def fit_model_form(d: Diagnosis) -> None:
     )
 
 
-def judge_again(d: Diagnosis) -> Options | None:
-    """After a winner is named: the options of a diagnosis to run again, or None.
+LEADER_GAIN = 0.10
+"""A candidate leads when nothing is named if it lowers the training BIC or improves the
+held-out drive by this share (the naming rule's own 10 %; :attr:`Options.forms_beside_leader`)."""
 
-    The forms fitted again beside the winner (:attr:`Options.forms_beside_winner`) that come
-    out otherwise are given to a second pass; adopted forms that the re-judgement
+
+def leader(d: Diagnosis) -> Scored | None:
+    """The leading candidate when nothing is named: fully fitted (not screened out), replayed
+    by the plugin, lowering the training BIC or improving the held-out drive by
+    :data:`LEADER_GAIN`; the lowest training BIC among those."""
+    leading = [
+        s
+        for s in d.ranked
+        if not s.screened
+        and all(plugin_capable(c) for c in s.fit.candidates)
+        and (s.d_bic < 0 or s.gain >= LEADER_GAIN)
+    ]
+    return min(leading, key=lambda s: s.d_bic, default=None)
+
+
+def forms_beside(d: Diagnosis, s: Scored, role: str) -> Options | None:
+    """The options of a second pass under the forms fitted again beside ``s``'s effect, or
+    None when they come out as before."""
+    beside_cfg = replace(d.base0, extensions=merge(d.base0.extensions, s.fit.ext))
+    again, _, _ = fit_forms(
+        beside_cfg,
+        reprepare(d.prepared0, beside_cfg, d.st),
+        d.train_w,
+        d.st,
+        d.sensor_noise,
+        d.opts,
+        lambda f: d.say(form_text(f) + f" (beside {s.fit.name}{role})"),
+    )
+    if not forms_differ(again, d.forms):
+        return None
+    d.say(
+        f"model form fitted again beside {s.fit.name}{role} comes out otherwise;"
+        " the diagnosis runs again under it"
+    )
+    return replace(d.opts, forms_given=again, forms_beside=s.fit.name + role)
+
+
+def judge_again(d: Diagnosis) -> Options | None:
+    """After the first pass: the options of a diagnosis to run again, or None.
+
+    The forms fitted again beside the winner (:attr:`Options.forms_beside_winner`) or, with
+    none named, beside the leading candidate (:attr:`Options.forms_beside_leader`, :func:`leader`)
+    that come out otherwise are given to a second pass; adopted forms that the re-judgement
     (:attr:`Options.rejudge_form`) reverts are dropped for one."""
     opts, winner = d.opts, d.winner
-    if winner is None or not opts.model_form:
+    if not opts.model_form:
         return None
-    if (
-        opts.forms_beside_winner
-        and opts.forms_given is None
-        # A numpy-only effect (the soil) would cost ~20 x per form replay: not refitted.
-        and all(plugin_capable(c) for c in winner.fit.candidates)
-    ):
-        beside_cfg = replace(d.base0, extensions=merge(d.base0.extensions, winner.fit.ext))
-        again, _, _ = fit_forms(
-            beside_cfg,
-            reprepare(d.prepared0, beside_cfg, d.st),
-            d.train_w,
-            d.st,
-            d.sensor_noise,
-            opts,
-            lambda f: d.say(form_text(f) + f" (beside {winner.fit.name})"),
-        )
-        if forms_differ(again, d.forms):
-            d.say(
-                f"model form fitted again beside {winner.fit.name} comes out otherwise;"
-                " the diagnosis runs again under it"
-            )
-            return replace(opts, forms_given=again, forms_beside=winner.fit.name)
+    first = opts.forms_given is None
+    if winner is None:
+        lead = leader(d) if first and opts.forms_beside_leader else None
+        return None if lead is None else forms_beside(d, lead, " (leading, not named)")
+    # A numpy-only effect would cost ~20 x per form replay: not refitted.
+    if first and opts.forms_beside_winner and all(plugin_capable(c) for c in winner.fit.candidates):
+        again = forms_beside(d, winner, "")
+        if again is not None:
+            return again
     # The joint zeros are profiled out of every fit (Evaluator.profile_zeros), the nominal
     # form's too: they are no form to re-judge, and a revert keeps them.
     adopted = [f for f in d.forms if f.adopted and not f.name.startswith(ZERO_PREFIX)]
