@@ -111,6 +111,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
     ),
     ("fit_slip_floor", "fit the tire's low-speed slip floor as model form"),
     ("screen", "screen each candidate on half the training windows before its full fit"),
+    (
+        "forms_beside_leader",
+        "with nothing named, fit the model form again beside the leading candidate",
+    ),
 )
 """The on/off options of :class:`Options` the command line sets, ``--name`` / ``--no-name``."""
 
