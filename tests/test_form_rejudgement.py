@@ -17,13 +17,8 @@ import numpy as np
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue
-from rover_env.calibration.diagnosis.form import (
-    LEADER_GAIN,
-    form_key,
-    leader,
-    reprepare,
-    with_anti_windup,
-)
+from rover_env.calibration.diagnosis.again import LEADER_GAIN, leader
+from rover_env.calibration.diagnosis.form import form_key, reprepare, with_anti_windup
 from rover_env.calibration.diagnosis.form_judge import (
     FORM_JOIN_BIC,
     form_rejudgement,

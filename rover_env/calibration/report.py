@@ -624,7 +624,7 @@ def _model_form_line(
             f", training windows {words} (Wilcoxon p {f['p']:.2g}, dBIC"
             f" {f['d_bic']:+.1f}): {verdict}"
         )
-    lead = " (leading, not named)"  # rover_env.calibration.diagnosis.form.judge_again
+    lead = " (leading, not named)"  # rover_env.calibration.diagnosis.again.judge_again
     if beside and beside.endswith(lead):
         when = (
             f"fitted beside {beside.removesuffix(lead)} (the leading candidate of a first pass"

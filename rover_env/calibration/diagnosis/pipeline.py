@@ -2,8 +2,9 @@
 
 split (:mod:`.split`) → form (:mod:`.form`) → floor (:mod:`.floor`) → fit
 (:mod:`.fit_stage`) → select (:mod:`.select`) → evidence (:mod:`.evidence_stage`) → write
-(:mod:`.write`). Once a winner is named, the model form is judged again beside it; when
-that changes the forms, the diagnosis runs again from the start under the new options.
+(:mod:`.write`). After selection the model form is judged again (:mod:`.again`) beside the
+winner or, with none named, the leading candidate; when that changes the forms, the
+diagnosis runs again from the start under the new options.
 """
 
 from __future__ import annotations
@@ -11,7 +12,15 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from rover_env.calibration.diagnosis import evidence_stage, fit_stage, floor, form, select, split
+from rover_env.calibration.diagnosis import (
+    again,
+    evidence_stage,
+    fit_stage,
+    floor,
+    form,
+    select,
+    split,
+)
 from rover_env.calibration.diagnosis import write as write_stage
 from rover_env.calibration.diagnosis.state import Diagnosis, Options
 from rover_env.calibration.replay import parallel_replays
@@ -39,9 +48,9 @@ def run(paths: list[str | Path], out: str | Path, opts: Options) -> dict[str, An
     floor.baseline(d)
     fit_stage.fit_candidates(d)
     select.name_winner(d)
-    again = form.judge_again(d)
-    if again is not None:
-        return run(paths, out, again)
+    rerun = again.judge_again(d)
+    if rerun is not None:
+        return run(paths, out, rerun)
     select.select(d)
     evidence_stage.seek_evidence(d)
     write_stage.write(d)

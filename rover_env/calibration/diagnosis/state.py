@@ -186,7 +186,7 @@ class Options:
     forms_beside_leader: bool = True
     """When nothing is named: fit the model's forms again beside the leading candidate (fully
     fitted, one the plugin replays, lowering the training BIC or improving the held-out drive
-    by :data:`.form.LEADER_GAIN`) and, if they come out otherwise, run the diagnosis again under
+    by :data:`.again.LEADER_GAIN`) and, if they come out otherwise, run the diagnosis again under
     them, as beside a winner (:attr:`forms_beside_winner`). Why (stop 65): a form fitted
     before any effect can absorb the effect that would have been named. Case 50513 (the
     independent generator, friction +0.272): the yaw springs fit 10.8-11.1 N m/rad before any
