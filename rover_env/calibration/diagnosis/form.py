@@ -84,9 +84,7 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from rover_env.calibration import residuals as rs
-from rover_env.calibration.diagnosis.judge import (
-    better_worse,
-)
+from rover_env.calibration.diagnosis.judge import better_worse
 from rover_env.calibration.diagnosis.state import Diagnosis, FormFit, Options
 from rover_env.calibration.fit import information_criteria, parabola_min
 from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window, prepare

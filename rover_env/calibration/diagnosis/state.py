@@ -193,7 +193,11 @@ class Options:
     effect (the generator's are 15 x its +-20 % build scatter), and friction is then fitted at
     -0.018; with the springs at 15 it is fitted at +0.26-0.39. Case 50510 (a 6.9 deg slope):
     the slope is fitted at 7.41 deg [6.64, 8.19] with the training BIC lower by 2.8, yet not
-    named (held-out 6 % worse) with the forms chosen without it."""
+    named (held-out 6 % worse) with the forms chosen without it; beside it the springs are
+    adopted at 13.5 and the slope is fitted at 6.94 [6.28, 7.60], still not named (its
+    held-out reversing windows bend theta_5 3-4 x more than the logs). Neither case is named
+    with it: the leader's forms are a precondition, not a cure. In 50513 the leader is a
+    command lag (friction was screened out), beside which the forms come out as before."""
     forms_given: list[FormFit] | None = None
     """The forms to use instead of fitting them (set by the second pass)."""
     forms_beside: str | None = None
