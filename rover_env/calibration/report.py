@@ -10,7 +10,7 @@ import numpy as np
 
 from rover_env.calibration.diagnosis.judge import form_mismatch
 from rover_env.calibration.diagnosis.rotor import rotor_text
-from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
+from rover_env.calibration.diagnosis.state import LEADING, Diagnosis, Options, Scored
 from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
 from rover_env.calibration.residuals import REGIMES, Cell
 
@@ -624,10 +624,9 @@ def _model_form_line(
             f", training windows {words} (Wilcoxon p {f['p']:.2g}, dBIC"
             f" {f['d_bic']:+.1f}): {verdict}"
         )
-    lead = " (leading, not named)"  # rover_env.calibration.diagnosis.again.judge_again
-    if beside and beside.endswith(lead):
+    if beside and beside.endswith(LEADING):
         when = (
-            f"fitted beside {beside.removesuffix(lead)} (the leading candidate of a first pass"
+            f"fitted beside {beside.removesuffix(LEADING)} (the leading candidate of a first pass"
             " that named nothing, under forms fitted before any effect that came out otherwise"
             " beside it)"
         )

@@ -18,7 +18,7 @@ from rover_env.calibration.diagnosis.form import (
     with_form,
 )
 from rover_env.calibration.diagnosis.judge import plugin_capable
-from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
+from rover_env.calibration.diagnosis.state import LEADING, Diagnosis, Options, Scored
 from rover_env.calibration.fit import Evaluator
 
 LEADER_GAIN = 0.10
@@ -75,7 +75,7 @@ def judge_again(d: Diagnosis) -> Options | None:
     first = opts.forms_given is None
     if winner is None:
         lead = leader(d) if first and opts.forms_beside_leader else None
-        return None if lead is None else forms_beside(d, lead, " (leading, not named)")
+        return None if lead is None else forms_beside(d, lead, LEADING)
     # A numpy-only effect would cost ~20 x per form replay: not refitted.
     if first and opts.forms_beside_winner and all(plugin_capable(c) for c in winner.fit.candidates):
         again = forms_beside(d, winner, "")

@@ -30,6 +30,11 @@ Table = dict[str, dict[str, Cell]]
 """Residual / floor per signal and regime (:func:`rover_env.calibration.residuals.table`)."""
 
 
+LEADING = " (leading, not named)"
+"""Suffix of :attr:`Options.forms_beside` for forms fitted beside the leading candidate of a
+first pass that named nothing (:func:`.again.judge_again`); the report reads it back."""
+
+
 @dataclass
 class Options:
     settings: ReplaySettings = field(default_factory=ReplaySettings)
@@ -201,7 +206,8 @@ class Options:
     forms_given: list[FormFit] | None = None
     """The forms to use instead of fitting them (set by the second pass)."""
     forms_beside: str | None = None
-    """The effect the given forms were fitted beside (for the report)."""
+    """The effect the given forms were fitted beside (for the report), ending in
+    :data:`LEADING` when it led a first pass that named nothing."""
     fit_windup: bool = False
     """Also fit the speed loop's anti-windup bound (after sigma). Off by default: measured
     in stop 24, the bound that fits the second generator's loop (15.6 mrad) caps the
