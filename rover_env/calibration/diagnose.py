@@ -109,6 +109,7 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "fit_geometry",
         "fit the joints' and the centres of mass's heights above the axles as model form",
     ),
+    ("fit_speed_loop", "fit the speed loop's proportional and integral gains as model form"),
     ("fit_slip_floor", "fit the tire's low-speed slip floor as model form"),
     ("screen", "screen each candidate on half the training windows before its full fit"),
     (

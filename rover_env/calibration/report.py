@@ -594,6 +594,8 @@ def _model_form_line(
             "mm/s",
         ),
         "max_angle_error": ("the speed loop's anti-windup bound", 1e3, "mrad"),
+        "speed_gain": ("the speed loop's proportional gain at the wheel", 1.0, "N m s/rad"),
+        "integral_gain": ("the speed loop's integral gain at the wheel", 1.0, "N m/rad"),
         "yaw_spring": ("the yaw joints' leaf springs (SPEC gives none)", 1.0, "N m/rad"),
         "joint_height": ("the joints' height above the axles (SPEC gives none)", 1e3, "mm"),
         "com_height": (

@@ -152,6 +152,12 @@ class Options:
     (:func:`.form.fit_com_height`; stop 64: the independent generator's slopes were fitted
     below the truth, 0.48-0.98 x in all 8 spent cases of 4 deg or more; its centres of
     mass sit 5 cm lower than this model's)."""
+    fit_speed_loop: bool = True
+    """Fit the speed loop's gains as model form, after the relaxation length
+    (:func:`.form.fit_speed_gain`, :func:`.form.fit_integral_gain`; stop 66: another
+    implementation's voltage-mode PI with back-EMF is about 3 x stiffer at the wheel than
+    the configuration's 2 N m per rad/s, and on hard accelerations that motor form was the
+    largest thing the model missed)."""
     fit_slip_floor: bool = True
     """Fit the tire's low-speed slip floor (``TireParams.v_floor``) as model form, after the
     relaxation length (:func:`.form.fit_slip_floor`; stop 30: the second generator's
