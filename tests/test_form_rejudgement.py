@@ -18,12 +18,13 @@ import numpy as np
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue
 from rover_env.calibration.diagnosis.again import LEADER_GAIN, leader
-from rover_env.calibration.diagnosis.form import form_key, reprepare, with_anti_windup
+from rover_env.calibration.diagnosis.form import form_key, with_anti_windup
 from rover_env.calibration.diagnosis.form_judge import (
     FORM_JOIN_BIC,
     form_rejudgement,
     join_if_seen,
 )
+from rover_env.calibration.diagnosis.form_ladder import reprepare
 from rover_env.calibration.diagnosis.judge import gain, p_improved
 from rover_env.calibration.diagnosis.state import FormFit, Options, Scored
 from rover_env.calibration.fit import Evaluator, Fit, fit

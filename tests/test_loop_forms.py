@@ -7,12 +7,11 @@ from __future__ import annotations
 import pytest
 
 from rover_env.calibration import residuals as rs
-from rover_env.calibration.diagnosis.form import (
+from rover_env.calibration.diagnosis.form import FormFit, with_form
+from rover_env.calibration.diagnosis.form_loop import (
     LOOP_GAIN_STEPS,
-    FormFit,
     fit_integral_gain,
     fit_speed_gain,
-    with_form,
 )
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
 from rover_env.config import load_rover

@@ -1,9 +1,10 @@
 """Stage 2, form: the model's own form, fitted before any effect (the joint sensors' zeros,
-the speed loop's anti-windup, the tire's relaxation length, the yaw springs and the
-low-speed slip floor) and fitted again beside the named or leading effect (:mod:`.again`).
-Re-judging the forms beside the effects and joining a form's fit into a named interval live
-in :mod:`.form_judge` (:func:`.form_judge.form_rejudgement`,
-:func:`.form_judge.join_form_interval`).
+the speed loop's anti-windup, the tire's relaxation length, the speed loop's gains, the yaw
+springs, the heights and the low-speed slip floor) and fitted again beside the named or
+leading effect (:mod:`.again`). How one form is searched and judged is
+:mod:`.form_ladder`; the loop's gains are :mod:`.form_loop`. Re-judging the forms beside the
+effects and joining a form's fit into a named interval live in :mod:`.form_judge`
+(:func:`.form_judge.form_rejudgement`, :func:`.form_judge.join_form_interval`).
 
 These are this project's simulator's implementation choices, not part of the rover's
 definition (SPEC), and another implementation of the same rover makes them differently
@@ -81,13 +82,23 @@ from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
 
 from rover_env.calibration import residuals as rs
+from rover_env.calibration.diagnosis.form_ladder import (
+    baseline,
+    fit_ladder,
+    judged,
+    reprepare,
+)
+from rover_env.calibration.diagnosis.form_loop import (
+    fit_integral_gain,
+    fit_speed_gain,
+    with_integral_gain,
+    with_speed_gain,
+)
 from rover_env.calibration.diagnosis.judge import better_worse
 from rover_env.calibration.diagnosis.state import Diagnosis, FormFit, Options
-from rover_env.calibration.fit import information_criteria, parabola_min
-from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window, prepare
+from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window
 from rover_env.config import ANTI_WINDUP_FORMS, JOINTS, AntiWindup, RoverConfig
 from rover_env.sim.model import segment_inertia
 
@@ -119,24 +130,6 @@ def with_sigma(cfg: RoverConfig, sigma: float) -> RoverConfig:
 def with_slip_floor(cfg: RoverConfig, floor: float) -> RoverConfig:
     """The configuration with the tire's low-speed slip floor ``floor`` (m/s)."""
     return replace(cfg, tire=replace(cfg.tire, v_floor=floor))
-
-
-LOOP_GAIN_STEPS = tuple(2.0**k for k in range(-2, 4))
-"""The speed loop's gains are tried at these multiples of the configuration's (x 1/4 to x 8,
-a factor 2 apart). SPEC names the motors, not their loop: a real drive's PI acts on voltage,
-so the torque per rad/s it gives at the wheel also holds the motor's back-EMF damping
-(k_t^2 N^2 eta / R), its gear and its current sensing, none of which the configuration's
-torque-referred gains know to better than a factor 2."""
-
-
-def with_speed_gain(cfg: RoverConfig, gain: float) -> RoverConfig:
-    """The configuration with the speed loop's proportional gain ``gain`` (N m per rad/s)."""
-    return replace(cfg, motor=replace(cfg.motor, speed_gain=gain))
-
-
-def with_integral_gain(cfg: RoverConfig, gain: float) -> RoverConfig:
-    """The configuration with the speed loop's integral gain ``gain`` (N m per rad)."""
-    return replace(cfg, motor=replace(cfg.motor, integral_gain=gain))
 
 
 def with_windup(cfg: RoverConfig, bound: float) -> RoverConfig:
@@ -229,123 +222,6 @@ def with_form(cfg: RoverConfig, fit: FormFit) -> RoverConfig:
     return setters[fit.name](cfg, fit.value)
 
 
-def reprepare(
-    prepared: list[PreparedLog], cfg: RoverConfig, settings: ReplaySettings
-) -> list[PreparedLog]:
-    """The logs prepared again for ``cfg`` (the setpoint recursion reads its bound)."""
-    return [prepare(p.log, cfg, p.name, settings) for p in prepared]
-
-
-Variant = Callable[[RoverConfig, float], tuple[RoverConfig, list[PreparedLog]]]
-
-
-def baseline(
-    cfg: RoverConfig,
-    prepared: list[PreparedLog],
-    windows: list[Window],
-    settings: ReplaySettings,
-    sensor_noise: dict[str, float],
-) -> tuple[dict[str, float], Array, float]:
-    """The nominal model's per-signal scale, per-window losses and a loss floor."""
-    base = Replayer(cfg, settings).run(prepared, windows)
-    scale = rs.signal_scale(rs.stack(base, prepared), sensor_noise)
-    l0 = rs.window_losses(base, scale)
-    return scale, l0, 1e-12 * max(float(np.mean(l0)), 1e-300)
-
-
-def _fit_ladder(
-    name: str,
-    unit: str,
-    nominal: float,
-    ladder: tuple[float, ...],
-    variant: Variant,
-    cfg: RoverConfig,
-    prepared: list[PreparedLog],
-    windows: list[Window],
-    settings: ReplaySettings,
-    sensor_noise: dict[str, float],
-    open_ends: tuple[bool, bool] = (False, True),
-    linear: bool = False,
-) -> FormFit:
-    """The form's best value on ``ladder`` (refined by a parabola, in log x or, ``linear``,
-    in x) judged against ``nominal`` (:func:`_judged`). ``open_ends``: whether the ladder's
-    lowest and highest rungs are ends of the search only, not of the physics. A best value there is reported
-    but not adopted (:attr:`FormFit.at_end`): the windows ask for more than the form's
-    physical range gives, which something outside the form (an effect) must supply. Why
-    (stop 60): on the independent generator's dry sand (case 47717) the yaw springs went to
-    40 N m/rad, the ladder's top (its springs are 12-18), and with them no soil of any
-    k_phi replayed better than hard ground; at the nominal springs the soil explains the
-    yaw joints and free wheels (training sum of log ratios -48)."""
-    scale, l0, eps = baseline(cfg, prepared, windows, settings, sensor_noise)
-
-    def losses_at(x: float) -> Array:
-        c, p = variant(cfg, x)
-        return rs.window_losses(Replayer(c, settings).run(p, windows), scale)
-
-    def crit(losses: Array) -> float:
-        return float(np.mean(np.log((losses + eps) / (l0 + eps))))
-
-    xs = sorted({*ladder, nominal})
-    losses = {x: l0 if x == nominal else losses_at(x) for x in xs}
-    tried = {x: crit(v) for x, v in losses.items()}
-    # log spacing for the parabola; a nominal 0 ("none", the slip floor's) sits below the
-    # ladder and is never a parabola's neighbour
-    lx = np.array(xs) if linear else np.log(np.maximum(np.array(xs), 1e-300))
-    y = np.array([tried[x] for x in xs])
-    j = int(np.argmin(y))
-    best = xs[j]
-    if 0 < j < len(xs) - 1 and (linear or xs[j - 1] > 0):
-        x_hat = parabola_min(lx, y, j)
-        if x_hat != lx[j]:  # a vertex between the neighbours (not a flat or concave ladder)
-            v = float(x_hat if linear else np.exp(x_hat))
-            if v not in losses:
-                losses[v] = losses_at(v)
-                tried[v] = crit(losses[v])
-            if tried[v] < tried[best]:
-                best = v
-    if tried[best] >= tried[nominal]:
-        best = nominal  # a tie (a bound the drives never reach) keeps the configuration's
-    form = _judged(name, unit, nominal, best, tried, l0, losses[best], eps)
-    ends = (min(ladder), max(ladder))
-    if form.adopted and any(o and best == e for o, e in zip(open_ends, ends, strict=True)):
-        form = replace(form, at_end=True, adopted=False)
-    return form
-
-
-def _judged(
-    name: str,
-    unit: str,
-    nominal: float,
-    best: float,
-    tried: dict[float, float],
-    l0: Array,
-    l_best: Array,
-    eps: float,
-    labels: tuple[str, ...] = (),
-    k: int = 1,
-) -> FormFit:
-    """The form fit of ``best`` against ``nominal`` by the effects' rule: per-window log loss
-    ratios, their Wilcoxon p (reported) and the BIC with ``k`` parameters (decides)."""
-    d = np.log((l0 + eps) / (l_best + eps))
-    if best == nominal or np.allclose(d, 0.0):
-        p = 1.0
-    else:
-        p = float(stats.wilcoxon(d, alternative="greater", zero_method="zsplit").pvalue)
-    _, d_bic = information_criteria(-float(np.sum(d)), len(d), k)
-    return FormFit(
-        name=name,
-        unit=unit,
-        nominal=nominal,
-        value=best,
-        ladder=dict(sorted(tried.items())),
-        gain=1.0 - float(np.exp(-np.mean(d))),
-        p=p,
-        d_bic=d_bic,
-        adopted=bool(best != nominal and d_bic < 0),
-        labels=labels,
-    )
-
-
 def fit_joint_zeros(
     cfg: RoverConfig,
     prepared: list[PreparedLog],
@@ -394,7 +270,7 @@ def fit_joint_zeros(
         eps = 1e-12 * max(float(np.mean(l0)), 1e-300)
         n, z = float(nominal[i]), float(zeros[i])
         crit = float(np.mean(np.log((l1 + eps) / (l0 + eps))))
-        out.append(_judged(ZERO_PREFIX + j, "rad", n, z, {n: 0.0, z: crit}, l0, l1, eps))
+        out.append(judged(ZERO_PREFIX + j, "rad", n, z, {n: 0.0, z: crit}, l0, l1, eps))
     return out
 
 
@@ -406,7 +282,7 @@ def fit_relaxation(
     sensor_noise: dict[str, float],
 ) -> FormFit:
     """Fit the tire's relaxation length on ``windows`` (training) of ``prepared`` logs."""
-    return _fit_ladder(
+    return fit_ladder(
         "relaxation_length",
         "m",
         float(cfg.tire.sigma_x),
@@ -435,7 +311,7 @@ def fit_yaw_spring(
     springs are 15 N m/rad, this configuration's 10. On its clean turning drive (case
     47245) the yaw joints replayed at 14 and 18 x their floor; at 15 N m/rad 5.4 and 7.0 x,
     the held-out drive 53 % better."""
-    return _fit_ladder(
+    return fit_ladder(
         "yaw_spring",
         "N m/rad",
         float(cfg.joints[YAW_JOINTS[0]].stiffness),
@@ -473,7 +349,7 @@ def fit_joint_height(
         raised = with_joint_height(c, x)
         return raised, reprepare(prepared, raised, settings)
 
-    return _fit_ladder(
+    return fit_ladder(
         "joint_height",
         "m",
         float(cfg.geometry.joint_height),
@@ -511,7 +387,7 @@ def fit_com_height(
         for k in range(-4, 4)
         if h0 + COM_HEIGHT_STEP * k >= COM_HEIGHT_LOWEST
     )
-    return _fit_ladder(
+    return fit_ladder(
         "com_height",
         "m",
         h0,
@@ -537,7 +413,7 @@ def fit_slip_floor(
     """Fit the tire's low-speed slip floor (``TireParams.v_floor``) on ``windows``
     (training): the configuration's value (0, none, by default) against
     :data:`FLOOR_LADDER`."""
-    return _fit_ladder(
+    return fit_ladder(
         "slip_floor",
         "m/s",
         float(cfg.tire.v_floor),
@@ -566,7 +442,7 @@ def fit_windup(
         cx = with_windup(c, x)
         return cx, reprepare(prepared, cx, settings)
 
-    return _fit_ladder(
+    return fit_ladder(
         "max_angle_error",
         "rad",
         float(cfg.motor.max_angle_error),
@@ -578,74 +454,6 @@ def fit_windup(
         settings,
         sensor_noise,
     )
-
-
-def _fit_loop_gain(
-    name: str,
-    unit: str,
-    setter: Callable[[RoverConfig, float], RoverConfig],
-    nominal: float,
-) -> Callable[..., FormFit]:
-    """A stage fitting one speed-loop gain on the training windows, on :data:`LOOP_GAIN_STEPS`
-    times ``nominal``, both ends of the search only; each value replays logs prepared again
-    for it (the conditional anti-windup's saturation test reads the gains)."""
-
-    def fit(
-        cfg: RoverConfig,
-        prepared: list[PreparedLog],
-        windows: list[Window],
-        settings: ReplaySettings,
-        sensor_noise: dict[str, float],
-    ) -> FormFit:
-        def variant(c: RoverConfig, x: float) -> tuple[RoverConfig, list[PreparedLog]]:
-            cx = setter(c, x)
-            return cx, reprepare(prepared, cx, settings)
-
-        ladder = tuple(float(nominal * k) for k in LOOP_GAIN_STEPS)
-        ends = (True, True)
-        return _fit_ladder(
-            name,
-            unit,
-            nominal,
-            ladder,
-            variant,
-            cfg,
-            prepared,
-            windows,
-            settings,
-            sensor_noise,
-            ends,
-        )
-
-    return fit
-
-
-def fit_speed_gain(
-    cfg: RoverConfig,
-    prepared: list[PreparedLog],
-    windows: list[Window],
-    settings: ReplaySettings,
-    sensor_noise: dict[str, float],
-) -> FormFit:
-    """Fit the speed loop's proportional gain (``motor.speed_gain``) on ``windows``
-    (training). Why (stop 66): the independent generator's voltage-mode PI gives about
-    5.6 N m per rad/s at the wheel with its back-EMF, the configuration 2; on its clean
-    case 50546 the training windows replay 24 % better at 4 (with the integral gain at 20)."""
-    stage = _fit_loop_gain("speed_gain", "N m s/rad", with_speed_gain, cfg.motor.speed_gain)
-    return stage(cfg, prepared, windows, settings, sensor_noise)
-
-
-def fit_integral_gain(
-    cfg: RoverConfig,
-    prepared: list[PreparedLog],
-    windows: list[Window],
-    settings: ReplaySettings,
-    sensor_noise: dict[str, float],
-) -> FormFit:
-    """Fit the speed loop's integral gain (``motor.integral_gain``) on ``windows``
-    (training), after the proportional gain."""
-    stage = _fit_loop_gain("integral_gain", "N m/rad", with_integral_gain, cfg.motor.integral_gain)
-    return stage(cfg, prepared, windows, settings, sensor_noise)
 
 
 def fit_anti_windup(
@@ -670,7 +478,7 @@ def fit_anti_windup(
             losses[float(i)] = rs.window_losses(Replayer(c, settings).run(p, windows), scale)
     tried = {x: float(np.mean(np.log((v + eps) / (l0 + eps)))) for x, v in losses.items()}
     best = min(tried, key=lambda x: (tried[x], x != nominal))
-    return _judged("anti_windup", "", nominal, best, tried, l0, losses[best], eps, tuple(forms))
+    return judged("anti_windup", "", nominal, best, tried, l0, losses[best], eps, tuple(forms))
 
 
 def form_text(form: FormFit) -> str:

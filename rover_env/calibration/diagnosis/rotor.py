@@ -23,7 +23,7 @@ import numpy as np
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import merge
-from rover_env.calibration.diagnosis.form import baseline
+from rover_env.calibration.diagnosis.form_ladder import baseline
 from rover_env.calibration.diagnosis.judge import (
     fit_budget,
     fmt_phys,

@@ -247,7 +247,7 @@ class FormFit:
     """A choice's names (``value`` and ``nominal`` index them), empty for a number."""
     at_end: bool = False
     """The best value pays its BIC but is an open end of the form's ladder, so it is not
-    adopted (the windows ask for more than the form's range: :func:`.form._fit_ladder`)."""
+    adopted (the windows ask for more than the form's range: :func:`.form_ladder.fit_ladder`)."""
 
     def text(self, x: float) -> str:
         """``x`` in words: a choice's name, or the number with its unit."""
