@@ -89,6 +89,7 @@ from rover_env.calibration.diagnosis.form_ladder import (
     fit_ladder,
     judged,
     reprepare,
+    reprepared,
 )
 from rover_env.calibration.diagnosis.form_loop import (
     fit_integral_gain,
@@ -437,17 +438,12 @@ def fit_windup(
     """Fit the speed loop's anti-windup bound on ``windows`` (training): each value replays
     logs prepared again for it, since the setpoint recursion that starts every window reads
     the bound."""
-
-    def variant(c: RoverConfig, x: float) -> tuple[RoverConfig, list[PreparedLog]]:
-        cx = with_windup(c, x)
-        return cx, reprepare(prepared, cx, settings)
-
     return fit_ladder(
         "max_angle_error",
         "rad",
         float(cfg.motor.max_angle_error),
         WINDUP_LADDER,
-        variant,
+        reprepared(with_windup, prepared, settings),
         cfg,
         prepared,
         windows,

@@ -32,6 +32,21 @@ def reprepare(
 Variant = Callable[[RoverConfig, float], tuple[RoverConfig, list[PreparedLog]]]
 
 
+def reprepared(
+    setter: Callable[[RoverConfig, float], RoverConfig],
+    prepared: list[PreparedLog],
+    settings: ReplaySettings,
+) -> Variant:
+    """The variant of a form whose value the setpoint recursion reads (the loop's bound and
+    gains): each value's configuration with the logs prepared again for it."""
+
+    def variant(c: RoverConfig, x: float) -> tuple[RoverConfig, list[PreparedLog]]:
+        cx = setter(c, x)
+        return cx, reprepare(prepared, cx, settings)
+
+    return variant
+
+
 def baseline(
     cfg: RoverConfig,
     prepared: list[PreparedLog],

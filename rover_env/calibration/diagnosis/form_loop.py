@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import replace
 
-from rover_env.calibration.diagnosis.form_ladder import fit_ladder, reprepare
+from rover_env.calibration.diagnosis.form_ladder import fit_ladder, reprepared
 from rover_env.calibration.diagnosis.state import FormFit
 from rover_env.calibration.replay import PreparedLog, ReplaySettings, Window
 from rover_env.config import RoverConfig
@@ -43,18 +43,13 @@ def _fit_loop_gain(
     """One speed-loop gain fitted on the training ``windows``, on :data:`LOOP_GAIN_STEPS`
     times ``nominal``, both ends of the search only; each value replays logs prepared again
     for it (the conditional anti-windup's saturation test reads the gains)."""
-
-    def variant(c: RoverConfig, x: float) -> tuple[RoverConfig, list[PreparedLog]]:
-        cx = setter(c, x)
-        return cx, reprepare(prepared, cx, settings)
-
     ladder = tuple(float(nominal * k) for k in LOOP_GAIN_STEPS)
     return fit_ladder(
         name,
         unit,
         nominal,
         ladder,
-        variant,
+        reprepared(setter, prepared, settings),
         cfg,
         prepared,
         windows,
