@@ -40,7 +40,8 @@ class FakeEv:
 
 def limit(base: float, gain: float, where: range) -> float:
     (c,) = catalogue(["torque_limit"])
-    return detection_limit(FakeEv(base, gain, where), c, "train")["-"]  # type: ignore[arg-type]
+    ev = FakeEv(base, gain, where)
+    return detection_limit(ev, c, "train", ev.scale)["-"]  # type: ignore[arg-type]
 
 
 def test_the_limit_is_where_the_effect_pays_its_price_against_the_residual_left() -> None:
@@ -55,6 +56,20 @@ def test_the_limit_is_where_the_effect_pays_its_price_against_the_residual_left(
 
 def test_no_limit_for_an_effect_that_moves_nothing_or_a_switch() -> None:
     (c,) = catalogue(["torque_limit"])
-    assert detection_limit(FakeEv(1.0, 0.0, range(N)), c, "train") == {}  # type: ignore[arg-type]
+    ev = FakeEv(1.0, 0.0, range(N))
+    assert detection_limit(ev, c, "train", ev.scale) == {}  # type: ignore[arg-type]
     (sw,) = catalogue(["combined_slip"])
-    assert detection_limit(FakeEv(1.0, 1.0, range(N)), sw, "train") == {}  # type: ignore[arg-type]
+    ev = FakeEv(1.0, 1.0, range(N))
+    assert detection_limit(ev, sw, "train", ev.scale) == {}  # type: ignore[arg-type]
+
+
+def test_the_limit_is_in_the_units_it_is_given() -> None:
+    # The residual left and the effect both on signals of floor 1: a scale of 2 on every
+    # signal divides both alike (no change); on the effect's signal alone, doubles the limit.
+    (c,) = catalogue(["torque_limit"])
+    ev = FakeEv(1.0, 1.0, range(N))
+    one = detection_limit(ev, c, "train", ev.scale)["-"]  # type: ignore[arg-type]
+    both = detection_limit(ev, c, "train", dict.fromkeys(SIGNALS, 2.0))["-"]  # type: ignore[arg-type]
+    assert both == pytest.approx(one, rel=1e-6)
+    wheel = {**ev.scale, "wheel_2L": 2.0}
+    assert detection_limit(ev, c, "train", wheel)["-"] == pytest.approx(2 * one, rel=0.05)  # type: ignore[arg-type]

@@ -175,8 +175,8 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
             if opts.screen
             else ""
         )
-        + " Residuals"
-        " scaled per signal by the larger of the baseline training RMS and the sensor noise; a candidate"
+        + " The fits weigh the residuals"
+        " per signal by the larger of the baseline training RMS and the sensor noise; a candidate"
         " that improves the training drives (BIC) is refitted with each signal scaled by its residual under that fit"
         f" (iteratively reweighted, up to {opts.reweigh} times), so the signals it fixes keep their weight."
         " 95 % intervals:"
@@ -191,7 +191,8 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
         f"- Decision: named only if the held-out error falls by ≥ {100 * opts.min_gain:.0f} % (geometric mean over"
         " held-out windows of the per-window ratio, so that a few very sensitive windows do not decide alone)"
         f" with a one-sided Wilcoxon signed-rank test of the per-window log ratios at p < {opts.alpha:g} and the"
-        " training BIC falls (windows as observations, each with its own error scale: ΔBIC = Σ log(loss ratio) + k ln n)."
+        " training BIC falls (windows as observations, each with its own error scale, each signal in units of its"
+        " replay floor as on the held-out drive: ΔBIC = Σ log(loss ratio) + k ln n)."
         " When no candidate passes that window test, one whose held-out replay takes at least one signal back"
         " under the current model's replay floor (the test of the tables below) and puts none above it may be"
         " named instead (an effect seen in a few windows only, such as a torque limit the drive reaches a few"

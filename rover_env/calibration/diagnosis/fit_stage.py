@@ -64,7 +64,7 @@ def fit_one(d: Diagnosis, c: Candidate) -> Scored:
     def fit_at(w: str) -> Scored:
         s = score(d, fit(d.ev, [c], w, max_nfev=fit_budget([c], opts)), d.held0, {})
         s.threshold = noise_threshold(d.ev, c, w, d.noise)
-        s.detectable = detection_limit(d.ev, c, w)
+        s.detectable = detection_limit(d.ev, c, w, d.noise)
         return s
 
     s = screened(fit_at, which, c.discrete, opts)
@@ -189,7 +189,7 @@ def _ladder_magnitudes(c: Candidate) -> list[tuple[np.ndarray, str, float]]:
 
 
 def _window_change(a: WindowResult, b: WindowResult, scale: dict[str, float]) -> float:
-    """One window's squared change between two replays, in the fit's signal scale."""
+    """One window's squared change between two replays, in the signal scale ``scale``."""
     return float(np.sum((rs.residual_vector([a], scale) - rs.residual_vector([b], scale)) ** 2))
 
 
@@ -197,12 +197,15 @@ def _price_gap(f: float, q: np.ndarray, price: float) -> float:
     return float(np.sum(np.log1p(f * q))) - price
 
 
-def detection_limit(ev: Evaluator, c: Candidate, which: str) -> dict[str, float]:
+def detection_limit(
+    ev: Evaluator, c: Candidate, which: str, scale: dict[str, float]
+) -> dict[str, float]:
     """Per side of "off": the smallest magnitude of the effect that, were it in the logs,
-    would pay its training BIC price against the residual the logs leave now.
+    would pay its training BIC price against the residual the logs leave now, the losses
+    in ``scale``, the units the BIC is judged in (:func:`.judge.training_criteria`).
 
     From the ladder's replays (in the cache after the fit): at rung m the effect changes
-    window w's replay by E_w (its loss in the fit's signal scale); on logs that hold it, the
+    window w's replay by E_w (its loss in ``scale``); on logs that hold it, the
     fitted effect would take the window's loss from about R_w + E_w to R_w, R_w the model's
     loss on that window now (the form it lacks, the noise). The BIC falls once
     sum_w log(1 + E_w / R_w) exceeds k ln n; E grows as m^2 near "off", so each rung's E,
@@ -218,7 +221,7 @@ def detection_limit(ev: Evaluator, c: Candidate, which: str) -> dict[str, float]
     if c.discrete or not c.ladder:
         return {}
     ref = ev.run(c.to_ext(np.array(c.off)), which)
-    r_ref = rs.window_losses(ref, ev.scale)
+    r_ref = rs.window_losses(ref, scale)
     r_ref = np.maximum(r_ref, 1e-12 * max(float(np.mean(r_ref)), 1e-300))
     price = len(c.labels) * math.log(max(len(ref), 2))
     groups: dict[str, list[tuple[float, float, float]]] = {}
@@ -227,7 +230,7 @@ def detection_limit(ev: Evaluator, c: Candidate, which: str) -> dict[str, float]
             res = ev.run(c.to_ext(x), which)
         except (EffectError, SimulationError):
             continue
-        e = np.array([_window_change(a, b, ev.scale) for a, b in zip(res, ref, strict=True)])
+        e = np.array([_window_change(a, b, scale) for a, b in zip(res, ref, strict=True)])
         q = np.nan_to_num(e) / r_ref
         d = float(np.sum(np.log1p(q)))
         if d > 0:

@@ -227,12 +227,12 @@ def blind_partners(d: Diagnosis) -> list[Scored]:
     # resistance 0.052 + load-dependent friction 0.108, the latter alone p = 1; a
     # soil + 2.2 deg slope, the slope alone fitted at heading -4 deg, truth 131).
     pool = [c for c in d.cands if c.name not in {w.name for w in w_cands}]
-    # Stage two weighs the training signals as stage one did, with the winner as the
-    # reference: each by its residual after the winner (or its floor). Weighed by
+    # Stage two's fits weigh the training signals as stage one's did, with the winner as
+    # the reference: each by its residual after the winner (or its floor). Weighed by
     # the residuals before it, the signals the winner fixed still set the scale, and
     # a partner's improvement where the winner leaves residual is diluted (15080:
-    # wheel_3R scaled 0.124 against 0.015 left; the load-dependent friction beside
-    # the rolling resistance, held-out 19.6 % better p 0.0004, scored dBIC +1.7).
+    # wheel_3R scaled 0.124 against 0.015 left). Its BIC is in floor units, as every
+    # BIC that names (:func:`.judge.training_criteria`).
     scale_w = rs.signal_scale(rs.stack(ev.run(winner.fit.ext, "train"), d.prepared), d.noise)
     ev_w = replace(ev, scale=scale_w, replays=0, seconds=0.0)  # the cache is shared
 
@@ -243,7 +243,7 @@ def blind_partners(d: Diagnosis) -> list[Scored]:
 
         def fit_at(w: str) -> Scored:
             f = fit(ev_w, [c], w, max_nfev=fit_budget([c], opts), hold=winner.fit.ext)
-            return score(d, f, winner.held_losses, winner.fit.ext, tscale=scale_w)
+            return score(d, f, winner.held_losses, winner.fit.ext)
 
         return screened(fit_at, which, c.discrete, opts)
 
