@@ -118,9 +118,9 @@ def training_criteria(
     not decide): the sum of per-window log ratios of the losses in ``scale``.
 
     :func:`score` gives each signal's replay floor, the units of the held-out test (the
-    fits weigh the signals otherwise: by their residual, so that none is lost). Why (stop 67): scaled by their RMS residual before any effect, every signal weighs
-    about one in every window, so an effect seen in a few signals can gain at most their
-    share. A slope or a rolling resistance shows in the two free wheels, 2 of 14 signals:
+    fits weigh the signals otherwise: by their residual, so that none is lost). Why (stop
+    67): scaled by their RMS residual before any effect, every signal weighs about one in
+    every window, so an effect seen in a few signals can gain at most their share. A slope or a rolling resistance shows in the two free wheels, 2 of 14 signals:
     fixed perfectly, log(12/14) per window, -4.9 on 32 windows against a slope's price of
     6.9. Spent case 50710 (a 9.40 deg slope): fitted 8.86 deg [8.23, 9.48], held-out 97 %
     better (p 1.5e-5), training dBIC +0.5, not named; in floor units dBIC -112, named at
