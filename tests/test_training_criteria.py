@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from rover_env.calibration.diagnosis.judge import training_criteria
+from rover_env.calibration.diagnosis.judge import score, training_criteria
 from rover_env.calibration.replay import SIGNALS
 
 N = 32  # training windows
@@ -73,8 +73,6 @@ def _rms(results: list[Any], signal: str) -> float:
 def test_score_judges_the_training_windows_in_floor_units() -> None:
     # diagnose's score: the stage's fit scale (each signal's RMS before any effect) is
     # for the least squares; the BIC that names is in floor units.
-    from rover_env.calibration.diagnosis.judge import score
-
     runs = {"{}": replays(0.1, 0.01), '{"slope": 1}': replays(0.002, 0.01, seed=1)}
 
     class Ev:
