@@ -273,7 +273,8 @@ def test_the_anti_windup_form_is_fitted_unless_asked_not_to() -> None:
 
 def test_every_switch_defaults_to_its_option_and_turns_off() -> None:
     """The on/off options on the command line (``SWITCHES``): each defaults to its
-    :class:`Options` field, and ``--no-...`` turns it off without touching the others."""
+    :class:`Options` field, and ``--no-...`` turns it off (``--...`` on, for one off by
+    default) without touching the others."""
     import argparse
 
     from rover_env.calibration.diagnose import SWITCHES, Options, add_cli
@@ -283,10 +284,13 @@ def test_every_switch_defaults_to_its_option_and_turns_off() -> None:
     names = [n for n, _ in SWITCHES]
     assert "fit_geometry" in names and len(set(names)) == len(names)
     base = ap.parse_args(["diagnose", "a.csv", "--out", "o"])
+    assert not Options().joint_motor_loop  # the one off by default (stop 68)
     for name in names:
-        assert getattr(base, name) is getattr(Options(), name) is True, name
-        off = ap.parse_args(["diagnose", "a.csv", "--out", "o", "--no-" + name.replace("_", "-")])
-        assert [n for n in names if not getattr(off, n)] == [name]
+        on = getattr(Options(), name)
+        assert getattr(base, name) is on and on is (name != "joint_motor_loop"), name
+        flag = ("--no-" if on else "--") + name.replace("_", "-")
+        flipped = ap.parse_args(["diagnose", "a.csv", "--out", "o", flag])
+        assert [n for n in names if getattr(flipped, n) is not getattr(base, n)] == [name]
 
 
 def _group_curves(minima: list[float], noise: float, seed: int) -> tuple[np.ndarray, np.ndarray]:

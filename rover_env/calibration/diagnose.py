@@ -110,6 +110,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "fit the joints' and the centres of mass's heights above the axles as model form",
     ),
     ("fit_speed_loop", "fit the speed loop's proportional and integral gains as model form"),
+    (
+        "joint_motor_loop",
+        "fit the speed loop's anti-windup form, gains and rotor inertia together as model form",
+    ),
     ("fit_slip_floor", "fit the tire's low-speed slip floor as model form"),
     ("screen", "screen each candidate on half the training windows before its full fit"),
     (

@@ -93,11 +93,13 @@ from rover_env.calibration.diagnosis.form_ladder import (
 )
 from rover_env.calibration.diagnosis.form_loop import (
     fit_integral_gain,
+    fit_motor_loop,
     fit_speed_gain,
     with_integral_gain,
     with_speed_gain,
 )
 from rover_env.calibration.diagnosis.judge import better_worse
+from rover_env.calibration.diagnosis.rotor import with_armature
 from rover_env.calibration.diagnosis.state import Diagnosis, FormFit, Options
 from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window
 from rover_env.config import ANTI_WINDUP_FORMS, JOINTS, AntiWindup, RoverConfig
@@ -216,6 +218,7 @@ def with_form(cfg: RoverConfig, fit: FormFit) -> RoverConfig:
         "max_angle_error": with_windup,
         "speed_gain": with_speed_gain,
         "integral_gain": with_integral_gain,
+        "armature": with_armature,
         "yaw_spring": with_yaw_spring,
         "joint_height": with_joint_height,
         "com_height": with_com_height,
@@ -523,10 +526,19 @@ def fit_forms(
         for z in zeros:
             show(z)
             base = with_form(base, z) if z.adopted else base
+    joint = opts.joint_motor_loop
+    if joint:
+        loop = fit_motor_loop(base, prepared, train_w, st, sensor_noise)
+        forms.extend(loop)
+        for f in loop:
+            show(f)
+            base = with_form(base, f) if f.adopted else base
+        if any(f.adopted for f in loop):
+            prepared = reprepare(prepared, base, st)
     stages = [
-        *([fit_anti_windup] if opts.fit_anti_windup else []),
+        *([fit_anti_windup] if opts.fit_anti_windup and not joint else []),
         fit_relaxation,
-        *([fit_speed_gain, fit_integral_gain] if opts.fit_speed_loop else []),
+        *([fit_speed_gain, fit_integral_gain] if opts.fit_speed_loop and not joint else []),
         *([fit_yaw_spring] if opts.fit_yaw_spring else []),
         *([fit_joint_height, fit_com_height] if opts.fit_geometry else []),
         *([fit_slip_floor] if opts.fit_slip_floor else []),

@@ -159,6 +159,14 @@ class Options:
     the configuration's 2 N m per rad/s, and on hard accelerations that motor form was the
     largest thing the model missed; on fresh cases, block 50700, adopted in 1 of 47
     diagnoses)."""
+    joint_motor_loop: bool = False
+    """Fit the speed loop's form as one (:func:`.form_loop.fit_motor_loop`): its anti-windup
+    form, both gains and the rotor inertia searched together and adopted as a whole, in
+    place of the anti-windup form and the gains one at a time (:attr:`fit_anti_windup`,
+    :attr:`fit_speed_loop`). Off by default (stop 68): on the independent generator's clean
+    case 50845 it found a loop 17.8 % better on the training windows that did not pay the
+    BIC and replayed the held-out drive worse; for a rover whose loop is known to differ
+    from the configuration's, ``--joint-motor-loop``."""
     fit_slip_floor: bool = True
     """Fit the tire's low-speed slip floor (``TireParams.v_floor``) as model form, after the
     relaxation length (:func:`.form.fit_slip_floor`; stop 30: the second generator's
