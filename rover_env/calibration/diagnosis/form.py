@@ -85,9 +85,9 @@ from numpy.typing import NDArray
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.diagnosis.form_ladder import (
-    baseline,
     fit_ladder,
     judged,
+    judged_baseline,
     reprepare,
     reprepared,
 )
@@ -274,7 +274,7 @@ def fit_joint_zeros(
         eps = 1e-12 * max(float(np.mean(l0)), 1e-300)
         n, z = float(nominal[i]), float(zeros[i])
         crit = float(np.mean(np.log((l1 + eps) / (l0 + eps))))
-        out.append(judged(ZERO_PREFIX + j, "rad", n, z, {n: 0.0, z: crit}, l0, l1, eps))
+        out.append(judged(ZERO_PREFIX + j, "rad", n, z, {n: 0.0, z: crit}, l0, l1))
     return out
 
 
@@ -468,16 +468,17 @@ def fit_anti_windup(
     numbers (one parameter), so a tie keeps the configuration's form."""
     forms = list(ANTI_WINDUP_FORMS)
     nominal = float(forms.index(cfg.motor.anti_windup))
-    scale, l0, eps = baseline(cfg, prepared, windows, settings, sensor_noise)
-    losses = {nominal: l0}
+    scale, l0, eps, n0 = judged_baseline(cfg, prepared, windows, settings, sensor_noise)
+    losses, noise_losses = {nominal: l0}, {nominal: n0}
     for i, form in enumerate(forms):
         if float(i) != nominal:
             c = with_anti_windup(cfg, form)
-            p = reprepare(prepared, c, settings)
-            losses[float(i)] = rs.window_losses(Replayer(c, settings).run(p, windows), scale)
+            res = Replayer(c, settings).run(reprepare(prepared, c, settings), windows)
+            losses[float(i)] = rs.window_losses(res, scale)
+            noise_losses[float(i)] = rs.window_losses(res, sensor_noise)
     tried = {x: float(np.mean(np.log((v + eps) / (l0 + eps)))) for x, v in losses.items()}
     best = min(tried, key=lambda x: (tried[x], x != nominal))
-    return judged("anti_windup", "", nominal, best, tried, l0, losses[best], eps, tuple(forms))
+    return judged("anti_windup", "", nominal, best, tried, n0, noise_losses[best], tuple(forms))
 
 
 def form_text(form: FormFit) -> str:
