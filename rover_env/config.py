@@ -28,8 +28,13 @@ JOINTS: tuple[str, ...] = ("theta_1", "theta_2", "theta_3", "theta_4", "theta_5"
 SEGMENTS: tuple[str, ...] = ("seg1", "seg2", "seg3")
 
 
-AntiWindup = Literal["clamp", "conditional"]
-ANTI_WINDUP_FORMS: tuple[AntiWindup, ...] = ("clamp", "conditional")
+AntiWindup = Literal["clamp", "conditional", "back_calculation"]
+ANTI_WINDUP_FORMS: tuple[AntiWindup, ...] = ("clamp", "conditional", "back_calculation")
+FITTED_ANTI_WINDUP_FORMS: tuple[AntiWindup, ...] = ("clamp", "conditional")
+"""The forms ``diagnose`` chooses between (the first of :data:`ANTI_WINDUP_FORMS`, in the same
+order): back-calculation carries a tracking time the drives barely separate from the gains,
+the voltage line and the rotor (stop 68), so it is configured from a drive's datasheet, not
+fitted."""
 """The speed loop's anti-windup forms (``MotorSpec.anti_windup``)."""
 
 
@@ -185,6 +190,11 @@ class MotorSpec:
     """Anti-windup: the integrated angle setpoint stays within this of the wheel (rad)."""
     max_wheel_speed: float = 4.0
     """Largest speed target accepted (rad/s): actions and controllers are scaled to it."""
+    tracking_ratio: float = 1.0
+    """The back-calculation anti-windup's tracking time over the loop's integral time
+    ``speed_gain / integral_gain`` (``anti_windup: back_calculation`` only; 1: the textbook's
+    T_t = T_i). The smaller, the further the integral is bled while the motor's voltage
+    saturates, and the more a wheel that saturated on a step settles from below."""
     anti_windup: AntiWindup = "clamp"
     """The speed loop's anti-windup form. ``"clamp"``: the integral (setpoint minus wheel
     angle) is only bounded by ``max_angle_error``, so it can hold ``integral_gain`` x bound
@@ -192,7 +202,15 @@ class MotorSpec:
     integration, the textbook's: the integral is also frozen while the motor's output
     saturates outward (the torque limit or the DC motor's voltage/back-EMF line, and the
     error drives it further out), i.e. the setpoint then advances by the wheel's own motion
-    instead of the target (``max_angle_error`` stays an outer bound)."""
+    instead of the target (``max_angle_error`` stays an outer bound).
+    ``"back_calculation"``: a voltage-mode drive's: the loop sees only its voltage saturation
+    (the DC motor's line ``stall_torque (1 -+ w / no_load_speed)``), the current limit
+    (``torque_limit``) clips the torque in the driver, out of its sight; while the raw torque
+    is beyond the line the integral is bled by the excess at the tracking time
+    ``tracking_ratio x speed_gain / integral_gain`` (Astrom and Hagglund's back-calculation;
+    :func:`rover_env.sim.speed_loop.advance_setpoints`). On a hard step the integral then
+    ends near zero and the wheel settles from below, as the independent generator's does
+    (``benchmarks/step_response.py``). Not on the GPU backend."""
 
     def __post_init__(self) -> None:
         if self.anti_windup not in ANTI_WINDUP_FORMS:

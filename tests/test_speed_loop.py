@@ -42,20 +42,32 @@ def drive(seed: int, n: int = 1500) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     return t, phi, u
 
 
-@pytest.mark.parametrize("form", ["clamp", "conditional"])
+@pytest.mark.parametrize("form", ["clamp", "conditional", "back_calculation"])
 @pytest.mark.parametrize("torque_limit", [3.0, 0.4])
 def test_same_numbers_as_advance_setpoints(form: str, torque_limit: float) -> None:
     mo = replace(MotorSpec(), anti_windup=form, torque_limit=torque_limit, max_angle_error=0.2)
+    if form == "back_calculation":  # its voltage line within the drive's reach
+        mo = replace(mo, stall_torque=1.0, no_load_speed=4.5, tracking_ratio=0.5)
     t, phi, u = drive(7)
     got = setpoint_recursion(t, phi, u, mo)
     assert np.array_equal(got, numpy_recursion(t, phi, u, mo))
     assert np.abs(got).max() > 1e-3  # not all zero: the loop integrates something
+    if form == "back_calculation":  # and its branch taken
+        clamp = setpoint_recursion(t, phi, u, replace(mo, anti_windup="clamp"))
+        assert np.abs(got - clamp).max() > 0.01
 
 
 def test_the_forms_differ_when_the_motor_saturates() -> None:
-    """Else the conditional branch above would be tested on the clamp's numbers."""
+    """Else the conditional and back-calculation branches above would be tested on the
+    clamp's numbers (or on each other's)."""
     t, phi, u = drive(8)
     base = replace(MotorSpec(), torque_limit=0.4, max_angle_error=0.2)
     clamp = setpoint_recursion(t, phi, u, replace(base, anti_windup="clamp"))
     cond = setpoint_recursion(t, phi, u, replace(base, anti_windup="conditional"))
     assert np.abs(clamp - cond).max() > 0.01
+    # back-calculation sees the voltage line only: bring it within the drive's reach
+    line = replace(base, stall_torque=1.0, no_load_speed=4.5, speed_gain=4.0, integral_gain=16.0)
+    back = setpoint_recursion(t, phi, u, replace(line, anti_windup="back_calculation"))
+    for other in ("clamp", "conditional"):
+        o = setpoint_recursion(t, phi, u, replace(line, anti_windup=other))
+        assert np.abs(back - o).max() > 0.01, other

@@ -26,7 +26,6 @@ from rover_env.config import (
     DRIVEN_WHEELS,
     JOINTS,
     WHEELS,
-    MotorSpec,
     RoverConfig,
     TerrainConfig,
     load_rover,
@@ -46,6 +45,7 @@ from rover_env.rut import check_overflow, refused_writes
 from rover_env.sim.fast import FastBackendError, PluginView, inject_plugin, load_plugin
 from rover_env.sim.fast.plugin import SCHEDULE_ROWS
 from rover_env.sim.model import fill_hfield, hfield_data, scene_xml, static_deflection
+from rover_env.sim.speed_loop import advance_setpoints
 from rover_env.sim.tire_layer import TireLayer, TireState
 from rover_env.soil import SoilParams, load_soil
 from rover_env.terrain import Terrain
@@ -186,38 +186,6 @@ class SensorReadings:
     """(3, 4) attitude of each segment (w, x, y, z)."""
     imu_gyro: Array
     imu_accel: Array
-
-
-def advance_setpoints(
-    sp: Array, q: Array, dq: Array, w: Array, u: Array, dt: float, motor: MotorSpec
-) -> Array:
-    """The speed loop's integrated angle setpoints of the driven wheels after one step.
-
-    ``sp``: the setpoints before; ``q``, ``w``: the wheel angles and rates now; ``dq``: the
-    wheels' motion over the step (``w dt`` in the simulator, whose semi-implicit integrator
-    moves ``q`` by exactly that; the logged increment in the replay's recursion); ``u``: the
-    speed targets over the step; ``motor``: the physical motor (after the model extensions,
-    so its ``torque_limit`` is the one the ``<dcmotor>`` applies).
-
-    ``"clamp"``: ``sp + u dt`` clipped to ``max_angle_error`` of ``q``. ``"conditional"``: the
-    same, then, if the motor's raw PI torque ``integral_gain (sp - q) + speed_gain (u - w)``
-    lies outside what the ``<dcmotor>`` delivers (its ``saturation`` torque and its voltage
-    line ``stall_torque (1 -+ w / no_load_speed)``: MuJoCo's dcmotor drives the voltage
-    ``(R/K) tau + K w`` clamped to +-``voltage``) and the integrand ``u - w`` has the raw
-    torque's sign, the integral ``sp - q`` is frozen: ``sp + dq`` (clipped the same way).
-    The C plugin (``tire_plugin.c``, ``speed_loop``) does the same operations in order.
-    """
-    err = motor.max_angle_error
-    nxt = np.clip(sp + u * dt, q - err, q + err)
-    if motor.anti_windup == "clamp":
-        return np.asarray(nxt, dtype=np.float64)
-    raw = motor.integral_gain * (nxt - q) + motor.speed_gain * (u - w)
-    hi = np.minimum(motor.torque_limit, motor.stall_torque * (1.0 - w / motor.no_load_speed))
-    lo = np.maximum(-motor.torque_limit, -motor.stall_torque * (1.0 + w / motor.no_load_speed))
-    tau = np.clip(raw, lo, hi)
-    frozen = (tau != raw) & (np.sign(u - w) == np.sign(raw))
-    held = np.clip(sp + dq, q - err, q + err)
-    return np.asarray(np.where(frozen, held, nxt), dtype=np.float64)
 
 
 def physical_config(cfg: RoverConfig, effects: Sequence[Effect] | None = None) -> RoverConfig:

@@ -67,6 +67,11 @@ def _params(cfg: RoverConfig, dt: float) -> NDArray[np.float32]:
     """The layer's parameter row (layer.P_*): tire numbers, geometry, speed loop, dt."""
     mo = cfg.motor
     tire = [float(getattr(cfg.tire, f.name)) for f in fields(TireParams)]
+    if mo.anti_windup == "back_calculation":
+        raise ValueError(
+            "motor.anti_windup 'back_calculation' is not on the GPU backend (clamp and"
+            " conditional are); use RoverSim"
+        )
     cond = mo.anti_windup == "conditional"
     row = [
         *tire,

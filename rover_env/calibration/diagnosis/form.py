@@ -102,7 +102,13 @@ from rover_env.calibration.diagnosis.judge import better_worse
 from rover_env.calibration.diagnosis.rotor import with_armature
 from rover_env.calibration.diagnosis.state import Diagnosis, FormFit, Options
 from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window
-from rover_env.config import ANTI_WINDUP_FORMS, JOINTS, AntiWindup, RoverConfig
+from rover_env.config import (
+    ANTI_WINDUP_FORMS,
+    FITTED_ANTI_WINDUP_FORMS,
+    JOINTS,
+    AntiWindup,
+    RoverConfig,
+)
 from rover_env.sim.model import segment_inertia
 
 Array = NDArray[np.float64]
@@ -211,7 +217,8 @@ def with_form(cfg: RoverConfig, fit: FormFit) -> RoverConfig:
     if fit.name.startswith(ZERO_PREFIX):
         return with_joint_zero(cfg, fit.name.removeprefix(ZERO_PREFIX), fit.value)
     if fit.name == "anti_windup":
-        return with_anti_windup(cfg, ANTI_WINDUP_FORMS[int(fit.value)])
+        label = (fit.labels or ANTI_WINDUP_FORMS)[int(fit.value)]
+        return with_anti_windup(cfg, next(f for f in ANTI_WINDUP_FORMS if f == label))
     setters = {
         "relaxation_length": with_sigma,
         "slip_floor": with_slip_floor,
@@ -466,7 +473,9 @@ def fit_anti_windup(
     of :data:`ANTI_WINDUP_FORMS` replays logs prepared again for it (the setpoint recursion
     that starts every window is the loop's own); adopted by the same BIC rule as the
     numbers (one parameter), so a tie keeps the configuration's form."""
-    forms = list(ANTI_WINDUP_FORMS)
+    forms = list(FITTED_ANTI_WINDUP_FORMS)
+    if cfg.motor.anti_windup not in forms:  # a form given, not fitted: kept
+        forms.append(cfg.motor.anti_windup)
     nominal = float(forms.index(cfg.motor.anti_windup))
     scale, l0, eps, n0 = judged_baseline(cfg, prepared, windows, settings, sensor_noise)
     losses, noise_losses = {nominal: l0}, {nominal: n0}

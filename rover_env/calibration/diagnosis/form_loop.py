@@ -21,7 +21,7 @@ from rover_env.calibration.diagnosis.form_ladder import (
 from rover_env.calibration.diagnosis.state import FormFit
 from rover_env.calibration.fit import parabola_min
 from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window
-from rover_env.config import ANTI_WINDUP_FORMS, RoverConfig
+from rover_env.config import ANTI_WINDUP_FORMS, FITTED_ANTI_WINDUP_FORMS, RoverConfig
 
 Array = NDArray[np.float64]
 
@@ -185,6 +185,7 @@ def fit_motor_loop(
     scale, l0, eps, n0 = judged_baseline(cfg, prepared, windows, settings, sensor_noise)
     m = cfg.motor
     x0: Point = (ANTI_WINDUP_FORMS.index(m.anti_windup), m.speed_gain, m.integral_gain, m.armature)
+    forms = sorted({ANTI_WINDUP_FORMS.index(f) for f in FITTED_ANTI_WINDUP_FORMS} | {x0[0]})
     seen: dict[Point, tuple[float, Array]] = {x0: (0.0, n0)}
 
     def crit(x: Point) -> float:
@@ -204,7 +205,7 @@ def fit_motor_loop(
     x = x0
     for _sweep in range(LOOP_SWEEPS):
         start = x
-        x = min(((aw, x[1], x[2], x[3]) for aw in range(len(ANTI_WINDUP_FORMS))), key=crit)
+        x = min(((aw, x[1], x[2], x[3]) for aw in forms), key=crit)
         for i, ladder in enumerate(ladders, start=1):
             x = _line(x, i, ladder, crit)
         if x == start:

@@ -165,6 +165,7 @@ def inject_plugin(
                 mo.torque_limit,
                 mo.stall_torque,
                 mo.no_load_speed,
+                mo.tracking_ratio,
             )
         )
     lines = [

@@ -59,15 +59,17 @@
 //   radius           nominal wheel radius (m)
 //   tire             13 numbers in TireParams field order
 //   max_angle_error  anti-windup bound of the setpoint around the wheel angle (rad)
-//   anti_windup      optional, "clamp" (the default) or "conditional": the speed loop's
-//                    anti-windup form (MotorSpec.anti_windup, simulator.advance_setpoints);
-//                    conditional freezes the integral (setpoint minus wheel angle: the
-//                    setpoint advances by w dt instead of the target's) while the dcmotor's
-//                    raw PI torque is outside what it delivers and the error drives it further
-//   speed_loop       5 numbers, needed by "conditional": integral_gain, speed_gain,
+//   anti_windup      optional, "clamp" (the default), "conditional" or "back_calculation":
+//                    the speed loop's anti-windup form (MotorSpec.anti_windup,
+//                    speed_loop.advance_setpoints); conditional freezes the integral
+//                    (setpoint minus wheel angle: the setpoint advances by w dt instead of
+//                    the target's) while the dcmotor's raw PI torque is outside what it
+//                    delivers and the error drives it further; back_calculation bleeds it
+//                    while the raw torque is beyond the voltage line alone
+//   speed_loop       6 numbers, needed by both: integral_gain, speed_gain,
 //                    torque_limit, stall_torque, no_load_speed (the physical motor's, as
 //                    the <dcmotor> is built: saturation, and the voltage line
-//                    stall_torque (1 -+ w / no_load_speed))
+//                    stall_torque (1 -+ w / no_load_speed)), tracking_ratio
 //   rut_state        size of the rut map's block in plugin_state (0 without soil); the
 //                    terrain's tile index must fit in it
 //   width            wheel width b (m), for the soil stresses and the rut width
@@ -153,8 +155,9 @@ typedef struct {
   int *body, *jnt, *dof, *carrier, *root;
   int *ctrl_pos, *ctrl_vel, *driven_qpos, *driven_dof;
   double radius, max_err, width;
-  int conditional;                        // anti_windup "conditional" (1) or "clamp" (0)
-  double ki, kd, tau_max, stall, w0;      // speed_loop (conditional only)
+  int conditional;                        // anti_windup "clamp" 0, "conditional" 1, "back_calculation" 2
+  double ki, kd, tau_max, stall, w0;      // speed_loop (conditional, back_calculation)
+  double tracking;                        // speed_loop: back-calculation's T_t / T_i
   int rut_state;
   double tire[NTIRE];
   double combined_on, load_fall, load_fz0, load_span;  // model extensions (config 'effects')
@@ -947,21 +950,24 @@ static int parse_config(const mjModel* m, int instance, Config** out) {
   const char* aw = config(m, instance, "anti_windup");
   if (!aw[0] || !strcmp(aw, "clamp")) {
     c->conditional = 0;
-  } else if (!strcmp(aw, "conditional")) {
-    c->conditional = 1;
-    double sl[5];
-    if (!parse_numbers(config(m, instance, "speed_loop"), sl, 5) || sl[0] <= 0 || sl[1] <= 0
-        || sl[2] <= 0 || sl[3] <= 0 || sl[4] <= 0) {
-      return fail(c, "config 'speed_loop' must hold 5 positive numbers: integral_gain,"
-                  " speed_gain, torque_limit, stall_torque, no_load_speed", NULL);
+  } else if (!strcmp(aw, "conditional") || !strcmp(aw, "back_calculation")) {
+    c->conditional = strcmp(aw, "conditional") ? 2 : 1;
+    double sl[6];
+    if (!parse_numbers(config(m, instance, "speed_loop"), sl, 6) || sl[0] <= 0 || sl[1] <= 0
+        || sl[2] <= 0 || sl[3] <= 0 || sl[4] <= 0 || sl[5] <= 0) {
+      return fail(c, "config 'speed_loop' must hold 6 positive numbers: integral_gain,"
+                  " speed_gain, torque_limit, stall_torque, no_load_speed, tracking_ratio",
+                  NULL);
     }
     c->ki = sl[0];
     c->kd = sl[1];
     c->tau_max = sl[2];
     c->stall = sl[3];
     c->w0 = sl[4];
+    c->tracking = sl[5];
   } else {
-    return fail(c, "config 'anti_windup' must be \"clamp\" or \"conditional\", got: ", aw);
+    return fail(c, "config 'anti_windup' must be \"clamp\", \"conditional\" or"
+                " \"back_calculation\", got: ", aw);
   }
   if (!parse_numbers(config(m, instance, "tire"), c->tire, NTIRE)) {
     return fail(c, "config 'tire' must hold the 14 TireParams numbers", NULL);
@@ -1080,11 +1086,26 @@ static void tire_compute(const mjModel* m, mjData* d, int instance, int capabili
     if (c->conditional) {
       double w = d->qvel[c->driven_dof[k]];
       double raw = c->ki*(v - q) + c->kd*(u - w);
-      double hi = np_min(c->tau_max, c->stall*(1.0 - w/c->w0));
-      double lo = np_max(-c->tau_max, -c->stall*(1.0 + w/c->w0));
-      double tau = np_min(np_max(raw, lo), hi);
-      if (tau != raw && sign_of(u - w) == sign_of(raw)) {  // saturated outward: frozen
-        v = np_min(np_max(st[L.sp + k] + w*dt, q - c->max_err), q + c->max_err);
+      double line_hi = c->stall*(1.0 - w/c->w0);
+      double line_lo = -c->stall*(1.0 + w/c->w0);
+      if (c->conditional == 2) {  // back-calculation on the voltage line alone
+        double tau = np_min(np_max(raw, line_lo), line_hi);
+        if (tau != raw) {
+          double t_i = c->kd/c->ki;
+          double t_t = c->tracking*t_i;
+          double rest = tau/c->ki + (u - w)*(t_t - t_i);
+          double a = exp(-dt/t_t);
+          double dq = w*dt;
+          double bled = q + (rest + (st[L.sp + k] - q + dq - rest)*a);
+          v = np_min(np_max(bled, q - c->max_err), q + c->max_err);
+        }
+      } else {
+        double hi = np_min(c->tau_max, line_hi);
+        double lo = np_max(-c->tau_max, line_lo);
+        double tau = np_min(np_max(raw, lo), hi);
+        if (tau != raw && sign_of(u - w) == sign_of(raw)) {  // saturated outward: frozen
+          v = np_min(np_max(st[L.sp + k] + w*dt, q - c->max_err), q + c->max_err);
+        }
       }
     }
     d->ctrl[c->ctrl_pos[k]] = v;
