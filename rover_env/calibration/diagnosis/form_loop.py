@@ -178,10 +178,10 @@ def fit_motor_loop(
     x 4 on case 50812); searched together they came out conditional, x 4, x 1/2 and a rotor
     of 0.0476 kg m^2 (the generator's is 0.05): training windows 17.8 % better, the hard
     drive's driven wheels from 17 to 8 x their replay floor. Why it is off by default: that
-    whole did not pay the BIC (+7.6 in residual units), and the held-out drive (steps) replayed worse
-    under it (its driven wheels from 1.5 to 3.0 x their floor): no PI of this form answers
-    both drives as the generator's voltage-mode loop does (docs/calibration/README.md,
-    "The speed loop's response")."""
+    whole did not pay the BIC (+7.6 in residual units), and the held-out drive (steps)
+    replayed worse under it (its driven wheels from 1.5 to 3.0 x their floor): no loop this search reaches
+    answers both drives as the generator's voltage-mode one does (docs/calibration/README.md,
+    "Known limits")."""
     scale, l0, eps, n0 = judged_baseline(cfg, prepared, windows, settings, sensor_noise)
     m = cfg.motor
     x0: Point = (ANTI_WINDUP_FORMS.index(m.anti_windup), m.speed_gain, m.integral_gain, m.armature)
