@@ -470,7 +470,8 @@ def fit_anti_windup(
     sensor_noise: dict[str, float],
 ) -> FormFit:
     """Choose the speed loop's anti-windup form on ``windows`` (training): each other form
-    of :data:`ANTI_WINDUP_FORMS` replays logs prepared again for it (the setpoint recursion
+    of :data:`FITTED_ANTI_WINDUP_FORMS` (and a configured one outside them, kept unless
+    another does better) replays logs prepared again for it (the setpoint recursion
     that starts every window is the loop's own); adopted by the same BIC rule as the
     numbers (one parameter), so a tie keeps the configuration's form."""
     forms = list(FITTED_ANTI_WINDUP_FORMS)
