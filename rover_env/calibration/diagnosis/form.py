@@ -85,9 +85,9 @@ from numpy.typing import NDArray
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.diagnosis.form_ladder import (
+    baseline,
     fit_ladder,
     judged,
-    judged_baseline,
     reprepare,
     reprepared,
 )
@@ -478,17 +478,16 @@ def fit_anti_windup(
     if cfg.motor.anti_windup not in forms:  # a form given, not fitted: kept
         forms.append(cfg.motor.anti_windup)
     nominal = float(forms.index(cfg.motor.anti_windup))
-    scale, l0, eps, n0 = judged_baseline(cfg, prepared, windows, settings, sensor_noise)
-    losses, noise_losses = {nominal: l0}, {nominal: n0}
+    scale, l0, eps = baseline(cfg, prepared, windows, settings, sensor_noise)
+    losses = {nominal: l0}
     for i, form in enumerate(forms):
         if float(i) != nominal:
             c = with_anti_windup(cfg, form)
             res = Replayer(c, settings).run(reprepare(prepared, c, settings), windows)
             losses[float(i)] = rs.window_losses(res, scale)
-            noise_losses[float(i)] = rs.window_losses(res, sensor_noise)
     tried = {x: float(np.mean(np.log((v + eps) / (l0 + eps)))) for x, v in losses.items()}
     best = min(tried, key=lambda x: (tried[x], x != nominal))
-    return judged("anti_windup", "", nominal, best, tried, n0, noise_losses[best], tuple(forms))
+    return judged("anti_windup", "", nominal, best, tried, l0, losses[best], tuple(forms))
 
 
 def form_text(form: FormFit) -> str:

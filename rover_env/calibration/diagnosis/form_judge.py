@@ -47,9 +47,8 @@ def form_rejudgement(
     same signal scale). The significant candidates (best held-out gain first, at most
     ``opts.rejudge_form``) are refitted under the nominal form. Every model is compared on
     the same training windows against the nominal model without effects, by BIC with
-    windows as observations, in units of each signal's replay floor ``noise`` (the effects'
-    units, :func:`.judge.training_criteria`; stop 68): the winner with the forms counts one
-    parameter per adopted form. The forms are reverted (``revert``) only when a nominal-form fit has the lower
+    windows as observations: the winner with the forms counts one parameter per adopted
+    form. The forms are reverted (``revert``) only when a nominal-form fit has the lower
     BIC and also passes the held-out window test against the nominal model; the reason is in
     ``text``. Nothing is named here: a reverted diagnosis judges every candidate again.
     When the forms are kept, the winner's interval is joined with its own fit's under the
@@ -62,11 +61,11 @@ def form_rejudgement(
     # Compare on the windows every fit used: the numpy-only candidates' subset if any did.
     which = "train_sub" if any(s.fit.which == "train_sub" for s in pool) else "train"
     n = len(ev0.sets[which])
-    t_nom = rs.window_losses(ev0.run({}, which), noise)
+    t_nom = rs.window_losses(ev0.run({}, which), ev0.scale)
     h_nom = rs.window_losses(ev0.run({}, "held"), noise)
 
     def d_bic(e: Evaluator, ext: Extensions, k: int) -> float:
-        tl = rs.window_losses(e.run(ext, which), noise)
+        tl = rs.window_losses(e.run(ext, which), ev0.scale)
         return information_criteria(float(np.sum(log_ratios(t_nom, tl))), n, k)[1]
 
     with_form_bic = d_bic(ev, winner.fit.ext, winner.fit.k + len(adopted))

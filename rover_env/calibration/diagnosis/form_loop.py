@@ -12,9 +12,9 @@ from numpy.typing import NDArray
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.diagnosis.form_ladder import (
+    baseline,
     fit_ladder,
     judged,
-    judged_baseline,
     reprepare,
     reprepared,
 )
@@ -182,19 +182,18 @@ def fit_motor_loop(
     replayed worse under it (its driven wheels from 1.5 to 3.0 x their floor): no loop this search reaches
     answers both drives as the generator's voltage-mode one does (docs/calibration/README.md,
     "Known limits")."""
-    scale, l0, eps, n0 = judged_baseline(cfg, prepared, windows, settings, sensor_noise)
+    scale, l0, eps = baseline(cfg, prepared, windows, settings, sensor_noise)
     m = cfg.motor
     x0: Point = (ANTI_WINDUP_FORMS.index(m.anti_windup), m.speed_gain, m.integral_gain, m.armature)
     forms = sorted({ANTI_WINDUP_FORMS.index(f) for f in FITTED_ANTI_WINDUP_FORMS} | {x0[0]})
-    seen: dict[Point, tuple[float, Array]] = {x0: (0.0, n0)}
+    seen: dict[Point, tuple[float, Array]] = {x0: (0.0, l0)}
 
     def crit(x: Point) -> float:
         if x not in seen:
             c = with_loop(cfg, x)
             res = Replayer(c, settings).run(reprepare(prepared, c, settings), windows)
             loss = rs.window_losses(res, scale)
-            crit_x = float(np.mean(np.log((loss + eps) / (l0 + eps))))
-            seen[x] = (crit_x, rs.window_losses(res, sensor_noise))
+            seen[x] = (float(np.mean(np.log((loss + eps) / (l0 + eps)))), loss)
         return seen[x][0]
 
     ladders = (
@@ -210,7 +209,7 @@ def fit_motor_loop(
             x = _line(x, i, ladder, crit)
         if x == start:
             break
-    return _judged_parts(x0, x, seen, ladders, n0)
+    return _judged_parts(x0, x, seen, ladders, l0)
 
 
 def _line(x: Point, i: int, ladder: tuple[float, ...], crit: Callable[[Point], float]) -> Point:
@@ -238,12 +237,12 @@ def _judged_parts(
     x: Point,
     seen: dict[Point, tuple[float, Array]],
     ladders: tuple[tuple[float, ...], ...],
-    n0: Array,
+    l0: Array,
 ) -> list[FormFit]:
     """One :class:`FormFit` per part of the loop's form ``x`` against ``x0``, each with the
-    whole's judgement (four parameters, in units of each signal's sensor noise: ``seen``'s
-    losses and ``n0``); a part at an open end of its ladder keeps it all nominal."""
-    whole = judged("speed_loop", "", 0.0, float(x != x0), {}, n0, seen[x][1], k=4)
+    whole's judgement (four parameters); a part at an open end of its ladder keeps it all
+    nominal."""
+    whole = judged("speed_loop", "", 0.0, float(x != x0), {}, l0, seen[x][1], k=4)
     at_end = whole.adopted and any(
         x[i] != x0[i] and x[i] in (min(ld), max(ld)) for i, ld in enumerate(ladders, start=1)
     )
