@@ -9,6 +9,7 @@ re-judgement reverts the first and keeps the second.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -18,7 +19,7 @@ import numpy as np
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue
 from rover_env.calibration.diagnosis.again import LEADER_GAIN, leader
-from rover_env.calibration.diagnosis.form import form_key, with_anti_windup
+from rover_env.calibration.diagnosis.form import form_key, forms_differ, with_anti_windup
 from rover_env.calibration.diagnosis.form_judge import (
     FORM_JOIN_BIC,
     form_rejudgement,
@@ -190,6 +191,38 @@ def test_forms_beside_the_winner_rerun_only_when_they_change_the_model() -> None
     assert form_key([form(0.005, False)]) == form_key(first)
     assert form_key([form(0.00125, True)]) != form_key(first)
     assert form_key([form(0.00152, True)]) != form_key([form(0.00125, True)])
+
+
+def test_refits_within_half_a_rung_of_their_ladder_are_the_same_forms() -> None:
+    """A refit beside an effect moves the parabola between rungs: within half the ladder's
+    spacing it is the same form (no second pass, stop 69: spent clean case 50845, springs
+    15.2 -> 15.4 N m/rad, joints' height 2.93 -> 2.82 cm); beyond it, another adoption or
+    another choice, the forms differ. A form without a ladder compares exactly."""
+
+    def spring(k: float, adopted: bool = True) -> FormFit:
+        return FormFit(
+            "yaw_spring", "N m/rad", 10.0, k, {}, 0.2, 0.01, -4.0, adopted,
+            spacing=float(np.log(2.0) / 2), log_spacing=True,
+        )  # fmt: skip
+
+    def height(h: float) -> FormFit:
+        return FormFit("joint_height", "m", 0.0, h, {}, 0.1, 0.01, -1.0, True, spacing=0.03)
+
+    def choice(v: float) -> FormFit:
+        labels = ("clamp", "conditional")
+        return FormFit("anti_windup", "", 0.0, v, {}, 0.1, 0.01, -1.0, v != 0.0, labels)
+
+    first = [spring(15.2), height(0.0293)]
+    assert not forms_differ(first, [spring(15.4), height(0.0282)])
+    assert not forms_differ(first, [spring(15.2 * 2**0.24), height(0.0293 - 0.0149)])
+    assert forms_differ(first, [spring(15.2 * 2**0.26), height(0.0282)])  # over half a rung
+    assert forms_differ(first, [spring(15.4), height(0.0293 + 0.0151)])
+    assert forms_differ(first, [spring(15.4, adopted=False), height(0.0282)])
+    assert forms_differ(first, first[:1])
+    assert not forms_differ([choice(1.0)], [choice(1.0)])
+    assert forms_differ([choice(1.0)], [choice(0.0)])
+    bare = FormFit("relaxation_length", "m", 0.02, 0.005, {}, 0.1, 0.01, -5.0, True)
+    assert forms_differ([bare], [dataclasses.replace(bare, value=0.00501)])
 
 
 def test_the_leader_is_the_fully_fitted_plugin_candidate_with_the_lowest_bic() -> None:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from rover_env.calibration import residuals as rs
@@ -92,6 +93,8 @@ def test_relaxation_length_is_the_truths_on_this_projects_logs(
     assert f.nominal == CFG.tire.sigma_x
     assert set(LADDER) <= set(f.ladder)  # the whole ladder was tried: nothing starts at 2 cm
     assert f.nominal / 1.5 <= f.value <= f.nominal * 1.5
+    # the ladder's resolution, for comparing two fits (forms_differ): a factor 2 apart
+    assert f.log_spacing and f.spacing == pytest.approx(np.log(2.0))
 
 
 def test_relaxation_length_is_short_on_a_steady_state_tire(fits: dict[str, FormFit]) -> None:

@@ -105,10 +105,8 @@ SWITCHES: tuple[tuple[str, str], ...] = (
     ("fit_joint_zero", "fit the joint sensors' zeros as model form"),
     ("fit_free_gain", "profile the free wheels' left/right reading difference out of every fit"),
     ("fit_yaw_spring", "fit the yaw joints' leaf-spring stiffness as model form"),
-    (
-        "fit_geometry",
-        "fit the joints' and the centres of mass's heights above the axles as model form",
-    ),
+    ("fit_joint_height", "fit the height of the joints between segments as model form"),
+    ("fit_com_height", "fit the segments' centre-of-mass height as model form"),
     ("fit_speed_loop", "fit the speed loop's proportional and integral gains as model form"),
     (
         "joint_motor_loop",

@@ -114,6 +114,8 @@ def fit_ladder(
     if tried[best] >= tried[nominal]:
         best = nominal  # a tie (a bound the drives never reach) keeps the configuration's
     form = judged(name, unit, nominal, best, tried, l0, losses[best])
+    rungs = np.sort(np.array(ladder)) if linear else np.log(np.sort(np.array(ladder)))
+    form = replace(form, spacing=float(np.median(np.diff(rungs))), log_spacing=not linear)
     ends = (min(ladder), max(ladder))
     if form.adopted and any(o and best == e for o, e in zip(open_ends, ends, strict=True)):
         form = replace(form, at_end=True, adopted=False)

@@ -127,7 +127,8 @@ class Options:
     model_form: bool = True
     """Fit the model's own form first, in this order: the joint sensors' zeros, the speed
     loop's anti-windup form, the tire's relaxation length, the yaw joints' springs and the
-    tire's low-speed slip floor (:mod:`.form`)."""
+    joints' height; the speed loop's gains, the centres of mass's height and the tire's
+    low-speed slip floor when asked (:mod:`.form`)."""
     fit_joint_zero: bool = True
     """Fit the joint sensors' zeros as model form, the first stage (:func:`.form.fit_joint_zeros`;
     stop 54: on the independent generator's clean logs a 33 mrad constant on theta_4 was
@@ -146,19 +147,24 @@ class Options:
     """Fit the yaw joints' leaf-spring stiffness as model form, after the relaxation length
     (:func:`.form.fit_yaw_spring`; stop 54: another implementation's 15 N m/rad against
     this configuration's 10 left the yaw joints 14-18 x their floor in turns)."""
-    fit_geometry: bool = True
-    """Fit the heights SPEC does not give as model form: the joints between segments
-    (:func:`.form.fit_joint_height`) and the segments' centres of mass
-    (:func:`.form.fit_com_height`; stop 64: the independent generator's slopes were fitted
-    below the truth, 0.48-0.98 x in all 8 spent cases of 4 deg or more; its centres of
-    mass sit 5 cm lower than this model's)."""
-    fit_speed_loop: bool = True
+    fit_joint_height: bool = True
+    """Fit the height of the joints between segments above the axles as model form
+    (:func:`.form.fit_joint_height`; stop 64: the independent generator's slopes were fitted
+    below the truth, 0.48-0.98 x in all 8 spent cases of 4 deg or more; its joints sit 5 cm
+    above the axles, this model's on the axle line)."""
+    fit_com_height: bool = False
+    """Fit the segments' centre-of-mass height as model form (:func:`.form.fit_com_height`;
+    stop 64: the independent generator's centres of mass sit 5 cm lower than this model's).
+    Off by default since stop 69: adopted in 1 of 114 diagnoses (blocks 50800 and 50900),
+    0 of 30 in block 50500, at the cost of a ladder of replays in every form stage."""
+    fit_speed_loop: bool = False
     """Fit the speed loop's gains as model form, after the relaxation length
     (:func:`.form.fit_speed_gain`, :func:`.form.fit_integral_gain`; stop 66: another
     implementation's voltage-mode PI with back-EMF is about 3 x stiffer at the wheel than
     the configuration's 2 N m per rad/s, and on hard accelerations that motor form was the
-    largest thing the model missed; on fresh cases, block 50700, adopted in 1 of 47
-    diagnoses)."""
+    largest thing the model missed). Off by default since stop 69: on fresh cases adopted
+    in 1 of 47 diagnoses (block 50700) and 1 of 114 (blocks 50800 and 50900; the speed gain
+    never), at the cost of two ladders of replays in every form stage."""
     joint_motor_loop: bool = False
     """Fit the speed loop's form as one (:func:`.form_loop.fit_motor_loop`): its anti-windup
     form, both gains and the rotor inertia searched together and adopted as a whole, in
@@ -167,12 +173,13 @@ class Options:
     case 50845 it found a loop 17.8 % better on the training windows that did not pay the
     BIC and replayed the held-out drive worse; for a rover whose loop is known to differ
     from the configuration's, ``--joint-motor-loop``."""
-    fit_slip_floor: bool = True
+    fit_slip_floor: bool = False
     """Fit the tire's low-speed slip floor (``TireParams.v_floor``) as model form, after the
     relaxation length (:func:`.form.fit_slip_floor`; stop 30: the second generator's
     steady-state tire regularises slip below 5 cm/s, and in a slow pivot turn its free
     wheels turned twice as fast as this model's, -0.22 against -0.11 rad/s; with the floor
-    at 5 cm/s and a 2.5 mm relaxation length, -0.220)."""
+    at 5 cm/s and a 2.5 mm relaxation length, -0.220). Off by default since stop 69: adopted
+    in 0 of 114 diagnoses of the independent generator's logs (blocks 50800 and 50900)."""
     fit_anti_windup: bool = True
     """Choose the speed loop's anti-windup form (clamp or conditional integration) as model
     form, the first stage (:func:`.form.fit_anti_windup`). On by default since stop 30:
@@ -257,6 +264,12 @@ class FormFit:
     at_end: bool = False
     """The best value pays its BIC but is an open end of the form's ladder, so it is not
     adopted (the windows ask for more than the form's range: :func:`.form_ladder.fit_ladder`)."""
+    spacing: float = 0.0
+    """The ladder's spacing between rungs (in log x when :attr:`log_spacing`; 0: unknown).
+    Two fits of the form whose values lie within half of it are the same fit at the
+    ladder's resolution (:func:`.form.forms_differ`)."""
+    log_spacing: bool = False
+    """Whether :attr:`spacing` is a difference of logs (a ladder of ratios)."""
 
     def text(self, x: float) -> str:
         """``x`` in words: a choice's name, or the number with its unit."""
