@@ -20,6 +20,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from rover_env.independent import make_independent_logs
 
@@ -59,10 +60,31 @@ def diagnose_seconds(
     return dt, named
 
 
-def run(against: str, cases: int, workers: int, work: Path, seed0: int) -> dict[str, object]:
+def summarise(against: str, workers: int, rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The medians over ``rows`` (cases run so far) and the rows themselves."""
+    ratios = [r["previous_s"] / r["current_s"] for r in rows]
+    return {
+        "against": against,
+        "workers": workers,
+        "cpus": os.cpu_count(),
+        "cases": len(rows),
+        "median_previous_s": statistics.median(r["previous_s"] for r in rows),
+        "median_current_s": statistics.median(r["current_s"] for r in rows),
+        "median_ratio": statistics.median(ratios),
+        "same_named": sum(set(r["previous_named"]) == set(r["current_named"]) for r in rows),
+        "rows": rows,
+    }
+
+
+def run(
+    against: str, cases: int, workers: int, work: Path, seed0: int, out: Path | None = None
+) -> dict[str, Any]:
+    """Every case diagnosed by both trees; the summary is written to ``out`` after each case
+    (a run stopped early keeps the cases it finished)."""
     work.mkdir(parents=True, exist_ok=True)
     ref = reference_tree(against, work)
-    rows = []
+    rows: list[dict[str, Any]] = []
+    summary: dict[str, Any] = {}
     for i in range(cases):
         eff = EFFECTS[i % len(EFFECTS)]
         d = work / f"case_{seed0 + i}"
@@ -84,19 +106,13 @@ def run(against: str, cases: int, workers: int, work: Path, seed0: int) -> dict[
             f" {prev_named}, current {cur:.0f} s {cur_named}, ratio {prev / cur:.2f}",
             flush=True,
         )
-    ratios = [r["previous_s"] / r["current_s"] for r in rows]  # type: ignore[operator]
-    summary = {
-        "against": against,
-        "workers": workers,
-        "cpus": os.cpu_count(),
-        "median_previous_s": statistics.median(r["previous_s"] for r in rows),  # type: ignore[misc]
-        "median_current_s": statistics.median(r["current_s"] for r in rows),  # type: ignore[misc]
-        "median_ratio": statistics.median(ratios),
-        "rows": rows,
-    }
+        summary = summarise(against, workers, rows)
+        if out is not None:
+            out.write_text(json.dumps(summary, indent=2))
     print(
         f"median seconds per case: previous {summary['median_previous_s']:.0f},"
-        f" current {summary['median_current_s']:.0f}; median ratio {summary['median_ratio']:.2f}"
+        f" current {summary['median_current_s']:.0f}; median ratio {summary['median_ratio']:.2f};"
+        f" the same named in {summary['same_named']} of {len(rows)}"
     )
     return summary
 
@@ -108,11 +124,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed0", type=int, default=47900)
     ap.add_argument("--work", default="out/diagnose_speed")
-    ap.add_argument("--json", default=None, help="write the summary here")
+    ap.add_argument("--json", default=None, help="write the summary here (after every case)")
     a = ap.parse_args(argv)
-    s = run(a.against, a.cases, a.workers, Path(a.work).resolve(), a.seed0)
-    if a.json:
-        Path(a.json).write_text(json.dumps(s, indent=2))
+    run(
+        a.against,
+        a.cases,
+        a.workers,
+        Path(a.work).resolve(),
+        a.seed0,
+        Path(a.json) if a.json else None,
+    )
     return 0
 
 
