@@ -19,7 +19,7 @@ import numpy as np
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue
 from rover_env.calibration.diagnosis.again import LEADER_GAIN, leader
-from rover_env.calibration.diagnosis.form import form_key, forms_differ, with_anti_windup
+from rover_env.calibration.diagnosis.form import forms_differ, with_anti_windup
 from rover_env.calibration.diagnosis.form_judge import (
     FORM_JOIN_BIC,
     form_rejudgement,
@@ -188,9 +188,9 @@ def test_forms_beside_the_winner_rerun_only_when_they_change_the_model() -> None
         return FormFit("relaxation_length", "m", 0.02, value, {}, 0.1, 0.01, -5.0, adopted)
 
     first = [form(0.00125, False)]
-    assert form_key([form(0.005, False)]) == form_key(first)
-    assert form_key([form(0.00125, True)]) != form_key(first)
-    assert form_key([form(0.00152, True)]) != form_key([form(0.00125, True)])
+    assert not forms_differ([form(0.005, False)], first)
+    assert forms_differ([form(0.00125, True)], first)
+    assert forms_differ([form(0.00152, True)], [form(0.00125, True)])
 
 
 def test_refits_within_half_a_rung_of_their_ladder_are_the_same_forms() -> None:

@@ -501,11 +501,6 @@ def form_text(form: FormFit) -> str:
     )
 
 
-def form_key(forms: list[FormFit]) -> list[tuple[str, float | None]]:
-    """What the forms change in the model: each adopted form's value."""
-    return [(f.name, f.value if f.adopted else None) for f in forms]
-
-
 def same_fit(a: FormFit, b: FormFit) -> bool:
     """Whether two fits of one form change the model alike: both kept nominal, or both
     adopted at values within half the ladder's rung spacing (:attr:`FormFit.spacing`; a
