@@ -83,7 +83,8 @@ class TireParams:
     (v_x - v_w) / max(|v_x|, |v_w|, v_floor), the regularised slip a steady-state
     implementation of Gim's tire needs at rest. 0 (the default): no floor, the deflection
     is a pure spring at standstill. Another implementation's choice, which diagnose fits as
-    model form (:func:`rover_env.calibration.diagnosis.form.fit_slip_floor`). Hard ground only:
+    model form when asked (``--fit-slip-floor``,
+    :func:`rover_env.calibration.diagnosis.form.fit_slip_floor`). Hard ground only:
     on loose soil the soil's own floor (``rover_env.soil.V_EPS``) holds (tried in stop 30:
     a 5 cm/s floor there did not bring the two generators' soils closer)."""
     lateral_split: float = 0.0
