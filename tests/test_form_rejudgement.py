@@ -19,7 +19,7 @@ import numpy as np
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue
 from rover_env.calibration.diagnosis.again import LEADER_GAIN, leader
-from rover_env.calibration.diagnosis.form import forms_differ, with_anti_windup
+from rover_env.calibration.diagnosis.form import form_changes, forms_differ, with_anti_windup
 from rover_env.calibration.diagnosis.form_judge import (
     FORM_JOIN_BIC,
     form_rejudgement,
@@ -208,9 +208,11 @@ def test_refits_within_half_a_rung_of_their_ladder_are_the_same_forms() -> None:
     def height(h: float) -> FormFit:
         return FormFit("joint_height", "m", 0.0, h, {}, 0.1, 0.01, -1.0, True, spacing=0.03)
 
-    def choice(v: float) -> FormFit:
+    def choice(v: float) -> FormFit:  # decisive both ways: dBIC -3 adopted, +3 not
         labels = ("clamp", "conditional")
-        return FormFit("anti_windup", "", 0.0, v, {}, 0.1, 0.01, -1.0, v != 0.0, labels)
+        return FormFit(
+            "anti_windup", "", 0.0, v, {}, 0.1, 0.01, -3.0 if v else 3.0, v != 0.0, labels
+        )
 
     first = [spring(15.2), height(0.0293)]
     assert not forms_differ(first, [spring(15.4), height(0.0282)])
@@ -223,6 +225,27 @@ def test_refits_within_half_a_rung_of_their_ladder_are_the_same_forms() -> None:
     assert forms_differ([choice(1.0)], [choice(0.0)])
     bare = FormFit("relaxation_length", "m", 0.02, 0.005, {}, 0.1, 0.01, -5.0, True)
     assert forms_differ([bare], [dataclasses.replace(bare, value=0.00501)])
+
+
+def test_an_adoption_flipped_on_weak_evidence_both_times_is_the_same_form() -> None:
+    """Adopted on one fit and not on the other, each within |dBIC| < 2 of nominal, a form is
+    a coin flip, not a change of model: no second pass (stop 70: spent delay case 51106, the
+    conditional anti-windup at dBIC -0.4 before any effect, the clamp at +0.7 beside the
+    named delay). Decisive on either side, the forms differ, and the report says how."""
+    labels = ("clamp", "conditional")
+
+    def windup(v: float, d_bic: float) -> FormFit:
+        return FormFit("anti_windup", "", 0.0, v, {}, 0.1, 0.01, d_bic, d_bic < 0, labels)
+
+    first = [windup(1.0, -0.4)]
+    assert not forms_differ(first, [windup(1.0, 0.7)])
+    assert not forms_differ([windup(1.0, 1.9)], [windup(1.0, -1.9)])
+    assert forms_differ(first, [windup(1.0, 2.5)])  # rejected decisively beside the effect
+    assert forms_differ([windup(1.0, -2.5)], [windup(1.0, 0.7)])  # adopted decisively before
+    assert form_changes(first, [windup(1.0, 2.5)]) == [
+        "anti_windup: conditional (adopted, dBIC -0.4) -> clamp (nominal, dBIC +2.5)"
+    ]
+    assert form_changes(first, [windup(1.0, 0.7)]) == []
 
 
 def test_the_leader_is_the_fully_fitted_plugin_candidate_with_the_lowest_bic() -> None:

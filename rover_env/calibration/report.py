@@ -163,6 +163,7 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
             result.get("model_form_reverted"),
             result.get("model_form_beside"),
             opts.forms_beside_winner,
+            result.get("model_form_changed") or [],
         ),
         '- Fit, blind to magnitude: one parameter is searched over its whole physical range ("off" and a'
         " log-spaced ladder of 5 values per sign from 1.2 % to 100 % of the range, then a bounded Brent search"
@@ -569,6 +570,7 @@ def _model_form_line(
     reverted: dict[str, Any] | None = None,
     beside: str | None = None,
     refit_beside: bool = True,
+    changed: list[str] | None = None,
 ) -> str:
     """The model-form stage (rover_env.calibration.diagnosis.form) in one bullet."""
     if reverted is not None:
@@ -640,8 +642,13 @@ def _model_form_line(
         )
     else:
         when = "fitted before any effect" + (
-            " (and, beside an effect named or leading, again, unchanged)" if refit_beside else ""
+            " (and, beside an effect named or leading, again: unchanged, or adopted one way"
+            " and not the other on weak evidence both times, |dBIC| < 2)"
+            if refit_beside
+            else ""
         )
+    if beside and changed:
+        when += "; what changed: " + "; ".join(changed)
     return (
         f"- Model form, {when} (the implementation's choices, not the rover's definition): "
         + "; ".join(parts)

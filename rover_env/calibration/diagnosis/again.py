@@ -12,6 +12,7 @@ from rover_env.calibration.diagnosis import form_judge
 from rover_env.calibration.diagnosis.form import (
     ZERO_PREFIX,
     fit_forms,
+    form_changes,
     form_text,
     forms_differ,
     reprepare,
@@ -55,11 +56,14 @@ def forms_beside(d: Diagnosis, s: Scored, role: str) -> Options | None:
     )
     if not forms_differ(again, d.forms):
         return None
+    changes = form_changes(d.forms, again)
     d.say(
-        f"model form fitted again beside {s.fit.name}{role} comes out otherwise;"
-        " the diagnosis runs again under it"
+        f"model form fitted again beside {s.fit.name}{role} comes out otherwise"
+        f" ({'; '.join(changes)}); the diagnosis runs again under it"
     )
-    return replace(d.opts, forms_given=again, forms_beside=s.fit.name + role)
+    return replace(
+        d.opts, forms_given=again, forms_beside=s.fit.name + role, forms_changed=tuple(changes)
+    )
 
 
 def judge_again(d: Diagnosis) -> Options | None:

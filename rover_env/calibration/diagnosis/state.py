@@ -230,6 +230,9 @@ class Options:
     forms_beside: str | None = None
     """The effect the given forms were fitted beside (for the report), ending in
     :data:`LEADING` when it led a first pass that named nothing."""
+    forms_changed: tuple[str, ...] = ()
+    """What differed between the first pass's forms and those fitted beside that effect (why
+    the second pass ran; :func:`.form.form_changes`)."""
     fit_windup: bool = False
     """Also fit the speed loop's anti-windup bound (after sigma). Off by default: measured
     in stop 24, the bound that fits the second generator's loop (15.6 mrad) caps the

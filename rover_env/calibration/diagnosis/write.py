@@ -129,6 +129,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "model_form": None if not opts.model_form else {f.name: f.as_json() for f in d.forms},
         "model_form_reverted": opts.forms_reverted,
         "model_form_beside": opts.forms_beside,
+        "model_form_changed": list(opts.forms_changed),
         "free_wheel_gain": free_g if d.ev.profile_free_gain else None,
         "free_wheel_common": free_c if d.ev.free_common_max > 0 else None,
     }
