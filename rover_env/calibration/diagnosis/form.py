@@ -546,9 +546,7 @@ def forms_differ(a: list[FormFit], b: list[FormFit]) -> bool:
     50845) ran its whole diagnosis twice because the forms refitted beside the leading
     candidate moved the yaw springs from 15.2 to 15.4 N m/rad and the joints' height from
     2.93 to 2.82 cm, both adopted before and after."""
-    fa = [f for f in a if not f.name.startswith(ZERO_PREFIX)]
-    fb = [f for f in b if not f.name.startswith(ZERO_PREFIX)]
-    return len(fa) != len(fb) or not all(same_fit(x, y) for x, y in zip(fa, fb, strict=True))
+    return bool(form_changes(a, b))
 
 
 def form_changes(before: list[FormFit], after: list[FormFit]) -> list[str]:
