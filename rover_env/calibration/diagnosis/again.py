@@ -14,7 +14,6 @@ from rover_env.calibration.diagnosis.form import (
     fit_forms,
     form_changes,
     form_text,
-    forms_differ,
     reprepare,
     with_form,
 )
@@ -54,9 +53,9 @@ def forms_beside(d: Diagnosis, s: Scored, role: str) -> Options | None:
         d.opts,
         lambda f: d.say(form_text(f) + f" (beside {s.fit.name}{role})"),
     )
-    if not forms_differ(again, d.forms):
+    changes = form_changes(d.forms, again)  # none: the forms do not differ (forms_differ)
+    if not changes:
         return None
-    changes = form_changes(d.forms, again)
     d.say(
         f"model form fitted again beside {s.fit.name}{role} comes out otherwise"
         f" ({'; '.join(changes)}); the diagnosis runs again under it"
