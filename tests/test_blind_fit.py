@@ -18,7 +18,7 @@ from rover_env.calibration.diagnosis.judge import (
     interval_text,
     strict_json,
 )
-from rover_env.calibration.diagnosis.select import first_confident, runner_up
+from rover_env.calibration.diagnosis.select import all_windows_evidence, first_confident, runner_up
 from rover_env.calibration.diagnosis.state import Scored
 from rover_env.calibration.fit import (
     Evaluator,
@@ -238,6 +238,27 @@ def test_a_rival_that_explains_more_is_therunner_up() -> None:
     assert runner_up(delay, ranked) is limit
     limit.significant = False
     assert runner_up(delay, ranked) is None
+
+
+def test_significant_candidates_are_named_in_order_of_their_evidence_over_all_windows() -> None:
+    # Stop 71's case 50924 (a 0.112 s delay): the lag improved the held-out drive a little
+    # more, the delay the training drives much more; all the windows together prefer it.
+    lag = _scored(_fit_of("command_lag", 0.139, 0.126, 0.150))
+    lag.gain, lag.d_bic, lag.n_train, lag.held_losses = 0.313, -17.0, 32, np.ones(16)
+    delay = _scored(_fit_of("command_delay", 0.137, 0.125, 0.144))
+    delay.gain, delay.d_bic, delay.n_train, delay.held_losses = 0.284, -25.9, 32, np.ones(16)
+    assert all_windows_evidence(delay) < all_windows_evidence(lag)
+    # The held-out windows count as the training ones do: a held-out gain that outweighs
+    # the training difference wins (16 log(0.6 / 0.9) = -6.5 against 2.0).
+    lag.gain, lag.d_bic, delay.gain, delay.d_bic = 0.4, -17.0, 0.1, -19.0
+    assert all_windows_evidence(lag) < all_windows_evidence(delay)
+    # Each parameter costs ln(n) over all windows: equal fits, the simpler one first.
+    (c,) = catalogue(["slope"])
+    x, z = np.array([2.0, 0.0]), np.zeros(2)
+    slope = _scored(Fit([c], x, z, x, z, 0.0, 0, c.to_ext(x), 0.0, "train"))
+    slope.gain, slope.n_train, slope.held_losses = 0.4, 32, np.ones(16)
+    slope.d_bic = -17.0 + math.log(32)  # the same training losses, a second parameter
+    assert all_windows_evidence(lag) == pytest.approx(all_windows_evidence(slope) - math.log(48))
 
 
 def test_loose_soil_is_fitted_as_inverse_modulus_and_shown_as_k_phi() -> None:

@@ -1,0 +1,194 @@
+"""Could the truth itself be named? The naming test at the true effect, on the independent generator.
+
+``diagnose`` names an effect when its fit beats the nominal model on the held-out drive
+(typical gain per window >= ``Options.min_gain``, Wilcoxon p < ``Options.alpha``) and on the
+training drives (ΔBIC < 0), all in units of each signal's replay floor. This script gives
+that test the *answer*: for every single-effect case of a ``bench_independent.py`` block it
+replays the case's windows with the model forms ``diagnose`` fits before any effect, once
+nominal and once at the catalogue's truth (``truth`` in the block's JSON), and applies the
+same test. A case whose truth fails it cannot be named right by any search or any decision
+rule over this model: what is left is the model's form against the logs' implementation.
+The per-drive gains say where the truth loses (a turning drive, a straight one).
+
+Loose soil is left out (its truth is one k_phi under a soil whose other constants the
+candidate chooses among its forms). Nothing in ``diagnose`` reads the truth; this is a
+diagnostic of the model, not a method.
+
+    python benchmarks/truth_ceiling.py --block docs/calibration/block51200 \\
+        --work out/bench_independent --workers 2
+
+Writes ``OUT/truth_ceiling.md``, ``.json`` and ``.png`` (OUT defaults to the block folder).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import tempfile
+from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from rover_env.calibration import residuals as rs
+from rover_env.calibration.candidates import catalogue
+from rover_env.calibration.diagnosis import floor, form, split
+from rover_env.calibration.diagnosis.judge import gain, p_improved, training_criteria
+from rover_env.calibration.diagnosis.state import Diagnosis, Options
+
+SKIPPED = ("loose_soil",)
+
+
+def strength(case: dict[str, Any]) -> float | None:
+    """The truth over the noise threshold the diagnosis reported (None: none reported)."""
+    ((name, params),) = case["truth"].items()
+    f = case["fits"].get(name) or {}
+    if not f.get("threshold"):
+        return None
+    if name == "slope":
+        return abs(float(params["deg"])) / float(f["threshold"])
+    return abs(float(f["truth"])) / float(f["threshold"])
+
+
+def test_at_truth(logs_dir: Path, truth: dict[str, dict[str, float]]) -> dict[str, Any]:
+    """The naming test of the truth against the nominal model (after the model forms)."""
+    logs = sorted(str(p) for p in logs_dir.glob("*.csv"))
+    kinds = [d["kind"] for d in yaml.safe_load((logs_dir / "truth.yaml").read_text())["drives"]]
+    opts = Options(progress=False, workers=1)
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Diagnosis(logs, Path(tmp), opts)
+        split.split(d)
+        form.fit_model_form(d)
+        floor.baseline(d)
+        ev = d.ev
+        held0, held1 = ev.run({}, "held"), ev.run(truth, "held")
+        train0, train1 = ev.run({}, "train"), ev.run(truth, "train")
+    h0, h1 = rs.window_losses(held0, d.noise), rs.window_losses(held1, d.noise)
+    k = sum(c.k for c in catalogue(list(truth)))  # an equivalent effect counts as a parameter
+    _, d_bic = training_criteria(train0, train1, d.noise, len(train0), k)
+    per_drive: dict[str, float] = {}
+    for name, r0, r1 in (("train", train0, train1), ("held", held0, held1)):
+        t0, t1 = rs.window_losses(r0, d.noise), rs.window_losses(r1, d.noise)
+        li = np.array([r.window.log_index for r in r0])
+        for i in sorted(set(li.tolist())):
+            per_drive[f"{name}:{kinds[i]}"] = gain(t0[li == i], t1[li == i])
+    g, p = gain(h0, h1), p_improved(h0, h1)
+    return {
+        "held_gain": g,
+        "p": p,
+        "d_bic": d_bic,
+        "passes": bool(g >= opts.min_gain and p < opts.alpha and d_bic < 0),
+        "per_drive": per_drive,
+    }
+
+
+def _one(args: tuple[dict[str, Any], str]) -> dict[str, Any]:
+    case, work = args
+    row = {"case": case["case"], "truth": case["truth"], "strength": strength(case)}
+    ((name, _),) = case["truth"].items()
+    row["effect"] = name
+    row["named_right"] = name in case["named"]
+    row["named"] = case["named"]
+    try:
+        ext = {**case["truth"], **(case.get("equivalent") or {})}
+        row.update(test_at_truth(Path(work) / case["case"] / "logs", ext))
+    except Exception as exc:  # a case that cannot be replayed is reported, not skipped
+        row["error"] = f"{type(exc).__name__}: {exc}"
+    print(f"{row['case']}: {row.get('passes', row.get('error'))}", flush=True)
+    return row
+
+
+def table(rows: list[dict[str, Any]]) -> list[str]:
+    """Markdown: per effect, strong singles whose truth passes the test, and named right."""
+    strong = [r for r in rows if (r["strength"] or 0) >= 2 and "error" not in r]
+    tot, ok, named, both = Counter(), Counter(), Counter(), Counter()
+    for r in strong:
+        e = r["effect"]
+        tot[e] += 1
+        ok[e] += r["passes"]
+        named[e] += r["named_right"]
+        both[e] += r["passes"] and r["named_right"]
+    out = [
+        "| effect | singles >= 2 x threshold | truth passes the naming test | named right"
+        " | named right where the truth fails |",
+        "|---|---|---|---|---|",
+    ]
+    for e in sorted(tot, key=lambda e: ok[e] / tot[e]):
+        out.append(f"| {e} | {tot[e]} | {ok[e]} | {named[e]} | {named[e] - both[e]} |")
+    n = sum(tot.values())
+    out.append(
+        f"| all | {n} | {sum(ok.values())} | {sum(named.values())}"
+        f" | {sum(named.values()) - sum(both.values())} |"
+    )
+    return out
+
+
+def plot(rows: list[dict[str, Any]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    strong = [r for r in rows if (r["strength"] or 0) >= 2 and "error" not in r]
+    effects = sorted({r["effect"] for r in strong})
+    fig, ax = plt.subplots(figsize=(8, 4))
+    x = np.arange(len(effects))
+    for j, (key, label) in enumerate((("passes", "truth passes"), ("named_right", "named right"))):
+        share = [np.mean([r[key] for r in strong if r["effect"] == e]) for e in effects]
+        ax.bar(x + (j - 0.5) * 0.38, share, 0.38, label=label)
+    counts = [sum(r["effect"] == e for r in strong) for e in effects]
+    ax.set_xticks(x, [f"{e}\n(n={c})" for e, c in zip(effects, counts, strict=True)], fontsize=7)
+    ax.set_ylabel("share of singles >= 2 x threshold")
+    ax.set_ylim(0, 1.05)
+    ax.legend()
+    ax.set_title("The naming test at the true effect vs diagnose's result")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--block", action="append", required=True, help="folder with independent.json")
+    ap.add_argument("--work", action="append", required=True, help="its bench work folder")
+    ap.add_argument("--out", default=None, help="where to write (default: the first block)")
+    ap.add_argument("--workers", type=int, default=1)
+    a = ap.parse_args()
+    if len(a.block) != len(a.work):
+        ap.error("give one --work per --block")
+    jobs = []
+    for block, work in zip(a.block, a.work, strict=True):
+        for case in json.loads((Path(block) / "independent.json").read_text()):
+            if case["kind"] == "single" and not set(case["truth"]) & set(SKIPPED):
+                if not (Path(work) / case["case"] / "logs").is_dir():
+                    raise SystemExit(f"{work}: no logs for case {case['case']} (block {block})")
+                jobs.append((case, work))
+    print(f"{len(jobs)} single-effect cases", flush=True)
+    with ProcessPoolExecutor(max(1, a.workers)) as pool:
+        rows = list(pool.map(_one, jobs))
+    out = Path(a.out or a.block[0])
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "truth_ceiling.json").write_text(json.dumps(rows, indent=1, default=float))
+    lines = ["# The naming test at the true effect", "", f"Blocks: {', '.join(a.block)}.", ""]
+    lines += [*table(rows), "", "| case | x threshold | held gain | p | ΔBIC | passes | named |"]
+    lines += ["|---|---|---|---|---|---|---|"]
+    for r in sorted(rows, key=lambda r: (r["effect"], r["case"])):
+        if "error" in r:
+            lines.append(f"| {r['case']} | | | | | {r['error']} | |")
+            continue
+        s = "" if r["strength"] is None else f"{r['strength']:.1f}"
+        lines.append(
+            f"| {r['case']} | {s} | {r['held_gain']:+.2f} | {r['p']:.2g} | {r['d_bic']:+.1f}"
+            f" | {'yes' if r['passes'] else 'no'} | {', '.join(r['named']) or '—'} |"
+        )
+    (out / "truth_ceiling.md").write_text("\n".join(lines) + "\n")
+    plot(rows, out / "truth_ceiling.png")
+    print("\n".join(table(rows)))
+    return 0 if not any(math.isnan(r.get("held_gain", 0.0)) for r in rows) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
