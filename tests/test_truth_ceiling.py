@@ -1,0 +1,62 @@
+"""benchmarks/truth_ceiling.py's tallies (the naming test at the true effect): which cases
+count as strong, and what the table counts. No replay runs here."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import pytest
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+@pytest.fixture(scope="module")
+def tc() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("truth_ceiling", BENCH / "truth_ceiling.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["truth_ceiling"] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _case(name: str, params: dict[str, float], truth: float, threshold: float | None) -> Any:
+    fit = {"truth": truth, "threshold": threshold} if threshold is not None else {}
+    return {"truth": {name: params}, "fits": {name: fit}}
+
+
+def test_strength_is_the_truth_over_the_reported_threshold(tc: ModuleType) -> None:
+    lag = _case("command_lag", {"tau": 0.2}, 0.2, 0.05)
+    assert tc.strength(lag) == pytest.approx(4.0)
+    cut = _case("torque_limit", {"fraction": -0.3}, -0.3, 0.1)
+    assert tc.strength(cut) == pytest.approx(3.0)  # a magnitude: a cut counts as its size
+    # A slope's size is its tilt, whatever its heading.
+    slope = _case("slope", {"deg": 3.0, "heading_deg": -120.0}, 3.0, 1.5)
+    assert tc.strength(slope) == pytest.approx(2.0)
+    assert tc.strength(_case("friction", {"fraction": 0.2}, 0.2, None)) is None
+
+
+def test_the_table_counts_strong_cases_only_and_names_against_the_truth(tc: ModuleType) -> None:
+    def row(effect: str, s: float | None, passes: bool, named: bool) -> dict[str, Any]:
+        return {"effect": effect, "strength": s, "passes": passes, "named_right": named}
+
+    rows = [
+        row("friction", 5.0, False, True),  # named right where the truth fails
+        row("friction", 3.0, False, False),
+        row("friction", 1.0, True, True),  # below 2 x threshold: not counted
+        row("command_lag", 9.0, True, True),
+        row("command_lag", None, True, True),  # no threshold reported: not counted
+        {**row("command_lag", 9.0, True, True), "error": "boom"},  # failed: reported, not counted
+    ]
+    lines = tc.table(rows)
+    assert "| friction | 2 | 0 | 1 | 1 |" in lines
+    assert "| command_lag | 1 | 1 | 1 | 0 |" in lines
+    assert lines[-1] == "| all | 3 | 1 | 2 | 1 |"
+    # The weakest effect (least often passing at the truth) comes first.
+    assert lines.index("| friction | 2 | 0 | 1 | 1 |") < lines.index(
+        "| command_lag | 1 | 1 | 1 | 0 |"
+    )
