@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rover_env.calibration.candidates import catalogue
-from rover_env.calibration.diagnosis.fit_stage import detection_limit
+from rover_env.calibration.diagnosis.fit_stage import crossing, detection_limit
 from rover_env.calibration.replay import SIGNALS
 
 N = 64  # windows
@@ -73,3 +73,23 @@ def test_the_limit_is_in_the_units_it_is_given() -> None:
     assert both == pytest.approx(one, rel=1e-6)
     wheel = {**ev.scale, "wheel_2L": 2.0}
     assert detection_limit(ev, c, "train", wheel)["-"] == pytest.approx(2 * one, rel=0.05)  # type: ignore[arg-type]
+
+
+def test_the_noise_threshold_lies_where_the_response_crosses_one_floor() -> None:
+    # A response linear in the magnitude: m / S at any rung, the bracket agrees.
+    linear = [(m, 40.0 * m) for m in (0.01, 0.03, 0.089, 0.267, 0.8)]
+    assert crossing(linear) == pytest.approx(0.025)
+    # A torque limit the drives reach only past 0.267 (spent case 51221's rungs): the rung
+    # nearest one floor (0.8, S 14.2) would put it at 0.056, below two rungs that moved
+    # nothing; it lies between them, log-log interpolated.
+    reached_late = [(0.01, 0.0), (0.03, 0.0), (0.089, 0.01), (0.267, 0.03), (0.8, 14.23)]
+    t = crossing(reached_late)
+    assert 0.267 < t < 0.8
+    u = -math.log(0.03) / (math.log(14.23) - math.log(0.03))
+    assert t == pytest.approx(0.267 * (0.8 / 0.267) ** u)
+    # A rung that moved nothing at all bounds it linearly.
+    assert crossing([(0.1, 0.0), (0.3, 3.0)]) == pytest.approx(0.1 + 0.2 / 3.0)
+    # Every rung below one floor: extrapolated from the one nearest it; every rung above:
+    # from the smallest.
+    assert crossing([(0.1, 0.01), (0.3, 0.5)]) == pytest.approx(0.6)
+    assert crossing([(0.1, 4.0), (0.3, 12.0)]) == pytest.approx(0.025)

@@ -253,9 +253,10 @@ def noise_threshold(
 
     Per side of "off" ("+": above, "-": below; a slope: "deg"), from the ladder's replays
     (already in the cache after the fit): each rung k gives m_k / S_k, S_k the largest
-    per-signal RMS change against "off" in floor units (linear response near the
-    threshold); the rung whose S_k is nearest 1 decides. An effect must exceed this to be
-    visible at all on these drives; the benchmark's detection curves are drawn against it.
+    per-signal RMS change against "off" in floor units; where S crosses 1 between two
+    rungs (:func:`crossing`), else from the rung whose S_k is nearest 1 (linear response
+    near the threshold). An effect must exceed this to be visible at all on these drives;
+    the benchmark's detection curves are drawn against it.
     """
     if c.discrete or not c.ladder:
         return {}
@@ -266,14 +267,41 @@ def noise_threshold(
             s = max(signal_change(ev, c.to_ext(x), off, which, floor).values())
         except (EffectError, SimulationError):
             continue
-        if s > 0:
-            groups.setdefault(key, []).append((mag, s))
+        groups.setdefault(key, []).append((mag, s))
     out = {}
     for key, pts in groups.items():
-        mag, s = min(pts, key=lambda q: abs(math.log(q[1])))
+        moved = [q for q in pts if q[1] > 0]
+        if not moved:
+            continue
         if c.name == "slope":  # four directions per magnitude: the median of their estimates
-            near = [m / v for m, v in pts if m == mag]
-            out[key] = float(np.median(near))
+            mag, _ = min(moved, key=lambda q: abs(math.log(q[1])))
+            out[key] = float(np.median([m / v for m, v in moved if m == mag]))
         else:
-            out[key] = mag / s
+            out[key] = crossing(pts)
     return out
+
+
+def crossing(pts: list[tuple[float, float]]) -> float:
+    """The magnitude m at which a response S(m) reaches 1, from rungs ``(m, S)`` (S >= 0, at
+    least one > 0): between the smallest rung with S >= 1 and the largest rung below it
+    (log-log interpolation; linear in m when that rung did not move at all), else
+    ``m / S`` at the rung whose S is nearest 1 (below the smallest rung, or beyond the
+    largest).
+
+    A response linear in m gives m / S either way. Why the bracket (stop 71): a torque
+    limit moves nothing until the drive reaches it, then much; the rung nearest S = 1 can be
+    the first past the limit, and m / S from it put the threshold below rungs that moved
+    nothing (spent case 51221: threshold 0.056 while a cut of 0.24 moved no window at all).
+    """
+    visible = sorted(q for q in pts if q[1] >= 1.0)
+    if visible:
+        mb, sb = visible[0]
+        below = [q for q in pts if q[0] < mb and q[1] < 1.0]
+        if below:
+            ma, sa = max(below)
+            if sa > 0:
+                u = -math.log(sa) / (math.log(sb) - math.log(sa))
+                return math.exp(math.log(ma) + u * (math.log(mb) - math.log(ma)))
+            return ma + (mb - ma) * (1.0 - sa) / (sb - sa)
+    mag, s = min((q for q in pts if q[1] > 0), key=lambda q: abs(math.log(q[1])))
+    return mag / s
