@@ -87,9 +87,30 @@ def test_the_noise_threshold_lies_where_the_response_crosses_one_floor() -> None
     assert 0.267 < t < 0.8
     u = -math.log(0.03) / (math.log(14.23) - math.log(0.03))
     assert t == pytest.approx(0.267 * (0.8 / 0.267) ** u)
-    # A rung that moved nothing at all bounds it linearly.
-    assert crossing([(0.1, 0.0), (0.3, 3.0)]) == pytest.approx(0.1 + 0.2 / 3.0)
+    # A rung that moved nothing at all bounds it: m / S (0.05) falls below it, so linearly
+    # between the two.
+    assert crossing([(0.1, 0.0), (0.3, 6.0)]) == pytest.approx(0.1 + 0.2 / 6.0)
+    # An estimate inside its bracket stands (a response steeper than linear near the top).
+    assert crossing([(0.1, 0.5), (0.3, 1.2)]) == pytest.approx(0.25)
     # Every rung below one floor: extrapolated from the one nearest it; every rung above:
     # from the smallest.
     assert crossing([(0.1, 0.01), (0.3, 0.5)]) == pytest.approx(0.6)
     assert crossing([(0.1, 4.0), (0.3, 12.0)]) == pytest.approx(0.025)
+
+
+class DeadZoneEv(FakeEv):
+    """A torque cut that acts only past 0.3 (the drives reach the motors' limit there)."""
+
+    def run(self, ext: dict, which: str) -> list:
+        f = ext.get("torque_limit", {}).get("fraction", 0.0)
+        past = math.copysign(max(0.0, abs(f) - 0.3), f)
+        return super().run({"torque_limit": {"fraction": past}}, which)
+
+
+def test_a_limit_acting_only_past_a_point_is_not_placed_below_rungs_that_moved_nothing() -> None:
+    (c,) = catalogue(["torque_limit"])
+    ev = DeadZoneEv(1.0, 10.0, range(N))
+    rungs = sorted(abs(p[0]) for p in c.ladder or () if p[0] < 0)
+    last_quiet = max(m for m in rungs if m <= 0.3)  # a rung the drives never felt
+    # The rung nearest the price alone (E ~ m^2 from 0.8) would put it at 0.041.
+    assert last_quiet < detection_limit(ev, c, "train", ev.scale)["-"] < 0.8  # type: ignore[arg-type]

@@ -225,6 +225,7 @@ def detection_limit(
     r_ref = np.maximum(r_ref, 1e-12 * max(float(np.mean(r_ref)), 1e-300))
     price = len(c.labels) * math.log(max(len(ref), 2))
     groups: dict[str, list[tuple[float, float, float]]] = {}
+    paid: dict[str, list[tuple[float, float]]] = {}  # (rung, its sum over the price)
     for x, key, mag in _ladder_magnitudes(c):
         try:
             res = ev.run(c.to_ext(x), which)
@@ -233,6 +234,7 @@ def detection_limit(
         e = np.array([_window_change(a, b, scale) for a, b in zip(res, ref, strict=True)])
         q = np.nan_to_num(e) / r_ref
         d = float(np.sum(np.log1p(q)))
+        paid.setdefault(key, []).append((mag, d / price))
         if d > 0:
             # E_w scales as m^2: the factor on this rung's E whose sum pays the price exactly
             if _price_gap(1e12, q, price) <= 0:  # a change too small to ever pay the price
@@ -241,8 +243,12 @@ def detection_limit(
             groups.setdefault(key, []).append((mag, mag * math.sqrt(f), abs(math.log(d / price))))
     out = {}
     for key, pts in groups.items():
+        # Kept between the rungs that bracket the price (an effect that acts only past a
+        # point, as a torque limit: :func:`crossing`); a slope's four directions per rung
+        # are not one response.
         mag0 = min(pts, key=lambda q: q[2])[0]  # the rung nearest the price
-        out[key] = float(np.median([est for mag, est, _ in pts if mag == mag0]))
+        est = float(np.median([est for mag, est, _ in pts if mag == mag0]))
+        out[key] = est if c.name == "slope" else within_bracket(est, paid[key])
     return out
 
 
@@ -283,25 +289,31 @@ def noise_threshold(
 
 def crossing(pts: list[tuple[float, float]]) -> float:
     """The magnitude m at which a response S(m) reaches 1, from rungs ``(m, S)`` (S >= 0, at
-    least one > 0): between the smallest rung with S >= 1 and the largest rung below it
-    (log-log interpolation; linear in m when that rung did not move at all), else
-    ``m / S`` at the rung whose S is nearest 1 (below the smallest rung, or beyond the
-    largest).
+    least one > 0): ``m / S`` at the rung whose S is nearest 1 (a response linear near the
+    crossing), kept within the rungs that bracket the crossing (:func:`within_bracket`).
 
-    A response linear in m gives m / S either way. Why the bracket (stop 71): a torque
-    limit moves nothing until the drive reaches it, then much; the rung nearest S = 1 can be
-    the first past the limit, and m / S from it put the threshold below rungs that moved
-    nothing (spent case 51221: threshold 0.056 while a cut of 0.24 moved no window at all).
+    Why the bracket (stop 71): a torque limit moves nothing until the drive reaches it,
+    then much; the rung nearest S = 1 can be the first past the limit, and m / S from it put
+    the threshold below rungs that moved nothing (spent case 51221: threshold 0.056 while a
+    cut of 0.27 moved no signal by more than 0.03 floor).
     """
-    visible = sorted(q for q in pts if q[1] >= 1.0)
-    if visible:
-        mb, sb = visible[0]
-        below = [q for q in pts if q[0] < mb and q[1] < 1.0]
-        if below:
-            ma, sa = max(below)
-            if sa > 0:
-                u = -math.log(sa) / (math.log(sb) - math.log(sa))
-                return math.exp(math.log(ma) + u * (math.log(mb) - math.log(ma)))
-            return ma + (mb - ma) * (1.0 - sa) / (sb - sa)
     mag, s = min((q for q in pts if q[1] > 0), key=lambda q: abs(math.log(q[1])))
-    return mag / s
+    return within_bracket(mag / s, pts)
+
+
+def within_bracket(est: float, pts: list[tuple[float, float]]) -> float:
+    """``est`` if it lies between the smallest rung with S >= 1 and the largest rung below
+    it (or no two rungs bracket S = 1), else the crossing interpolated between them
+    (log-log, exact for a power law; linear in m when the lower rung did not move at all).
+    An estimate outside its bracket contradicts a rung that was replayed."""
+    visible = sorted(q for q in pts if q[1] >= 1.0)
+    below = [q for q in pts if visible and q[0] < visible[0][0] and q[1] < 1.0]
+    if not below:
+        return est
+    (mb, sb), (ma, sa) = visible[0], max(below)
+    if ma <= est <= mb:
+        return est
+    if sa > 0:
+        u = -math.log(sa) / (math.log(sb) - math.log(sa))
+        return math.exp(math.log(ma) + u * (math.log(mb) - math.log(ma)))
+    return ma + (mb - ma) * (1.0 - sa) / (sb - sa)
