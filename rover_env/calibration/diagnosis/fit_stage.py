@@ -259,10 +259,10 @@ def noise_threshold(
 
     Per side of "off" ("+": above, "-": below; a slope: "deg"), from the ladder's replays
     (already in the cache after the fit): each rung k gives m_k / S_k, S_k the largest
-    per-signal RMS change against "off" in floor units; where S crosses 1 between two
-    rungs (:func:`crossing`), else from the rung whose S_k is nearest 1 (linear response
-    near the threshold). An effect must exceed this to be visible at all on these drives;
-    the benchmark's detection curves are drawn against it.
+    per-signal RMS change against "off" in floor units; the rung whose S_k is nearest 1
+    decides (linear response near the threshold), kept between the two rungs that bracket
+    S = 1 (:func:`crossing`). An effect must exceed this to be visible at all on these
+    drives; the benchmark's detection curves are drawn against it.
     """
     if c.discrete or not c.ladder:
         return {}
