@@ -478,7 +478,7 @@ def _share(xs: list[bool]) -> str:
     return f"{sum(xs)}/{len(xs)} ({100 * sum(xs) / len(xs):.0f} %)" if xs else "–"
 
 
-def _ratio(name: str, f: dict[str, Any] | None, key: str = "threshold") -> float | None:
+def truth_ratio(name: str, f: dict[str, Any] | None, key: str = "threshold") -> float | None:
     """The truth over the noise threshold diagnose reported (``key="detectable"``: over its
     detection limit on these logs; None: none reported)."""
     if not f or not f.get(key):
@@ -501,7 +501,7 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
     above, cov, below, unknown = [], [], [], 0
     for r in single:
         (name,) = r["truth"]
-        x = _ratio(name, r["fits"].get(name))
+        x = truth_ratio(name, r["fits"].get(name))
         if x is None:
             unknown += 1
         elif x >= 2:
@@ -516,13 +516,13 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
         name in r["first_named"]
         for r in single
         for name in r["truth"]
-        if (_ratio(name, r["fits"].get(name)) or 0) >= 2
+        if (truth_ratio(name, r["fits"].get(name)) or 0) >= 2
     ]
     visible = [
         name in r["named"]
         for r in single
         for name in r["truth"]
-        if (_ratio(name, r["fits"].get(name), "detectable") or 0) >= 2
+        if (truth_ratio(name, r["fits"].get(name), "detectable") or 0) >= 2
     ]
     lost = [bool(set(r["first_named"]) - set(r["named"])) for r in ok if r["followup"]]
     wrong = [bool(set(r["named"]) - set(r["truth"])) for r in single]
@@ -531,7 +531,7 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
     pairs_above = [
         all(e in r["named"] for e in r["truth"])
         for r in pairs
-        if all((_ratio(e, r["fits"].get(e)) or 0) >= 2 for e in r["truth"])
+        if all((truth_ratio(e, r["fits"].get(e)) or 0) >= 2 for e in r["truth"])
     ]
     pair_cov = [covers(r["fits"][e]) for r in pairs for e in r["truth"] if e in r["named"]]
     outside = [r for r in ok if r["kind"] == "outside"]
@@ -545,7 +545,7 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
     reached, unreached = [], []
     for r in _singles(ok, "torque_limit"):
         f = r["fits"].get("torque_limit")
-        if (_ratio("torque_limit", f) or 0.0) >= 1.0:
+        if (truth_ratio("torque_limit", f) or 0.0) >= 1.0:
             reached.append("torque_limit" in r["named"] and covers(f))
         else:
             asked = r.get("untested", []) + r.get("evidence", [])
@@ -610,7 +610,7 @@ def _effect_table(rows: list[dict[str, Any]], name: str) -> list[str]:
         return []
     for r in _singles(rows, name):
         f = r["fits"].get(name) or {}
-        x = _ratio(name, f)
+        x = truth_ratio(name, f)
         truth = params_cell(r["truth"][name])
         if r.get("equivalent"):
             truth += f" (and friction {r['equivalent']['friction']['fraction']:+.3f})"

@@ -391,3 +391,15 @@ def test_the_trade_line_counts_refused_and_excused_namings() -> None:
     assert "in 3 cases that stored it" in line
     assert "refused in 1 (the truth among its effects in 1; clean or outside 0)" in line
     assert "excused (named) in 2 (the truth among its effects in 1; clean or outside 1)" in line
+
+
+def test_a_truth_is_measured_against_the_threshold_on_its_side(b: ModuleType) -> None:
+    assert b.truth_ratio("command_lag", {"truth": 0.2, "threshold": 0.05}) == pytest.approx(4.0)
+    # A cut counts as its size; a slope as its tilt (its fit row's truth is the tilt).
+    assert b.truth_ratio("torque_limit", {"truth": -0.3, "threshold": 0.1}) == pytest.approx(3.0)
+    assert b.truth_ratio("slope", {"truth": 3.0, "threshold": 1.5}) == pytest.approx(2.0)
+    # Loose soil in the variable diagnose fits, 1e6 / k_phi.
+    assert b.truth_ratio("loose_soil", {"truth": 5e5, "threshold": 0.5}) == pytest.approx(4.0)
+    f = {"truth": 0.2, "threshold": None, "detectable": 0.1}
+    assert b.truth_ratio("friction", f) is None
+    assert b.truth_ratio("friction", f, "detectable") == pytest.approx(2.0)
