@@ -1,0 +1,110 @@
+"""benchmarks/effect_twin.py's comparison of an effect's change in the generator (measured on a
+clean twin) with the model's change at the truth: the vectors, their labels, the tally. No
+replay runs here: the window results are built by hand."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+import pytest
+
+from rover_env.calibration.replay import Window, WindowResult
+from rover_env.calibration.residuals import SIGNALS
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+SCALE = {s: 1.0 for s in SIGNALS}
+
+
+@pytest.fixture(scope="module")
+def et() -> ModuleType:
+    if str(BENCH) not in sys.path:  # its sibling bench_independent
+        sys.path.insert(0, str(BENCH))
+    spec = importlib.util.spec_from_file_location("effect_twin", BENCH / "effect_twin.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["effect_twin"] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def result(log: int, resid: np.ndarray, pose: np.ndarray) -> WindowResult:
+    n, m = resid.shape[0], pose.shape[0]
+    idx = np.arange(n, dtype=np.intp)
+    return WindowResult(
+        Window(log, 0, n), idx, resid, np.zeros_like(resid), idx[:m], pose, np.zeros_like(pose)
+    )
+
+
+def test_a_model_effect_equal_to_the_generators_has_cosine_one_and_size_ratio_one(
+    et: ModuleType,
+) -> None:
+    rng = np.random.default_rng(1)
+    base = [rng.normal(size=(4, 11)), rng.normal(size=(4, 11)), rng.normal(size=(2, 3))]
+    effect = [rng.normal(size=(4, 11)), rng.normal(size=(4, 11)), rng.normal(size=(2, 3))]
+    nominal = [result(0, base[0], base[2]), result(1, base[1], base[2])]
+    # The twin lacks the effect; a perfect model at the truth moves the replay the same way.
+    twin = [
+        result(0, base[0] + effect[0], base[2] + effect[2]),
+        result(1, base[1] + effect[1], base[2] + effect[2]),
+    ]
+    c = et.changes(nominal, twin, twin, SCALE, ["steps", "turns"])
+    assert c["all"]["cos"] == pytest.approx(1.0)
+    assert c["all"]["model"] == pytest.approx(c["all"]["gen"])
+    assert set(c["drives"]) == {"0:steps", "1:turns"}
+    # The opposite change: cosine -1, the same size.
+    opposite = [
+        result(0, base[0] - effect[0], base[2] - effect[2]),
+        result(1, base[1] - effect[1], base[2] - effect[2]),
+    ]
+    c = et.changes(nominal, twin, opposite, SCALE, ["steps", "turns"])
+    assert c["all"]["cos"] == pytest.approx(-1.0)
+    assert c["all"]["model"] == pytest.approx(c["all"]["gen"])
+
+
+def test_a_change_in_one_signal_group_shows_in_that_group_only(et: ModuleType) -> None:
+    z = np.zeros((4, 11))
+    nominal = [result(0, z, np.zeros((2, 3)))]
+    moved = z.copy()
+    moved[:, SIGNALS.index("wheel_3L")] = 2.0  # a free wheel only
+    twin = [result(0, moved, np.zeros((2, 3)))]
+    truth = [result(0, z, np.zeros((2, 3)) + 0.5)]  # the model moves the pose only
+    c = et.changes(nominal, twin, truth, SCALE, ["pivots"])
+    assert c["groups"]["free wheels"]["gen"] == pytest.approx(4.0)  # sqrt(4 rows x 2^2)
+    assert c["groups"]["free wheels"]["model"] == 0.0
+    assert c["groups"]["pose"]["gen"] == 0.0
+    assert c["groups"]["pose"]["model"] == pytest.approx(np.sqrt(6 * 0.25))
+    assert c["all"]["cos"] == 0.0  # orthogonal changes
+    assert c["twin_left"] == pytest.approx(4.0)
+
+
+def test_replays_of_different_windows_are_refused(et: ModuleType) -> None:
+    a = [result(0, np.zeros((4, 11)), np.zeros((2, 3)))]
+    b = [result(0, np.zeros((3, 11)), np.zeros((2, 3)))]
+    with pytest.raises(ValueError, match="same windows"):
+        et.changes(a, b, a, SCALE, ["steps"])
+
+
+def test_the_summary_orders_effects_by_their_cosine_and_skips_failed_cases(
+    et: ModuleType,
+) -> None:
+    def row(effect: str, gen: float, model: float, cos: float) -> dict[str, Any]:
+        return {
+            "effect": effect,
+            "all": {"gen": gen, "model": model, "cos": cos},
+            "twin_left": 10.0,
+        }
+
+    rows = [
+        row("torque_limit", 20.0, 5.0, 0.1),
+        row("command_delay", 30.0, 30.0, 0.99),
+        row("command_delay", 10.0, 12.0, 0.95),
+        {**row("command_delay", 1.0, 1.0, -1.0), "error": "boom"},
+    ]
+    lines = et.summary(rows)
+    assert lines[2] == "| torque_limit | 1 | 2.00 | 0.25 | +0.10 | 0 |"
+    assert lines[3] == "| command_delay | 2 | 2.00 | 1.10 | +0.97 | 2 |"
