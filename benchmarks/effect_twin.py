@@ -33,10 +33,12 @@ Writes ``OUT/effect_twin.md``, ``.json`` and ``.png`` (OUT defaults to the first
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import tempfile
 from collections import defaultdict
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -46,10 +48,12 @@ from bench_independent import DRIVES, DURATION, truth_ratio
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.diagnosis import floor, form, split
+from rover_env.calibration.diagnosis.form_ladder import reprepare
 from rover_env.calibration.diagnosis.state import Diagnosis, Options
 from rover_env.calibration.fit import SIGNAL_GROUPS
 from rover_env.calibration.replay import Replayer, WindowResult, prepare
 from rover_env.calibration.residuals import SIGNALS
+from rover_env.config import MotorSpec, RoverConfig
 from rover_env.independent.generate import make_independent_logs
 from rover_env.logs import read_log
 
@@ -107,9 +111,16 @@ def changes(
     return out
 
 
-def measure(logs_dir: Path, seed: int, truth: dict[str, dict[str, float]]) -> dict[str, Any]:
-    """:func:`changes` for one case: its logs, a clean twin driven here, the truth."""
-    logs = sorted(str(p) for p in logs_dir.glob("*.csv"))
+def measure(
+    logs_dir: Path,
+    seed: int,
+    truth: dict[str, dict[str, float]],
+    motor: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """:func:`changes` for one case: its logs, a clean twin driven here, the truth. ``motor``:
+    numbers that scale the model's motor fields (strings set them: ``anti_windup``), after
+    the forms, to ask what another loop would make of the effect."""
+    logs: list[str | Path] = sorted(str(p) for p in logs_dir.glob("*.csv"))
     kinds = [d["kind"] for d in yaml.safe_load((logs_dir / "truth.yaml").read_text())["drives"]]
     with tempfile.TemporaryDirectory() as tmp:
         twin = make_independent_logs(
@@ -118,6 +129,9 @@ def measure(logs_dir: Path, seed: int, truth: dict[str, dict[str, float]]) -> di
         d = Diagnosis(logs, Path(tmp) / "diagnosis", Options(progress=False, workers=1))
         split.split(d)
         form.fit_model_form(d)
+        if motor:
+            d.base = with_motor(d.base, motor)
+            d.prepared = reprepare(d.prepared, d.base, d.st)
         floor.baseline(d)
         twin_prep = [prepare(read_log(p), d.base, Path(p).name, d.st) for p in sorted(twin)]
         nominal = Replayer(d.base, d.st).run(d.prepared, d.all_w)
@@ -126,8 +140,17 @@ def measure(logs_dir: Path, seed: int, truth: dict[str, dict[str, float]]) -> di
     return changes(nominal, twin_res, truth_res, d.noise, kinds)
 
 
-def _one(args: tuple[dict[str, Any], str]) -> dict[str, Any]:
-    case, work = args
+def with_motor(cfg: RoverConfig, motor: dict[str, Any]) -> RoverConfig:
+    """``cfg`` with its motor's fields scaled by the numbers in ``motor`` (set by strings)."""
+    m = cfg.motor
+    kw: dict[str, Any] = {
+        k: v if isinstance(v, str) else getattr(m, k) * v for k, v in motor.items()
+    }
+    return replace(cfg, motor=replace(m, **kw))
+
+
+def _one(args: tuple[dict[str, Any], str, dict[str, Any]]) -> dict[str, Any]:
+    case, work, motor = args
     ((name, _),) = case["truth"].items()
     row: dict[str, Any] = {"case": case["case"], "effect": name, "truth": case["truth"]}
     row["strength"] = truth_ratio(name, case["fits"].get(name))
@@ -135,7 +158,7 @@ def _one(args: tuple[dict[str, Any], str]) -> dict[str, Any]:
     row["named"] = case["named"]
     try:
         ext = {**case["truth"], **(case.get("equivalent") or {})}
-        row.update(measure(Path(work) / case["case"] / "logs", case["seed"], ext))
+        row.update(measure(Path(work) / case["case"] / "logs", case["seed"], ext, motor))
     except Exception as exc:  # a case that cannot be replayed is reported, not skipped
         row["error"] = f"{type(exc).__name__}: {exc}"
     print(f"{row['case']}: {row.get('all', row.get('error'))}", flush=True)
@@ -215,16 +238,36 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
+def parse_motor(text: str) -> tuple[str, Any]:
+    """``FIELD=FACTOR`` (a number: a factor) or ``FIELD=VALUE`` (a word: the value)."""
+    key, sep, value = text.partition("=")
+    fields = {f.name for f in dataclasses.fields(MotorSpec)}
+    if not sep or key not in fields:
+        raise SystemExit(f"--motor {text!r}: FIELD=FACTOR with FIELD one of {sorted(fields)}")
+    try:
+        return key, float(value)
+    except ValueError:
+        return key, value
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--block", action="append", required=True, help="folder with independent.json")
     ap.add_argument("--work", action="append", required=True, help="its bench work folder")
     ap.add_argument("--out", default=None, help="where to write (default: the first block)")
     ap.add_argument("--only", default=None, help="one effect's cases only")
+    ap.add_argument(
+        "--motor",
+        action="append",
+        default=[],
+        metavar="FIELD=FACTOR",
+        help="scale a motor field of the model (speed_gain=2.8; anti_windup=conditional sets it)",
+    )
     ap.add_argument("--workers", type=int, default=1)
     a = ap.parse_args()
     if len(a.block) != len(a.work):
         ap.error("give one --work per --block")
+    motor = dict(parse_motor(m) for m in a.motor)
     jobs = []
     for block, work in zip(a.block, a.work, strict=True):
         for case in json.loads((Path(block) / "independent.json").read_text()):
@@ -234,7 +277,7 @@ def main() -> int:
                 continue
             if not (Path(work) / case["case"] / "logs").is_dir():
                 raise SystemExit(f"{work}: no logs for case {case['case']} (block {block})")
-            jobs.append((case, work))
+            jobs.append((case, work, motor))
     print(f"{len(jobs)} single-effect cases", flush=True)
     with ProcessPoolExecutor(max(1, a.workers)) as pool:
         rows = list(pool.map(_one, jobs))
@@ -242,7 +285,10 @@ def main() -> int:
     out.mkdir(parents=True, exist_ok=True)
     (out / "effect_twin.json").write_text(json.dumps(rows, indent=1, default=float))
     lines = ["# Each effect in the model against the same effect in the generator", ""]
-    lines += [f"Blocks: {', '.join(a.block)}.", "", *summary(rows), "", *case_lines(rows)]
+    lines += [f"Blocks: {', '.join(a.block)}."]
+    if motor:
+        lines.append(f"The model's motor: {', '.join(f'{k} {v}' for k, v in motor.items())}.")
+    lines += ["", *summary(rows), "", *case_lines(rows)]
     (out / "effect_twin.md").write_text("\n".join(lines) + "\n")
     plot(rows, out / "effect_twin.png")
     print("\n".join(summary(rows)))

@@ -108,3 +108,19 @@ def test_the_summary_orders_effects_by_their_cosine_and_skips_failed_cases(
     lines = et.summary(rows)
     assert lines[2] == "| torque_limit | 1 | 2.00 | 0.25 | +0.10 | 0 |"
     assert lines[3] == "| command_delay | 2 | 2.00 | 1.10 | +0.97 | 2 |"
+
+
+def test_motor_fields_are_scaled_by_numbers_and_set_by_words(et: ModuleType) -> None:
+    from rover_env.config import load_rover
+
+    assert et.parse_motor("speed_gain=2.1") == ("speed_gain", 2.1)
+    assert et.parse_motor("anti_windup=conditional") == ("anti_windup", "conditional")
+    with pytest.raises(SystemExit, match="speed_gian"):
+        et.parse_motor("speed_gian=2")
+    with pytest.raises(SystemExit, match="FIELD=FACTOR"):
+        et.parse_motor("speed_gain")
+    cfg = load_rover()
+    m = et.with_motor(cfg, {"speed_gain": 2.0, "anti_windup": "conditional"}).motor
+    assert m.speed_gain == pytest.approx(2 * cfg.motor.speed_gain)
+    assert m.anti_windup == "conditional"
+    assert m.integral_gain == cfg.motor.integral_gain
