@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import tempfile
 from collections import defaultdict
 from concurrent.futures import ProcessPoolExecutor
@@ -58,6 +59,10 @@ from rover_env.independent.generate import make_independent_logs
 from rover_env.logs import read_log
 
 SKIPPED = ("loose_soil",)
+VISIBLE = math.sqrt(Options.min_gain / (1.0 - Options.min_gain))
+"""The generator's change over what the model leaves on the twin at which a perfect model
+of the effect could pass the naming test's held-out gain (``Options.min_gain``, 10 %): with
+the change orthogonal to the rest, it is then that share of the loss, ``Δ² / (Δ² + R²)``."""
 
 
 def entry_labels(results: list[WindowResult]) -> tuple[np.ndarray, np.ndarray]:
@@ -189,6 +194,18 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
     return out
 
 
+def visibility(rows: list[dict[str, Any]]) -> list[str]:
+    """Markdown: cases whose generator change reaches :data:`VISIBLE` times what the model
+    leaves on the twin against those below it, and how many of each were named right."""
+    ok = [r for r in rows if "error" not in r]
+    out = ["| the effect's change / the model's mismatch on the twin | cases | named right |"]
+    out.append("|---|---|---|")
+    for label, keep in ((f">= {VISIBLE:.2f}", True), (f"< {VISIBLE:.2f}", False)):
+        sel = [r for r in ok if (r["all"]["gen"] >= VISIBLE * r["twin_left"]) == keep]
+        out.append(f"| {label} | {len(sel)} | {sum(bool(r['named_right']) for r in sel)} |")
+    return out
+
+
 def case_lines(rows: list[dict[str, Any]]) -> list[str]:
     """Markdown, one line per case: the overall and per-group comparison."""
     groups = list(SIGNAL_GROUPS)
@@ -238,6 +255,25 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
+def measure_all(
+    blocks: list[str], works: list[str], only: str | None, motor: dict[str, Any], workers: int
+) -> list[dict[str, Any]]:
+    """:func:`_one` over every non-soil single of the blocks (``only``: one effect's)."""
+    jobs = []
+    for block, work in zip(blocks, works, strict=True):
+        for case in json.loads((Path(block) / "independent.json").read_text()):
+            if case["kind"] != "single" or set(case["truth"]) & set(SKIPPED):
+                continue
+            if only and only not in case["truth"]:
+                continue
+            if not (Path(work) / case["case"] / "logs").is_dir():
+                raise SystemExit(f"{work}: no logs for case {case['case']} (block {block})")
+            jobs.append((case, work, motor))
+    print(f"{len(jobs)} single-effect cases", flush=True)
+    with ProcessPoolExecutor(max(1, workers)) as pool:
+        return list(pool.map(_one, jobs))
+
+
 def parse_motor(text: str) -> tuple[str, Any]:
     """``FIELD=FACTOR`` (a number: a factor) or ``FIELD=VALUE`` (a word: the value)."""
     key, sep, value = text.partition("=")
@@ -264,23 +300,15 @@ def main() -> int:
         help="scale a motor field of the model (speed_gain=2.8; anti_windup=conditional sets it)",
     )
     ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--from-json", default=None, help="tabulate a saved effect_twin.json again")
     a = ap.parse_args()
     if len(a.block) != len(a.work):
         ap.error("give one --work per --block")
     motor = dict(parse_motor(m) for m in a.motor)
-    jobs = []
-    for block, work in zip(a.block, a.work, strict=True):
-        for case in json.loads((Path(block) / "independent.json").read_text()):
-            if case["kind"] != "single" or set(case["truth"]) & set(SKIPPED):
-                continue
-            if a.only and a.only not in case["truth"]:
-                continue
-            if not (Path(work) / case["case"] / "logs").is_dir():
-                raise SystemExit(f"{work}: no logs for case {case['case']} (block {block})")
-            jobs.append((case, work, motor))
-    print(f"{len(jobs)} single-effect cases", flush=True)
-    with ProcessPoolExecutor(max(1, a.workers)) as pool:
-        rows = list(pool.map(_one, jobs))
+    if a.from_json:
+        rows = json.loads(Path(a.from_json).read_text())
+    else:
+        rows = measure_all(a.block, a.work, a.only, motor, a.workers)
     out = Path(a.out or a.block[0])
     out.mkdir(parents=True, exist_ok=True)
     (out / "effect_twin.json").write_text(json.dumps(rows, indent=1, default=float))
@@ -288,10 +316,10 @@ def main() -> int:
     lines += [f"Blocks: {', '.join(a.block)}."]
     if motor:
         lines.append(f"The model's motor: {', '.join(f'{k} {v}' for k, v in motor.items())}.")
-    lines += ["", *summary(rows), "", *case_lines(rows)]
+    lines += ["", *summary(rows), "", *visibility(rows), "", *case_lines(rows)]
     (out / "effect_twin.md").write_text("\n".join(lines) + "\n")
     plot(rows, out / "effect_twin.png")
-    print("\n".join(summary(rows)))
+    print("\n".join([*summary(rows), "", *visibility(rows)]))
     return 1 if any("error" in r for r in rows) else 0
 
 

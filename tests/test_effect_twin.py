@@ -124,3 +124,20 @@ def test_motor_fields_are_scaled_by_numbers_and_set_by_words(et: ModuleType) -> 
     assert m.speed_gain == pytest.approx(2 * cfg.motor.speed_gain)
     assert m.anti_windup == "conditional"
     assert m.integral_gain == cfg.motor.integral_gain
+
+
+def test_visibility_splits_at_the_naming_tests_gain(et: ModuleType) -> None:
+    # 10 % of the held-out loss for an orthogonal change: Δ / R = sqrt(0.1 / 0.9).
+    assert et.VISIBLE == pytest.approx(1 / 3)
+
+    def row(gen: float, named: bool) -> dict[str, Any]:
+        return {
+            "all": {"gen": gen, "model": 1.0, "cos": 1.0},
+            "twin_left": 30.0,
+            "named_right": named,
+        }
+
+    rows = [row(10.5, True), row(9.5, True), row(2.0, False), {**row(50.0, True), "error": "x"}]
+    lines = et.visibility(rows)
+    assert lines[2] == "| >= 0.33 | 1 | 1 |"
+    assert lines[3] == "| < 0.33 | 2 | 1 |"
