@@ -3,35 +3,21 @@ what it draws and how the truth is stated in the catalogue's terms. No diagnosis
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-import sys
 from pathlib import Path
 from types import ModuleType
 
 import numpy as np
 import pytest
 import yaml
+from _bench import load_bench
 
 from rover_env.calibration.drive_plan import Proposal
 from rover_env.effects import CATALOGUE, effect_class
 from rover_env.independent import effects as ind_effects
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
-
-
-def _load(name: str) -> ModuleType:
-    if str(BENCH) not in sys.path:  # its sibling modules (_report, bench_diagnose)
-        sys.path.insert(0, str(BENCH))
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, BENCH / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+_load = load_bench
 
 
 @pytest.fixture(scope="module")

@@ -2,23 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
 from types import ModuleType
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_diagnose.py"
+from _bench import load_bench
 
 
 def _bench() -> ModuleType:
-    if str(BENCH.parent) not in sys.path:  # its sibling modules (_report)
-        sys.path.insert(0, str(BENCH.parent))
-    spec = importlib.util.spec_from_file_location("bench_diagnose", BENCH)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["bench_diagnose"] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return load_bench("bench_diagnose")
 
 
 def test_no_pair_holds_an_effect_the_soil_makes_inert() -> None:

@@ -4,14 +4,13 @@ replay runs here: the window results are built by hand."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 import numpy as np
 import pytest
+from _bench import load_bench
 
 from rover_env.calibration.replay import Window, WindowResult
 from rover_env.calibration.residuals import SIGNALS
@@ -22,14 +21,7 @@ SCALE = {s: 1.0 for s in SIGNALS}
 
 @pytest.fixture(scope="module")
 def et() -> ModuleType:
-    if str(BENCH) not in sys.path:  # its sibling bench_independent
-        sys.path.insert(0, str(BENCH))
-    spec = importlib.util.spec_from_file_location("effect_twin", BENCH / "effect_twin.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["effect_twin"] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return load_bench("effect_twin")
 
 
 def result(log: int, resid: np.ndarray, pose: np.ndarray) -> WindowResult:

@@ -3,27 +3,19 @@ table counts. No replay runs here."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 import pytest
+from _bench import load_bench
 
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
 @pytest.fixture(scope="module")
 def tc() -> ModuleType:
-    if str(BENCH) not in sys.path:  # its sibling bench_independent
-        sys.path.insert(0, str(BENCH))
-    spec = importlib.util.spec_from_file_location("truth_ceiling", BENCH / "truth_ceiling.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["truth_ceiling"] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return load_bench("truth_ceiling")
 
 
 def test_the_table_counts_strong_cases_only_and_names_against_the_truth(tc: ModuleType) -> None:
