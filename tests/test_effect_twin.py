@@ -4,7 +4,6 @@ replay runs here: the window results are built by hand."""
 
 from __future__ import annotations
 
-from pathlib import Path
 from types import ModuleType
 from typing import Any
 
@@ -15,7 +14,6 @@ from _bench import load_bench
 from rover_env.calibration.replay import Window, WindowResult
 from rover_env.calibration.residuals import SIGNALS
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 SCALE = {s: 1.0 for s in SIGNALS}
 
 
