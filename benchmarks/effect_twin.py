@@ -138,7 +138,8 @@ def measure(
             d.base = with_motor(d.base, motor)
             d.prepared = reprepare(d.prepared, d.base, d.st)
         floor.baseline(d)
-        twin_prep = [prepare(read_log(p), d.base, Path(p).name, d.st) for p in sorted(twin)]
+        by_name = {Path(p).name: p for p in twin}  # the twin's drive i is the logs' drive i
+        twin_prep = [prepare(read_log(by_name[p.name]), d.base, p.name, d.st) for p in d.prepared]
         nominal = Replayer(d.base, d.st).run(d.prepared, d.all_w)
         twin_res = Replayer(d.base, d.st).run(twin_prep, d.all_w)
         truth_res = Replayer(d.ev.config(truth), d.st).run(d.prepared, d.all_w)
