@@ -45,7 +45,8 @@ from typing import Any
 
 import numpy as np
 import yaml
-from bench_independent import DRIVES, DURATION, truth_ratio
+from bench_independent import DRIVES, DURATION
+from truth_ceiling import case_row, single_cases, truth_ext
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.diagnosis import floor, form, split
@@ -58,7 +59,6 @@ from rover_env.config import MotorSpec, RoverConfig
 from rover_env.independent.generate import make_independent_logs
 from rover_env.logs import read_log
 
-SKIPPED = ("loose_soil",)
 VISIBLE = math.sqrt(Options.min_gain / (1.0 - Options.min_gain))
 """The generator's change over what the model leaves on the twin at which a perfect model
 of the effect could pass the naming test's held-out gain (``Options.min_gain``, 10 %): with
@@ -157,18 +157,25 @@ def with_motor(cfg: RoverConfig, motor: dict[str, Any]) -> RoverConfig:
 
 def _one(args: tuple[dict[str, Any], str, dict[str, Any]]) -> dict[str, Any]:
     case, work, motor = args
-    ((name, _),) = case["truth"].items()
-    row: dict[str, Any] = {"case": case["case"], "effect": name, "truth": case["truth"]}
-    row["strength"] = truth_ratio(name, case["fits"].get(name))
-    row["named_right"] = name in case["named"]
-    row["named"] = case["named"]
+    row = case_row(case)
     try:
-        ext = {**case["truth"], **(case.get("equivalent") or {})}
-        row.update(measure(Path(work) / case["case"] / "logs", case["seed"], ext, motor))
+        row.update(
+            measure(Path(work) / case["case"] / "logs", case["seed"], truth_ext(case), motor)
+        )
     except Exception as exc:  # a case that cannot be replayed is reported, not skipped
         row["error"] = f"{type(exc).__name__}: {exc}"
     print(f"{row['case']}: {row.get('all', row.get('error'))}", flush=True)
     return row
+
+
+def visible_ratio(row: dict[str, Any]) -> float:
+    """The generator's change over what the model leaves on the clean twin."""
+    return float(row["all"]["gen"] / max(row["twin_left"], 1e-12))
+
+
+def size_ratio(row: dict[str, Any]) -> float:
+    """The model's change at the truth over the generator's."""
+    return float(row["all"]["model"] / max(row["all"]["gen"], 1e-12))
 
 
 def summary(rows: list[dict[str, Any]]) -> list[str]:
@@ -185,8 +192,8 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
     ]
     for e in sorted(by, key=lambda e: float(np.median([r["all"]["cos"] for r in by[e]]))):
         rs_ = by[e]
-        vis = np.median([r["all"]["gen"] / max(r["twin_left"], 1e-12) for r in rs_])
-        size = np.median([r["all"]["model"] / max(r["all"]["gen"], 1e-12) for r in rs_])
+        vis = np.median([visible_ratio(r) for r in rs_])
+        size = np.median([size_ratio(r) for r in rs_])
         cos = [r["all"]["cos"] for r in rs_]
         out.append(
             f"| {e} | {len(rs_)} | {vis:.2f} | {size:.2f} | {np.median(cos):+.2f}"
@@ -202,7 +209,7 @@ def visibility(rows: list[dict[str, Any]]) -> list[str]:
     out = ["| the effect's change / the model's mismatch on the twin | cases | named right |"]
     out.append("|---|---|---|")
     for label, keep in ((f">= {VISIBLE:.2f}", True), (f"< {VISIBLE:.2f}", False)):
-        sel = [r for r in ok if (r["all"]["gen"] >= VISIBLE * r["twin_left"]) == keep]
+        sel = [r for r in ok if (visible_ratio(r) >= VISIBLE) == keep]
         out.append(f"| {label} | {len(sel)} | {sum(bool(r['named_right']) for r in sel)} |")
     return out
 
@@ -225,7 +232,7 @@ def case_lines(rows: list[dict[str, Any]]) -> list[str]:
         ]
         out.append(
             f"| {r['case']} | {s} | {', '.join(r['named']) or '—'}"
-            f" | {a['gen'] / max(r['twin_left'], 1e-12):.2f} | {a['model'] / max(a['gen'], 1e-12):.2f}"
+            f" | {visible_ratio(r):.2f} | {size_ratio(r):.2f}"
             f" | {a['cos']:+.2f} | " + " | ".join(cells) + " |"
         )
     return out
@@ -241,7 +248,7 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(8, 5))
     for e in sorted({r["effect"] for r in ok}):
         sel = [r for r in ok if r["effect"] == e]
-        x = [r["all"]["model"] / max(r["all"]["gen"], 1e-12) for r in sel]
+        x = [size_ratio(r) for r in sel]
         y = [r["all"]["cos"] for r in sel]
         ax.scatter(x, y, label=e, s=22)
     ax.axvline(1.0, color="0.6", lw=0.8)
@@ -260,17 +267,7 @@ def measure_all(
     blocks: list[str], works: list[str], only: str | None, motor: dict[str, Any], workers: int
 ) -> list[dict[str, Any]]:
     """:func:`_one` over every non-soil single of the blocks (``only``: one effect's)."""
-    jobs = []
-    for block, work in zip(blocks, works, strict=True):
-        for case in json.loads((Path(block) / "independent.json").read_text()):
-            if case["kind"] != "single" or set(case["truth"]) & set(SKIPPED):
-                continue
-            if only and only not in case["truth"]:
-                continue
-            if not (Path(work) / case["case"] / "logs").is_dir():
-                raise SystemExit(f"{work}: no logs for case {case['case']} (block {block})")
-            jobs.append((case, work, motor))
-    print(f"{len(jobs)} single-effect cases", flush=True)
+    jobs = [(case, work, motor) for case, work in single_cases(blocks, works, only)]
     with ProcessPoolExecutor(max(1, workers)) as pool:
         return list(pool.map(_one, jobs))
 

@@ -75,17 +75,46 @@ def test_at_truth(logs_dir: Path, truth: dict[str, dict[str, float]]) -> dict[st
     }
 
 
-def _one(args: tuple[dict[str, Any], str]) -> dict[str, Any]:
-    case, work = args
+def case_row(case: dict[str, Any]) -> dict[str, Any]:
+    """A single's row head: its effect, truth, strength (truth over the reported noise
+    threshold) and what diagnose named."""
     ((name, _),) = case["truth"].items()
-    strength = truth_ratio(name, case["fits"].get(name))
-    row = {"case": case["case"], "truth": case["truth"], "strength": strength}
-    row["effect"] = name
+    row = {"case": case["case"], "truth": case["truth"], "effect": name}
+    row["strength"] = truth_ratio(name, case["fits"].get(name))
     row["named_right"] = name in case["named"]
     row["named"] = case["named"]
+    return row
+
+
+def truth_ext(case: dict[str, Any]) -> dict[str, dict[str, float]]:
+    """The case's truth as model extensions (with its equivalent effect, if any)."""
+    return {**case["truth"], **(case.get("equivalent") or {})}
+
+
+def single_cases(
+    blocks: list[str], works: list[str], only: str | None = None
+) -> list[tuple[dict[str, Any], str]]:
+    """(case, work folder) of every non-soil single of the blocks (``only``: one effect's);
+    a case whose logs are missing stops the run with its name."""
+    jobs = []
+    for block, work in zip(blocks, works, strict=True):
+        for case in json.loads((Path(block) / "independent.json").read_text()):
+            if case["kind"] != "single" or set(case["truth"]) & set(SKIPPED):
+                continue
+            if only and only not in case["truth"]:
+                continue
+            if not (Path(work) / case["case"] / "logs").is_dir():
+                raise SystemExit(f"{work}: no logs for case {case['case']} (block {block})")
+            jobs.append((case, work))
+    print(f"{len(jobs)} single-effect cases", flush=True)
+    return jobs
+
+
+def _one(args: tuple[dict[str, Any], str]) -> dict[str, Any]:
+    case, work = args
+    row = case_row(case)
     try:
-        ext = {**case["truth"], **(case.get("equivalent") or {})}
-        row.update(test_at_truth(Path(work) / case["case"] / "logs", ext))
+        row.update(test_at_truth(Path(work) / case["case"] / "logs", truth_ext(case)))
     except Exception as exc:  # a case that cannot be replayed is reported, not skipped
         row["error"] = f"{type(exc).__name__}: {exc}"
     print(f"{row['case']}: {row.get('passes', row.get('error'))}", flush=True)
@@ -153,14 +182,7 @@ def main() -> int:
     a = ap.parse_args()
     if len(a.block) != len(a.work):
         ap.error("give one --work per --block")
-    jobs = []
-    for block, work in zip(a.block, a.work, strict=True):
-        for case in json.loads((Path(block) / "independent.json").read_text()):
-            if case["kind"] == "single" and not set(case["truth"]) & set(SKIPPED):
-                if not (Path(work) / case["case"] / "logs").is_dir():
-                    raise SystemExit(f"{work}: no logs for case {case['case']} (block {block})")
-                jobs.append((case, work))
-    print(f"{len(jobs)} single-effect cases", flush=True)
+    jobs = single_cases(a.block, a.work)
     with ProcessPoolExecutor(max(1, a.workers)) as pool:
         rows = list(pool.map(_one, jobs))
     out = Path(a.out or a.block[0])
