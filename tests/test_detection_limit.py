@@ -12,6 +12,10 @@ import pytest
 
 from rover_env.calibration.candidates import catalogue
 from rover_env.calibration.diagnosis.fit_stage import crossing, detection_limit
+from rover_env.calibration.diagnosis.judge import below_detection_limit, limit_at
+from rover_env.calibration.diagnosis.select import first_confident
+from rover_env.calibration.diagnosis.state import Scored
+from rover_env.calibration.fit import Fit
 from rover_env.calibration.replay import SIGNALS
 
 N = 64  # windows
@@ -114,3 +118,74 @@ def test_a_limit_acting_only_past_a_point_is_not_placed_below_rungs_that_moved_n
     last_quiet = max(m for m in rungs if m <= 0.3)  # a rung the drives never felt
     # The rung nearest the price alone (E ~ m^2 from 0.8) would put it at 0.041.
     assert last_quiet < detection_limit(ev, c, "train", ev.scale)["-"] < 0.8  # type: ignore[arg-type]
+
+
+class SlopeEv(FakeEv):
+    """A tilt whose x component moves wheel_2L by ``gx`` per degree and whose y component
+    moves wheel_2R by ``gy``, against ``base`` on wheel_1L everywhere."""
+
+    def __init__(self, gx: float, gy: float) -> None:
+        super().__init__(1.0, 0.0, range(0))
+        self.gx, self.gy = gx, gy
+
+    def run(self, ext: dict, which: str) -> list:
+        s = ext.get("slope", {"deg": 0.0, "heading_deg": 0.0})
+        h = math.radians(s["heading_deg"])
+        tx, ty = s["deg"] * math.cos(h), s["deg"] * math.sin(h)
+        out = super().run({}, which)
+        for r in out:
+            r.resid[:, 2] = self.gx * tx
+            r.resid[:, 3] = self.gy * ty
+        return out
+
+
+def test_a_slopes_limit_is_measured_along_each_axis_and_joined_as_an_ellipse() -> None:
+    (c,) = catalogue(["slope"])
+    ev = SlopeEv(2.0, 0.5)
+    lim = detection_limit(ev, c, "train", ev.scale)  # type: ignore[arg-type]
+    want = math.sqrt(math.expm1(2 * math.log(N) / N))  # price: two parameters
+    for axis, g in (("x+", 2.0), ("x-", 2.0), ("y+", 0.5), ("y-", 0.5)):
+        assert lim[axis] == pytest.approx(want / g, rel=1e-6), axis
+    assert lim["x+"] < lim["deg"] < lim["y+"]  # the median over directions, as reported
+    # Along the diagonal the change is exactly a quadratic form: the ellipse is exact.
+    diag = np.array([1.0, 1.0])
+    exact = want * math.sqrt(2.0 / (2.0**2 + 0.5**2))
+    assert limit_at(c, diag, lim) == pytest.approx(exact, rel=1e-6)
+    assert limit_at(c, np.array([-3.0, 0.0]), lim) == pytest.approx(want / 2.0, rel=1e-6)
+    # Without the axes (a report written before them): the median over directions.
+    assert limit_at(c, diag, {"deg": 1.5}) == 1.5
+
+
+def _named(name: str, x: list[float]) -> Scored:
+    (c,) = catalogue([name])
+    xa = np.array(x)
+    f = Fit(
+        [c], xa, xa - 1e-3, xa + 1e-3, np.full(len(x), 5e-4), 0.0, 0, c.to_ext(xa), 0.0, "train"
+    )
+    return Scored(f, 0.0, np.zeros(3), 0.2, 0.001, -5.0, -5.0, 10, significant=True)
+
+
+def test_an_effect_below_its_detection_limit_is_not_named() -> None:
+    # Stop 73's pattern: a clean case's friction of -0.244 where the logs can show only
+    # -0.261 or stronger; a delay well above its limit is named.
+    limits = {"friction": {"-": 0.261, "+": 0.4}, "command_delay": {"+": 0.03}}
+    friction, delay = _named("friction", [-0.244]), _named("command_delay", [0.09])
+    assert below_detection_limit(friction.fit, limits) != []
+    assert below_detection_limit(delay.fit, limits) == []
+    assert below_detection_limit(friction.fit, limits, {"command_delay"}) == []  # not judged
+    assert below_detection_limit(friction.fit, {}) == []  # no limit measured: no verdict
+    say: list[str] = []
+    chosen = first_confident([friction, delay], lambda s: None, lambda s: None, say.append, limits)
+    assert chosen is delay
+    assert not friction.significant and "below its detection limit 0.261" in friction.test
+    # The same without limits (--no-name-above-limit): the friction is named.
+    friction.significant = True
+    assert (
+        first_confident([friction, delay], lambda s: None, lambda s: None, say.append) is friction
+    )
+
+
+def test_loose_soil_has_no_one_detection_limit() -> None:
+    # Several forms, the ladder replayed in one: the rule does not judge it.
+    soil = _named("loose_soil", [0.1])
+    assert below_detection_limit(soil.fit, {"loose_soil": {"+": 1.0}}) == []

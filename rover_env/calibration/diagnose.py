@@ -113,6 +113,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "fit the speed loop's anti-windup form, gains and rotor inertia together as model form",
     ),
     ("fit_slip_floor", "fit the tire's low-speed slip floor as model form"),
+    (
+        "name_above_limit",
+        "name an effect only if its fitted magnitude reaches its detection limit on these logs",
+    ),
     ("screen", "screen each candidate on half the training windows before its full fit"),
     (
         "forms_beside_leader",

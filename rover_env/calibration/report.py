@@ -198,8 +198,14 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
         " under the current model's replay floor (the test of the tables below) and puts none above it may be"
         " named instead (an effect seen in a few windows only, such as a torque limit the drive reaches a few"
         " times, cannot pass a test across windows). Of the candidates that pass, the one with the lowest"
-        " ΔBIC over all windows, training and held-out, is the winner."
-        " A runner-up (the next significant candidate, or one"
+        " ΔBIC over all windows, training and held-out, is the winner"
+        + (
+            ", if its fitted magnitude reaches its detection limit on these logs (the table below):"
+            " a smaller fit explains what the model itself leaves, not the effect."
+            if opts.name_above_limit
+            else "."
+        )
+        + " A runner-up (the next significant candidate, or one"
         " that improves the held-out drive more than the winner and lowers the training BIC without passing"
         " the window test) not worse than the winner at p < "
         f"{opts.tie_alpha:g} is reported as a tie. Second effect by forward selection under the same rules."
@@ -491,7 +497,7 @@ def visibility_lines(fits: dict[str, dict[str, Any]]) -> list[str]:
     rows = []
     for name, f in sorted(fits.items()):
         thr, det = f.get("threshold") or {}, f.get("detectable") or {}
-        sides = sorted(set(thr) | set(det))
+        sides = sorted((set(thr) | set(det)) & {"+", "-", "deg"})  # not a slope's axes
         if not sides:
             continue
 

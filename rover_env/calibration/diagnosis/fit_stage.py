@@ -24,10 +24,12 @@ from rover_env.calibration.diagnosis.judge import (
     fit_budget,
     floor_test,
     fmt_phys,
+    magnitude,
     passes_window_test,
     plugin_capable,
     score,
     screened,
+    slope_axis,
     unexplained,
 )
 from rover_env.calibration.diagnosis.parallel import map_candidates
@@ -178,14 +180,7 @@ def bias_correct(
 def _ladder_magnitudes(c: Candidate) -> list[tuple[np.ndarray, str, float]]:
     """Each ladder rung of ``c`` with its side of "off" ("+", "-"; a slope: "deg") and its
     magnitude (distance from "off"; a slope's tilt in degrees)."""
-    out = []
-    for p in c.ladder or ():
-        x = np.array(p, dtype=float)
-        if c.name == "slope":
-            out.append((x, "deg", float(np.hypot(x[0], x[1]))))
-        else:
-            out.append((x, "+" if x[0] > c.off[0] else "-", abs(float(x[0] - c.off[0]))))
-    return out
+    return [(x, *magnitude(c, x)) for x in (np.array(p, dtype=float) for p in c.ladder or ())]
 
 
 def _window_change(a: WindowResult, b: WindowResult, scale: dict[str, float]) -> float:
@@ -210,7 +205,8 @@ def detection_limit(
     loss on that window now (the form it lacks, the noise). The BIC falls once
     sum_w log(1 + E_w / R_w) exceeds k ln n; E grows as m^2 near "off", so each rung's E,
     scaled by the factor f that makes that sum the price, gives m sqrt(f), and the rung
-    whose sum is nearest the price decides (a slope: the median over its directions).
+    whose sum is nearest the price decides (a slope: "deg", the median over its directions,
+    and each direction alone, "x+", "x-", "y+", "y-", for :func:`.judge.limit_at`).
     Why (stop 59): the noise threshold measures an effect against the replay floor, what a
     perfect model leaves; against another implementation's
     logs the model leaves 4-20 x that, and an effect 3 x its noise threshold can be
@@ -234,21 +230,24 @@ def detection_limit(
         e = np.array([_window_change(a, b, scale) for a, b in zip(res, ref, strict=True)])
         q = np.nan_to_num(e) / r_ref
         d = float(np.sum(np.log1p(q)))
-        paid.setdefault(key, []).append((mag, d / price))
+        keys = [key, slope_axis(x)] if c.name == "slope" else [key]
+        for k in keys:
+            paid.setdefault(k, []).append((mag, d / price))
         if d > 0:
             # E_w scales as m^2: the factor on this rung's E whose sum pays the price exactly
             if _price_gap(1e12, q, price) <= 0:  # a change too small to ever pay the price
                 continue
             f = optimize.brentq(_price_gap, 1e-12, 1e12, args=(q, price))
-            groups.setdefault(key, []).append((mag, mag * math.sqrt(f), abs(math.log(d / price))))
+            for k in keys:
+                groups.setdefault(k, []).append((mag, mag * math.sqrt(f), abs(math.log(d / price))))
     out = {}
     for key, pts in groups.items():
         # Kept between the rungs that bracket the price (an effect that acts only past a
         # point, as a torque limit: :func:`crossing`); a slope's four directions per rung
-        # are not one response.
+        # are not one response ("deg": their median), each axis ("x+" ...) is.
         mag0 = min(pts, key=lambda q: q[2])[0]  # the rung nearest the price
         est = float(np.median([est for mag, est, _ in pts if mag == mag0]))
-        out[key] = est if c.name == "slope" else within_bracket(est, paid[key])
+        out[key] = est if key == "deg" else within_bracket(est, paid[key])
     return out
 
 

@@ -333,6 +333,67 @@ def interval_reaches_off(f: Fit, effects: set[str] | None = None) -> list[str]:
     return out
 
 
+def magnitude(c: Candidate, x: NDArray[np.float64]) -> tuple[str, float]:
+    """The side of "off" ("+", "-"; a slope: "deg") of ``c`` at ``x`` and its magnitude
+    there (distance from "off"; a slope's tilt in degrees)."""
+    if c.name == "slope":
+        return "deg", float(np.hypot(x[0], x[1]))
+    return ("+" if x[0] > c.off[0] else "-"), abs(float(x[0] - c.off[0]))
+
+
+def slope_axis(x: NDArray[np.float64]) -> str:
+    """The tilt axis and sign ("x+", "x-", "y+", "y-") a slope's ladder rung ``x`` lies on."""
+    i = 0 if abs(x[0]) >= abs(x[1]) else 1
+    return ("x", "y")[i] + ("+" if x[i] >= 0 else "-")
+
+
+def limit_at(c: Candidate, x: NDArray[np.float64], limits: dict[str, float]) -> float | None:
+    """The detection limit (:func:`.fit_stage.detection_limit`) of ``c`` on the side or, a
+    slope, in the direction of ``x``: the per-axis limits joined as an ellipse (the change a
+    tilt makes grows as its square near level, a quadratic form in the two tilts; cross
+    terms neglected), the median over directions where the axes are missing; None if none
+    was measured. An axis the ladder never made pay its price is never visible that way."""
+    side, m = magnitude(c, x)
+    if c.name != "slope" or m == 0.0:
+        return limits.get(side)
+    axes = [limits.get(f"{a}{'+' if v >= 0 else '-'}") for a, v in zip("xy", x[:2], strict=True)]
+    if all(a is None for a in axes):
+        return limits.get(side)
+    inv = sum((float(v) / m / a) ** 2 for v, a in zip(x[:2], axes, strict=True) if a)
+    return math.inf if inv == 0.0 else 1.0 / math.sqrt(inv)
+
+
+def below_detection_limit(
+    f: Fit, limits: dict[str, dict[str, float]], effects: set[str] | None = None
+) -> list[str]:
+    """For each effect of ``f`` (or of ``effects``) whose fitted magnitude lies below its
+    detection limit on these logs (``limits``: effect -> its single fit's
+    :attr:`~.state.Scored.detectable`), the text of why it is not named.
+
+    A fit that pays its price with an effect smaller than any the logs could show against
+    what the model leaves explains the model's own mismatch, not the effect (stop 73: on
+    the independent generator's spent blocks 50800-51400, all 5 first names of a friction,
+    lag, delay, rolling resistance, radius or torque limit below their limit were wrong,
+    both clean cases' friction among them; above it 59 of 74 were right). An effect with
+    several forms (loose soil) has no one limit: its ladder is replayed in one form only."""
+    out = []
+    i = 0
+    for c in f.candidates:
+        n = len(c.labels)
+        x = f.x[i : i + n]
+        i += n
+        if (effects is not None and c.name not in effects) or c.discrete or not n or c.forms:
+            continue
+        lim = limit_at(c, x, limits.get(c.name) or {})
+        _, m = magnitude(c, x)
+        if lim is not None and m < lim:
+            out.append(
+                f"{c.name} {m:.3g} is below its detection limit {lim:.3g} on these logs"
+                " (the smallest that would stand above what the model leaves)"
+            )
+    return out
+
+
 def plugin_capable(c: Candidate) -> bool:
     return c.plugin_ok
 

@@ -25,6 +25,7 @@ from rover_env.calibration.candidates import merge, separating_plan
 from rover_env.calibration.diagnosis.fit_stage import bias_correct, polish
 from rover_env.calibration.diagnosis.floor import model_floor
 from rover_env.calibration.diagnosis.judge import (
+    below_detection_limit,
     better_worse,
     fit_budget,
     fit_dict,
@@ -69,6 +70,7 @@ def name_winner(d: Diagnosis) -> None:
         correct,
         lambda s: None,
         d.say,
+        detection_limits(d),
     )
 
 
@@ -148,7 +150,7 @@ def partner_alone(d: Diagnosis, partners: list[str]) -> tuple[Scored, dict[str, 
             ev = d.ev if x.fit_scale is None else replace(d.ev, scale=x.fit_scale)
             bias_correct(ev, x, d.sensor_noise, d.st)
 
-    if first_confident([s], correct, lambda x: None, d.say) is None:
+    if first_confident([s], correct, lambda x: None, d.say, detection_limits(d)) is None:
         return None
     worse, floor = trades(d, [s])
     if worse:
@@ -225,7 +227,7 @@ def forward_selection(d: Diagnosis) -> None:
         lambda s: _bias_and_rotor(d, ev, s),
         lambda s: {c.name for c in s.fit.candidates} - w_names,
         d.say,
-    )
+    )  # no detection limit: each was measured against the model without the winner
     if second is not None:
         d.chosen = [second]
         if d.tie is not None and set(d.tie["effects"]) <= {c.name for c in second.fit.candidates}:
@@ -443,23 +445,42 @@ def first_confident(
     correct: Callable[[Scored], None],
     judged: Callable[[Scored], set[str] | None],
     say: Callable[[str], None],
+    limits: dict[str, dict[str, float]] | None = None,
 ) -> Scored | None:
-    """The first of ``candidates`` (best first) whose interval keeps clear of "off".
+    """The first of ``candidates`` (best first) whose interval keeps clear of "off" and,
+    given ``limits`` (:func:`detection_limits`), whose magnitude reaches its detection limit
+    (:func:`.judge.below_detection_limit`).
 
     Each is first widened by ``correct`` (the replay's bias); ``judged`` picks the effects
-    whose interval counts (a pair's new partner, not the winner it was fitted beside). One
-    that reaches "off" loses its significance and says why in ``test``.
+    whose interval and limit count (a pair's new partner, not the winner it was fitted
+    beside). One that fails loses its significance and says why in ``test``.
     """
     for s in candidates:
         correct(s)
         say(f"{s.fit.name} with the replay's bias in its interval: {fmt_phys(s.fit)}")
         off = interval_reaches_off(s.fit, judged(s))
-        if not off:
+        below = [] if limits is None else below_detection_limit(s.fit, limits, judged(s))
+        if not off and not below:
             return s
         s.significant = False
-        s.test = f"not named: the 95 % interval of {', '.join(off)} reaches off"
+        s.test = (
+            f"not named: the 95 % interval of {', '.join(off)} reaches off"
+            if off
+            else f"not named: {'; '.join(below)}"
+        )
         say(f"{s.fit.name}: {s.test}")
     return None
+
+
+def detection_limits(d: Diagnosis) -> dict[str, dict[str, float]] | None:
+    """Each candidate's detection limit on these logs, from its single fit (effect -> side
+    -> magnitude), when a name must reach it (:attr:`~.state.Options.name_above_limit`).
+    Not for a partner fitted beside the winner: its limit was measured against a model that
+    leaves the winner's effect in the residual, so it overstates what the pair can show (a
+    load-dependent friction hidden beside a rolling resistance was lost to it)."""
+    if not d.opts.name_above_limit:
+        return None
+    return {s.fit.name: s.detectable for s in d.ranked if len(s.fit.candidates) == 1}
 
 
 def settle_trades(

@@ -124,6 +124,10 @@ class Options:
     off, the limit is named as before). Why (stop 62): a limit the drives reach only when
     accelerating is measured as the torque over the rotor inertia, and a configured rotor
     that is off reads as a cut (13 limits named on the independent generator, none right)."""
+    name_above_limit: bool = True
+    """Name an effect only if its fitted magnitude reaches its detection limit on these logs
+    (:func:`.judge.below_detection_limit`): below the smallest effect the logs can show
+    against what the model leaves, a fit explains the model's own mismatch. Stop 73."""
     model_form: bool = True
     """Fit the model's own form first, in this order: the joint sensors' zeros, the speed
     loop's anti-windup form, the tire's relaxation length, the yaw joints' springs and the
