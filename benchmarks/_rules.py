@@ -7,6 +7,8 @@ drives (``Options.evidence``) left without one."""
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
 from typing import Any
 
 STRONG_BIC = -6.0
@@ -163,3 +165,62 @@ def trade_line(rows: list[dict[str, Any]]) -> str:
         f" a trade under {TRADE_SHARE:g} of what the rest gained excused (named) in"
         f" {tally('excused')}"
     )
+
+
+def below_limit(result: dict[str, Any]) -> list[str]:
+    """The candidates stop 73's detection-limit rule (``Options.name_above_limit``) refused
+    to name in a diagnosis (its ``result.json``): their test says so."""
+    fits = result.get("fits") or {}
+    return sorted(
+        k for k, f in fits.items() if "below its detection limit" in (f.get("test") or "")
+    )
+
+
+def limit_line(rows: list[dict[str, Any]]) -> str:
+    """What the detection-limit rule refused, per case (first diagnosis or follow-up): the
+    case's truth (a cost) or another effect (what it was for)."""
+    got = [(r, e) for r in rows for e in r.get("below_limit") or []]
+    truth = sum(e in (r.get("truth") or {}) for r, e in got)
+    stored = sum("below_limit" in r for r in rows)
+    return (
+        f"- Detection-limit rule, in {stored} cases that stored it: {len(got)} effects refused"
+        f" in {len({r['case'] for r, _ in got})} cases; the case's truth {truth}, another"
+        f" effect {len(got) - truth}"
+    )
+
+
+def named_fits(final: dict[str, Any]) -> dict[str, dict[str, list[float]]]:
+    """Every named effect's fitted parameters (value, 95 % interval) in the final diagnosis,
+    truth or not: what a false alarm claimed, for the clean and outside tables."""
+    out: dict[str, dict[str, list[float]]] = {}
+    for key, f in final.get("final", {}).items():
+        for name in key.split(" + "):
+            if name in f.get("params", {}):
+                out[name] = {k: list(v) for k, v in f["params"][name].items()}
+    return out
+
+
+def backfill(rows: list[dict[str, Any]], work: Path) -> None:
+    """Rows of older code lack :func:`named_fits` and the registered rules' inputs: read
+    them from the case's result.json under ``work`` where it is still there (rows whose
+    files are gone stay without)."""
+    for r in rows:
+        first = work / r["case"] / "out" / "result.json"
+        if "strong_unconfirmed" not in r and first.is_file():
+            r["strong_unconfirmed"] = strong_unconfirmed(json.loads(first.read_text()))
+        if "untested" not in r and first.is_file():
+            r["untested"] = untested_torque(json.loads(first.read_text()))
+        fu = work / r["case"] / "out_followup" / "result.json"
+        last = fu if fu.is_file() else first
+        if "trades" not in r and last.is_file():
+            r["trades"] = trades(json.loads(last.read_text()))
+        if "below_limit" not in r and first.is_file():
+            done = [json.loads(p.read_text()) for p in (first, fu) if p.is_file()]
+            r["below_limit"] = sorted({e for res in done for e in below_limit(res)})
+        if "named_fits" in r or not r.get("named"):
+            continue
+        for sub in ("out_followup", "out"):
+            res = work / r["case"] / sub / "result.json"
+            if res.is_file():
+                r["named_fits"] = named_fits(json.loads(res.read_text()))
+                break

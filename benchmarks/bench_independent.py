@@ -75,13 +75,16 @@ import numpy as np
 from _cells import fitted_cell, named_cell, params_cell
 from _report import write_report
 from _rules import (
+    backfill,
+    below_limit,
     evidence_line,
+    limit_line,
+    named_fits,
     rotor_line,
     rotor_test_line,
     strong_unconfirmed,
     trade_line,
     trades,
-    untested_torque,
 )
 from bench_diagnose import INERT_ON_SOIL, RANGES, covers, draw, finite, magnitude
 
@@ -343,40 +346,6 @@ def fits(final: dict[str, Any], truth: Any) -> dict[str, dict[str, Any]]:
     return out
 
 
-def named_fits(final: dict[str, Any]) -> dict[str, dict[str, list[float]]]:
-    """Every named effect's fitted parameters (value, 95 % interval) in the final diagnosis,
-    truth or not: what a false alarm claimed, for the clean and outside tables."""
-    out: dict[str, dict[str, list[float]]] = {}
-    for key, f in final.get("final", {}).items():
-        for name in key.split(" + "):
-            if name in f.get("params", {}):
-                out[name] = {k: list(v) for k, v in f["params"][name].items()}
-    return out
-
-
-def backfill(rows: list[dict[str, Any]], work: Path) -> None:
-    """Rows of older code lack :func:`named_fits` and the registered rules' inputs: read
-    them from the case's result.json under ``work`` where it is still there (rows whose
-    files are gone stay without)."""
-    for r in rows:
-        first = work / r["case"] / "out" / "result.json"
-        if "strong_unconfirmed" not in r and first.is_file():
-            r["strong_unconfirmed"] = strong_unconfirmed(json.loads(first.read_text()))
-        if "untested" not in r and first.is_file():
-            r["untested"] = untested_torque(json.loads(first.read_text()))
-        fu = work / r["case"] / "out_followup" / "result.json"
-        last = fu if fu.is_file() else first
-        if "trades" not in r and last.is_file():
-            r["trades"] = trades(json.loads(last.read_text()))
-        if "named_fits" in r or not r.get("named"):
-            continue
-        for sub in ("out_followup", "out"):
-            res = work / r["case"] / sub / "result.json"
-            if res.is_file():
-                r["named_fits"] = named_fits(json.loads(res.read_text()))
-                break
-
-
 def _identity(case: dict[str, Any]) -> dict[str, Any]:
     """The fields that name a case in its row (a finished case's and a failed one's)."""
     keys = ("kind", "seed", "effects", "truth")
@@ -446,6 +415,7 @@ def run_case(
         "rotor_profile": final.get("rotor_profile"),
         "strong_unconfirmed": strong_unconfirmed(res),
         "trades": trades(final),
+        "below_limit": sorted(set(below_limit(res)) | set(below_limit(followed or {}))),
         "rotor_withdrawn": [x.get("rotor_withdrawn") for x in (res, final)],
     }
 
@@ -593,6 +563,7 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
         rotor_test_line(ok),
         evidence_line(ok),
         trade_line(ok),
+        limit_line(ok),
         f"- Cases that failed to run: {len(rows) - len(ok)}",
     ]
 

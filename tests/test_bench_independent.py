@@ -379,6 +379,29 @@ def test_the_trade_line_counts_refused_and_excused_namings() -> None:
     assert "excused (named) in 2 (the truth among its effects in 1; clean or outside 1)" in line
 
 
+def test_the_limit_line_counts_what_the_detection_limit_rule_refused(tmp_path: Path) -> None:
+    """Stop 73's rule is scored from ``result.json``: a candidate whose test says it is below
+    its detection limit, in the first diagnosis or the follow-up, against the case's truth."""
+    r = _load("_rules")
+    below = "not named: friction 0.244 is below its detection limit 0.261 on these logs"
+    first = {"fits": {"friction": {"test": below}, "command_lag": {"test": "windows"}}}
+    assert r.below_limit(first) == ["friction"]
+    assert r.below_limit({"fits": {"friction": {"test": None}}}) == []
+    case = tmp_path / "clean_none_1"
+    (case / "out").mkdir(parents=True)
+    (case / "out" / "result.json").write_text(json.dumps(first))
+    rows = [
+        {"case": "clean_none_1", "kind": "clean", "truth": {}, "named": []},
+        {"case": "single_friction_2", "kind": "single", "truth": {"friction": {}}, "named": []},
+    ]
+    r.backfill(rows, tmp_path)  # the first row's files are there, the second's are not
+    assert rows[0]["below_limit"] == ["friction"] and "below_limit" not in rows[1]
+    rows[1]["below_limit"] = ["friction", "slope"]
+    line = r.limit_line(rows)
+    assert "in 2 cases that stored it: 3 effects refused in 2 cases" in line
+    assert "the case's truth 1, another effect 2" in line
+
+
 def test_a_truth_is_measured_against_the_threshold_on_its_side(b: ModuleType) -> None:
     assert b.truth_ratio("command_lag", {"truth": 0.2, "threshold": 0.05}) == pytest.approx(4.0)
     # A cut counts as its size; a slope as its tilt (its fit row's truth is the tilt).
