@@ -29,7 +29,9 @@ import os
 import platform
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import mujoco
@@ -125,27 +127,21 @@ def env_stepper(
     return chunk
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--quick", action="store_true", help="short timings (~10 s; full run ~1 min)")
-    ap.add_argument("--threads", type=int, default=2, help="threads of the batched runs")
-    ap.add_argument("--sizes", type=int, nargs="+", default=[1, 8, 32, 128])
-    ap.add_argument("--out", default=None, help="also write the report (markdown) here")
-    args = ap.parse_args()
-    budget = 0.4 if args.quick else 4.0
-    out = Report()
-    load0 = os.getloadavg()
-    t_start = time.perf_counter()
-    out(f"# Simulation speed (benchmarks/bench_speed.py{' --quick' if args.quick else ''})")
-    out()
-    out(
-        f"MuJoCo {mujoco.__version__}, Gymnasium {gym.__version__}, Python "
-        f"{platform.python_version()}, {os.cpu_count()} CPUs, load average at start "
-        f"{load0[0]:.2f} (other work shares the machine: best of timed chunks)."
-    )
-    out()
+@dataclass
+class Physics:
+    """The one-rover physics timed first, which every later section is measured against."""
 
-    # ------------------------------------------------------------------ physics
+    dt: float
+    chunk: int
+    raw: float
+    plugin: float
+    model: Any
+    data: Any
+    fast: RoverSim
+
+
+def physics(out: Report, budget: float) -> Physics:
+    """One rover, physics only: raw MuJoCo, the numpy tire layer and the C plugin."""
     ref = RoverSim(backend="numpy")
     ref.set_speed_targets(TARGETS)
     dt = ref.dt
@@ -188,14 +184,29 @@ def main() -> None:
     ):
         out(f"| {name} | {rate:,.0f} | {rate * dt:.1f} | {rate / raw:.3f} |")
     out()
+    return Physics(dt, chunk, raw, plugin, model, data, fast)
 
-    # ------------------------------------------------------------------ single env
+
+@dataclass
+class Single:
+    """The single environment's rate and its overheads (interleaved rounds)."""
+
+    ctrl_dt: float
+    per_step: int
+    env_sim: float
+    over_plugin: float
+    over_raw: float
+    fast_over_raw: float
+
+
+def single_env(out: Report, budget: float, ph: Physics) -> Single:
+    """The single environment (fast path) against the physics it runs."""
     env = gym.make(ID, backend="plugin")
     ctrl_dt = env.unwrapped.control_dt
     single = best_rate(env_stepper(env, 25), budget, "single")
     env_sim = single * ctrl_dt
     # The acceptance ratios: env, plugin rover and raw MuJoCo in turn, 0.5 s simulated each.
-    per_step = round(ctrl_dt / dt)
+    per_step = round(ctrl_dt / ph.dt)
     bank = np.random.default_rng(1).uniform(-1, 1, (64, 4)).astype(np.float32)
     max_speed = env.unwrapped.max_wheel_speed
     env.reset(seed=1)
@@ -215,25 +226,18 @@ def main() -> None:
         """The same physics alone: the plugin rover under the same speed targets."""
         nonlocal k_plug
         for _ in range(5):
-            fast.set_speed_targets(bank[k_plug % 64] * max_speed)
-            fast.step(per_step)
+            ph.fast.set_speed_targets(bank[k_plug % 64] * max_speed)
+            ph.fast.step(per_step)
             k_plug += 1
         return 5 * per_step
 
     def raw_small() -> int:
-        mujoco.mj_step(model, data, 5 * per_step)
+        mujoco.mj_step(ph.model, ph.data, 5 * per_step)
         return 5 * per_step
 
-    model.opt.gravity[:] = 0.0
-    rounds = interleaved(
-        {
-            "env": env_small,
-            "plugin": plugin_small,
-            "raw": raw_small,
-        },
-        2 * budget,
-    )
-    model.opt.gravity[:] = [0.0, 0.0, -9.81]
+    ph.model.opt.gravity[:] = 0.0
+    rounds = interleaved({"env": env_small, "plugin": plugin_small, "raw": raw_small}, 2 * budget)
+    ph.model.opt.gravity[:] = [0.0, 0.0, -9.81]
     env.close()
     over_plugin = 1.0 / median_ratio(rounds["env"], rounds["plugin"]) - 1.0
     over_raw = 1.0 / median_ratio(rounds["env"], rounds["raw"]) - 1.0
@@ -242,7 +246,7 @@ def main() -> None:
     out()
     out(
         f"{single:,.0f} steps/s = {env_sim:.1f} sim s / wall s ({ctrl_dt:g} s per step, "
-        f"{per_step} substeps); {env_sim / (raw * dt):.3f} x raw."
+        f"{per_step} substeps); {env_sim / (ph.raw * ph.dt):.3f} x raw."
     )
     out()
     out(
@@ -256,21 +260,27 @@ def main() -> None:
     out(f"- over raw MuJoCo (no tire layer, same timestep): {100 * over_raw:.0f} %")
     out(f"- (the plugin rover over raw MuJoCo in the same rounds: {fast_over_raw:.3f})")
     out()
+    return Single(ctrl_dt, per_step, env_sim, over_plugin, over_raw, fast_over_raw)
 
-    # ------------------------------------------------------------------ batched
-    out(f"## Batched, {args.threads} threads: rover-seconds per wall second")
+
+def batched(
+    out: Report, budget: float, ph: Physics, one: Single, sizes: list[int], threads: int
+) -> tuple[float, float]:
+    """Batched rovers (vector env, BatchRoverSim): (vector env over the single env, batch
+    over one plugin rover) at N = 32 in interleaved rounds."""
+    dt, ctrl_dt, per_step = ph.dt, one.ctrl_dt, one.per_step
+    out(f"## Batched, {threads} threads: rover-seconds per wall second")
     out()
     out("| N | vector env | / raw | / single env | BatchRoverSim | / raw | / plugin rover |")
     out("|---:|---:|---:|---:|---:|---:|---:|")
-    batched: dict[int, tuple[float, float]] = {}
-    for n in args.sizes:
+    for n in sizes:
         venv = gym.make_vec(
-            ID, num_envs=n, vectorization_mode="vector_entry_point", nthread=args.threads
+            ID, num_envs=n, vectorization_mode="vector_entry_point", nthread=threads
         )
         steps = max(1, 24 // n)
         vec = best_rate(env_stepper(venv, steps), budget, f"vec{n}") * n * ctrl_dt  # rover-s/s
         venv.close()
-        b = BatchRoverSim(n, nthread=args.threads)
+        b = BatchRoverSim(n, nthread=threads)
         b.set_speed_targets(np.tile(TARGETS, (n, 1)))
         nstep = max(20, round(2000 / n))
 
@@ -279,25 +289,24 @@ def main() -> None:
             return nstep
 
         bat = best_rate(batch_chunk, budget, f"batch{n}") * b.n * dt
-        batched[n] = (vec, bat)
         out(
-            f"| {n} | {vec:.1f} | {vec / (raw * dt):.3f} | {vec / env_sim:.2f} | "
-            f"{bat:.1f} | {bat / (raw * dt):.3f} | {bat / (plugin * dt):.2f} |"
+            f"| {n} | {vec:.1f} | {vec / (ph.raw * dt):.3f} | {vec / one.env_sim:.2f} | "
+            f"{bat:.1f} | {bat / (ph.raw * dt):.3f} | {bat / (ph.plugin * dt):.2f} |"
         )
     # The acceptance ratio at N = 32 from interleaved rounds (the machine's speed drifts).
     n32 = 32
     single_env = gym.make(ID, backend="plugin")
     venv32 = gym.make_vec(
-        ID, num_envs=n32, vectorization_mode="vector_entry_point", nthread=args.threads
+        ID, num_envs=n32, vectorization_mode="vector_entry_point", nthread=threads
     )
-    b32 = BatchRoverSim(n32, nthread=args.threads)
+    b32 = BatchRoverSim(n32, nthread=threads)
     b32.set_speed_targets(np.tile(TARGETS, (n32, 1)))
     one_env, vec_env = env_stepper(single_env, 5), env_stepper(venv32, 2)
     rounds32 = interleaved(
         {
             "single": lambda: one_env() * per_step,
             "vec": lambda: vec_env() * n32 * per_step,
-            "plugin": lambda: (fast.step(5 * per_step), 5 * per_step)[1],
+            "plugin": lambda: (ph.fast.step(5 * per_step), 5 * per_step)[1],
             "batch": lambda: (b32.step(100), 100 * n32)[1],
         },
         2 * budget,
@@ -314,7 +323,7 @@ def main() -> None:
     )
     out()
     out(
-        f"The same per CPU second of this process (both threads counted; what {args.threads} "
+        f"The same per CPU second of this process (both threads counted; what {threads} "
         "idle cores would give is about threads x this, less the serial Python):"
     )
     out()
@@ -324,35 +333,41 @@ def main() -> None:
     out("|---:|---:|---:|---:|---:|")
     single_cpu = CPU_RATES["single"] * ctrl_dt
     plugin_cpu = CPU_RATES["plugin"] * dt
-    for n in args.sizes:
+    for n in sizes:
         v_cpu, b_cpu = CPU_RATES[f"vec{n}"] * n * ctrl_dt, CPU_RATES[f"batch{n}"] * n * dt
         out(
             f"| {n} | {v_cpu:.1f} | {v_cpu / single_cpu:.2f} | {b_cpu:.1f} | "
             f"{b_cpu / plugin_cpu:.2f} |"
         )
     out()
+    return vec_over_single, batch_over_plugin
 
-    # ------------------------------------------------------------------ Ant-v5
+
+def ant_v5(out: Report, budget: float, ph: Physics, env_sim: float) -> float:
+    """Gymnasium's Ant-v5 for context: its simulated seconds per wall second (nan: absent)."""
     try:
         ant = gym.make("Ant-v5")
     except Exception as exc:  # gymnasium[mujoco] missing: report, don't fail
         out(f"Ant-v5 unavailable here ({type(exc).__name__}: {exc})")
-        ant_sim = float("nan")
-    else:
-        ant_dt = ant.unwrapped.dt
-        ant_rate = best_rate(env_stepper(ant, 200), budget)
-        ant.close()
-        ant_sim = ant_rate * ant_dt
-        out("## Gymnasium Ant-v5 (context)")
-        out()
-        out(
-            f"{ant_rate:,.0f} steps/s = {ant_sim:.1f} sim s / wall s ({ant_dt:g} s per step, "
-            f"{ant.unwrapped.model.opt.timestep:g} s timestep); {ant_sim / (raw * dt):.3f} x "
-            f"raw rover; the single rover env runs {env_sim / ant_sim:.3f} x Ant-v5's sim s / wall s."
-        )
-        out()
+        return float("nan")
+    ant_dt = ant.unwrapped.dt
+    ant_rate = best_rate(env_stepper(ant, 200), budget)
+    ant.close()
+    ant_sim = ant_rate * ant_dt
+    out("## Gymnasium Ant-v5 (context)")
+    out()
+    out(
+        f"{ant_rate:,.0f} steps/s = {ant_sim:.1f} sim s / wall s ({ant_dt:g} s per step, "
+        f"{ant.unwrapped.model.opt.timestep:g} s timestep); {ant_sim / (ph.raw * ph.dt):.3f} x "
+        f"raw rover; the single rover env runs {env_sim / ant_sim:.3f} x Ant-v5's sim s / wall s."
+    )
+    out()
+    return ant_sim
 
-    # ------------------------------------------------------------------ loose soil
+
+def loose_soil(out: Report, budget: float, chunk: int) -> dict[str, float]:
+    """The compiled path on each soil preset over the Gim fast path (issue 15)."""
+
     def ground(soil: str | None) -> RoverSim:
         t = TerrainConfig(name=soil or "hard", size=SOIL_ARENA, soil=soil)
         sim = RoverSim(terrain=t, backend="plugin")
@@ -390,24 +405,51 @@ def main() -> None:
         + ", ".join(f"{k} {1e3 * v:.1f}" for k, v in sinkage.items())
     )
     out()
+    return soil_ratio
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="short timings (~10 s; full run ~1 min)")
+    ap.add_argument("--threads", type=int, default=2, help="threads of the batched runs")
+    ap.add_argument("--sizes", type=int, nargs="+", default=[1, 8, 32, 128])
+    ap.add_argument("--out", default=None, help="also write the report (markdown) here")
+    args = ap.parse_args()
+    budget = 0.4 if args.quick else 4.0
+    out = Report()
+    load0 = os.getloadavg()
+    t_start = time.perf_counter()
+    out(f"# Simulation speed (benchmarks/bench_speed.py{' --quick' if args.quick else ''})")
+    out()
+    out(
+        f"MuJoCo {mujoco.__version__}, Gymnasium {gym.__version__}, Python "
+        f"{platform.python_version()}, {os.cpu_count()} CPUs, load average at start "
+        f"{load0[0]:.2f} (other work shares the machine: best of timed chunks)."
+    )
+    out()
+    ph = physics(out, budget)
+    one = single_env(out, budget, ph)
+    vec_over_single, batch_over_plugin = batched(out, budget, ph, one, args.sizes, args.threads)
+    ant_sim = ant_v5(out, budget, ph, one.env_sim)
+    soil_ratio = loose_soil(out, budget, ph.chunk)
 
     # ------------------------------------------------------------------ summary
     out("## Acceptance (issue 5; the soil row: issue 15)")
     out()
     out(
-        f"- fast path / raw substeps/s: {fast_over_raw:.3f} in interleaved rounds"
-        f" ({plugin / raw:.3f} from the best chunks above) (target >= 0.8)"
+        f"- fast path / raw substeps/s: {one.fast_over_raw:.3f} in interleaved rounds"
+        f" ({ph.plugin / ph.raw:.3f} from the best chunks above) (target >= 0.8)"
     )
     out(
-        f"- single env overhead at the same timestep: {100 * over_plugin:.0f} % over its "
-        f"physics, {100 * over_raw:.0f} % over raw MuJoCo (target <= 25 %)"
+        f"- single env overhead at the same timestep: {100 * one.over_plugin:.0f} % over its "
+        f"physics, {100 * one.over_raw:.0f} % over raw MuJoCo (target <= 25 %)"
     )
     out(
         f"- N = 32, {args.threads} threads, interleaved rounds: vector env {vec_over_single:.2f} x"
         f" the single env; BatchRoverSim {batch_over_plugin:.2f} x one plugin rover"
         " (target >= 1.6)"
     )
-    out(f"- single env / Ant-v5, sim s per wall s: {env_sim / ant_sim:.3f}")
+    out(f"- single env / Ant-v5, sim s per wall s: {one.env_sim / ant_sim:.3f}")
     out(
         "- soil compiled path / Gim fast path, same drive, interleaved rounds (issue 15,"
         " target >= 0.7): " + ", ".join(f"{k} {v:.3f}" for k, v in soil_ratio.items())
