@@ -189,3 +189,8 @@ def test_loose_soil_has_no_one_detection_limit() -> None:
     # Several forms, the ladder replayed in one: the rule does not judge it.
     soil = _named("loose_soil", [0.1])
     assert below_detection_limit(soil.fit, {"loose_soil": {"+": 1.0}}) == []
+    # As fitted: the candidate in the form the fit chose (block 51500 refused two soils
+    # this way before the exemption read it).
+    (c,) = catalogue(["loose_soil"])
+    soil.fit.candidates = [c.with_form(c.forms[1][0])]
+    assert below_detection_limit(soil.fit, {"loose_soil": {"+": 1.0}}) == []

@@ -382,7 +382,8 @@ def below_detection_limit(
         n = len(c.labels)
         x = f.x[i : i + n]
         i += n
-        if (effects is not None and c.name not in effects) or c.discrete or not n or c.forms:
+        several_forms = bool(c.forms or c.form)  # a fitted candidate holds its chosen form
+        if (effects is not None and c.name not in effects) or c.discrete or not n or several_forms:
             continue
         lim = limit_at(c, x, limits.get(c.name) or {})
         _, m = magnitude(c, x)
