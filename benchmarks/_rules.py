@@ -205,22 +205,17 @@ def backfill(rows: list[dict[str, Any]], work: Path) -> None:
     them from the case's result.json under ``work`` where it is still there (rows whose
     files are gone stay without)."""
     for r in rows:
-        first = work / r["case"] / "out" / "result.json"
-        if "strong_unconfirmed" not in r and first.is_file():
-            r["strong_unconfirmed"] = strong_unconfirmed(json.loads(first.read_text()))
-        if "untested" not in r and first.is_file():
-            r["untested"] = untested_torque(json.loads(first.read_text()))
-        fu = work / r["case"] / "out_followup" / "result.json"
-        last = fu if fu.is_file() else first
-        if "trades" not in r and last.is_file():
-            r["trades"] = trades(json.loads(last.read_text()))
-        if "below_limit" not in r and first.is_file():
-            done = [json.loads(p.read_text()) for p in (first, fu) if p.is_file()]
-            r["below_limit"] = sorted({e for res in done for e in below_limit(res)})
-        if "named_fits" in r or not r.get("named"):
-            continue
-        for sub in ("out_followup", "out"):
-            res = work / r["case"] / sub / "result.json"
-            if res.is_file():
-                r["named_fits"] = named_fits(json.loads(res.read_text()))
-                break
+        paths = (
+            work / r["case"] / "out" / "result.json",
+            work / r["case"] / "out_followup" / "result.json",
+        )
+        first, fu = (json.loads(p.read_text()) if p.is_file() else None for p in paths)
+        last = fu or first
+        if first is not None:
+            r.setdefault("strong_unconfirmed", strong_unconfirmed(first))
+            r.setdefault("untested", untested_torque(first))
+            r.setdefault("below_limit", sorted({*below_limit(first), *below_limit(fu or {})}))
+        if last is not None:
+            r.setdefault("trades", trades(last))
+            if "named_fits" not in r and r.get("named"):
+                r["named_fits"] = named_fits(last)
