@@ -9,11 +9,15 @@ the clean cases of ``bench_independent.py`` blocks (every candidate's fit in eac
 case's first diagnosis, ``result.json``) as its 5 % and 95 % quantiles, and asks on other
 blocks what an interval for the truth widened by it, [lo - q95, hi - q05] (a slope's tilt
 [lo - q95, hi + q95], at least 0), would do: how often it covers the truth of a right name,
-and which names it would refuse (the widened interval reaching "off"). Diagnose does not
-use it; it reads stored results only (no replay).
+and which names it would refuse (the widened interval reaching "off"). It reads stored
+results only (no replay). ``--write`` writes the table diagnose widens its intervals by
+(:mod:`rover_env.calibration.form_allowance`; the shipped one is
+``configs/calibration/form_allowance.yaml``).
 
     python benchmarks/form_allowance.py --calibrate /tmp/b50800 /tmp/b50900 \\
         --evaluate /tmp/b51500 --out docs/calibration/block51500
+    python benchmarks/form_allowance.py --calibrate /tmp/b50800 ... /tmp/b51500 \\
+        --write configs/calibration/form_allowance.yaml
 
 A block directory is ``bench_independent.py``'s ``--out`` with its ``--work`` under
 ``work/`` (regenerable: ``bench_independent.py --seed0 SEED``). Writes ``allowance.md`` and
@@ -100,6 +104,28 @@ def named(rows: list[dict[str, Any]], allow: dict[str, tuple[float, float, int]]
     return out
 
 
+def write_table(allow: dict[str, tuple[float, float, int]], blocks: list[Path], path: Path) -> None:
+    """The allowance as diagnose reads it (:func:`rover_env.calibration.form_allowance.load_allowance`)."""
+    import yaml
+
+    doc = {
+        "description": "Clean-fit allowance: 5 % and 95 % quantiles of each effect's fit on"
+        " clean drives (a slope's tilt in degrees); diagnose widens a named effect's interval"
+        " for the truth to [lo - high, hi - low].",
+        "source": "benchmarks/form_allowance.py on the independent generator's clean cases of"
+        f" blocks {', '.join(b.name for b in blocks)} (first diagnosis of each)",
+        "effects": {
+            k: {"low": round(q05, 6), "high": round(q95, 6), "cases": n}
+            for k, (q05, q95, n) in allow.items()
+        },
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(
+        "# Written by benchmarks/form_allowance.py --write; regenerate, do not edit.\n"
+        + yaml.safe_dump(doc, sort_keys=False, width=100)
+    )
+
+
 def table(allow: dict[str, tuple[float, float, int]], got: list[dict]) -> list[str]:
     """The report's lines: the allowance, then coverage and refusals per effect."""
     lines = [
@@ -149,11 +175,19 @@ def plot(fits: dict[str, list[float]], got: list[dict], path: Path) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--calibrate", nargs="+", type=Path, required=True, help="block dirs")
-    ap.add_argument("--evaluate", nargs="+", type=Path, required=True, help="block dirs")
-    ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--evaluate", nargs="+", type=Path, default=[], help="block dirs")
+    ap.add_argument("--out", type=Path, help="folder for allowance.md and .png (with --evaluate)")
+    ap.add_argument("--write", type=Path, help="write the allowance table diagnose reads")
     a = ap.parse_args()
+    if not a.write and not (a.evaluate and a.out):
+        ap.error("give --write PATH, or --evaluate BLOCK... with --out DIR")
     fits = clean_fits(a.calibrate)
     allow = allowance(fits)
+    if a.write:
+        write_table(allow, a.calibrate, a.write)
+        print(f"wrote {a.write}: {', '.join(allow)}")
+    if not a.evaluate:
+        return
     rows = [r for b in a.evaluate for r in json.loads((b / "independent.json").read_text())]
     got = named(rows, allow)
     a.out.mkdir(parents=True, exist_ok=True)
@@ -162,7 +196,7 @@ def main() -> None:
         "",
         f"Calibrated on the clean cases of {', '.join(b.name for b in a.calibrate)};"
         f" evaluated on the named effects of {', '.join(b.name for b in a.evaluate)}."
-        " Not used by diagnose.",
+        " Blocks diagnosed since stop 74 store intervals already widened by the shipped table.",
         "",
         *table(allow, got),
         "",

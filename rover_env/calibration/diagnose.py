@@ -87,6 +87,7 @@ def _cli(args: argparse.Namespace) -> int:
         trade_share=args.trade_share,
         rotor_alpha=args.rotor_alpha,
         fit_windup=args.fit_windup,
+        form_allowance=None if args.no_form_allowance else args.form_allowance,
         **{name: getattr(args, name) for name, _ in SWITCHES},
     )
     try:
@@ -181,6 +182,19 @@ def add_cli(sub: Any) -> None:
         help="an effect that makes signals left above their floor worse is named only if they"
         f" lost less than SHARE of what the other signals gained (default {Options.trade_share:g};"
         " 0: any such trade leaves it unnamed; see Options.trade_share)",
+    )
+    p.add_argument(
+        "--form-allowance",
+        default=Options.form_allowance,
+        metavar="NAME_OR_YAML",
+        help="clean-fit allowance table widening each named effect's interval for the model's"
+        f" form (default: the shipped {Options.form_allowance!r}, configs/calibration/; see"
+        " Options.form_allowance)",
+    )
+    p.add_argument(
+        "--no-form-allowance",
+        action="store_true",
+        help="report the intervals without the clean-fit allowance",
     )
     for name, what in SWITCHES:
         on = getattr(Options, name)

@@ -96,6 +96,9 @@ class Fit:
     """Per free variable: the uncertainty the sensor noise alone puts on it, scatter and
     bias in quadrature, from simulated noise draws
     (:mod:`rover_env.calibration.noise_interval`; named effects only)."""
+    allowance: tuple[float, float] = (0.0, 0.0)
+    """One effect: how far below and above its reported interval the truth may sit for the
+    model's form (:mod:`rover_env.calibration.form_allowance`; named effects only)."""
 
     @property
     def name(self) -> str:
@@ -105,8 +108,9 @@ class Fit:
     def k(self) -> int:
         return sum(c.k for c in self.candidates)
 
-    def physical(self) -> dict[str, dict[str, tuple[float, float, float]]]:
-        """Effect -> parameter -> (value, 95 % low, 95 % high) in the effect's own terms."""
+    def physical(self, allow: bool = True) -> dict[str, dict[str, tuple[float, float, float]]]:
+        """Effect -> parameter -> (value, 95 % low, 95 % high) in the effect's own terms
+        (with the :attr:`allowance`, unless ``allow`` is False)."""
         out: dict[str, dict[str, tuple[float, float, float]]] = {}
         i = 0
         for c in self.candidates:
@@ -132,6 +136,16 @@ class Fit:
             else:
                 out[c.name] = {c.labels[0]: (float(x[0]), float(lo[0]), float(hi[0]))}
             i += n
+        if allow and any(self.allowance) and len(self.candidates) == 1:
+            c = self.candidates[0]
+            k, (v, a, b) = next(iter(out[c.name].items()))
+            floor = 0.0 if c.name == "slope" else c.lo[0]
+            ceil = math.inf if c.name == "slope" else c.hi[0]
+            out[c.name][k] = (
+                v,
+                max(floor, a - self.allowance[0]),
+                min(ceil, b + self.allowance[1]),
+            )
         return out
 
     def sides(self) -> dict[str, dict[str, str]]:

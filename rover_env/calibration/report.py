@@ -188,7 +188,14 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
         f" parameters is finished by least squares with central differences (up to {opts.polish}"
         " evaluations); a named effect's interval is then widened to at least what the sensors alone put"
         f" on it ({opts.noise_draws} twins of the fitted model read through the logs' sensors with fresh"
-        " encoder phases and noise, replayed: the estimate's scatter and bias under noise, 1.96 x).",
+        " encoder phases and noise, replayed: the estimate's scatter and bias under noise, 1.96 x)"
+        + (
+            f", then by the clean-fit allowance ({opts.form_allowance!r}): the 5-95 % spread of"
+            " what the effect's fit finds on clean drives of another implementation, the model's"
+            " own form seen through it (an interval for the truth: fitted lo - high, hi - low)."
+            if opts.form_allowance
+            else "."
+        ),
         f"- Decision: named only if the held-out error falls by ≥ {100 * opts.min_gain:.0f} % (geometric mean over"
         " held-out windows of the per-window ratio, so that a few very sensitive windows do not decide alone)"
         f" with a one-sided Wilcoxon signed-rank test of the per-window log ratios at p < {opts.alpha:g} and the"

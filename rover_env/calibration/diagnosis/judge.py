@@ -455,6 +455,10 @@ def fit_dict(s: Scored) -> dict[str, Any]:
         "form_mismatch": form_mismatch(s.fit),
         "replay_bias": None if s.fit.bias is None else [float(b) for b in s.fit.bias],
         "noise_se": None if s.fit.noise_se is None else [float(v) for v in s.fit.noise_se],
+        "form_allowance": list(s.fit.allowance),
+        "params_without_allowance": {
+            e: {k: list(v) for k, v in p.items()} for e, p in s.fit.physical(allow=False).items()
+        },
         "train_cost": s.fit.cost,
         "held_cost": s.held_cost,
         "held_gain": s.gain,

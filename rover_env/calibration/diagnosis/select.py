@@ -6,7 +6,7 @@ replay's bias in it, keeps clear of "off"), a tie with the runner-up and the
 drive that separates them, forward selection of a second effect beside the winner, the
 trade test (an effect that makes a signal it leaves above its floor worse is not named with
 confidence) and the named effects' finished intervals (signal groups' disagreement, sensor
-noise). Why one stage: each step can undo the one before (a second effect replaces the
+noise, the model's form: :func:`allow_form`). Why one stage: each step can undo the one before (a second effect replaces the
 winner alone, a trade drops the second effect or names nothing, and a torque limit the rotor
 inertia explains as well names nothing).
 """
@@ -403,9 +403,7 @@ def finish_intervals(d: Diagnosis) -> None:
             d.say(f"{s.fit.name}: finished from where its search stopped: {fmt_phys(s.fit)}")
     for s in d.chosen:
         widen_by_groups(s.fit)
-    if opts.noise_draws <= 0:
-        return
-    for s in d.chosen:
+    for s in d.chosen if opts.noise_draws > 0 else []:
         ev_s = ev if s.fit_scale is None else replace(ev, scale=s.fit_scale)
         nse = noise_se(ev_s, s.fit, d.sensor_noise, d.st, draws=opts.noise_draws)
         if nse is None:
@@ -418,6 +416,22 @@ def finish_intervals(d: Diagnosis) -> None:
             + f", {nse.draws} simulated draws): "
             + (f"{was} widened to {fmt_phys(s.fit)}" if moved else "interval kept")
         )
+    allow_form(d)
+
+
+def allow_form(d: Diagnosis) -> None:
+    """Each named effect's interval for the truth, widened by the clean-fit allowance
+    (:attr:`.state.Options.form_allowance`): the spread of what its fit finds on clean
+    drives of another implementation, the model's form seen through it."""
+    for s in d.chosen:
+        pad = None
+        if d.allowance is not None and len(s.fit.candidates) == 1:
+            pad = d.allowance.pad(s.fit.name)
+        if pad is None or not any(pad):
+            continue
+        was = fmt_phys(s.fit)
+        s.fit.allowance = pad
+        d.say(f"{s.fit.name}: the model's form (clean-fit allowance): {was} -> {fmt_phys(s.fit)}")
 
 
 def runner_up(winner: Scored, ranked: list[Scored]) -> Scored | None:

@@ -1,0 +1,74 @@
+"""The clean-fit allowance: the model's form seen through each effect's fit (issue 47).
+
+On clean drives of another implementation of the rover (nothing injected, its build within
+tolerances) every effect's fit still finds something: a delay of about 16 ms, a slope of
+a degree, a torque cut. That is the model's form mismatch seen through the effect, a bias
+b; on drives that hold the effect the fit finds about truth + b, and an interval that holds
+only noise and the replay's own bias misses the truth whenever b is wider than it. The
+allowance is b's spread, its 5 % and 95 % quantiles (``low``, ``high``) over clean cases,
+and a named effect's interval for the truth becomes [lo - high, hi - low] (a tilt, which a
+spurious tilt adds to in any direction: [lo - high, hi + high], at least level). It widens
+intervals only: what is named is decided before it.
+
+The shipped table (``configs/calibration/form_allowance.yaml``) is measured by
+``benchmarks/form_allowance.py --write`` on the independent generator's clean cases; it is
+that implementation's mismatch with this model, the only one measured, not a real rover's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from rover_env.config import ConfigError, load_config, resolve_path
+from rover_env.effects import CATALOGUE
+
+SHIPPED = "form_allowance"
+"""The shipped table's name in ``configs/calibration/``."""
+
+
+@dataclass(frozen=True)
+class Bias:
+    """An effect's clean-fit spread on its first parameter (a slope's tilt in degrees)."""
+
+    low: float
+    """5 % quantile of the clean fits."""
+    high: float
+    """95 % quantile of the clean fits."""
+    cases: int
+    """Clean diagnoses it was measured on."""
+
+    def __post_init__(self) -> None:
+        if not self.low <= self.high:
+            raise ConfigError(f"low {self.low!r} is above high {self.high!r}")
+        if self.cases < 1:
+            raise ConfigError(f"cases must be at least 1, got {self.cases!r}")
+
+
+@dataclass(frozen=True)
+class FormAllowance:
+    """Per effect, the :class:`Bias` its fit carries on clean drives."""
+
+    effects: dict[str, Bias]
+
+    def pad(self, effect: str) -> tuple[float, float] | None:
+        """How far below and above a fitted interval the truth may sit, or None."""
+        b = self.effects.get(effect)
+        if b is None:
+            return None
+        if effect == "slope":
+            return max(0.0, b.high), max(0.0, b.high)
+        return max(0.0, b.high), max(0.0, -b.low)
+
+
+def load_allowance(name_or_path: str | Path = SHIPPED) -> FormAllowance:
+    """The table by shipped name (``configs/calibration/NAME.yaml``) or path; an effect
+    outside the catalogue is an error naming the file and the key."""
+    a = load_config(FormAllowance, name_or_path, "calibration", drop=("description", "source"))
+    unknown = sorted(set(a.effects) - set(CATALOGUE))
+    if unknown:
+        path = resolve_path(name_or_path, "calibration")
+        raise ConfigError(
+            f"{path}: effects.{unknown[0]}: not a catalogue effect; have {', '.join(sorted(CATALOGUE))}"
+        )
+    return a

@@ -1,0 +1,110 @@
+"""The clean-fit allowance diagnose widens named intervals by (stop 74): the shipped table,
+its validation, the widening itself and where diagnose applies it."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from rover_env.calibration.candidates import catalogue
+from rover_env.calibration.diagnose import add_cli
+from rover_env.calibration.diagnosis.select import allow_form
+from rover_env.calibration.diagnosis.state import Diagnosis, Options
+from rover_env.calibration.fit import Fit
+from rover_env.calibration.form_allowance import Bias, FormAllowance, load_allowance
+from rover_env.config import ConfigError
+
+
+def _fit(name: str, x: list[float], half: float) -> Fit:
+    (c,) = catalogue([name])
+    xa = np.array(x)
+    se = np.full(len(x), half / 1.96)
+    return Fit([c], xa, xa - half, xa + half, se, 0.0, 0, c.to_ext(xa), 0.0, "train")
+
+
+def test_the_shipped_table_loads_and_every_bias_is_ordered() -> None:
+    a = load_allowance()
+    assert {"command_delay", "slope", "torque_limit"} <= set(a.effects)
+    for name, b in a.effects.items():
+        assert b.low <= b.high and b.cases >= 10, name
+    # The delay bias measured on clean logs is one-sided (a delay is never negative).
+    assert a.effects["command_delay"].low == 0.0 < a.effects["command_delay"].high
+
+
+def test_pad_turns_the_spread_into_how_far_the_truth_may_sit() -> None:
+    a = FormAllowance(
+        {
+            "command_delay": Bias(0.0, 0.027, 50),
+            "friction": Bias(-0.23, 0.06, 50),
+            "slope": Bias(0.3, 2.4, 50),
+        }
+    )
+    # fit = truth + b with b in [low, high]: truth in [lo - high, hi - low].
+    assert a.pad("command_delay") == (0.027, 0.0)
+    assert a.pad("friction") == (0.06, 0.23)
+    assert a.pad("slope") == (2.4, 2.4)  # a spurious tilt adds in any direction
+    assert a.pad("command_lag") is None
+
+
+def test_physical_interval_carries_the_allowance_within_the_range() -> None:
+    f = _fit("command_delay", [0.05], 0.005)
+    f.allowance = (0.027, 0.0)
+    (v, lo, hi) = f.physical()["command_delay"]["delay"]
+    assert (v, lo, hi) == pytest.approx((0.05, 0.018, 0.055))
+    assert f.physical(allow=False)["command_delay"]["delay"] == pytest.approx((0.05, 0.045, 0.055))
+    f.allowance = (0.2, 0.0)
+    assert f.physical()["command_delay"]["delay"][1] == 0.0  # not below the range
+    # A tilt of 5 degrees: the magnitude's interval, at least level.
+    s = _fit("slope", [3.0, 4.0], 0.1)
+    base = s.physical()["slope"]["deg"]
+    s.allowance = (2.4, 2.4)
+    v, lo, hi = s.physical()["slope"]["deg"]
+    assert v == pytest.approx(5.0)
+    assert lo == pytest.approx(base[1] - 2.4) and hi == pytest.approx(base[2] + 2.4)
+    s.allowance = (9.0, 9.0)
+    assert s.physical()["slope"]["deg"][1] == 0.0
+    assert math.isnan(s.physical()["slope"]["heading_deg"][1])  # the heading is untouched
+
+
+def test_allow_form_widens_named_effects_only_and_says_so() -> None:
+    delay = SimpleNamespace(fit=_fit("command_delay", [0.05], 0.005))
+    lag = SimpleNamespace(fit=_fit("command_lag", [0.1], 0.01))
+    said: list[str] = []
+    table = FormAllowance({"command_delay": Bias(0.0, 0.027, 50)})
+    d = SimpleNamespace(chosen=[delay, lag], allowance=table, say=said.append)
+    allow_form(d)  # type: ignore[arg-type]
+    assert delay.fit.allowance == (0.027, 0.0) and lag.fit.allowance == (0.0, 0.0)
+    assert len(said) == 1 and "clean-fit allowance" in said[0]
+    off = SimpleNamespace(fit=_fit("command_delay", [0.05], 0.005))
+    allow_form(SimpleNamespace(chosen=[off], allowance=None, say=said.append))  # type: ignore[arg-type]
+    assert off.fit.allowance == (0.0, 0.0)
+
+
+def test_a_bad_table_fails_before_any_work_naming_file_and_key(tmp_path: Path) -> None:
+    bad = tmp_path / "a.yaml"
+    bad.write_text("effects:\n  command_delay: {low: 0.03, high: 0.01, cases: 5}\n")
+    with pytest.raises(ConfigError, match=r"a\.yaml.*effects\.command_delay.*low"):
+        load_allowance(bad)
+    bad.write_text("effects:\n  warp_drive: {low: 0.0, high: 0.01, cases: 5}\n")
+    with pytest.raises(ConfigError, match=r"a\.yaml: effects\.warp_drive: not a catalogue"):
+        load_allowance(bad)
+    bad.write_text("effects:\n  command_delay: {low: 0.0, hgh: 0.01, cases: 5}\n")
+    with pytest.raises(ConfigError, match=r"unknown key.*hgh"):
+        load_allowance(bad)
+    with pytest.raises(ConfigError, match="not found"):
+        Diagnosis([], tmp_path, Options(form_allowance=str(tmp_path / "none.yaml")))
+
+
+def test_command_line_switches_the_allowance() -> None:
+    import argparse
+
+    ap = argparse.ArgumentParser()
+    add_cli(ap.add_subparsers())
+    on = ap.parse_args(["diagnose", "x.csv", "--out", "o"])
+    off = ap.parse_args(["diagnose", "x.csv", "--out", "o", "--no-form-allowance"])
+    assert on.form_allowance == Options.form_allowance and not on.no_form_allowance
+    assert off.no_form_allowance
