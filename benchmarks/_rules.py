@@ -219,3 +219,23 @@ def backfill(rows: list[dict[str, Any]], work: Path) -> None:
             r.setdefault("trades", trades(last))
             if "named_fits" not in r and r.get("named"):
                 r["named_fits"] = named_fits(last)
+            for name, f in (r.get("fits") or {}).items():
+                raw = raw_interval(last, name)
+                if "lo_raw" not in f and raw is not None:
+                    f["lo_raw"], f["hi_raw"] = raw
+
+
+def raw_interval(result: dict[str, Any], name: str) -> tuple[float, float] | None:
+    """A named effect's interval before the clean-fit allowance (stop 74), or None."""
+    for key, f in (result.get("final") or {}).items():
+        raw = (f.get("params_without_allowance") or {}).get(name)
+        if name in key.split(" + ") and raw:
+            v = raw["deg"] if name == "slope" else next(iter(raw.values()))
+            return v[1], v[2]
+    return None
+
+
+def without_allowance(f: dict[str, Any]) -> dict[str, Any]:
+    """A truth fit row (``bench_independent.fits``) with the interval diagnose gave before
+    the clean-fit allowance widened it (rows before stop 74: the interval as it is)."""
+    return {**f, "lo": f.get("lo_raw", f["lo"]), "hi": f.get("hi_raw", f["hi"])}

@@ -108,3 +108,25 @@ def test_command_line_switches_the_allowance() -> None:
     off = ap.parse_args(["diagnose", "x.csv", "--out", "o", "--no-form-allowance"])
     assert on.form_allowance == Options.form_allowance and not on.no_form_allowance
     assert off.no_form_allowance
+
+
+def test_the_bench_counts_coverage_with_and_without_the_allowance() -> None:
+    from _bench import load_bench
+
+    rules = load_bench("_rules")
+    result = {
+        "final": {
+            "command_delay": {
+                "params": {"command_delay": {"delay": [0.09, 0.054, 0.10]}},
+                "params_without_allowance": {"command_delay": {"delay": [0.09, 0.081, 0.10]}},
+            }
+        }
+    }
+    assert rules.raw_interval(result, "command_delay") == (0.081, 0.10)
+    assert rules.raw_interval(result, "command_lag") is None
+    assert rules.raw_interval({"final": {"command_delay": {"params": {}}}}, "command_delay") is None
+    row = {"truth": 0.075, "lo": 0.054, "hi": 0.10, "lo_raw": 0.081, "hi_raw": 0.10}
+    cov = load_bench("bench_diagnose").covers
+    assert cov(row) and not cov(rules.without_allowance(row))
+    old = {"truth": 0.075, "lo": 0.054, "hi": 0.10}  # a row before stop 74: as it is
+    assert cov(rules.without_allowance(old))

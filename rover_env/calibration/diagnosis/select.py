@@ -6,9 +6,9 @@ replay's bias in it, keeps clear of "off"), a tie with the runner-up and the
 drive that separates them, forward selection of a second effect beside the winner, the
 trade test (an effect that makes a signal it leaves above its floor worse is not named with
 confidence) and the named effects' finished intervals (signal groups' disagreement, sensor
-noise, the model's form: :func:`allow_form`). Why one stage: each step can undo the one before (a second effect replaces the
-winner alone, a trade drops the second effect or names nothing, and a torque limit the rotor
-inertia explains as well names nothing).
+noise, the model's form: :func:`allow_form`). Why one stage: each step can undo the one
+before (a second effect replaces the winner alone, a trade drops the second effect or names
+nothing, and a torque limit the rotor inertia explains as well names nothing).
 """
 
 from __future__ import annotations
