@@ -28,35 +28,16 @@ import numpy as np
 import yaml
 from _report import write_report
 
+from rover_env.estimation.dead_reckoning import MOVING, STRAIGHT, travel_scale
 from rover_env.logs import DriveLog, read_log
 
 R_E = 0.0761
 """The model rover's nominal rolling radius at static load, d - delta/3 (m)."""
-MOVING = 0.05
-"""Free-wheel travel (m) a pose interval needs to count: moving, not creeping."""
-STRAIGHT = 0.02
-"""Largest heading change (rad) over a pose interval that counts as straight."""
-
-
-def odometry(log: DriveLog) -> tuple[float, float]:
-    """(pose path length, free wheels' mean travel at :data:`R_E`) over the straight,
-    moving intervals between the log's pose samples (m, m)."""
-    have = np.flatnonzero(np.all(np.isfinite(log.pose), axis=1))
-    if have.size < 2:
-        return 0.0, 0.0
-    x, y, yaw = log.pose[have].T
-    free = 0.5 * (log.phi[have, 4] + log.phi[have, 5])
-    path = np.hypot(np.diff(x), np.diff(y))
-    travel = np.abs(np.diff(free)) * R_E
-    turn = np.abs(np.angle(np.exp(1j * np.diff(yaw))))
-    ok = (travel > MOVING) & (turn < STRAIGHT)
-    return float(path[ok].sum()), float(travel[ok].sum())
 
 
 def scale(logs: list[DriveLog]) -> float:
-    """Path over free-wheel travel, minus 1, over all drives (NaN if none moved straight)."""
-    got = np.array([odometry(g) for g in logs])
-    return float(got[:, 0].sum() / got[:, 1].sum() - 1.0) if got[:, 1].sum() > 0 else np.nan
+    """Path over free-wheel travel at :data:`R_E`, minus 1, over all drives."""
+    return travel_scale(logs, R_E)
 
 
 def cases(blocks: list[Path]) -> list[dict]:

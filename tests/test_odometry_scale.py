@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from _bench import load_bench
 
+from rover_env.estimation.dead_reckoning import path_and_travel
 from rover_env.logs import DriveLog, LogMeta
 
 odo = load_bench("odometry_scale")
@@ -32,7 +33,9 @@ def _drive(f: float, turn_every: int = 0) -> DriveLog:
     every = round(1.0 / 0.02)
     pose[::every] = np.c_[x, y, heading][::every]
     meta = LogMeta(rover="proto_explorer", sample_rate_hz=50.0, terrain={"name": "flat"})
-    return DriveLog(t=t, cmd=np.zeros((n, 4)), phi=phi, theta=np.zeros((n, 5)), pose=pose, meta=meta)
+    return DriveLog(
+        t=t, cmd=np.zeros((n, 4)), phi=phi, theta=np.zeros((n, 5)), pose=pose, meta=meta
+    )
 
 
 def test_the_statistic_reads_the_rolling_radius_change() -> None:
@@ -44,7 +47,7 @@ def test_turning_seconds_do_not_count() -> None:
     # A turn shortens the chord between pose samples; those intervals are left out, so the
     # statistic stays at the truth (with them it would read short).
     d = _drive(0.02, turn_every=4)
-    _, travel = odo.odometry(d)
+    _, travel = path_and_travel(d, odo.R_E)
     assert 0.3 * 40.0 * 0.7 / 1.02 < travel < 0.3 * 40.0 * 0.8 / 1.02  # 30 of 40 seconds
     assert odo.scale([d]) == pytest.approx(0.02, abs=1e-6)
     # Counting every interval, the turns' chords would read the radius short.
@@ -58,3 +61,26 @@ def test_no_straight_moving_interval_gives_nan() -> None:
     d = _drive(0.0)
     still = DriveLog(d.t, d.cmd, np.zeros_like(d.phi), d.theta, d.pose, d.meta)
     assert math.isnan(odo.scale([still]))
+
+
+def test_diagnose_reports_the_logs_against_the_models_twins() -> None:
+    from rover_env.calibration.diagnosis.floor import reckon
+    from rover_env.calibration.report import _reckoning_lines
+    from rover_env.config import load_rover
+    from rover_env.estimation.estimator import static_rolling_radius
+
+    cfg = load_rover()
+    assert static_rolling_radius(cfg) == pytest.approx(odo.R_E, abs=2e-4)
+    k = static_rolling_radius(cfg) / odo.R_E  # the helper's drives are built at R_E
+    r = reckon(cfg, [_drive(0.05)], [_drive(0.01)])
+    assert r["logs"] == pytest.approx(1.05 / k - 1.0) and r["model"] == pytest.approx(
+        1.01 / k - 1.0
+    )
+    assert r["difference"] == pytest.approx(0.04 / k)
+    (line,) = [x for x in _reckoning_lines(r) if x]
+    assert f"travels {100 * r['difference']:+.2f} % against this model" in line
+    still = _drive(0.0)
+    still = DriveLog(
+        still.t, still.cmd, np.zeros_like(still.phi), still.theta, still.pose, still.meta
+    )
+    assert _reckoning_lines(reckon(cfg, [still], [still])) == []

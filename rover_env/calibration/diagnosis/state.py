@@ -381,6 +381,8 @@ class Diagnosis:
     prepared0: list[PreparedLog] = field(init=False)
     forms: list[FormFit] = field(init=False)
     # floor (:mod:`.floor`)
+    dead_reckoning: dict[str, float] = field(init=False)
+    """The logs' and the twins' path over free-wheel travel (:func:`.floor.reckon`)."""
     ev: Evaluator = field(init=False)
     noise: dict[str, float] = field(init=False)
     """The replay floor: what a perfect model leaves, per signal."""
