@@ -35,6 +35,8 @@ from typing import Any
 import numpy as np
 from _report import write_report
 
+from rover_env.calibration.form_allowance import Bias, FormAllowance
+
 SKIP = {"combined_slip", "loose_soil"}
 """A switch has no size; the soil's fit is a stiffness (its own acceptance line)."""
 
@@ -65,11 +67,12 @@ def allowance(fits: dict[str, list[float]]) -> dict[str, tuple[float, float, int
 
 
 def widened(name: str, lo: float, hi: float, q: tuple[float, float, int]) -> tuple[float, float]:
-    """The interval for the truth with the form bias's spread in it."""
-    q05, q95, _ = q
-    if name == "slope":  # a spurious tilt adds to the true one in any direction
-        return max(0.0, lo - q95), hi + q95
-    return lo - q95, hi - q05
+    """The interval for the truth with the form bias's spread in it, as diagnose widens it
+    (:meth:`rover_env.calibration.form_allowance.FormAllowance.pad`: never narrower)."""
+    q05, q95, n = q
+    below, above = FormAllowance({name: Bias(q05, q95, n)}).pad(name) or (0.0, 0.0)
+    lo = lo - below
+    return (max(0.0, lo) if name == "slope" else lo), hi + above
 
 
 def named(rows: list[dict[str, Any]], allow: dict[str, tuple[float, float, int]]) -> list[dict]:

@@ -38,7 +38,8 @@ def test_the_allowance_is_the_spread_of_what_clean_logs_fit(fa: ModuleType, tmp_
     assert allow["slope"][1] == pytest.approx(1.9)
     # A delay fitted 0.112 [0.100, 0.120] for a truth of 0.091 (spent case 51324's pattern):
     lo, hi = fa.widened("command_delay", 0.100, 0.120, allow["command_delay"])
-    assert lo == pytest.approx(0.081) and hi == pytest.approx(0.119) and lo <= 0.091 <= hi
+    assert lo == pytest.approx(0.081) and lo <= 0.091 <= hi
+    assert hi == 0.120  # q05 is above 0 here: an allowance widens, it never narrows
     # A tilt can gain or lose the spurious one: widened both ways, never below level.
     assert fa.widened("slope", 1.0, 2.0, allow["slope"]) == pytest.approx((0.0, 3.9))
 
@@ -71,3 +72,21 @@ def test_named_effects_are_scored_covered_and_refused(fa: ModuleType) -> None:
     lines = fa.table(allow, got)
     assert "| command_delay | 43 | 0 | 0.026 | 0/1 | 1/1 | 0/1 | 0/0 |" in lines
     assert "| friction | 43 | -0.242 | 0.061 | 0/0 | 0/0 | 0/0 | 1/1 |" in lines
+
+
+def test_the_written_table_is_what_diagnose_reads(fa: ModuleType, tmp_path: Path) -> None:
+    from rover_env.calibration.form_allowance import load_allowance
+
+    for i in range(21):
+        _clean(tmp_path, i, 0.001 * i, 0.1 * i)
+    allow = fa.allowance(fa.clean_fits([tmp_path]))
+    path = tmp_path / "table.yaml"
+    fa.write_table(allow, [tmp_path], path)
+    got = load_allowance(path)
+    assert set(got.effects) == {"command_delay", "slope"}
+    b = got.effects["command_delay"]
+    assert (b.low, b.high, b.cases) == (pytest.approx(0.001), pytest.approx(0.019), 21)
+    # diagnose's interval for the truth is the benchmark's widened one
+    lo, hi = fa.widened("command_delay", 0.100, 0.120, allow["command_delay"])
+    below, above = got.pad("command_delay")
+    assert (0.100 - below, 0.120 + above) == (pytest.approx(lo), pytest.approx(hi))
