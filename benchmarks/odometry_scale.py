@@ -28,11 +28,13 @@ import numpy as np
 import yaml
 from _report import write_report
 
+from rover_env.config import load_rover
 from rover_env.estimation.dead_reckoning import MOVING, STRAIGHT, travel_scale
+from rover_env.estimation.estimator import static_rolling_radius
 from rover_env.logs import DriveLog, read_log
 
-R_E = 0.0761
-"""The model rover's nominal rolling radius at static load, d - delta/3 (m)."""
+R_E = static_rolling_radius(load_rover())
+"""The model rover's nominal rolling radius at static load, d - k_re delta (0.0761 m)."""
 
 
 def scale(logs: list[DriveLog]) -> float:
