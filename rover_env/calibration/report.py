@@ -706,5 +706,5 @@ def _reckoning_lines(r: dict[str, float] | None) -> list[str]:
         f" rover travels {100 * r['difference']:+.2f} % against this model. A rolling radius change"
         " shows one for one; a rolling resistance drags the free wheels (about +1 %), loose soil"
         " makes them bulldoze (+15 to +33 %); on clean drives of the independent generator it"
-        " stays within +-1.1 % (the free wheels' own radius tolerance).",
+        " stays within -1.0 to +1.2 % (5-95 %) (the free wheels' own radius tolerance).",
     ]
