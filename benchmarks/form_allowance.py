@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
@@ -35,7 +36,7 @@ from typing import Any
 import numpy as np
 from _report import write_report
 
-from rover_env.calibration.form_allowance import Bias, FormAllowance
+from rover_env.calibration.form_allowance import Bias, FormAllowance, widen
 
 SKIP = {"combined_slip", "loose_soil"}
 """A switch has no size; the soil's fit is a stiffness (its own acceptance line)."""
@@ -70,9 +71,8 @@ def widened(name: str, lo: float, hi: float, q: tuple[float, float, int]) -> tup
     """The interval for the truth with the form bias's spread in it, as diagnose widens it
     (:meth:`rover_env.calibration.form_allowance.FormAllowance.pad`: never narrower)."""
     q05, q95, n = q
-    below, above = FormAllowance({name: Bias(q05, q95, n)}).pad(name) or (0.0, 0.0)
-    lo = lo - below
-    return (max(0.0, lo) if name == "slope" else lo), hi + above
+    pad = FormAllowance({name: Bias(q05, q95, n)}).pad(name) or (0.0, 0.0)
+    return widen(name, lo, hi, pad, (-math.inf, math.inf))
 
 
 def named(rows: list[dict[str, Any]], allow: dict[str, tuple[float, float, int]]) -> list[dict]:

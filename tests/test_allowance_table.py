@@ -130,3 +130,12 @@ def test_the_bench_counts_coverage_with_and_without_the_allowance() -> None:
     assert cov(row) and not cov(rules.without_allowance(row))
     old = {"truth": 0.075, "lo": 0.054, "hi": 0.10}  # a row before stop 74: as it is
     assert cov(rules.without_allowance(old))
+
+
+def test_the_allowance_never_decides_whether_an_effect_is_there() -> None:
+    from rover_env.calibration.diagnosis.judge import interval_reaches_off
+
+    s = _fit("slope", [3.0, 4.0], 0.1)  # 5 degrees, clear of level
+    s.allowance = (9.0, 9.0)  # widened down to level in the report
+    assert s.physical()["slope"]["deg"][1] == 0.0
+    assert interval_reaches_off(s) == []  # judged on the fit's own interval

@@ -45,6 +45,7 @@ from scipy import optimize, stats
 
 from rover_env.calibration.candidates import Candidate, Extensions, merge
 from rover_env.calibration.evaluator import Evaluator
+from rover_env.calibration.form_allowance import widen
 from rover_env.calibration.replay import (
     JOINT_SIGNALS,
     POSE_SIGNALS,
@@ -139,13 +140,7 @@ class Fit:
         if allow and any(self.allowance) and len(self.candidates) == 1:
             c = self.candidates[0]
             k, (v, a, b) = next(iter(out[c.name].items()))
-            floor = 0.0 if c.name == "slope" else c.lo[0]
-            ceil = math.inf if c.name == "slope" else c.hi[0]
-            out[c.name][k] = (
-                v,
-                max(floor, a - self.allowance[0]),
-                min(ceil, b + self.allowance[1]),
-            )
+            out[c.name][k] = (v, *widen(c.name, a, b, self.allowance, (c.lo[0], c.hi[0])))
         return out
 
     def sides(self) -> dict[str, dict[str, str]]:

@@ -17,6 +17,7 @@ that implementation's mismatch with this model, the only one measured, not a rea
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,6 +60,15 @@ class FormAllowance:
         if effect == "slope":
             return max(0.0, b.high), max(0.0, b.high)
         return max(0.0, b.high), max(0.0, -b.low)
+
+
+def widen(
+    effect: str, lo: float, hi: float, pad: tuple[float, float], bounds: tuple[float, float]
+) -> tuple[float, float]:
+    """``[lo, hi]`` widened by ``pad`` (below, above) within ``bounds``; a tilt's magnitude
+    is bounded by level alone."""
+    floor, ceil = (0.0, math.inf) if effect == "slope" else bounds
+    return max(floor, lo - pad[0]), min(ceil, hi + pad[1])
 
 
 def load_allowance(name_or_path: str | Path = SHIPPED) -> FormAllowance:

@@ -315,7 +315,7 @@ def interval_reaches_off(f: Fit, effects: set[str] | None = None) -> list[str]:
     there, which such an interval does not.
     """
     out = []
-    shown = f.physical()
+    shown = f.physical(allow=False)  # the fit's own interval: the allowance never names
     i = 0
     for c in f.candidates:
         n = len(c.labels)

@@ -394,7 +394,8 @@ def finish_intervals(d: Diagnosis) -> None:
     """The named effects' intervals: a fit of several parameters finished first
     (:attr:`Options.polish`; its interval and the replay's bias in it are then the finished
     fit's), then widened by the signal groups' disagreement (model form) and to at least
-    what the sensors' own noise puts on them (:attr:`Options.noise_draws`)."""
+    what the sensors' own noise puts on them (:attr:`Options.noise_draws`), last by the
+    clean-fit allowance (:func:`allow_form`)."""
     ev, opts = d.ev, d.opts
     for s in d.chosen:
         ev_s = ev if s.fit_scale is None else replace(ev, scale=s.fit_scale)
@@ -403,7 +404,17 @@ def finish_intervals(d: Diagnosis) -> None:
             d.say(f"{s.fit.name}: finished from where its search stopped: {fmt_phys(s.fit)}")
     for s in d.chosen:
         widen_by_groups(s.fit)
-    for s in d.chosen if opts.noise_draws > 0 else []:
+    widen_by_sensor_noise(d)
+    allow_form(d)
+
+
+def widen_by_sensor_noise(d: Diagnosis) -> None:
+    """Each named effect's interval, to at least what the sensors alone put on it
+    (:attr:`.state.Options.noise_draws`; 0: none)."""
+    if d.opts.noise_draws <= 0:
+        return
+    ev, opts = d.ev, d.opts
+    for s in d.chosen:
         ev_s = ev if s.fit_scale is None else replace(ev, scale=s.fit_scale)
         nse = noise_se(ev_s, s.fit, d.sensor_noise, d.st, draws=opts.noise_draws)
         if nse is None:
@@ -416,7 +427,6 @@ def finish_intervals(d: Diagnosis) -> None:
             + f", {nse.draws} simulated draws): "
             + (f"{was} widened to {fmt_phys(s.fit)}" if moved else "interval kept")
         )
-    allow_form(d)
 
 
 def allow_form(d: Diagnosis) -> None:
