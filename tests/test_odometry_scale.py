@@ -3,12 +3,15 @@ a rolling radius change off the logs (stop 74's lead for issue 47)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 from _bench import load_bench
 
+from rover_env.calibration.diagnosis.odometry import refusal, twin_scales
+from rover_env.calibration.diagnosis.state import OdometryBand
 from rover_env.estimation.dead_reckoning import path_and_travel
 from rover_env.logs import DriveLog, LogMeta
 
@@ -63,24 +66,60 @@ def test_no_straight_moving_interval_gives_nan() -> None:
     assert math.isnan(odo.scale([still]))
 
 
-def test_diagnose_reports_the_logs_against_the_models_twins() -> None:
-    from rover_env.calibration.diagnosis.floor import reckon
-    from rover_env.calibration.report import _reckoning_lines
+BAND = OdometryBand(lo=-0.02, hi=0.02, mid=0.0, ci_lo=-0.01, ci_hi=0.01, split=0.03)
+
+
+def _diff(both: float, left: float, right: float) -> dict[str, float]:
+    return {"both": both, "3L": left, "3R": right}
+
+
+def test_odometry_names_only_beyond_the_band_with_both_free_wheels_agreeing() -> None:
+    assert refusal(_diff(-0.045, -0.05, -0.04), BAND, set(), True) is None
+    assert refusal(_diff(0.03, 0.02, 0.04), BAND, {"slope"}, True) is None
+    assert "within" in str(refusal(_diff(0.015, 0.01, 0.02), BAND, set(), True))
+    # One free wheel alone (a dragging brake): not a radius, however large.
+    assert "disagree" in str(refusal(_diff(0.04, 0.08, 0.0), BAND, set(), True))
+    assert "already" in str(refusal(_diff(-0.05, -0.05, -0.05), BAND, {"rolling_radius"}, True))
+    assert "bulldoze" in str(refusal(_diff(0.05, 0.05, 0.05), BAND, {"loose_soil"}, True))
+    assert "confidence" in str(refusal(_diff(-0.05, -0.05, -0.05), BAND, set(), False))
+    assert "no straight" in str(refusal(_diff(math.nan, math.nan, math.nan), BAND, set(), True))
+
+
+def test_the_models_twins_read_its_rolling_radius_one_for_one(tmp_path) -> None:
+    """The twins' statistic moves by the radius change times d / r_e: what the stage's
+    sensitivity measures (a physics check of the model, not of the rule)."""
+    from rover_env.calibration.replay import ReplaySettings, prepare
     from rover_env.config import load_rover
     from rover_env.estimation.estimator import static_rolling_radius
+    from rover_env.generators.make_logs import make_logs
+    from rover_env.logs import read_log
 
+    (path,) = make_logs(tmp_path, {}, drives=1, seed=3, duration=20.0, progress=False)
     cfg = load_rover()
-    assert odo.R_E == pytest.approx(0.0761, abs=1e-4)  # d - delta/3, as the generator's
-    k = static_rolling_radius(cfg) / odo.R_E  # the helper's drives are built at R_E
-    r = reckon(cfg, [_drive(0.05)], [_drive(0.01)])
-    assert r["logs"] == pytest.approx(1.05 / k - 1.0) and r["model"] == pytest.approx(
-        1.01 / k - 1.0
-    )
-    assert r["difference"] == pytest.approx(0.04 / k)
+    r_e = static_rolling_radius(cfg)
+    p = prepare(read_log(path), cfg, "drive", ReplaySettings())
+    nominal = twin_scales(cfg, [p], r_e)
+    assert all(abs(v) < 0.01 for v in nominal.values())  # the model against itself
+    f = -0.06
+    shrunk = dataclasses.replace(cfg, extensions={"rolling_radius": {"fraction": f}})
+    moved = twin_scales(shrunk, [p], r_e)["both"] - nominal["both"]
+    expect = f * cfg.geometry.wheel_radius / r_e
+    assert moved == pytest.approx(expect, rel=0.05)
+
+
+def test_the_report_line_gives_the_difference_and_the_verdict() -> None:
+    from rover_env.calibration.report import _reckoning_lines
+
+    r = {
+        "logs": _diff(-0.04, -0.045, -0.035),
+        "model": _diff(0.002, 0.003, 0.001),
+        "difference": _diff(-0.042, -0.048, -0.036),
+        "band": [-0.02, 0.02],
+        "named": False,
+        "why_not": "the held-out windows are worse under it (p 0.001)",
+    }
     (line,) = [x for x in _reckoning_lines(r) if x]
-    assert f"travels {100 * r['difference']:+.2f} % against this model" in line
-    still = _drive(0.0)
-    still = DriveLog(
-        still.t, still.cmd, np.zeros_like(still.phi), still.theta, still.pose, still.meta
-    )
-    assert _reckoning_lines(reckon(cfg, [still], [still])) == []
+    assert "travels -4.20 % against this model's twins" in line
+    assert "windows are worse" in line
+    r["difference"] = _diff(math.nan, math.nan, math.nan)
+    assert _reckoning_lines(r) == []

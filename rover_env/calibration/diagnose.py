@@ -88,6 +88,7 @@ def _cli(args: argparse.Namespace) -> int:
         rotor_alpha=args.rotor_alpha,
         fit_windup=args.fit_windup,
         form_allowance=None if args.no_form_allowance else args.form_allowance,
+        odometry=None if args.no_odometry else Options().odometry,
         **{name: getattr(args, name) for name, _ in SWITCHES},
     )
     try:
@@ -195,6 +196,12 @@ def add_cli(sub: Any) -> None:
         "--no-form-allowance",
         action="store_true",
         help="report the intervals without the clean-fit allowance",
+    )
+    p.add_argument(
+        "--no-odometry",
+        action="store_true",
+        help="never name a rolling radius from dead reckoning against the pose (see"
+        " Options.odometry)",
     )
     for name, what in SWITCHES:
         on = getattr(Options, name)

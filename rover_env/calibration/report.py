@@ -221,7 +221,27 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
         f" {opts.alpha:g}) by at least {opts.trade_share:g} of what the other signals gain"
         " (each in units of its floor): an effect that trades one signal for another stands"
         " in for something outside the catalogue.",
+        *_odometry_method(opts),
         f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay, {result['seconds']:.0f} s in all.",
+    ]
+
+
+def _odometry_method(opts: Options) -> list[str]:
+    """The method's bullet on naming a rolling radius from dead reckoning."""
+    b = opts.odometry
+    if b is None:
+        return []
+    return [
+        "- Odometry: after the windows, a rolling radius not named is named when the free"
+        " wheels' travel against the pose (straight, moving pose intervals, along the heading)"
+        " differs between the logs and the named model's twins beyond what clean drives of"
+        f" another implementation leave ({100 * b.lo:+.2f} to {100 * b.hi:+.2f} %, centre"
+        f" {100 * b.mid:+.2f} %), both free wheels agree (within {100 * b.split:.1f} %), the"
+        " change that closes it lies in the radius's range and the held-out windows are not"
+        f" worse under it (one-sided Wilcoxon, p < {opts.alpha:g}), and loose soil is not named"
+        " (another implementation's soil makes the free wheels bulldoze more than the model's);"
+        f" its 95 % interval is the clean drives' 2.5-97.5 % ({100 * b.ci_lo:+.2f} to"
+        f" {100 * b.ci_hi:+.2f} %) seen through the twins' sensitivity to the radius."
     ]
 
 
@@ -693,18 +713,27 @@ def _free_gain_lines(g: float | None, c: float | None = None) -> list[str]:
     return out
 
 
-def _reckoning_lines(r: dict[str, float] | None) -> list[str]:
-    """Dead reckoning from the free wheels against the pose: reported, not used to name."""
-    diff = (r or {}).get("difference")
+def _reckoning_lines(r: dict[str, Any] | None) -> list[str]:
+    """Dead reckoning from the free wheels against the pose, the logs' against the named
+    model's twins' (:mod:`rover_env.calibration.diagnosis.odometry`)."""
+    diff = ((r or {}).get("difference") or {}).get("both")
     if r is None or diff is None or diff != diff:  # none straight and moving (NaN)
         return []
+    lo, hi = r["band"]
+    d = r["difference"]
+    verdict = (
+        "named the rolling radius (above)"
+        if r.get("named")
+        else f"no rolling radius named: {r.get('why_not', '')}"
+    )
     return [
         "",
-        f"Dead reckoning (straight, moving seconds; not used to name): the pose's path over the"
-        f" free wheels' travel at r_e = {r['r_e']:.4f} m is {100 * r['logs']:+.2f} % on the logs"
-        f" and {100 * r['model']:+.2f} % on this model's twins: per free-wheel turn the logs'"
-        f" rover travels {100 * r['difference']:+.2f} % against this model. A rolling radius change"
-        " shows one for one; a rolling resistance drags the free wheels (about +1 %), loose soil"
-        " makes them bulldoze (+15 to +33 %); on clean drives of the independent generator it"
-        " stays within -1.0 to +1.2 % (5-95 %) (the free wheels' own radius tolerance).",
+        f"Dead reckoning (straight, moving seconds): per free-wheel turn the logs' rover travels"
+        f" {100 * diff:+.2f} % against this model's twins (3L {100 * d['3L']:+.2f} %, 3R"
+        f" {100 * d['3R']:+.2f} %; the logs {100 * r['logs']['both']:+.2f} %, the twins"
+        f" {100 * r['model']['both']:+.2f} %, path over travel at the static rolling radius,"
+        f" minus 1); clean drives of another implementation leave {100 * lo:+.2f} to"
+        f" {100 * hi:+.2f} %: {verdict}. A rolling radius change shows one for one; a rolling"
+        " resistance drags the free wheels (about +1 %), loose soil makes them bulldoze (+3 to"
+        " +16 %), a dragging brake slows one of them.",
     ]

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import NDArray
 
 from rover_env.logs import DriveLog
 
@@ -22,24 +23,50 @@ STRAIGHT = 0.02
 """Largest heading change (rad) over a pose interval that counts as straight."""
 
 
-def path_and_travel(log: DriveLog, r_e: float) -> tuple[float, float]:
-    """(pose path length, the free wheels' mean travel at ``r_e``) over the straight,
-    moving intervals between the log's pose samples (m, m)."""
-    have = np.flatnonzero(np.all(np.isfinite(log.pose), axis=1))
+FREE = (4, 5)
+"""The free wheels' columns in a log's wheel angles (3L, 3R)."""
+
+
+def path_and_travel(
+    log: DriveLog, r_e: float, wheels: tuple[int, ...] = FREE
+) -> tuple[float, float]:
+    """(pose path length, the mean travel of ``wheels`` (the free ones) at ``r_e``) over the
+    straight, moving intervals between the log's pose samples (m, m)."""
+    return path_and_travel_of(log.pose, log.phi, r_e, wheels)
+
+
+def path_and_travel_of(
+    pose: NDArray[np.float64],
+    phi: NDArray[np.float64],
+    r_e: float,
+    wheels: tuple[int, ...] = FREE,
+) -> tuple[float, float]:
+    """:func:`path_and_travel` on arrays: ``pose`` (N, 3), NaN where not sampled; ``phi``
+    (N, 6) wheel angles. Straight and moving are judged on the free wheels' mean travel,
+    whichever ``wheels`` are measured, so that each wheel is read over the same intervals."""
+    have = np.flatnonzero(np.all(np.isfinite(pose), axis=1))
     if have.size < 2:
         return 0.0, 0.0
-    x, y, yaw = log.pose[have].T
-    free = 0.5 * (log.phi[have, 4] + log.phi[have, 5])
-    path = np.hypot(np.diff(x), np.diff(y))
-    travel = np.abs(np.diff(free)) * r_e
+    x, y, yaw = pose[have].T
+    free = np.mean(phi[have][:, list(FREE)], axis=1)
+    read = np.mean(phi[have][:, list(wheels)], axis=1)
+    # Along the mean heading, not the chord's length: linear in the pose noise, so noise
+    # does not lengthen the path (|a + noise| is biased up by about noise^2 / 2|a|).
+    mid = yaw[:-1] + 0.5 * np.angle(np.exp(1j * np.diff(yaw)))
+    path = np.abs(np.diff(x) * np.cos(mid) + np.diff(y) * np.sin(mid))
     turn = np.abs(np.angle(np.exp(1j * np.diff(yaw))))
-    ok = (travel > MOVING) & (turn < STRAIGHT)
-    return float(path[ok].sum()), float(travel[ok].sum())
+    ok = (np.abs(np.diff(free)) * r_e > MOVING) & (turn < STRAIGHT)
+    return float(path[ok].sum()), float((np.abs(np.diff(read)) * r_e)[ok].sum())
 
 
-def travel_scale(logs: list[DriveLog], r_e: float) -> float:
-    """Path over free-wheel travel minus 1, over all ``logs`` together (NaN when none has
-    a straight, moving interval)."""
-    got = np.array([path_and_travel(g, r_e) for g in logs]).reshape(-1, 2)
-    travel = float(got[:, 1].sum())
-    return float(got[:, 0].sum() / travel - 1.0) if travel > 0 else math.nan
+def scale_of(got: list[tuple[float, float]]) -> float:
+    """Path over travel minus 1 over (path, travel) pairs together (NaN without travel)."""
+    arr = np.array(got, dtype=float).reshape(-1, 2)
+    travel = float(arr[:, 1].sum())
+    return float(arr[:, 0].sum() / travel - 1.0) if travel > 0 else math.nan
+
+
+def travel_scale(logs: list[DriveLog], r_e: float, wheels: tuple[int, ...] = FREE) -> float:
+    """Path over the travel of ``wheels`` (the free ones) minus 1, over all ``logs``
+    together (NaN when none has a straight, moving interval)."""
+    return scale_of([path_and_travel(g, r_e, wheels) for g in logs])

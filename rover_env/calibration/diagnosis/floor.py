@@ -22,9 +22,6 @@ from rover_env.calibration.replay import (
     prepare,
 )
 from rover_env.config import RoverConfig
-from rover_env.estimation.dead_reckoning import travel_scale
-from rover_env.estimation.estimator import static_rolling_radius
-from rover_env.logs import DriveLog
 
 
 def baseline(d: Diagnosis) -> None:
@@ -40,9 +37,7 @@ def baseline(d: Diagnosis) -> None:
         free_common_max=d.opts.free_common,
     )
     # Replay floor: what a perfect model leaves, from the model's own twin of each drive.
-    twins: list[DriveLog] = []
-    d.noise = replay_floor(d.base, d.prepared, d.all_w, d.sensor_noise, d.st, keep=twins)
-    d.dead_reckoning = reckon(d.base, [p.log for p in d.prepared], twins)
+    d.noise = replay_floor(d.base, d.prepared, d.all_w, d.sensor_noise, d.st)
     d.say(
         "replay floor from the model's twin drives: "
         + ", ".join(f"{k} {v:.3g}" for k, v in d.noise.items())
@@ -70,12 +65,10 @@ def replay_floor(
     windows: list[Window],
     sensor_noise: dict[str, float],
     st: ReplaySettings,
-    keep: list[DriveLog] | None = None,
 ) -> dict[str, float]:
     """Per-signal RMS residual a perfect model leaves: the model replays its own twins.
 
-    Twins are made only for the logs ``windows`` use (the others keep their place); their
-    logs are appended to ``keep`` when given.
+    Twins are made only for the logs ``windows`` use (the others keep their place).
     """
     rng = np.random.default_rng(0)
     res = rs.resolutions(prepared)
@@ -86,22 +79,8 @@ def replay_floor(
             twins.append(p)
             continue
         log = rs.twin_log(p, cfg, sensor_noise, res, rng)
-        if keep is not None:
-            keep.append(log)
         twins.append(prepare(log, cfg, p.name + " twin", st))
     return rs.signal_scale(rs.stack(Replayer(cfg, st).run(twins, windows), twins), sensor_noise)
-
-
-def reckon(cfg: RoverConfig, logs: list[DriveLog], twins: list[DriveLog]) -> dict[str, float]:
-    """Dead reckoning from the free wheels against the pose, the logs' and the model's twins'
-    (:mod:`rover_env.estimation.dead_reckoning`), at the configuration's static rolling
-    radius. Reported, not used to name: the logs' rover travels ``difference`` more per
-    free-wheel turn than this model, which a rolling radius changes one for one (stop 74:
-    0.965 x the truth on 32 spent radius singles of the independent generator, within
-    -1.0 to +1.2 % (5-95 %) on its clean cases)."""
-    r_e = static_rolling_radius(cfg)
-    on_logs, on_twins = travel_scale(logs, r_e), travel_scale(twins, r_e)
-    return {"r_e": r_e, "logs": on_logs, "model": on_twins, "difference": on_logs - on_twins}
 
 
 def base_backend(cfg: RoverConfig) -> str:

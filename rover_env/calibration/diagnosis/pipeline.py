@@ -1,7 +1,7 @@
 """``diagnose()``: the stages in order over one :class:`~.state.Diagnosis`.
 
 split (:mod:`.split`) → form (:mod:`.form`) → floor (:mod:`.floor`) → fit
-(:mod:`.fit_stage`) → select (:mod:`.select`) → evidence (:mod:`.evidence_stage`) → write
+(:mod:`.fit_stage`) → select (:mod:`.select`) → odometry (:mod:`.odometry`) → evidence (:mod:`.evidence_stage`) → write
 (:mod:`.write`). After selection the model form is judged again (:mod:`.again`) beside the
 winner or, with none named, the leading candidate; when that changes the forms, the
 diagnosis runs again from the start under the new options.
@@ -18,6 +18,7 @@ from rover_env.calibration.diagnosis import (
     fit_stage,
     floor,
     form,
+    odometry,
     select,
     split,
 )
@@ -52,6 +53,7 @@ def run(paths: list[str | Path], out: str | Path, opts: Options) -> dict[str, An
     if rerun is not None:
         return run(paths, out, rerun)
     select.select(d)
+    odometry.name_by_odometry(d)
     evidence_stage.seek_evidence(d)
     write_stage.write(d)
     return d.result
