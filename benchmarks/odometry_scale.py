@@ -9,8 +9,9 @@ radius only through the 1 Hz pose of each window (about 4 cm in 3 s at a 5 % cha
 the heading errors of every turn: on the independent generator's spent blocks it named
 none of 10 radius singles at 2 x threshold or more. This script measures the statistic
 per case of ``bench_independent.py`` blocks, per effect, against the generator's own radius
-change, with a figure. It reads logs only (no replay, no model): a diagnostic, not used by
-diagnose.
+change, with a figure. It reads logs only (no replay, no model); diagnose's odometry stage
+(:mod:`rover_env.calibration.diagnosis.odometry`) names a radius from the same statistic
+against its model's twins.
 
     python benchmarks/odometry_scale.py /tmp/b50800 /tmp/b50900 --out docs/calibration/odometry
 
@@ -127,8 +128,8 @@ def main() -> None:
     text = [
         "# Dead reckoning against the pose (benchmarks/odometry_scale.py)",
         "",
-        f"Cases of {', '.join(b.name for b in a.blocks)} (logs only). The statistic: pose path"
-        f" length over the free wheels' travel at r_e = {R_E} m, minus 1, on straight"
+        f"Cases of {', '.join(b.name for b in a.blocks)} (logs only). The statistic: the pose's"
+        f" path along its heading over the free wheels' travel at r_e = {R_E} m, minus 1, on straight"
         f" (heading change < {STRAIGHT} rad), moving (travel > {MOVING} m) pose intervals.",
         "",
         *table(rows),

@@ -734,6 +734,6 @@ def _reckoning_lines(r: dict[str, Any] | None) -> list[str]:
         f" {100 * r['model']['both']:+.2f} %, path over travel at the static rolling radius,"
         f" minus 1); clean drives of another implementation leave {100 * lo:+.2f} to"
         f" {100 * hi:+.2f} %: {verdict}. A rolling radius change shows one for one; a rolling"
-        " resistance drags the free wheels (about +1 %), loose soil makes them bulldoze (+3 to"
-        " +16 %), a dragging brake slows one of them.",
+        " resistance drags the free wheels (about +1 %), loose soil makes them bulldoze (up to"
+        " +24 %), a dragging brake slows one of them.",
     ]
