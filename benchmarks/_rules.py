@@ -189,6 +189,38 @@ def limit_line(rows: list[dict[str, Any]]) -> str:
     )
 
 
+def odometry(result: dict[str, Any]) -> dict[str, Any] | None:
+    """Diagnose's odometry stage in a diagnosis (stop 75): whether it named a rolling
+    radius, the difference it read (both free wheels) and its fit; None before it."""
+    dr = result.get("dead_reckoning")
+    if not dr or not isinstance(dr.get("difference"), dict):
+        return None
+    return {
+        "named": bool(dr.get("named")),
+        "difference": dr["difference"].get("both"),
+        "fraction": dr.get("fraction"),
+        "why_not": dr.get("why_not"),
+    }
+
+
+def odometry_line(rows: list[dict[str, Any]]) -> str:
+    """Where the odometry stage named a rolling radius in the final diagnosis: the truth
+    a radius (its interval holding it) or not."""
+    got = [r for r in rows if (r.get("odometry") or {}).get("named")]
+    radius = [r for r in got if "rolling_radius" in (r.get("truth") or {})]
+    held = 0
+    for r in radius:
+        _, lo, hi = r["odometry"]["fraction"]
+        held += lo <= r["fits"]["rolling_radius"]["truth"] <= hi
+    stored = sum("odometry" in r for r in rows)
+    return (
+        f"- Odometry (stop 75), in {stored} cases that stored it: a rolling radius named by"
+        f" dead reckoning in {len(got)}; the truth a radius in {len(radius)} (interval holding"
+        f" it {held}); no radius in the truth {len(got) - len(radius)}"
+        + (f" ({', '.join(r['case'] for r in got if r not in radius)})" if got != radius else "")
+    )
+
+
 def named_fits(final: dict[str, Any]) -> dict[str, dict[str, list[float]]]:
     """Every named effect's fitted parameters (value, 95 % interval) in the final diagnosis,
     truth or not: what a false alarm claimed, for the clean and outside tables."""
@@ -217,6 +249,8 @@ def backfill(rows: list[dict[str, Any]], work: Path) -> None:
             r.setdefault("below_limit", sorted({*below_limit(first), *below_limit(fu or {})}))
         if last is not None:
             r.setdefault("trades", trades(last))
+            if odometry(last) is not None:
+                r.setdefault("odometry", odometry(last))
             if "named_fits" not in r and r.get("named"):
                 r["named_fits"] = named_fits(last)
             for name, f in (r.get("fits") or {}).items():

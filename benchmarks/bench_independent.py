@@ -80,6 +80,8 @@ from _rules import (
     evidence_line,
     limit_line,
     named_fits,
+    odometry,
+    odometry_line,
     rotor_line,
     rotor_test_line,
     strong_unconfirmed,
@@ -420,6 +422,7 @@ def run_case(
         "trades": trades(final),
         "below_limit": sorted(set(below_limit(res)) | set(below_limit(followed or {}))),
         "rotor_withdrawn": [x.get("rotor_withdrawn") for x in (res, final)],
+        "odometry": odometry(final),
     }
 
 
@@ -569,6 +572,7 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
         evidence_line(ok),
         trade_line(ok),
         limit_line(ok),
+        odometry_line(ok),
         f"- Cases that failed to run: {len(rows) - len(ok)}",
     ]
 

@@ -402,6 +402,46 @@ def test_the_limit_line_counts_what_the_detection_limit_rule_refused(tmp_path: P
     assert "the case's truth 1, another effect 2" in line
 
 
+def test_the_odometry_line_counts_radii_named_by_dead_reckoning(tmp_path: Path) -> None:
+    """Stop 75's odometry stage is scored from ``result.json``'s ``dead_reckoning``: named
+    or not, the truth a radius (its interval holding it) or not."""
+    r = _load("_rules")
+    diff = {"both": -0.05, "3L": -0.05, "3R": -0.05}
+    named = {
+        "dead_reckoning": {"named": True, "difference": diff, "fraction": [-0.04, -0.06, -0.03]}
+    }
+    assert r.odometry({"dead_reckoning": None}) is None
+    assert r.odometry({"dead_reckoning": {"difference": -0.05}}) is None  # stop 74's form
+    case = tmp_path / "single_rolling_radius_1"
+    (case / "out").mkdir(parents=True)
+    (case / "out" / "result.json").write_text(json.dumps(named))
+    rows = [
+        {
+            "case": "single_rolling_radius_1",
+            "kind": "single",
+            "truth": {"rolling_radius": {}},
+            "named": ["rolling_radius"],
+            "fits": {"rolling_radius": {"truth": -0.045}},
+        },
+        {
+            "case": "outside_payload_2",
+            "kind": "outside",
+            "truth": {},
+            "named": ["rolling_radius"],
+            "odometry": {"named": True, "difference": -0.03, "fraction": [-0.03, -0.04, -0.01]},
+        },
+        {"case": "clean_none_3", "kind": "clean", "truth": {}, "named": []},
+    ]
+    r.backfill(rows, tmp_path)
+    assert rows[0]["odometry"]["named"] and "odometry" not in rows[2]
+    line = r.odometry_line(rows)
+    assert "in 2 cases that stored it: a rolling radius named by dead reckoning in 2" in line
+    assert "the truth a radius in 1 (interval holding it 1)" in line
+    assert "no radius in the truth 1 (outside_payload_2)" in line
+    rows[0]["fits"]["rolling_radius"]["truth"] = -0.08
+    assert "(interval holding it 0)" in r.odometry_line(rows)
+
+
 def test_a_truth_is_measured_against_the_threshold_on_its_side(b: ModuleType) -> None:
     assert b.truth_ratio("command_lag", {"truth": 0.2, "threshold": 0.05}) == pytest.approx(4.0)
     # A cut counts as its size; a slope as its tilt (its fit row's truth is the tilt).

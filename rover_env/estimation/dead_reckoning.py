@@ -5,7 +5,8 @@ The two free wheels (3L, 3R) roll without drive, so on straight, moving seconds 
 path length over their travel at the rolling radius r_e is 1 + f, f the rolling radius's
 change, plus whatever makes a free wheel slide (a rolling resistance drags it, loose soil
 makes it bulldoze). It needs no model: two sensors of one rover against each other.
-Diagnose reports it beside the same statistic of the model's own twin drives.
+Diagnose compares it with the same statistic on its model's own twin drives and names a
+rolling radius by the difference (its odometry stage).
 """
 
 from __future__ import annotations
@@ -30,8 +31,8 @@ FREE = (4, 5)
 def path_and_travel(
     log: DriveLog, r_e: float, wheels: tuple[int, ...] = FREE
 ) -> tuple[float, float]:
-    """(pose path length, the mean travel of ``wheels`` (the free ones) at ``r_e``) over the
-    straight, moving intervals between the log's pose samples (m, m)."""
+    """(the pose's path along its heading, the mean travel of ``wheels`` (the free ones) at
+    ``r_e``) over the straight, moving intervals between the log's pose samples (m, m)."""
     return path_and_travel_of(log.pose, log.phi, r_e, wheels)
 
 
