@@ -193,11 +193,11 @@ def odometry(result: dict[str, Any]) -> dict[str, Any] | None:
     """Diagnose's odometry stage in a diagnosis (stop 75): whether it named a rolling
     radius, the difference it read (both free wheels) and its fit; None before it."""
     dr = result.get("dead_reckoning")
-    if not dr or not isinstance(dr.get("difference"), dict):
+    if not dr or "band" not in dr:  # stop 74 reported it without a decision
         return None
     return {
         "named": bool(dr.get("named")),
-        "difference": dr["difference"].get("both"),
+        "difference": (dr.get("difference") or {}).get("both"),
         "fraction": dr.get("fraction"),
         "why_not": dr.get("why_not"),
     }

@@ -82,6 +82,9 @@ def test_odometry_names_only_beyond_the_band_with_both_free_wheels_agreeing() ->
     assert "already" in str(refusal(_diff(-0.05, -0.05, -0.05), BAND, {"rolling_radius"}, True))
     assert "bulldoze" in str(refusal(_diff(0.05, 0.05, 0.05), BAND, {"loose_soil"}, True))
     assert "confidence" in str(refusal(_diff(-0.05, -0.05, -0.05), BAND, set(), False))
+    # Decided before the twins are made: named already, soil, not confident; else None.
+    assert refusal(None, BAND, {"slope"}, True) is None
+    assert "bulldoze" in str(refusal(None, BAND, {"loose_soil"}, True))
     assert "no straight" in str(refusal(_diff(math.nan, math.nan, math.nan), BAND, set(), True))
 
 

@@ -717,7 +717,7 @@ def _reckoning_lines(r: dict[str, Any] | None) -> list[str]:
     """Dead reckoning from the free wheels against the pose, the logs' against the named
     model's twins' (:mod:`rover_env.calibration.diagnosis.odometry`)."""
     diff = ((r or {}).get("difference") or {}).get("both")
-    if r is None or diff is None or diff != diff:  # none straight and moving (NaN)
+    if r is None or diff is None or diff != diff:  # not compared, or none straight and moving
         return []
     lo, hi = r["band"]
     d = r["difference"]

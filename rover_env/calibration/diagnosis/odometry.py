@@ -67,15 +67,10 @@ def name_by_odometry(d: Diagnosis) -> None:
         return
     t0 = time.perf_counter()
     ref_ext = merge(*(s.fit.ext for s in d.chosen))
-    cfg = d.ev.config(ref_ext)
     r_e = static_rolling_radius(d.base)
     on_logs = scales([p.log for p in d.prepared], r_e)
-    on_twins = twin_scales(cfg, d.prepared, r_e)
-    diff = {k: on_logs[k] - on_twins[k] for k in WHEELS}
     rec: dict[str, Any] = {
         "logs": on_logs,
-        "model": on_twins,
-        "difference": diff,
         "band": [band.lo, band.hi],
         "centre": band.mid,
         "interval_band": [band.ci_lo, band.ci_hi],
@@ -84,6 +79,13 @@ def name_by_odometry(d: Diagnosis) -> None:
     }
     d.odometry = rec
     confident = d.traded is None and d.rotor_withdrawn is None
+    why = refusal(None, band, named, confident)
+    if why is not None:  # decided without the twins (a soil model's are slow)
+        rec["why_not"] = why
+        return
+    on_twins = twin_scales(d.ev.config(ref_ext), d.prepared, r_e)
+    diff = {k: on_logs[k] - on_twins[k] for k in WHEELS}
+    rec.update(model=on_twins, difference=diff)
     why = refusal(diff, band, named, confident)
     if why is not None:
         rec["why_not"] = why
@@ -124,11 +126,11 @@ def name_by_odometry(d: Diagnosis) -> None:
 
 
 def refusal(
-    diff: dict[str, float], band: OdometryBand, named: set[str], confident: bool
+    diff: dict[str, float] | None, band: OdometryBand, named: set[str], confident: bool
 ) -> str | None:
     """Why the statistic does not name a rolling radius, or None. ``confident``: what the
-    windows named stands (no trade, no rotor test withdrew it)."""
-    both, left, right = diff["both"], diff["3L"], diff["3R"]
+    windows named stands (no trade, no rotor test withdrew it); ``diff`` None: only what
+    is decided without it."""
     if NAME in named:
         return "named already"
     if "loose_soil" in named:
@@ -137,6 +139,9 @@ def refusal(
         return "loose soil is named: its free wheels bulldoze"
     if not confident:
         return "what was fitted is not named with confidence"
+    if diff is None:
+        return None
+    both, left, right = diff["both"], diff["3L"], diff["3R"]
     if not np.isfinite(both):
         return "no straight, moving pose interval"
     if band.lo <= both <= band.hi:
