@@ -407,11 +407,15 @@ def test_the_odometry_line_counts_radii_named_by_dead_reckoning(tmp_path: Path) 
     or not, the truth a radius (its interval holding it) or not."""
     r = _load("_rules")
     diff = {"both": -0.05, "3L": -0.05, "3R": -0.05}
+    band = [-0.025, 0.025]
+    fraction = [-0.04, -0.06, -0.03]
     named = {
-        "dead_reckoning": {"named": True, "difference": diff, "fraction": [-0.04, -0.06, -0.03]}
+        "dead_reckoning": {"named": True, "difference": diff, "fraction": fraction, "band": band}
     }
     assert r.odometry({"dead_reckoning": None}) is None
     assert r.odometry({"dead_reckoning": {"difference": -0.05}}) is None  # stop 74's form
+    soil = r.odometry({"dead_reckoning": {"band": band, "named": False, "why_not": "soil"}})
+    assert soil is not None and not soil["named"] and soil["difference"] is None
     case = tmp_path / "single_rolling_radius_1"
     (case / "out").mkdir(parents=True)
     (case / "out" / "result.json").write_text(json.dumps(named))
