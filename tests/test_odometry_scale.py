@@ -126,3 +126,5 @@ def test_the_report_line_gives_the_difference_and_the_verdict() -> None:
     assert "windows are worse" in line
     r["difference"] = _diff(math.nan, math.nan, math.nan)
     assert _reckoning_lines(r) == []
+    soil = {"band": [-0.02, 0.02], "named": False, "why_not": "loose soil is named"}
+    assert "not compared with this model's twins (loose soil is named)" in _reckoning_lines(soil)[1]

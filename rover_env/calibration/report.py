@@ -716,8 +716,12 @@ def _free_gain_lines(g: float | None, c: float | None = None) -> list[str]:
 def _reckoning_lines(r: dict[str, Any] | None) -> list[str]:
     """Dead reckoning from the free wheels against the pose, the logs' against the named
     model's twins' (:mod:`rover_env.calibration.diagnosis.odometry`)."""
-    diff = ((r or {}).get("difference") or {}).get("both")
-    if r is None or diff is None or diff != diff:  # not compared, or none straight and moving
+    if r is None:
+        return []
+    diff = (r.get("difference") or {}).get("both")
+    if diff is None and r.get("why_not"):  # decided without the twins
+        return ["", f"Dead reckoning: not compared with this model's twins ({r['why_not']})."]
+    if diff is None or diff != diff:  # none straight and moving
         return []
     lo, hi = r["band"]
     d = r["difference"]
