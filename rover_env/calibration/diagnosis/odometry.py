@@ -33,14 +33,15 @@ from rover_env.estimation.dead_reckoning import (
     scale_of,
 )
 from rover_env.estimation.estimator import static_rolling_radius
+from rover_env.logs import DriveLog
 
 WHEELS = {"both": FREE, "3L": (FREE[0],), "3R": (FREE[1],)}
 """The statistic over both free wheels, and each alone."""
 NAME = "rolling_radius"
 
 
-def scales(logs: list[Any], r_e: float) -> dict[str, float]:
-    """The statistic on ``logs`` (:class:`~rover_env.logs.DriveLog`) per :data:`WHEELS`."""
+def scales(logs: list[DriveLog], r_e: float) -> dict[str, float]:
+    """The statistic on ``logs`` per :data:`WHEELS`."""
     return {k: scale_of([path_and_travel(g, r_e, w) for g in logs]) for k, w in WHEELS.items()}
 
 
@@ -147,7 +148,7 @@ def refusal(
     if band.lo <= both <= band.hi:
         return "within what clean drives leave"
     if abs(left - right) > band.split:
-        return f"the free wheels disagree (3L {left:+.2%}, 3R {right:+.2%}): one wheel's own"
+        return f"the free wheels disagree (3L {left:+.2%}, 3R {right:+.2%}): one wheel's own drag or size"
     return None
 
 
