@@ -128,3 +128,34 @@ def test_the_report_line_gives_the_difference_and_the_verdict() -> None:
     assert _reckoning_lines(r) == []
     soil = {"band": [-0.02, 0.02], "named": False, "why_not": "loose soil is named"}
     assert "not compared with this model's twins (loose soil is named)" in _reckoning_lines(soil)[1]
+
+
+def test_diagnose_names_a_radius_the_windows_miss_from_dead_reckoning(tmp_path) -> None:
+    """The stage inside a whole diagnosis (this project's own logs: identifiability, not
+    validity): a 3 % smaller radius that the windows do not name is named by odometry, its
+    interval holding the truth, and written into rover.yaml."""
+    import yaml
+
+    from rover_env.calibration.diagnosis.pipeline import diagnose
+    from rover_env.calibration.diagnosis.state import Options
+    from rover_env.generators.make_logs import make_logs
+
+    truth = -0.03
+    paths = make_logs(
+        tmp_path / "logs",
+        {"rolling_radius": {"fraction": truth}},
+        drives=2,
+        seed=5,
+        duration=24.0,
+        progress=False,
+    )
+    opts = Options(candidates=["rolling_radius", "command_delay"], progress=False, max_nfev=3)
+    r = diagnose([str(p) for p in paths], tmp_path / "out", opts)
+    assert r["named"] == ["rolling_radius"]
+    f = r["final"]["rolling_radius"]
+    assert f["test"].startswith("odometry")
+    value, lo, hi = f["params"]["rolling_radius"]["fraction"]
+    assert lo <= truth <= hi and hi < 0.0
+    assert r["dead_reckoning"]["named"] and r["dead_reckoning"]["difference"]["both"] < -0.025
+    cfg = yaml.safe_load((tmp_path / "out" / "rover.yaml").read_text())
+    assert cfg["extensions"]["rolling_radius"]["fraction"] == pytest.approx(value)
