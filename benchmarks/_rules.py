@@ -198,6 +198,7 @@ def odometry(result: dict[str, Any]) -> dict[str, Any] | None:
     return {
         "named": bool(dr.get("named")),
         "difference": (dr.get("difference") or {}).get("both"),
+        "driven": (dr.get("difference") or {}).get("driven"),
         "fraction": dr.get("fraction"),
         "why_not": dr.get("why_not"),
     }

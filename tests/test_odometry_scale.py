@@ -69,8 +69,9 @@ def test_no_straight_moving_interval_gives_nan() -> None:
 BAND = OdometryBand(lo=-0.02, hi=0.02, mid=0.0, ci_lo=-0.01, ci_hi=0.01, split=0.03)
 
 
-def _diff(both: float, left: float, right: float) -> dict[str, float]:
-    return {"both": both, "3L": left, "3R": right}
+def _diff(both: float, left: float, right: float, driven: float | None = None) -> dict[str, float]:
+    """A difference per wheel set; the driven wheels read the free wheels' by default."""
+    return {"both": both, "3L": left, "3R": right, "driven": both if driven is None else driven}
 
 
 def test_odometry_names_only_beyond_the_band_with_both_free_wheels_agreeing() -> None:
@@ -88,6 +89,23 @@ def test_odometry_names_only_beyond_the_band_with_both_free_wheels_agreeing() ->
     assert "no straight" in str(refusal(_diff(math.nan, math.nan, math.nan), BAND, set(), True))
 
 
+def test_odometry_asks_the_driven_wheels_to_read_the_same_change() -> None:
+    """A radius moves every wheel's travel alike; loose soil bulldozes the free wheels while
+    the driven ones slip (spent loose soils: +15 to +35 % free, -0.64 to +0.18 x that
+    driven), and a rolling resistance drags the free wheels and slips the driven ones."""
+    for both, driven in ((-0.06, -0.06), (-0.06, -0.04), (0.05, 0.07), (0.05, 0.03)):
+        assert refusal(_diff(both, both, both, driven), BAND, set(), True) is None
+    for both, driven in (
+        (0.2, -0.02),
+        (0.027, -0.018),
+        (-0.04, -0.01),
+        (0.05, 0.08),
+        (0.04, math.nan),
+    ):
+        why = str(refusal(_diff(both, both, both, driven), BAND, set(), True))
+        assert "driven wheels read" in why, (both, driven)
+
+
 def test_the_models_twins_read_its_rolling_radius_one_for_one(tmp_path) -> None:
     """The twins' statistic moves by the radius change times d / r_e: what the stage's
     sensitivity measures (a physics check of the model, not of the rule)."""
@@ -102,12 +120,15 @@ def test_the_models_twins_read_its_rolling_radius_one_for_one(tmp_path) -> None:
     r_e = static_rolling_radius(cfg)
     p = prepare(read_log(path), cfg, "drive", ReplaySettings())
     nominal = twin_scales(cfg, [p], r_e)
-    assert all(abs(v) < 0.01 for v in nominal.values())  # the model against itself
+    # The model against itself: the free wheels roll at r_e (the driven ones slip).
+    assert all(abs(nominal[k]) < 0.01 for k in ("both", "3L", "3R"))
     f = -0.06
     shrunk = dataclasses.replace(cfg, extensions={"rolling_radius": {"fraction": f}})
-    moved = twin_scales(shrunk, [p], r_e)["both"] - nominal["both"]
+    moved = twin_scales(shrunk, [p], r_e)
     expect = f * cfg.geometry.wheel_radius / r_e
-    assert moved == pytest.approx(expect, rel=0.05)
+    assert moved["both"] - nominal["both"] == pytest.approx(expect, rel=0.05)
+    # Every wheel's travel moves alike: what the stage's driven-wheel check asks of a radius.
+    assert moved["driven"] - nominal["driven"] == pytest.approx(expect, rel=0.25)
 
 
 def test_the_report_line_gives_the_difference_and_the_verdict() -> None:
@@ -116,14 +137,19 @@ def test_the_report_line_gives_the_difference_and_the_verdict() -> None:
     r = {
         "logs": _diff(-0.04, -0.045, -0.035),
         "model": _diff(0.002, 0.003, 0.001),
-        "difference": _diff(-0.042, -0.048, -0.036),
+        "difference": _diff(-0.042, -0.048, -0.036, 0.01),
         "band": [-0.02, 0.02],
         "named": False,
-        "why_not": "the held-out windows are worse under it (p 0.001)",
+        "why_not": "the driven wheels read +1.00 % against the free wheels' -4.20 %",
     }
     (line,) = [x for x in _reckoning_lines(r) if x]
     assert "travels -4.20 % against this model's twins" in line
-    assert "windows are worse" in line
+    assert "the driven wheels +1.00 %" in line and "driven wheels read" in line
+    assert "held-out windows" not in line
+    named = {**r, "named": True, "held_gain": -0.16, "p_worse": 8e-5}
+    (line,) = [x for x in _reckoning_lines(named) if x]
+    assert "named the rolling radius" in line
+    assert "held-out windows are 16 % worse (one-sided p of worse 8e-05)" in line
     r["difference"] = _diff(math.nan, math.nan, math.nan)
     assert _reckoning_lines(r) == []
     soil = {"band": [-0.02, 0.02], "named": False, "why_not": "loose soil is named"}

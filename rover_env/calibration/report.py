@@ -237,9 +237,13 @@ def _odometry_method(opts: Options) -> list[str]:
         " differs between the logs and the named model's twins beyond what clean drives of"
         f" another implementation leave ({100 * b.lo:+.2f} to {100 * b.hi:+.2f} %, centre"
         f" {100 * b.mid:+.2f} %), both free wheels agree (within {100 * b.split:.1f} %), the"
-        " change that closes it lies in the radius's range and the held-out windows are not"
-        f" worse under it (one-sided Wilcoxon, p < {opts.alpha:g}), and loose soil is not named"
-        " (another implementation's soil makes the free wheels bulldoze more than the model's);"
+        " driven wheels read the same change (their difference within"
+        f" {100 * b.driven:.0f} % of the free wheels': a radius moves every wheel alike, the"
+        " slip of loose soil, a drag or a load moves them apart), the change that closes it"
+        " lies in the radius's range, and loose soil is not named (another implementation's"
+        " soil makes the free wheels bulldoze more than the model's); the held-out windows"
+        " under it are reported, not judged (the model's radius may grow with load otherwise"
+        " than the rover's);"
         f" its 95 % interval is the clean drives' 2.5-97.5 % ({100 * b.ci_lo:+.2f} to"
         f" {100 * b.ci_hi:+.2f} %) seen through the twins' sensitivity to the radius."
     ]
@@ -730,14 +734,23 @@ def _reckoning_lines(r: dict[str, Any] | None) -> list[str]:
         if r.get("named")
         else f"no rolling radius named: {r.get('why_not', '')}"
     )
+    driven = f", the driven wheels {100 * d['driven']:+.2f} %" if "driven" in d else ""
+    held = ""
+    if r.get("named") and r.get("held_gain") is not None:
+        held = (
+            f" Under it the held-out windows are {100 * abs(r['held_gain']):.0f} %"
+            f" {'better' if r['held_gain'] >= 0 else 'worse'} (one-sided p of worse"
+            f" {r['p_worse']:.2g}): where worse, the model's radius changes with load otherwise"
+            " than the rover's."
+        )
     return [
         "",
         f"Dead reckoning (straight, moving seconds): per free-wheel turn the logs' rover travels"
         f" {100 * diff:+.2f} % against this model's twins (3L {100 * d['3L']:+.2f} %, 3R"
-        f" {100 * d['3R']:+.2f} %; the logs {100 * r['logs']['both']:+.2f} %, the twins"
+        f" {100 * d['3R']:+.2f} %{driven}; the logs {100 * r['logs']['both']:+.2f} %, the twins"
         f" {100 * r['model']['both']:+.2f} %, path over travel at the static rolling radius,"
         f" minus 1); clean drives of another implementation leave {100 * lo:+.2f} to"
         f" {100 * hi:+.2f} %: {verdict}. A rolling radius change shows one for one; a rolling"
         " resistance drags the free wheels (about +1 %), loose soil makes them bulldoze (up to"
-        " +24 %), a dragging brake slows one of them.",
+        " +24 %), a dragging brake slows one of them." + held,
     ]

@@ -42,7 +42,8 @@ class OdometryBand:
     (the logs' path over free-wheel travel minus the named model's twins'), both free
     wheels together: beyond [``lo``, ``hi``] a rolling radius may be named; ``mid`` (the
     median: the model's own offset) and [``ci_lo``, ``ci_hi``] (2.5 and 97.5 %) give its
-    change and interval; the two wheels against each other stay within ``split``."""
+    change and interval; the two wheels against each other stay within ``split``, and the
+    driven wheels' difference within ``driven`` times the free wheels' of theirs."""
 
     lo: float
     hi: float
@@ -50,16 +51,21 @@ class OdometryBand:
     ci_lo: float
     ci_hi: float
     split: float
+    driven: float = 0.5
 
 
 ODOMETRY_BAND = OdometryBand(
-    lo=-0.025, hi=0.025, mid=-0.0019, ci_lo=-0.0151, ci_hi=0.0123, split=0.05
+    lo=-0.025, hi=0.025, mid=-0.0019, ci_lo=-0.0151, ci_hi=0.0123, split=0.05, driven=0.5
 )
 """From the independent generator's spent blocks 50800-51600 (stop 75; 325 cases without a
 radius or soil: 63 clean and 262 singles of the seven other effects, the difference against
 each case's named model): all within -2.2 to +2.2 % but one (a slope named with a radius,
 -5.5 %), so the naming band is that envelope rounded out; median -0.19 %, 2.5-97.5 %
--1.51 to +1.23 %; |3L - 3R| at most 4.2 % (a dragging brake on one free wheel: 13.6 %)."""
+-1.51 to +1.23 %; |3L - 3R| at most 4.2 % (a dragging brake on one free wheel: 13.6 %).
+``driven`` (stop 76, blocks 50800-51700, the nominal model's twins): beyond the band the
+driven wheels' difference was 0.65 to 1.37 x the free wheels' on all 20 radius singles there, -0.64 to +0.18 x on
+all 37 loose soils, -0.67 x on the one rolling resistance; a payload's extra deflection (1
+of 8 beyond the band) shortens every wheel's radius and reads 0.99 x."""
 
 
 @dataclass
