@@ -242,7 +242,7 @@ def _odometry_method(opts: Options) -> list[str]:
         " slip of loose soil, a drag or a load moves them apart), the change that closes it"
         " lies in the radius's range, and loose soil is not named (another implementation's"
         " soil makes the free wheels bulldoze more than the model's); the held-out windows"
-        " under it are reported, not judged (the model's radius may grow with load otherwise"
+        " under it are reported, not judged (the model's turns may answer a radius otherwise"
         " than the rover's);"
         f" its 95 % interval is the clean drives' 2.5-97.5 % ({100 * b.ci_lo:+.2f} to"
         f" {100 * b.ci_hi:+.2f} %) seen through the twins' sensitivity to the radius."
@@ -740,8 +740,8 @@ def _reckoning_lines(r: dict[str, Any] | None) -> list[str]:
         held = (
             f" Under it the held-out windows are {100 * abs(r['held_gain']):.0f} %"
             f" {'better' if r['held_gain'] >= 0 else 'worse'} (one-sided p of worse"
-            f" {r['p_worse']:.2g}): where worse, the model's radius changes with load otherwise"
-            " than the rover's."
+            f" {r['p_worse']:.2g}): where worse, the model answers the radius otherwise than the"
+            " rover (on another implementation's logs, in its turns)."
         )
     return [
         "",

@@ -11,8 +11,9 @@ with both free wheels agreeing (one wheel alone is a dragging brake or a wheel o
 size) and the driven wheels reading the same change (a radius scales every wheel's travel
 alike; loose soil, a rolling resistance or a load make the driven wheels slip the other
 way), it names ``rolling_radius`` with the change that closes the difference and an interval
-from that clean spread. The held-out windows under it are reported, not judged: the
-model's radius grows with load otherwise than a rover's may (stop 76).
+from that clean spread. The held-out windows under it are reported, not judged: on another
+implementation's logs the right radius made them worse through its turns, whose scrub is
+each implementation's own (stop 76).
 """
 
 from __future__ import annotations

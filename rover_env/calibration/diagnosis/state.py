@@ -63,9 +63,10 @@ each case's named model): all within -2.2 to +2.2 % but one (a slope named with 
 -5.5 %), so the naming band is that envelope rounded out; median -0.19 %, 2.5-97.5 %
 -1.51 to +1.23 %; |3L - 3R| at most 4.2 % (a dragging brake on one free wheel: 13.6 %).
 ``driven`` (stop 76, blocks 50800-51700, the nominal model's twins): beyond the band the
-driven wheels' difference was 0.65 to 1.37 x the free wheels' on all 20 radius singles there, -0.64 to +0.18 x on
-all 37 loose soils, -0.67 x on the one rolling resistance; a payload's extra deflection (1
-of 8 beyond the band) shortens every wheel's radius and reads 0.99 x."""
+driven wheels' difference was 0.65 to 1.37 x the free wheels' on all 20 radius singles
+there, -0.64 to +0.18 x on all 37 loose soils, -0.67 x on the one rolling resistance; a
+payload's extra deflection (1 of 8 beyond the band) shortens every wheel's radius and reads
+0.99 x. Scored on fresh study 60000: docs/calibration/README.md."""
 
 
 @dataclass
