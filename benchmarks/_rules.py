@@ -201,6 +201,7 @@ def odometry(result: dict[str, Any]) -> dict[str, Any] | None:
         "driven": (dr.get("difference") or {}).get("driven"),
         "fraction": dr.get("fraction"),
         "why_not": dr.get("why_not"),
+        "after_withdrawn": dr.get("after_withdrawn"),
     }
 
 
@@ -219,6 +220,25 @@ def odometry_line(rows: list[dict[str, Any]]) -> str:
         f" dead reckoning in {len(got)}; the truth a radius in {len(radius)} (interval holding"
         f" it {held}); no radius in the truth {len(got) - len(radius)}"
         + (f" ({', '.join(r['case'] for r in got if r not in radius)})" if got != radius else "")
+    )
+
+
+def allowance_line(rows: list[dict[str, Any]]) -> str:
+    """What the clean-fit allowance withdrew (stop 77, ``Options.name_beyond_allowance``),
+    first diagnosis or follow-up: the case's truth (a cost) or another effect (what it is
+    for)."""
+    got = {
+        (r["case"], e)
+        for r in rows
+        for w in r.get("allowance_withdrawn") or []
+        for e in (w or {}).get("effects", [])
+    }
+    truth = sum(e in (next(r for r in rows if r["case"] == c).get("truth") or {}) for c, e in got)
+    stored = sum("allowance_withdrawn" in r for r in rows)
+    return (
+        f"- Clean-fit allowance as a naming condition, in {stored} cases that stored it:"
+        f" {len(got)} names withdrawn in {len({c for c, _ in got})} cases; the case's truth"
+        f" {truth}, another effect {len(got) - truth}"
     )
 
 

@@ -10,11 +10,10 @@ those drives added. The plan is turned into plain numbers here (``command_rows``
 targets at 50 Hz, clipped to the model rover's ``max_wheel_speed``, as ``drive-plan`` writes
 them) and handed to the generator as a :class:`~rover_env.independent.drive.Schedule`.
 
-Cases (seeds from 47500, magnitudes drawn by seed, log-uniform over each effect's range;
-nobody picks them): 5 singles of each of the 9 catalogue effects the generator implements
-(45), 10 clean (nuisance only), 6 pairs (never a tire-only effect with loose soil,
-``INERT_ON_SOIL``), 4 outside the catalogue (``payload``, ``toe``, ``brake_drag``,
-``battery_sag``). Where an effect means the same in both, its range is ``bench_diagnose.RANGES``.
+Cases (seeds from 47500, magnitudes drawn by seed, log-uniform over each effect's range):
+5 singles of each of the 9 catalogue effects the generator implements (45), 10 clean, 6
+pairs (never a tire-only effect with loose soil, ``INERT_ON_SOIL``), 4 outside the catalogue
+(``payload``, ``toe``, ``brake_drag``, ``battery_sag``); ranges: ``bench_diagnose.RANGES``.
 
 The generator's parameters against the catalogue's (``rover_env.effects``; the truth column
 is the catalogue parameter that gives the same physical quantity in diagnose's model, the
@@ -75,6 +74,7 @@ import numpy as np
 from _cells import fitted_cell, named_cell, params_cell
 from _report import write_report
 from _rules import (
+    allowance_line,
     backfill,
     below_limit,
     evidence_line,
@@ -422,6 +422,7 @@ def run_case(
         "trades": trades(final),
         "below_limit": sorted(set(below_limit(res)) | set(below_limit(followed or {}))),
         "rotor_withdrawn": [x.get("rotor_withdrawn") for x in (res, final)],
+        "allowance_withdrawn": [x.get("allowance_withdrawn") for x in (res, final)],
         "odometry": odometry(final),
     }
 
@@ -573,6 +574,7 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
         trade_line(ok),
         limit_line(ok),
         odometry_line(ok),
+        allowance_line(ok),
         f"- Cases that failed to run: {len(rows) - len(ok)}",
     ]
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -139,3 +140,55 @@ def test_the_allowance_never_decides_whether_an_effect_is_there() -> None:
     s.allowance = (9.0, 9.0)  # widened down to level in the report
     assert s.physical()["slope"]["deg"][1] == 0.0
     assert interval_reaches_off(s) == []  # judged on the fit's own interval
+
+
+def test_an_interval_the_allowance_takes_to_off_is_named_no_more() -> None:
+    """Stop 77: a named effect whose interval for the truth, the clean-fit allowance in it,
+    reaches "off" is withdrawn; one clear of it stays, and so does everything when the
+    option is off or the effect has no allowance."""
+    from rover_env.calibration.diagnosis.judge import allowance_reaches_off
+    from rover_env.calibration.diagnosis.select import withdraw_within_allowance
+
+    def named(name: str, x: list[float], half: float, pad: tuple[float, float]) -> Any:
+        s = SimpleNamespace(fit=_fit(name, x, half), test="")
+        s.fit.allowance = pad
+        return s
+
+    strong = named("command_delay", [0.05], 0.005, (0.027, 0.0))  # [0.018, 0.055]
+    weak = named("command_delay", [0.02], 0.005, (0.027, 0.0))  # [0, 0.025]
+    tilt = named("slope", [1.2, 1.6], 0.1, (2.4, 2.4))  # 2 deg: [0, 4.6]
+    steep = named("slope", [3.0, 4.0], 0.1, (2.4, 2.4))  # 5 deg: [2.4, 7.6]
+    bare = named("command_lag", [0.01], 0.009, (0.0, 0.0))  # no allowance: not judged here
+    assert allowance_reaches_off(weak.fit) == ["command_delay.delay"]
+    assert allowance_reaches_off(tilt.fit) == ["slope.deg"]
+    assert allowance_reaches_off(strong.fit) == allowance_reaches_off(steep.fit) == []
+    assert allowance_reaches_off(bare.fit) == []
+
+    def diag(chosen: list[Any], on: bool = True) -> Any:
+        return SimpleNamespace(
+            opts=SimpleNamespace(name_beyond_allowance=on),
+            chosen=list(chosen),
+            demoted=[],
+            allowance_withdrawn=None,
+            winner=chosen[0],
+            w_floor={"wheel_3L": 2.0},
+            noise={"wheel_3L": 1.0},
+            final_floor={"wheel_3L": 3.0},
+            say=lambda m: None,
+        )
+
+    d = diag([strong, tilt])
+    d.winner = strong
+    withdraw_within_allowance(d)
+    assert d.chosen == [strong] and d.demoted == [tilt]
+    assert d.allowance_withdrawn["effects"] == ["slope"] and "clean-fit" in tilt.test
+    assert d.final_floor == d.w_floor  # the winner alone stays: its own floor
+    d = diag([weak])
+    withdraw_within_allowance(d)
+    assert d.chosen == [] and d.final_floor == d.noise
+    d = diag([weak], on=False)
+    withdraw_within_allowance(d)
+    assert d.chosen == [weak] and d.allowance_withdrawn is None
+    d = diag([steep, bare])
+    withdraw_within_allowance(d)
+    assert d.chosen == [steep, bare] and d.final_floor == {"wheel_3L": 3.0}

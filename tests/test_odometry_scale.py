@@ -75,18 +75,36 @@ def _diff(both: float, left: float, right: float, driven: float | None = None) -
 
 
 def test_odometry_names_only_beyond_the_band_with_both_free_wheels_agreeing() -> None:
-    assert refusal(_diff(-0.045, -0.05, -0.04), BAND, set(), True) is None
-    assert refusal(_diff(0.03, 0.02, 0.04), BAND, {"slope"}, True) is None
-    assert "within" in str(refusal(_diff(0.015, 0.01, 0.02), BAND, set(), True))
+    assert refusal(_diff(-0.045, -0.05, -0.04), BAND, set()) is None
+    assert refusal(_diff(0.03, 0.02, 0.04), BAND, {"slope"}) is None
+    assert "within" in str(refusal(_diff(0.015, 0.01, 0.02), BAND, set()))
     # One free wheel alone (a dragging brake): not a radius, however large.
-    assert "disagree" in str(refusal(_diff(0.04, 0.08, 0.0), BAND, set(), True))
-    assert "already" in str(refusal(_diff(-0.05, -0.05, -0.05), BAND, {"rolling_radius"}, True))
-    assert "bulldoze" in str(refusal(_diff(0.05, 0.05, 0.05), BAND, {"loose_soil"}, True))
-    assert "confidence" in str(refusal(_diff(-0.05, -0.05, -0.05), BAND, set(), False))
-    # Decided before the twins are made: named already, soil, not confident; else None.
-    assert refusal(None, BAND, {"slope"}, True) is None
-    assert "bulldoze" in str(refusal(None, BAND, {"loose_soil"}, True))
-    assert "no straight" in str(refusal(_diff(math.nan, math.nan, math.nan), BAND, set(), True))
+    assert "disagree" in str(refusal(_diff(0.04, 0.08, 0.0), BAND, set()))
+    assert "already" in str(refusal(_diff(-0.05, -0.05, -0.05), BAND, {"rolling_radius"}))
+    assert "bulldoze" in str(refusal(_diff(0.05, 0.05, 0.05), BAND, {"loose_soil"}))
+    # Decided before the twins are made: named already, soil; else None.
+    assert refusal(None, BAND, {"slope"}) is None
+    assert "bulldoze" in str(refusal(None, BAND, {"loose_soil"}))
+    assert "no straight" in str(refusal(_diff(math.nan, math.nan, math.nan), BAND, set()))
+
+
+def test_odometry_is_asked_after_a_withdrawn_name_and_says_which() -> None:
+    """A trade, the rotor test or the clean-fit allowance withdraws what the windows named;
+    the wheels' travel is still asked (nothing in :func:`refusal` depends on it), and the
+    record names what was withdrawn, each effect once."""
+    from types import SimpleNamespace
+
+    from rover_env.calibration.diagnosis.odometry import withdrawn
+
+    d = SimpleNamespace(
+        traded={"effects": ["friction", "slope"]},
+        rotor_withdrawn={"effects": ["torque_limit", "slope"]},
+        allowance_withdrawn=None,
+    )
+    assert withdrawn(d) == ["friction", "slope", "torque_limit"]  # type: ignore[arg-type]
+    none = SimpleNamespace(traded=None, rotor_withdrawn=None, allowance_withdrawn=None)
+    assert withdrawn(none) == []  # type: ignore[arg-type]
+    assert refusal(_diff(-0.05, -0.05, -0.05), BAND, set()) is None
 
 
 def test_odometry_asks_the_driven_wheels_to_read_the_same_change() -> None:
@@ -94,7 +112,7 @@ def test_odometry_asks_the_driven_wheels_to_read_the_same_change() -> None:
     the driven ones slip (spent loose soils: +15 to +35 % free, -0.64 to +0.18 x that
     driven), and a rolling resistance drags the free wheels and slips the driven ones."""
     for both, driven in ((-0.06, -0.06), (-0.06, -0.04), (0.05, 0.07), (0.05, 0.03)):
-        assert refusal(_diff(both, both, both, driven), BAND, set(), True) is None
+        assert refusal(_diff(both, both, both, driven), BAND, set()) is None
     for both, driven in (
         (0.2, -0.02),
         (0.027, -0.018),
@@ -102,7 +120,7 @@ def test_odometry_asks_the_driven_wheels_to_read_the_same_change() -> None:
         (0.05, 0.08),
         (0.04, math.nan),
     ):
-        why = str(refusal(_diff(both, both, both, driven), BAND, set(), True))
+        why = str(refusal(_diff(both, both, both, driven), BAND, set()))
         assert "driven wheels read" in why, (both, driven)
 
 

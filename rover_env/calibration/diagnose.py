@@ -119,6 +119,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "name_above_limit",
         "name an effect only if its fitted magnitude reaches its detection limit on these logs",
     ),
+    (
+        "name_beyond_allowance",
+        "name an effect only if its interval with the clean-fit allowance keeps clear of off",
+    ),
     ("screen", "screen each candidate on half the training windows before its full fit"),
     (
         "forms_beside_leader",

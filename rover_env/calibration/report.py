@@ -220,7 +220,13 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
         " above its floor worse (per-window mean squares, one-sided Wilcoxon at p <"
         f" {opts.alpha:g}) by at least {opts.trade_share:g} of what the other signals gain"
         " (each in units of its floor): an effect that trades one signal for another stands"
-        " in for something outside the catalogue.",
+        " in for something outside the catalogue."
+        + (
+            " Last, a named effect whose interval for the truth, the clean-fit allowance in"
+            ' it, reaches "off" is not named (the model\'s form alone gives as much).'
+            if opts.name_beyond_allowance and opts.form_allowance
+            else ""
+        ),
         *_odometry_method(opts),
         f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay, {result['seconds']:.0f} s in all.",
     ]
@@ -232,7 +238,8 @@ def _odometry_method(opts: Options) -> list[str]:
     if b is None:
         return []
     return [
-        "- Odometry: after the windows, a rolling radius not named is named when the free"
+        "- Odometry: after the windows (also when their name was withdrawn), a rolling radius"
+        " not named is named when the free"
         " wheels' travel against the pose (straight, moving pose intervals, along the heading)"
         " differs between the logs and the named model's twins beyond what clean drives of"
         f" another implementation leave ({100 * b.lo:+.2f} to {100 * b.hi:+.2f} %, centre"
@@ -261,10 +268,44 @@ def trade_note(excused: dict[str, Any]) -> str:
     )
 
 
-def rotor_note(withdrawn: dict[str, Any], demoted: list[Scored] | None) -> str:
+def trade_refused_note(nn: dict[str, Any], demoted: list[Scored] | None, lead: str) -> str:
+    """Why the best fit is not named: it trades a signal for another (:func:`.diagnosis.select.settle`)."""
+    worse = "; ".join(
+        f"{k} {v['rms_ratio']:.2f}x its RMS before (one-sided Wilcoxon over {v['windows']}"
+        f" windows, p {_p(v['p'])})"
+        for k, v in nn["worse"].items()
+    )
+    return (
+        f"{lead} The best fit, {' + '.join(nn['effects'])}"
+        f" ({'; '.join(_phys(s) for s in demoted or [])}), improves the held-out drive but"
+        f" makes signals it leaves above their floor worse: {worse}. An effect of the"
+        " catalogue that trades one signal for another is standing in for something"
+        " outside it (a mass, a spring, a tire stiffness); the configuration is left as it was."
+    )
+
+
+def allowance_note(withdrawn: dict[str, Any], beside: bool) -> str:
+    """Why a fit the windows' tests passed is not named: its interval with the clean-fit
+    allowance reaches "off" (:func:`.diagnosis.select.withdraw_within_allowance`)."""
+    fits = "; ".join(f"{k} {v}" for k, v in withdrawn["params"].items())
+    return (
+        ("" if beside else "**Nothing named.** ")
+        + f"Fitted and significant but not named: {fits}. Its interval for the truth, widened"
+        " by the clean-fit allowance (what this model's own form gives on clean drives of"
+        ' another implementation), reaches "off": the logs do not tell the effect from the'
+        " model's form. The configuration keeps it off; a longer drive, or one that excites"
+        " it more, narrows the interval."
+    )
+
+
+def rotor_note(
+    withdrawn: dict[str, Any],
+    demoted: list[Scored] | None,
+    lead: str = "**Nothing named with confidence.**",
+) -> str:
     """Why a torque limit the rotor test withdrew is not named (:func:`.diagnosis.select.rotor_check`)."""
     return (
-        f"**Nothing named with confidence.** The best fit, {' + '.join(withdrawn['effects'])}"
+        f"{lead} The best fit, {' + '.join(withdrawn['effects'])}"
         f" ({'; '.join(_phys(s) for s in demoted or [])}), improves the held-out drive, but a"
         f" heavier or lighter rotor in the torque limit's place (`motor.armature`"
         f" {withdrawn['armature']:.3g} kg m²) does as well there (p {_p(withdrawn['p_torque_better'])}"
@@ -295,29 +336,23 @@ def _headline(
     """What was named (or why not), the tie and what is left unexplained."""
     L: list[str] = []
     named = result["named"]
+    rotor, nn, allowed = (
+        result.get(k) for k in ("rotor_withdrawn", "not_named", "allowance_withdrawn")
+    )
+    lead = "**Not named with confidence:**" if named else "**Nothing named with confidence.**"
     if named:
         L.append(f"**Named:** {' + '.join(named)} — {'; '.join(_phys(s) for s in chosen)}.")
         if result.get("trade_excused"):
             L.append("\n" + trade_note(result["trade_excused"]))
-        if result.get("rotor_withdrawn"):
-            L.append("\n" + rotor_kept_note(result["rotor_withdrawn"]))
-    elif result.get("not_named"):
-        nn = result["not_named"]
-        worse = "; ".join(
-            f"{k} {v['rms_ratio']:.2f}x its RMS before (one-sided Wilcoxon over {v['windows']}"
-            f" windows, p {_p(v['p'])})"
-            for k, v in nn["worse"].items()
-        )
-        L.append(
-            f"**Nothing named with confidence.** The best fit, {' + '.join(nn['effects'])}"
-            f" ({'; '.join(_phys(s) for s in demoted or [])}), improves the held-out drive but"
-            f" makes signals it leaves above their floor worse: {worse}. An effect of the"
-            " catalogue that trades one signal for another is standing in for something"
-            " outside it (a mass, a spring, a tire stiffness); the configuration is left as it was."
-        )
-    elif result.get("rotor_withdrawn"):
-        L.append(rotor_note(result["rotor_withdrawn"], demoted))
-    else:
+    if nn:
+        L.append(("\n" if named else "") + trade_refused_note(nn, demoted, lead))
+    elif rotor and rotor.get("kept"):
+        L.append("\n" + rotor_kept_note(rotor))
+    elif rotor:
+        L.append(("\n" if named else "") + rotor_note(rotor, demoted, lead))
+    if allowed:
+        L.append(("\n" if L else "") + allowance_note(allowed, bool(L)))
+    if not L:
         L.append("**No candidate explains the gap significantly.**")
     if tie:
         L.append("\n" + tie_text(tie))

@@ -315,7 +315,7 @@ def interval_reaches_off(f: Fit, effects: set[str] | None = None) -> list[str]:
     there, which such an interval does not.
     """
     out = []
-    shown = f.physical(allow=False)  # the fit's own interval: the allowance never names
+    shown = f.physical(allow=False)  # the fit's own; the allowance: allowance_reaches_off
     i = 0
     for c in f.candidates:
         n = len(c.labels)
@@ -331,6 +331,18 @@ def interval_reaches_off(f: Fit, effects: set[str] | None = None) -> list[str]:
                 out.append(f"{c.name}.{p.name}")
         i += n
     return out
+
+
+def allowance_reaches_off(f: Fit) -> list[str]:
+    """``effect.parameter`` when ``f`` is one effect with a clean-fit allowance
+    (:attr:`.fit.Fit.allowance`) whose widened 95 % interval for the truth reaches "off":
+    what the model's own form gives on clean drives does not exclude its absence."""
+    if len(f.candidates) != 1 or not any(f.allowance):
+        return []
+    c = f.candidates[0]
+    p = CATALOGUE[c.name].params[0]
+    _, lo, hi = next(iter(f.physical(allow=True)[c.name].values()))
+    return [f"{c.name}.{p.name}"] if lo <= p.off <= hi else []
 
 
 def magnitude(c: Candidate, x: NDArray[np.float64]) -> tuple[str, float]:

@@ -13,7 +13,10 @@ alike; loose soil, a rolling resistance or a load make the driven wheels slip th
 way), it names ``rolling_radius`` with the change that closes the difference and an interval
 from that clean spread. The held-out windows under it are reported, not judged: on another
 implementation's logs the right radius made them worse through its turns, whose scrub is
-each implementation's own (stop 76).
+each implementation's own (stop 76). It is asked also when what the windows named was
+withdrawn (a trade, the rotor test, the clean-fit allowance), against the twins of what
+stays named: the wheels' travel does not depend on the windows' verdict (stop 77; study
+60000's one miss was a radius after a withdrawn torque limit).
 """
 
 from __future__ import annotations
@@ -86,15 +89,15 @@ def name_by_odometry(d: Diagnosis) -> None:
         "named": False,
     }
     d.odometry = rec
-    confident = d.traded is None and d.rotor_withdrawn is None
-    why = refusal(None, band, named, confident)
+    rec["after_withdrawn"] = withdrawn(d)
+    why = refusal(None, band, named)
     if why is not None:  # decided without the twins (a soil model's are slow)
         rec["why_not"] = why
         return
     on_twins = twin_scales(d.ev.config(ref_ext), d.prepared, r_e)
     diff = {k: on_logs[k] - on_twins[k] for k in WHEELS}
     rec.update(model=on_twins, difference=diff)
-    why = refusal(diff, band, named, confident)
+    why = refusal(diff, band, named)
     if why is not None:
         rec["why_not"] = why
         return
@@ -129,20 +132,24 @@ def name_by_odometry(d: Diagnosis) -> None:
     d.say(f"{NAME}: named by {s.test}: {x:+.4f} [{lo:+.4f}, {hi:+.4f}]")
 
 
-def refusal(
-    diff: dict[str, float] | None, band: OdometryBand, named: set[str], confident: bool
-) -> str | None:
-    """Why the statistic does not name a rolling radius, or None. ``confident``: what the
-    windows named stands (no trade, no rotor test withdrew it); ``diff`` None: only what
-    is decided without it."""
+def withdrawn(d: Diagnosis) -> list[str]:
+    """The effects the windows' tests fitted and then withdrew (a trade, the rotor test,
+    the clean-fit allowance): odometry is asked beside what stays named."""
+    out: list[str] = []
+    for w in (d.traded, d.rotor_withdrawn, d.allowance_withdrawn):
+        out += [e for e in (w or {}).get("effects", []) if e not in out]
+    return out
+
+
+def refusal(diff: dict[str, float] | None, band: OdometryBand, named: set[str]) -> str | None:
+    """Why the statistic does not name a rolling radius, or None (``diff`` None: only what
+    is decided without it)."""
     if NAME in named:
         return "named already"
     if "loose_soil" in named:
         # Spent blocks: named loose soil left +2 to +11 % (the logs' soil bulldozes the free
         # wheels more than the model's fitted soil does).
         return "loose soil is named: its free wheels bulldoze"
-    if not confident:
-        return "what was fitted is not named with confidence"
     if diff is None:
         return None
     both, left, right, driven = diff["both"], diff["3L"], diff["3R"], diff["driven"]

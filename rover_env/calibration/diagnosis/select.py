@@ -25,6 +25,7 @@ from rover_env.calibration.candidates import merge, separating_plan
 from rover_env.calibration.diagnosis.fit_stage import bias_correct, polish
 from rover_env.calibration.diagnosis.floor import model_floor
 from rover_env.calibration.diagnosis.judge import (
+    allowance_reaches_off,
     below_detection_limit,
     better_worse,
     fit_budget,
@@ -406,6 +407,7 @@ def finish_intervals(d: Diagnosis) -> None:
         widen_by_groups(s.fit)
     widen_by_sensor_noise(d)
     allow_form(d)
+    withdraw_within_allowance(d)
 
 
 def widen_by_sensor_noise(d: Diagnosis) -> None:
@@ -442,6 +444,34 @@ def allow_form(d: Diagnosis) -> None:
         was = fmt_phys(s.fit)
         s.fit.allowance = pad
         d.say(f"{s.fit.name}: the model's form (clean-fit allowance): {was} -> {fmt_phys(s.fit)}")
+
+
+def withdraw_within_allowance(d: Diagnosis) -> None:
+    """A named effect whose finished interval, the clean-fit allowance in it, reaches "off"
+    is not named (:attr:`.state.Options.name_beyond_allowance`): the model's form alone
+    gives as much on clean drives. What stays named keeps its fit (made beside it); the
+    final floor is then the kept effects' own."""
+    if not d.opts.name_beyond_allowance:
+        return
+    out = [(s, allowance_reaches_off(s.fit)) for s in d.chosen]
+    gone = [s for s, off in out if off]
+    if not gone:
+        return
+    kept = [s for s in d.chosen if s not in gone]
+    d.allowance_withdrawn = {
+        "effects": [s.fit.name for s in gone],
+        "params": {s.fit.name: fmt_phys(s.fit) for s in gone},
+    }
+    for s in gone:
+        s.test = "not named: its interval with the clean-fit allowance reaches off"
+        d.say(f"{s.fit.name} {fmt_phys(s.fit)}: {s.test} (the model's form gives as much)")
+    d.demoted, d.chosen = d.demoted + gone, kept
+    if not kept:
+        d.final_floor = d.noise
+    elif kept == [d.winner]:
+        d.final_floor = d.w_floor
+    else:
+        d.final_floor = model_floor(d, d.ev.config(merge(*(s.fit.ext for s in kept))))
 
 
 def runner_up(winner: Scored, ranked: list[Scored]) -> Scored | None:

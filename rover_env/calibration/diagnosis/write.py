@@ -123,6 +123,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "rotor_alternative": d.rotor,
         "rotor_profile": d.rotor_profile,
         "rotor_withdrawn": d.rotor_withdrawn,
+        "allowance_withdrawn": d.allowance_withdrawn,
         "not_named": d.traded,
         "trade_excused": d.trade_excused,
         "second_dropped": d.dropped,
