@@ -130,3 +130,49 @@ def test_a_partner_named_alone_after_the_limit_s_withdrawal_is_explained() -> No
     assert text.startswith("A torque limit fitted beside loose_soil was not named")
     assert "`motor.armature` 0.1 kg m²" in text and "p 0.57" in text
     assert "loose_soil is named from its own fit" in text
+
+
+def test_the_headline_says_each_withdrawal_beside_what_stays_named() -> None:
+    """Stop 77: a name the clean-fit allowance withdrew is reported with its fit, alone
+    ("Nothing named") or beside a radius odometry named after a withdrawn torque limit,
+    whose rotor note then leads with "Not named with confidence" instead."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from rover_env.calibration.candidates import catalogue
+    from rover_env.calibration.fit import Fit
+    from rover_env.calibration.report import _headline
+
+    (c,) = catalogue(["rolling_radius"])
+    x = np.array([-0.05])
+    radius = SimpleNamespace(
+        fit=Fit([c], x, x - 0.01, x + 0.01, x * 0 + 0.005, 0.0, 0, c.to_ext(x), 0.0, "odometry")
+    )
+    allowed = {"effects": ["command_delay"], "params": {"command_delay": "delay=0.02 [0, 0.025]"}}
+    base = {"unexplained": [], "above_floor": []}
+    alone = "\n".join(
+        _headline({**base, "named": [], "allowance_withdrawn": allowed}, [], [], None)
+    )
+    assert alone.startswith("**Nothing named.** Fitted and significant but not named")
+    assert "command_delay delay=0.02 [0, 0.025]" in alone and 'reaches "off"' in alone
+    assert "No candidate explains" not in alone
+    rotor = {"effects": ["torque_limit"], "p_torque_better": 0.4, "armature": 0.05}
+    both = "\n".join(
+        _headline(
+            {
+                **base,
+                "named": ["rolling_radius"],
+                "rotor_withdrawn": rotor,
+                "allowance_withdrawn": allowed,
+            },
+            [radius],  # type: ignore[list-item]
+            [],
+            None,
+        )
+    )
+    assert both.startswith("**Named:** rolling_radius")
+    assert "**Not named with confidence:** The best fit, torque_limit" in both
+    assert "**Nothing named" not in both and "Fitted and significant but not named" in both
+    none = "\n".join(_headline({**base, "named": []}, [], [], None))
+    assert none.startswith("**No candidate explains the gap significantly.**")
