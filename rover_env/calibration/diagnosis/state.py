@@ -177,7 +177,8 @@ class Options:
     evidence of the effect. Why (stop 77): on the independent generator's spent blocks
     50000-51800 it would have kept 200 of 225 right names and dropped 61 of 86 others,
     10 of 11 on clean drives (in-sample for the clean cases of 50800-51500, whose fits made
-    the table); scored on fresh block 52000 (docs/calibration/block52000/)."""
+    the table); on fresh block 52000 it withdrew 6 names, 4 not the truth
+    (docs/calibration/README.md)."""
     odometry: OdometryBand | None = ODOMETRY_BAND
     """Name a rolling radius from dead reckoning against the pose (:mod:`.odometry`) beyond
     this band of what clean drives leave (None: off). Why (stop 75): the replay windows named
