@@ -233,7 +233,8 @@ def allowance_line(rows: list[dict[str, Any]]) -> str:
         for w in r.get("allowance_withdrawn") or []
         for e in (w or {}).get("effects", [])
     }
-    truth = sum(e in (next(r for r in rows if r["case"] == c).get("truth") or {}) for c, e in got)
+    truths = {r["case"]: r.get("truth") for r in rows}
+    truth = sum(isinstance(truths[c], dict) and e in truths[c] for c, e in got)
     stored = sum("allowance_withdrawn" in r for r in rows)
     return (
         f"- Clean-fit allowance as a naming condition, in {stored} cases that stored it:"

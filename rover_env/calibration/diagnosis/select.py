@@ -327,10 +327,7 @@ def trades(d: Diagnosis, ch: list[Scored]) -> tuple[dict[str, dict[str, float]],
     """The signals ``ch`` trades (:func:`.judge.traded_signals`) and its model's floor."""
     ev = d.ev
     held_c = ev.run(merge(*(s.fit.ext for s in ch)), "held")
-    if ch == [d.winner]:
-        floor = d.w_floor
-    else:
-        floor = model_floor(d, ev.config(merge(*(s.fit.ext for s in ch))))
+    floor = chosen_floor(d, ch)
     left_c = unexplained(rs.table(rs.stack(held_c, d.prepared), floor), floor)
     worse = traded_signals(d.base_held, held_c, left_c, d.opts.alpha, 1.0 + d.opts.min_gain)
     if worse:
@@ -348,6 +345,13 @@ def trades(d: Diagnosis, ch: list[Scored]) -> tuple[dict[str, dict[str, float]],
             return {}, floor
     d.trade_excused = None
     return worse, floor
+
+
+def chosen_floor(d: Diagnosis, ch: list[Scored]) -> dict[str, float]:
+    """The replay floor of the model with ``ch`` named (the winner's alone is known)."""
+    if ch == [d.winner]:
+        return d.w_floor
+    return model_floor(d, d.ev.config(merge(*(s.fit.ext for s in ch))))
 
 
 def settle(d: Diagnosis) -> None:
@@ -466,12 +470,7 @@ def withdraw_within_allowance(d: Diagnosis) -> None:
         s.test = "not named: its interval with the clean-fit allowance reaches off"
         d.say(f"{s.fit.name} {fmt_phys(s.fit)}: {s.test} (the model's form gives as much)")
     d.demoted, d.chosen = d.demoted + gone, kept
-    if not kept:
-        d.final_floor = d.noise
-    elif kept == [d.winner]:
-        d.final_floor = d.w_floor
-    else:
-        d.final_floor = model_floor(d, d.ev.config(merge(*(s.fit.ext for s in kept))))
+    d.final_floor = chosen_floor(d, kept) if kept else d.noise
 
 
 def runner_up(winner: Scored, ranked: list[Scored]) -> Scored | None:
