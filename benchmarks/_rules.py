@@ -233,7 +233,7 @@ def allowance_line(rows: list[dict[str, Any]]) -> str:
         for w in r.get("allowance_withdrawn") or []
         for e in (w or {}).get("effects", [])
     }
-    truths = {r["case"]: r.get("truth") for r in rows}
+    truths = {r["case"]: r.get("truth") for r in rows if r.get("allowance_withdrawn")}
     truth = sum(isinstance(truths[c], dict) and e in truths[c] for c, e in got)
     stored = sum("allowance_withdrawn" in r for r in rows)
     return (

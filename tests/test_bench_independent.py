@@ -456,3 +456,26 @@ def test_a_truth_is_measured_against_the_threshold_on_its_side(b: ModuleType) ->
     f = {"truth": 0.2, "threshold": None, "detectable": 0.1}
     assert b.truth_ratio("friction", f) is None
     assert b.truth_ratio("friction", f, "detectable") == pytest.approx(2.0)
+
+
+def test_the_allowance_line_counts_withdrawn_names_against_the_truth() -> None:
+    """Stop 77: each effect the clean-fit allowance withdrew (first diagnosis or follow-up,
+    once per case) is the case's truth or another effect; a clean case's truth is a word,
+    never a catalogue effect; rows without a withdrawal need nothing else."""
+    r = _load("_rules")
+    rows = [
+        {
+            "case": "a",
+            "truth": {"command_delay": {"delay": 0.02}},
+            "allowance_withdrawn": [
+                {"effects": ["command_delay"]},
+                {"effects": ["command_delay", "slope"]},
+            ],
+        },
+        {"case": "b", "truth": "none", "allowance_withdrawn": [None, {"effects": ["friction"]}]},
+        {"case": "c", "truth": "none", "allowance_withdrawn": [None, None]},
+        {"named": []},  # an older row: neither the case nor the field
+    ]
+    line = r.allowance_line(rows)
+    assert "in 3 cases that stored it: 3 names withdrawn in 2 cases" in line, line
+    assert "the case's truth 1, another effect 2" in line, line
