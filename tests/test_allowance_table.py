@@ -53,20 +53,20 @@ def test_pad_turns_the_spread_into_how_far_the_truth_may_sit() -> None:
 
 def test_physical_interval_carries_the_allowance_within_the_range() -> None:
     f = _fit("command_delay", [0.05], 0.005)
-    f.allowance = (0.027, 0.0)
+    f.allowance = {"command_delay": (0.027, 0.0)}
     (v, lo, hi) = f.physical()["command_delay"]["delay"]
     assert (v, lo, hi) == pytest.approx((0.05, 0.018, 0.055))
     assert f.physical(allow=False)["command_delay"]["delay"] == pytest.approx((0.05, 0.045, 0.055))
-    f.allowance = (0.2, 0.0)
+    f.allowance = {"command_delay": (0.2, 0.0)}
     assert f.physical()["command_delay"]["delay"][1] == 0.0  # not below the range
     # A tilt of 5 degrees: the magnitude's interval, at least level.
     s = _fit("slope", [3.0, 4.0], 0.1)
     base = s.physical()["slope"]["deg"]
-    s.allowance = (2.4, 2.4)
+    s.allowance = {"slope": (2.4, 2.4)}
     v, lo, hi = s.physical()["slope"]["deg"]
     assert v == pytest.approx(5.0)
     assert lo == pytest.approx(base[1] - 2.4) and hi == pytest.approx(base[2] + 2.4)
-    s.allowance = (9.0, 9.0)
+    s.allowance = {"slope": (9.0, 9.0)}
     assert s.physical()["slope"]["deg"][1] == 0.0
     assert math.isnan(s.physical()["slope"]["heading_deg"][1])  # the heading is untouched
 
@@ -78,11 +78,11 @@ def test_allow_form_widens_named_effects_only_and_says_so() -> None:
     table = FormAllowance({"command_delay": Bias(0.0, 0.027, 50)})
     d = SimpleNamespace(chosen=[delay, lag], allowance=table, say=said.append)
     allow_form(d)  # type: ignore[arg-type]
-    assert delay.fit.allowance == (0.027, 0.0) and lag.fit.allowance == (0.0, 0.0)
+    assert delay.fit.allowance == {"command_delay": (0.027, 0.0)} and lag.fit.allowance == {}
     assert len(said) == 1 and "clean-fit allowance" in said[0]
     off = SimpleNamespace(fit=_fit("command_delay", [0.05], 0.005))
     allow_form(SimpleNamespace(chosen=[off], allowance=None, say=said.append))  # type: ignore[arg-type]
-    assert off.fit.allowance == (0.0, 0.0)
+    assert off.fit.allowance == {}
 
 
 def test_a_bad_table_fails_before_any_work_naming_file_and_key(tmp_path: Path) -> None:
@@ -137,7 +137,7 @@ def test_the_allowance_never_decides_whether_an_effect_is_there() -> None:
     from rover_env.calibration.diagnosis.judge import interval_reaches_off
 
     s = _fit("slope", [3.0, 4.0], 0.1)  # 5 degrees, clear of level
-    s.allowance = (9.0, 9.0)  # widened down to level in the report
+    s.allowance = {"slope": (9.0, 9.0)}  # widened down to level in the report
     assert s.physical()["slope"]["deg"][1] == 0.0
     assert interval_reaches_off(s) == []  # judged on the fit's own interval
 
@@ -151,7 +151,7 @@ def test_an_interval_the_allowance_takes_to_off_is_named_no_more() -> None:
 
     def named(name: str, x: list[float], half: float, pad: tuple[float, float]) -> Any:
         s = SimpleNamespace(fit=_fit(name, x, half), test="")
-        s.fit.allowance = pad
+        s.fit.allowance = {name: pad}
         return s
 
     strong = named("command_delay", [0.05], 0.005, (0.027, 0.0))  # [0.018, 0.055]
@@ -192,3 +192,81 @@ def test_an_interval_the_allowance_takes_to_off_is_named_no_more() -> None:
     d = diag([steep, bare])
     withdraw_within_allowance(d)
     assert d.chosen == [steep, bare] and d.final_floor == {"wheel_3L": 3.0}
+
+
+def test_each_effect_of_a_pair_is_judged_by_its_own_allowance(monkeypatch: Any) -> None:
+    """Stop 78: a pair fit's effects each carry their own allowance; a partner within its
+    allowance is withdrawn and the other effect is named only by its own single fit,
+    finished and judged the same way (block 52000: a 0.79 deg slope beside a lag stayed
+    named because only one-effect fits were judged)."""
+    from rover_env.calibration.diagnosis import select as sel
+    from rover_env.calibration.diagnosis.judge import allowance_reaches_off
+    from rover_env.calibration.fit import stack_fits
+
+    table = FormAllowance({"command_lag": Bias(0.0, 0.04, 50), "slope": Bias(0.3, 2.4, 50)})
+
+    def pair(lag: float, tilt: float) -> Any:
+        f = stack_fits(_fit("command_lag", [lag], 0.01), _fit("slope", [tilt, 0.0], 0.1))
+        return SimpleNamespace(fit=f, test="")
+
+    def diag(chosen: list[Any]) -> Any:
+        return SimpleNamespace(
+            opts=SimpleNamespace(name_beyond_allowance=True, noise_draws=0),
+            chosen=list(chosen),
+            demoted=[],
+            allowance=table,
+            allowance_withdrawn=None,
+            noise={"wheel_3L": 1.0},
+            final_floor={"wheel_3L": 3.0},
+            say=lambda m: None,
+        )
+
+    p = pair(0.30, 0.8)  # a strong lag beside a 0.8 deg tilt
+    d = diag([p])
+    sel.allow_form(d)
+    assert p.fit.allowance == {"command_lag": (0.04, 0.0), "slope": (2.4, 2.4)}
+    phys = p.fit.physical()
+    assert phys["command_lag"]["tau"][1] == pytest.approx(0.30 - 0.01 - 0.04)
+    assert phys["slope"]["deg"][1] == 0.0  # 0.8 - 0.1 - 2.4, at least level
+    assert allowance_reaches_off(p.fit) == ["slope.deg"]
+    strong = pair(0.30, 5.0)
+    sel.allow_form(diag([strong]))
+    assert allowance_reaches_off(strong.fit) == []
+
+    lag_alone = SimpleNamespace(fit=_fit("command_lag", [0.29], 0.01), test="")
+    calls: list[list[str]] = []
+
+    def alone(d: Any, partners: list[str]) -> Any:
+        calls.append(partners)
+        return (lag_alone, {"wheel_3L": 2.0}) if lag_alone is not None else None
+
+    monkeypatch.setattr(sel, "partner_alone", alone)
+    sel.withdraw_within_allowance(d)
+    assert calls == [["command_lag"]]
+    assert d.chosen == [lag_alone] and d.demoted == [p]
+    assert d.allowance_withdrawn["effects"] == ["slope"]
+    assert d.allowance_withdrawn["kept"] == "command_lag" and "beside" not in d.allowance_withdrawn
+    assert set(d.allowance_withdrawn["params"]) == {"slope"}
+    assert lag_alone.fit.allowance == {"command_lag": (0.04, 0.0)}  # finished as the pair was
+    assert d.final_floor == {"wheel_3L": 2.0}
+
+    # The partner alone fails its own naming: nothing is named, the partner is "beside".
+    lag_alone = None  # type: ignore[assignment]
+    d = diag([pair(0.30, 0.8)])
+    sel.allow_form(d)
+    sel.withdraw_within_allowance(d)
+    assert d.chosen == [] and d.allowance_withdrawn["beside"] == ["command_lag"]
+    assert d.final_floor == d.noise
+    # The partner alone lies within its own allowance: withdrawn too.
+    lag_alone = SimpleNamespace(fit=_fit("command_lag", [0.02], 0.01), test="")
+    d = diag([pair(0.30, 0.8)])
+    sel.allow_form(d)
+    sel.withdraw_within_allowance(d)
+    assert d.chosen == [] and d.allowance_withdrawn["beside"] == ["command_lag"]
+    # Both effects of the pair within their allowance: both withdrawn, nobody asked alone.
+    calls.clear()
+    d = diag([pair(0.02, 0.8)])
+    sel.allow_form(d)
+    sel.withdraw_within_allowance(d)
+    assert d.chosen == [] and sorted(d.allowance_withdrawn["effects"]) == ["command_lag", "slope"]
+    assert calls == [] and "beside" not in d.allowance_withdrawn

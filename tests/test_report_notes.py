@@ -176,3 +176,19 @@ def test_the_headline_says_each_withdrawal_beside_what_stays_named() -> None:
     assert "**Nothing named" not in both and "Fitted and significant but not named" in both
     none = "\n".join(_headline({**base, "named": []}, [], [], None))
     assert none.startswith("**No candidate explains the gap significantly.**")
+
+
+def test_the_allowance_note_says_what_became_of_the_pairs_other_effect() -> None:
+    """Stop 78: a pair's effect withdrawn by its allowance leaves the other named by its own
+    fit ("kept") or not named ("beside"); the note says which."""
+    from rover_env.calibration.report import allowance_note
+
+    w = {"effects": ["slope"], "params": {"slope": "deg=0.79 [0, 3.3]"}}
+    plain = allowance_note(w, beside=False)
+    assert "kept" not in plain and "fitted beside it" not in plain
+    kept = allowance_note({**w, "kept": "command_lag"}, beside=True)
+    assert "command_lag, fitted beside it, is named by its own fit." in kept
+    assert not kept.startswith("**Nothing named.**")
+    gone = allowance_note({**w, "beside": ["command_lag"]}, beside=False)
+    assert "Not named either: command_lag, fitted beside it." in gone
+    assert gone.startswith("**Nothing named.**")

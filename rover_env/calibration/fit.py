@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -97,9 +97,10 @@ class Fit:
     """Per free variable: the uncertainty the sensor noise alone puts on it, scatter and
     bias in quadrature, from simulated noise draws
     (:mod:`rover_env.calibration.noise_interval`; named effects only)."""
-    allowance: tuple[float, float] = (0.0, 0.0)
-    """One effect: how far below and above its reported interval the truth may sit for the
-    model's form (:mod:`rover_env.calibration.form_allowance`; named effects only)."""
+    allowance: dict[str, tuple[float, float]] = field(default_factory=dict)
+    """Effect -> how far below and above its reported interval (its first parameter) the
+    truth may sit for the model's form, each effect of a pair by its own
+    (:mod:`rover_env.calibration.form_allowance`; named effects only)."""
 
     @property
     def name(self) -> str:
@@ -137,10 +138,11 @@ class Fit:
             else:
                 out[c.name] = {c.labels[0]: (float(x[0]), float(lo[0]), float(hi[0]))}
             i += n
-        if allow and any(self.allowance) and len(self.candidates) == 1:
-            c = self.candidates[0]
-            k, (v, a, b) = next(iter(out[c.name].items()))
-            out[c.name][k] = (v, *widen(c.name, a, b, self.allowance, (c.lo[0], c.hi[0])))
+        for c in self.candidates if allow else []:
+            pad = self.allowance.get(c.name, (0.0, 0.0))
+            if any(pad) and not c.discrete:
+                k, (v, a, b) = next(iter(out[c.name].items()))
+                out[c.name][k] = (v, *widen(c.name, a, b, pad, (c.lo[0], c.hi[0])))
         return out
 
     def sides(self) -> dict[str, dict[str, str]]:

@@ -223,7 +223,8 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
         " in for something outside the catalogue."
         + (
             " Last, a named effect whose interval for the truth, the clean-fit allowance in"
-            ' it, reaches "off" is not named (the model\'s form alone gives as much).'
+            ' it, reaches "off" is not named (the model\'s form alone gives as much); each'
+            " effect of a pair by its own, the other then named only by its own fit."
             if opts.name_beyond_allowance and opts.form_allowance
             else ""
         ),
@@ -288,6 +289,7 @@ def allowance_note(withdrawn: dict[str, Any], beside: bool) -> str:
     """Why a fit the windows' tests passed is not named: its interval with the clean-fit
     allowance reaches "off" (:func:`.diagnosis.select.withdraw_within_allowance`)."""
     fits = "; ".join(f"{k} {v}" for k, v in withdrawn["params"].items())
+    kept, also = withdrawn.get("kept"), ", ".join(withdrawn.get("beside") or [])
     return (
         ("" if beside else "**Nothing named.** ")
         + f"Fitted and significant but not named: {fits}. Its interval for the truth, widened"
@@ -295,6 +297,8 @@ def allowance_note(withdrawn: dict[str, Any], beside: bool) -> str:
         ' another implementation), reaches "off": the logs do not tell the effect from the'
         " model's form. The configuration keeps it off; a longer drive, or one that excites"
         " it more, narrows the interval."
+        + (f" {kept}, fitted beside it, is named by its own fit." if kept else "")
+        + (f" Not named either: {also}, fitted beside it." if also else "")
     )
 
 

@@ -334,15 +334,20 @@ def interval_reaches_off(f: Fit, effects: set[str] | None = None) -> list[str]:
 
 
 def allowance_reaches_off(f: Fit) -> list[str]:
-    """``effect.parameter`` when ``f`` is one effect with a clean-fit allowance
-    (:attr:`.fit.Fit.allowance`) whose widened 95 % interval for the truth reaches "off":
-    what the model's own form gives on clean drives does not exclude its absence."""
-    if len(f.candidates) != 1 or not any(f.allowance):
-        return []
-    c = f.candidates[0]
-    p = CATALOGUE[c.name].params[0]
-    _, lo, hi = next(iter(f.physical(allow=True)[c.name].values()))
-    return [f"{c.name}.{p.name}"] if lo <= p.off <= hi else []
+    """``effect.parameter`` for each effect of ``f`` with a clean-fit allowance
+    (:attr:`.fit.Fit.allowance`, each effect of a pair by its own) whose widened 95 %
+    interval for the truth reaches "off": what the model's own form gives on clean drives
+    does not exclude its absence."""
+    shown = f.physical(allow=True)
+    out = []
+    for c in f.candidates:
+        if c.discrete or not any(f.allowance.get(c.name, (0.0, 0.0))):
+            continue
+        p = CATALOGUE[c.name].params[0]
+        _, lo, hi = next(iter(shown[c.name].values()))
+        if lo <= p.off <= hi:
+            out.append(f"{c.name}.{p.name}")
+    return out
 
 
 def magnitude(c: Candidate, x: NDArray[np.float64]) -> tuple[str, float]:
@@ -429,16 +434,22 @@ def interval_text(k: str, v: float, lo: float, hi: float, side: str) -> str:
     return f"{k}={v:.4g}"  # a switch (combined slip): tried on, no interval
 
 
-def fmt_phys(f: Fit) -> str:
+def fmt_phys(f: Fit, only: set[str] | None = None) -> str:
+    """``f``'s parameters in the effects' own terms with their intervals (of the effects
+    ``only``, if given)."""
     parts = []
     sides = f.sides()
     for eff, params in f.physical().items():
+        if only is not None and eff not in only:
+            continue
         for k, (v, lo, hi) in params.items():
             if k == "heading_deg":
                 parts.append(f"{k}={v:.0f}")
             else:
                 parts.append(interval_text(k, v, lo, hi, sides.get(eff, {}).get(k, "")))
-    parts += [f"form {c.form!r}" for c in f.candidates if c.form]
+    parts += [
+        f"form {c.form!r}" for c in f.candidates if c.form and (only is None or c.name in only)
+    ]
     return ", ".join(parts)
 
 
@@ -467,7 +478,7 @@ def fit_dict(s: Scored) -> dict[str, Any]:
         "form_mismatch": form_mismatch(s.fit),
         "replay_bias": None if s.fit.bias is None else [float(b) for b in s.fit.bias],
         "noise_se": None if s.fit.noise_se is None else [float(v) for v in s.fit.noise_se],
-        "form_allowance": list(s.fit.allowance),
+        "form_allowance": {e: list(v) for e, v in s.fit.allowance.items()},
         "params_without_allowance": {
             e: {k: list(v) for k, v in p.items()} for e, p in s.fit.physical(allow=False).items()
         },

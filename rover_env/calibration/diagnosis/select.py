@@ -438,39 +438,61 @@ def widen_by_sensor_noise(d: Diagnosis) -> None:
 def allow_form(d: Diagnosis) -> None:
     """Each named effect's interval for the truth, widened by the clean-fit allowance
     (:attr:`.state.Options.form_allowance`): the spread of what its fit finds on clean
-    drives of another implementation, the model's form seen through it."""
-    for s in d.chosen:
-        pad = None
-        if d.allowance is not None and len(s.fit.candidates) == 1:
-            pad = d.allowance.pad(s.fit.name)
-        if pad is None or not any(pad):
+    drives of another implementation, the model's form seen through it (each effect of a
+    pair by its own)."""
+    for s in d.chosen if d.allowance is not None else []:
+        assert d.allowance is not None
+        pads = {c.name: d.allowance.pad(c.name) for c in s.fit.candidates if not c.discrete}
+        mine = {k: v for k, v in pads.items() if v is not None and any(v)}
+        if not mine:
             continue
         was = fmt_phys(s.fit)
-        s.fit.allowance = pad
+        s.fit.allowance = mine
         d.say(f"{s.fit.name}: the model's form (clean-fit allowance): {was} -> {fmt_phys(s.fit)}")
 
 
 def withdraw_within_allowance(d: Diagnosis) -> None:
     """A named effect whose finished interval, the clean-fit allowance in it, reaches "off"
     is not named (:attr:`.state.Options.name_beyond_allowance`): the model's form alone
-    gives as much on clean drives. What stays named keeps its fit (made beside it); the
-    final floor is then the kept effects' own."""
+    gives as much on clean drives. Each effect of a pair is judged by its own allowance;
+    the other effect of a pair that loses one was fitted beside it, so it is named only by
+    itself, as the rotor test does (:func:`partner_alone`, then finished and judged the
+    same way). Other named fits stay as they are; the final floor is the kept effects'."""
     if not d.opts.name_beyond_allowance:
         return
-    out = [(s, allowance_reaches_off(s.fit)) for s in d.chosen]
-    gone = [s for s, off in out if off]
+    out = [(s, {n.split(".")[0] for n in allowance_reaches_off(s.fit)}) for s in d.chosen]
+    gone = [(s, off) for s, off in out if off]
     if not gone:
         return
-    kept = [s for s in d.chosen if s not in gone]
-    d.allowance_withdrawn = {
-        "effects": [s.fit.name for s in gone],
-        "params": {s.fit.name: fmt_phys(s.fit) for s in gone},
+    kept = [s for s, off in out if not off]
+    names = [c.name for s, off in gone for c in s.fit.candidates if c.name in off]
+    beside = [c.name for s, off in gone for c in s.fit.candidates if c.name not in off]
+    w: dict[str, Any] = {
+        "effects": names,
+        "params": {n: fmt_phys(s.fit, {n}) for s, off in gone for n in sorted(off)},
     }
-    for s in gone:
-        s.test = "not named: its interval with the clean-fit allowance reaches off"
+    d.allowance_withdrawn = w
+    for s, off in gone:
+        s.test = f"not named: the interval of {', '.join(sorted(off))} with the clean-fit"
+        s.test += " allowance reaches off"
         d.say(f"{s.fit.name} {fmt_phys(s.fit)}: {s.test} (the model's form gives as much)")
-    d.demoted, d.chosen = d.demoted + gone, kept
+    d.demoted, d.chosen = d.demoted + [s for s, _ in gone], kept
     d.final_floor = chosen_floor(d, kept) if kept else d.noise
+    alone = partner_alone(d, beside) if beside and not kept else None
+    if alone is not None:
+        partner, floor = alone
+        d.chosen = [partner]  # finished as the pair was, then judged by its own allowance
+        widen_by_groups(partner.fit)
+        widen_by_sensor_noise(d)
+        allow_form(d)
+        if allowance_reaches_off(partner.fit):
+            d.say(f"{partner.fit.name} alone {fmt_phys(partner.fit)}: within its allowance too")
+            d.chosen, alone = [], None
+        else:
+            w["kept"], d.final_floor = partner.fit.name, floor
+            d.say(f"{partner.fit.name} stands alone (its own fit): named {fmt_phys(partner.fit)}")
+    if beside and alone is None:
+        w["beside"] = beside  # not named: fitted beside what was withdrawn
 
 
 def runner_up(winner: Scored, ranked: list[Scored]) -> Scored | None:
