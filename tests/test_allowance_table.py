@@ -211,7 +211,8 @@ def test_each_effect_of_a_pair_is_judged_by_its_own_allowance(monkeypatch: Any) 
 
     def diag(chosen: list[Any]) -> Any:
         return SimpleNamespace(
-            opts=SimpleNamespace(name_beyond_allowance=True, noise_draws=0),
+            opts=SimpleNamespace(name_beyond_allowance=True, noise_draws=0, polish=0),
+            ev=None,
             chosen=list(chosen),
             demoted=[],
             allowance=table,
@@ -233,7 +234,7 @@ def test_each_effect_of_a_pair_is_judged_by_its_own_allowance(monkeypatch: Any) 
     sel.allow_form(diag([strong]))
     assert allowance_reaches_off(strong.fit) == []
 
-    lag_alone = SimpleNamespace(fit=_fit("command_lag", [0.29], 0.01), test="")
+    lag_alone = SimpleNamespace(fit=_fit("command_lag", [0.29], 0.01), test="", fit_scale=None)
     calls: list[list[str]] = []
 
     def alone(d: Any, partners: list[str]) -> Any:
@@ -258,7 +259,7 @@ def test_each_effect_of_a_pair_is_judged_by_its_own_allowance(monkeypatch: Any) 
     assert d.chosen == [] and d.allowance_withdrawn["beside"] == ["command_lag"]
     assert d.final_floor == d.noise
     # The partner alone lies within its own allowance: withdrawn too.
-    lag_alone = SimpleNamespace(fit=_fit("command_lag", [0.02], 0.01), test="")
+    lag_alone = SimpleNamespace(fit=_fit("command_lag", [0.02], 0.01), test="", fit_scale=None)
     d = diag([pair(0.30, 0.8)])
     sel.allow_form(d)
     sel.withdraw_within_allowance(d)

@@ -401,6 +401,13 @@ def finish_intervals(d: Diagnosis) -> None:
     fit's), then widened by the signal groups' disagreement (model form) and to at least
     what the sensors' own noise puts on them (:attr:`Options.noise_draws`), last by the
     clean-fit allowance (:func:`allow_form`)."""
+    finish_chosen(d)
+    withdraw_within_allowance(d)
+
+
+def finish_chosen(d: Diagnosis) -> None:
+    """:func:`finish_intervals` but the withdrawal: polish, signal groups, sensor noise and
+    the clean-fit allowance, on the chosen effects."""
     ev, opts = d.ev, d.opts
     for s in d.chosen:
         ev_s = ev if s.fit_scale is None else replace(ev, scale=s.fit_scale)
@@ -411,7 +418,6 @@ def finish_intervals(d: Diagnosis) -> None:
         widen_by_groups(s.fit)
     widen_by_sensor_noise(d)
     allow_form(d)
-    withdraw_within_allowance(d)
 
 
 def widen_by_sensor_noise(d: Diagnosis) -> None:
@@ -482,9 +488,7 @@ def withdraw_within_allowance(d: Diagnosis) -> None:
     if alone is not None:
         partner, floor = alone
         d.chosen = [partner]  # finished as the pair was, then judged by its own allowance
-        widen_by_groups(partner.fit)
-        widen_by_sensor_noise(d)
-        allow_form(d)
+        finish_chosen(d)
         if allowance_reaches_off(partner.fit):
             d.say(f"{partner.fit.name} alone {fmt_phys(partner.fit)}: within its allowance too")
             d.chosen, alone = [], None
