@@ -446,9 +446,11 @@ def allow_form(d: Diagnosis) -> None:
     (:attr:`.state.Options.form_allowance`): the spread of what its fit finds on clean
     drives of another implementation, the model's form seen through it (each effect of a
     pair by its own)."""
-    for s in d.chosen if d.allowance is not None else []:
-        assert d.allowance is not None
-        pads = {c.name: d.allowance.pad(c.name) for c in s.fit.candidates if not c.discrete}
+    table = d.allowance
+    if table is None:
+        return
+    for s in d.chosen:
+        pads = {c.name: table.pad(c.name) for c in s.fit.candidates if not c.discrete}
         mine = {k: v for k, v in pads.items() if v is not None and any(v)}
         if not mine:
             continue
