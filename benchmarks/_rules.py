@@ -236,10 +236,29 @@ def allowance_line(rows: list[dict[str, Any]]) -> str:
     truths = {r["case"]: r.get("truth") for r in rows if r.get("allowance_withdrawn")}
     truth = sum(isinstance(truths[c], dict) and e in truths[c] for c, e in got)
     stored = sum("allowance_withdrawn" in r for r in rows)
-    return (
+    line = (
         f"- Clean-fit allowance as a naming condition, in {stored} cases that stored it:"
         f" {len(got)} names withdrawn in {len({c for c, _ in got})} cases; the case's truth"
         f" {truth}, another effect {len(got) - truth}"
+    )
+    return line + _partner_clause(rows)
+
+
+def _partner_clause(rows: list[dict[str, Any]]) -> str:
+    """A pair that lost one effect to the allowance (stop 78): its other effect named by its
+    own fit (``kept``) or not named (``beside``), each against the case's truth; final
+    diagnosis only, where the names are."""
+    out: dict[str, list[bool]] = {"kept": [], "beside": []}
+    for r in rows:
+        w = (r.get("allowance_withdrawn") or [None])[-1] or {}
+        truth = r.get("truth")
+        kept = [w["kept"]] if w.get("kept") else []
+        for key, names in (("kept", kept), ("beside", w.get("beside") or [])):
+            out[key] += [isinstance(truth, dict) and e in truth for e in names]
+    if not (out["kept"] or out["beside"]):
+        return ""
+    return "; a pair's other effect " + ", ".join(
+        f"{key} {len(v)} (the truth {sum(v)})" for key, v in out.items()
     )
 
 

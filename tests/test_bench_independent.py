@@ -479,3 +479,31 @@ def test_the_allowance_line_counts_withdrawn_names_against_the_truth() -> None:
     line = r.allowance_line(rows)
     assert "in 3 cases that stored it: 3 names withdrawn in 2 cases" in line, line
     assert "the case's truth 1, another effect 2" in line, line
+    assert "pair" not in line, line  # no pair lost one effect here
+
+
+def test_the_allowance_line_counts_a_pairs_other_effect_kept_or_beside() -> None:
+    """Stop 78: when a pair loses one effect, the other is named by its own fit (kept) or
+    not named (beside); the line counts each against the truth, final diagnosis only."""
+    r = _load("_rules")
+    lag = {"command_lag": {"tau": 0.08}}
+    rows = [
+        {
+            "case": "a",
+            "truth": lag,
+            "allowance_withdrawn": [None, {"effects": ["friction"], "kept": "command_lag"}],
+        },
+        {
+            "case": "b",
+            "truth": lag,
+            "allowance_withdrawn": [None, {"effects": ["command_lag"], "beside": ["slope"]}],
+        },
+        {
+            "case": "c",
+            "truth": "none",
+            "allowance_withdrawn": [{"effects": ["slope"], "kept": "friction"}, None],
+        },
+    ]
+    line = r.allowance_line(rows)
+    assert "3 names withdrawn in 3 cases" in line, line  # c: its first diagnosis
+    assert "a pair's other effect kept 1 (the truth 1), beside 1 (the truth 0)" in line, line
