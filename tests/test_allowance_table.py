@@ -32,8 +32,10 @@ def test_the_shipped_table_loads_and_every_bias_is_ordered() -> None:
     assert {"command_delay", "slope", "torque_limit"} <= set(a.effects)
     for name, b in a.effects.items():
         assert b.low <= b.high and b.cases >= 10, name
-    # The delay bias measured on clean logs is one-sided (a delay is never negative).
-    assert a.effects["command_delay"].low == 0.0 < a.effects["command_delay"].high
+    # The delay bias measured on clean logs is one-sided (a delay is never negative), so it
+    # pads an interval from below only.
+    delay = a.effects["command_delay"]
+    assert 0.0 <= delay.low < delay.high and a.pad("command_delay") == (delay.high, 0.0)
 
 
 def test_pad_turns_the_spread_into_how_far_the_truth_may_sit() -> None:
