@@ -8,8 +8,12 @@ drives (``Options.evidence``) left without one."""
 from __future__ import annotations
 
 import json
+from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+from rover_env.calibration.diagnosis.state import Options
 
 STRONG_BIC = -6.0
 """Training ΔBIC at or below which the evidence is "strong" (Kass & Raftery's scale)."""
@@ -298,6 +302,8 @@ def backfill(rows: list[dict[str, Any]], work: Path) -> None:
                 raw = raw_interval(last, name)
                 if "lo_raw" not in f and raw is not None:
                     f["lo_raw"], f["hi_raw"] = raw
+                if "test" not in f and name in last.get("fits", {}):
+                    f["test"] = window_test(last["fits"][name])
 
 
 def raw_interval(result: dict[str, Any], name: str) -> tuple[float, float] | None:
@@ -314,3 +320,54 @@ def without_allowance(f: dict[str, Any]) -> dict[str, Any]:
     """A truth fit row (``bench_independent.fits``) with the interval diagnose gave before
     the clean-fit allowance widened it (rows before stop 74: the interval as it is)."""
     return {**f, "lo": f.get("lo_raw", f["lo"]), "hi": f.get("hi_raw", f["hi"])}
+
+
+def window_test(f: dict[str, Any]) -> dict[str, Any]:
+    """What the window test saw of one candidate's single fit (result.json's ``fits``)."""
+    return {k: f.get(k) for k in ("significant", "held_gain", "p", "d_bic")}
+
+
+def why_missed(row: dict[str, Any], name: str) -> str:
+    """Why a single's true effect is not among its final names: the first reason that holds,
+    in the order diagnose applies them (the window test, a tie, another effect named, the
+    clean-fit allowance); what is left is a later rule (trade, rotor test, detection limit)
+    or another effect that won the window test and was then withdrawn (a torque limit the
+    rotor test took back, spent case 52106)."""
+    opts, test = Options(), (row["fits"].get(name) or {}).get("test") or {}
+    last = (row.get("allowance_withdrawn") or [None])[-1] or {}
+    if name in last.get("effects", []):
+        return "the allowance"
+    if not test:
+        return "not stored"
+    if not test["significant"]:
+        if (test["held_gain"] or 0.0) < opts.min_gain:
+            return f"held-out gain under {opts.min_gain:.0%}"
+        return (
+            f"held-out p ≥ {opts.alpha:g}" if (test["p"] or 1.0) >= opts.alpha else "training BIC"
+        )
+    if name in (row.get("tie") or []):
+        return "a tie"
+    return "another effect named" if row["named"] else "a later rule or a withdrawn winner"
+
+
+def missed_line(singles: list[dict[str, Any]], ratio: Callable[..., float | None]) -> str:
+    """Why singles whose truth is at least 2 x its threshold (``ratio(name, fit)``, the
+    bench's truth over threshold) were not named."""
+    strong = [(r, e) for r in singles for e in r["truth"] if (ratio(e, r["fits"].get(e)) or 0) >= 2]
+    why = Counter(why_missed(r, e) for r, e in strong if e not in r["named"])
+    parts = ", ".join(f"{k} {n}" for k, n in why.most_common()) or "none missed"
+    return f"- Singles ≥ 2 × threshold not named, first reason (final diagnosis): {parts}"
+
+
+def rule_lines(rows: list[dict[str, Any]]) -> list[str]:
+    """The registered rules' lines of a block's acceptance figures, in the order they were
+    registered."""
+    return [
+        rotor_line(rows),
+        rotor_test_line(rows),
+        evidence_line(rows),
+        trade_line(rows),
+        limit_line(rows),
+        odometry_line(rows),
+        allowance_line(rows),
+    ]

@@ -74,19 +74,15 @@ import numpy as np
 from _cells import fitted_cell, named_cell, params_cell
 from _report import write_report
 from _rules import (
-    allowance_line,
     backfill,
     below_limit,
-    evidence_line,
-    limit_line,
+    missed_line,
     named_fits,
     odometry,
-    odometry_line,
-    rotor_line,
-    rotor_test_line,
+    rule_lines,
     strong_unconfirmed,
-    trade_line,
     trades,
+    window_test,
     without_allowance,
 )
 from bench_diagnose import INERT_ON_SOIL, RANGES, covers, draw, finite, magnitude
@@ -336,7 +332,9 @@ def fits(final: dict[str, Any], truth: Any) -> dict[str, dict[str, Any]]:
         thr = (final["fits"].get(name, {}).get("threshold") or {}).get(side)
         det = (final["fits"].get(name, {}).get("detectable") or {}).get(side)
         row: dict[str, Any] = {"truth": v, "value": None, "lo": None, "hi": None}
-        row.update(side="", threshold=thr, detectable=det)
+        row.update(
+            side="", threshold=thr, detectable=det, test=window_test(final["fits"].get(name, {}))
+        )
         for src in (final["final"], final["fits"]):
             for key, f in src.items():
                 if name in key.split(" + ") and name in f["params"] and row["value"] is None:
@@ -568,13 +566,8 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
         f" logs {med('make_logs_s'):.0f} s, diagnose {med('diagnose_s'):.0f} s, follow-up"
         f" drives and diagnosis {med('followup_s'):.0f} s; a follow-up driven in"
         f" {sum(bool(r['followup']) for r in ok)} of {len(ok)} cases",
-        rotor_line(ok),
-        rotor_test_line(ok),
-        evidence_line(ok),
-        trade_line(ok),
-        limit_line(ok),
-        odometry_line(ok),
-        allowance_line(ok),
+        missed_line(single, truth_ratio),
+        *rule_lines(ok),
         f"- Cases that failed to run: {len(rows) - len(ok)}",
     ]
 

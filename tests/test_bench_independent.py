@@ -507,3 +507,46 @@ def test_the_allowance_line_counts_a_pairs_other_effect_kept_or_beside() -> None
     line = r.allowance_line(rows)
     assert "3 names withdrawn in 3 cases" in line, line  # c: its first diagnosis
     assert "a pair's other effect kept 1 (the truth 1), beside 1 (the truth 0)" in line, line
+
+
+def test_a_missed_strong_single_is_given_its_first_reason() -> None:
+    """Stop 79: each single at >= 2 x threshold not named gets the first reason that holds,
+    in diagnose's order: the window test (gain, p, BIC), a tie, another effect, the clean-fit
+    allowance; weaker singles and named ones are not counted."""
+    r = _load("_rules")
+
+    def row(name: str, x: float, test: dict | None, **kw: object) -> dict:
+        fit = {"truth": x, "threshold": 1.0, **({"test": test} if test else {})}
+        return {"truth": {name: {}}, "fits": {name: fit}, "named": [], **kw}
+
+    def test(sig: bool, gain: float = 0.3, p: float = 0.001, d_bic: float = -5.0) -> dict:
+        return {"significant": sig, "held_gain": gain, "p": p, "d_bic": d_bic}
+
+    rows = [
+        row("slope", 3.0, test(False, gain=0.05)),
+        row("slope", 3.0, test(False, p=0.2)),
+        row("slope", 3.0, test(False, d_bic=1.8)),
+        row("command_delay", 5.0, test(True), tie=["command_delay", "command_lag"]),
+        row("command_delay", 5.0, test(True), named=["command_lag"]),
+        row(
+            "command_lag", 5.0, test(True), allowance_withdrawn=[None, {"effects": ["command_lag"]}]
+        ),
+        row("friction", 2.5, test(True)),
+        row("friction", 2.5, None),
+        row("friction", 1.5, test(False, gain=0.0)),  # under 2 x threshold: not counted
+        row("friction", 4.0, test(True), named=["friction"]),  # named: not counted
+    ]
+    ratio = lambda name, f: f["truth"] / f["threshold"]  # noqa: E731
+    line = r.missed_line(rows, ratio)
+    for part in (
+        "held-out gain under 10% 1",
+        "held-out p ≥ 0.01 1",
+        "training BIC 1",
+        "a tie 1",
+        "another effect named 1",
+        "the allowance 1",
+        "a later rule or a withdrawn winner 1",
+        "not stored 1",
+    ):
+        assert part in line, (part, line)
+    assert "none missed" in r.missed_line(rows[-1:], ratio)
