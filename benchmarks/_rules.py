@@ -328,11 +328,12 @@ def window_test(f: dict[str, Any]) -> dict[str, Any]:
 
 
 def why_missed(row: dict[str, Any], name: str) -> str:
-    """Why a single's true effect is not among its final names: the first reason that holds,
-    in the order diagnose applies them (the window test, a tie, another effect named, the
-    clean-fit allowance); what is left is a later rule (trade, rotor test, detection limit)
-    or another effect that won the window test and was then withdrawn (a torque limit the
-    rotor test took back, spent case 52106)."""
+    """Why a single's true effect is not among its final names: the clean-fit allowance (it
+    withdraws what passed every other rule), else the first reason that holds in the order
+    diagnose applies them: the window test (final diagnosis), a tie (the first diagnosis's,
+    which proposes the follow-up drive), another effect named; what is left is a later rule
+    (trade, rotor test, detection limit) or another effect that won the window test and was
+    then withdrawn (a torque limit the rotor test took back, spent case 52106)."""
     opts, test = Options(), (row["fits"].get(name) or {}).get("test") or {}
     last = (row.get("allowance_withdrawn") or [None])[-1] or {}
     if name in last.get("effects", []):
