@@ -7,7 +7,8 @@ tolerances (:mod:`rover_env.independent`), seeds from ``--seed0``: clean and one
 
     python benchmarks/diagnose_speed.py --against 512b331 --cases 4 --workers 2
 
-Prints each case's seconds and what each tree named, then the median ratio previous/current.
+Prints each case's seconds, what each tree named and whether the two ``result.json`` agree
+to the bit (timings aside), then the median ratio previous/current.
 """
 
 from __future__ import annotations
@@ -60,6 +61,24 @@ def diagnose_seconds(
     return dt, named
 
 
+TIMING = frozenset({"seconds", "replay_seconds"})
+"""``result.json`` keys that hold a run's own timing, not what it found."""
+
+
+def findings(out: Path) -> Any:
+    """``out/result.json`` without its timings, its own folder's name written ``OUT``: what two
+    runs on the same logs must agree on to the bit (a speed change must not change them)."""
+
+    def strip(x: Any) -> Any:
+        if isinstance(x, dict):
+            return {k: strip(v) for k, v in x.items() if k not in TIMING}
+        if isinstance(x, list):
+            return [strip(v) for v in x]
+        return x.replace(str(out), "OUT") if isinstance(x, str) else x
+
+    return strip(json.loads((out / "result.json").read_text()))
+
+
 def summarise(against: str, workers: int, rows: list[dict[str, Any]]) -> dict[str, Any]:
     """The medians over ``rows`` (cases run so far) and the rows themselves."""
     ratios = [r["previous_s"] / r["current_s"] for r in rows]
@@ -72,6 +91,7 @@ def summarise(against: str, workers: int, rows: list[dict[str, Any]]) -> dict[st
         "median_current_s": statistics.median(r["current_s"] for r in rows),
         "median_ratio": statistics.median(ratios),
         "same_named": sum(set(r["previous_named"]) == set(r["current_named"]) for r in rows),
+        "same_result": sum(r["same_result"] for r in rows),
         "rows": rows,
     }
 
@@ -99,11 +119,13 @@ def run(
                 "current_s": cur,
                 "previous_named": prev_named,
                 "current_named": cur_named,
+                "same_result": findings(d / "prev") == findings(d / "cur"),
             }
         )
         print(
             f"case {seed0 + i} {'+'.join(eff) or 'clean'}: previous {prev:.0f} s"
-            f" {prev_named}, current {cur:.0f} s {cur_named}, ratio {prev / cur:.2f}",
+            f" {prev_named}, current {cur:.0f} s {cur_named}, ratio {prev / cur:.2f},"
+            f" result.json {'the same' if rows[-1]['same_result'] else 'DIFFERS'}",
             flush=True,
         )
         summary = summarise(against, workers, rows)
@@ -112,7 +134,8 @@ def run(
     print(
         f"median seconds per case: previous {summary['median_previous_s']:.0f},"
         f" current {summary['median_current_s']:.0f}; median ratio {summary['median_ratio']:.2f};"
-        f" the same named in {summary['same_named']} of {len(rows)}"
+        f" the same named in {summary['same_named']} of {len(rows)}, the same result.json"
+        f" (timings aside) in {summary['same_result']}"
     )
     return summary
 

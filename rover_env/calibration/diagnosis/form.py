@@ -89,6 +89,7 @@ from rover_env.calibration.diagnosis.form_ladder import (
     baseline,
     fit_ladder,
     judged,
+    replay,
     reprepare,
     reprepared,
 )
@@ -102,7 +103,7 @@ from rover_env.calibration.diagnosis.form_loop import (
 from rover_env.calibration.diagnosis.judge import better_worse
 from rover_env.calibration.diagnosis.rotor import with_armature
 from rover_env.calibration.diagnosis.state import Diagnosis, FormFit, Options
-from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window
+from rover_env.calibration.replay import PreparedLog, ReplaySettings, Window
 from rover_env.config import (
     ANTI_WINDUP_FORMS,
     FITTED_ANTI_WINDUP_FORMS,
@@ -265,7 +266,7 @@ def fit_joint_zeros(
     the windows closer to the truth."""
     del sensor_noise  # each zero is judged on its own signal's mean square
     nominal = np.array([cfg.joints[j].zero for j in JOINTS])
-    base = Replayer(cfg, settings).run(prepared, windows)
+    base = replay(cfg, prepared, windows, settings)
     zeros, res = nominal.copy(), base
     for _ in range(2):
         zeros = zeros - np.vstack([r.resid[:, 6:11] for r in res]).mean(axis=0)
@@ -273,7 +274,7 @@ def fit_joint_zeros(
         for j, z in zip(JOINTS, zeros, strict=True):
             c = with_joint_zero(c, j, float(z))
         zeros = np.array([c.joints[j].zero for j in JOINTS])  # as clipped
-        res = Replayer(c, settings).run(prepared, windows)
+        res = replay(c, prepared, windows, settings)
     out = []
     for i, j in enumerate(JOINTS):
         l0, l1 = rs.signal_window_ms(base, j), rs.signal_window_ms(res, j)
@@ -484,7 +485,7 @@ def fit_anti_windup(
     for i, form in enumerate(forms):
         if float(i) != nominal:
             c = with_anti_windup(cfg, form)
-            res = Replayer(c, settings).run(reprepare(prepared, c, settings), windows)
+            res = replay(c, reprepare(prepared, c, settings), windows, settings)
             losses[float(i)] = rs.window_losses(res, scale)
     tried = {x: float(np.mean(np.log((v + eps) / (l0 + eps)))) for x, v in losses.items()}
     best = min(tried, key=lambda x: (tried[x], x != nominal))
