@@ -89,7 +89,6 @@ from rover_env.calibration.diagnosis.form_ladder import (
     baseline,
     fit_ladder,
     judged,
-    replay,
     reprepare,
     reprepared,
 )
@@ -103,7 +102,7 @@ from rover_env.calibration.diagnosis.form_loop import (
 from rover_env.calibration.diagnosis.judge import better_worse
 from rover_env.calibration.diagnosis.rotor import with_armature
 from rover_env.calibration.diagnosis.state import Diagnosis, FormFit, Options
-from rover_env.calibration.replay import PreparedLog, ReplaySettings, Window
+from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window
 from rover_env.config import (
     ANTI_WINDUP_FORMS,
     FITTED_ANTI_WINDUP_FORMS,
@@ -266,7 +265,7 @@ def fit_joint_zeros(
     the windows closer to the truth."""
     del sensor_noise  # each zero is judged on its own signal's mean square
     nominal = np.array([cfg.joints[j].zero for j in JOINTS])
-    base = replay(cfg, prepared, windows, settings)
+    base = Replayer(cfg, settings).run(prepared, windows)
     zeros, res = nominal.copy(), base
     for _ in range(2):
         zeros = zeros - np.vstack([r.resid[:, 6:11] for r in res]).mean(axis=0)
@@ -274,7 +273,7 @@ def fit_joint_zeros(
         for j, z in zip(JOINTS, zeros, strict=True):
             c = with_joint_zero(c, j, float(z))
         zeros = np.array([c.joints[j].zero for j in JOINTS])  # as clipped
-        res = replay(c, prepared, windows, settings)
+        res = Replayer(c, settings).run(prepared, windows)
     out = []
     for i, j in enumerate(JOINTS):
         l0, l1 = rs.signal_window_ms(base, j), rs.signal_window_ms(res, j)
@@ -485,7 +484,7 @@ def fit_anti_windup(
     for i, form in enumerate(forms):
         if float(i) != nominal:
             c = with_anti_windup(cfg, form)
-            res = replay(c, reprepare(prepared, c, settings), windows, settings)
+            res = Replayer(c, settings).run(reprepare(prepared, c, settings), windows)
             losses[float(i)] = rs.window_losses(res, scale)
     tried = {x: float(np.mean(np.log((v + eps) / (l0 + eps)))) for x, v in losses.items()}
     best = min(tried, key=lambda x: (tried[x], x != nominal))

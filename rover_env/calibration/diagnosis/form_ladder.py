@@ -6,7 +6,6 @@ circle."""
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -17,59 +16,10 @@ from scipy import stats
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.diagnosis.state import FormFit
 from rover_env.calibration.fit import information_criteria, parabola_min
-from rover_env.calibration.replay import (
-    PreparedLog,
-    Replayer,
-    ReplaySettings,
-    Window,
-    WindowResult,
-    prepare,
-)
+from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window, prepare
 from rover_env.config import RoverConfig
 
 Array = NDArray[np.float64]
-
-_MEMO: OrderedDict[tuple[object, ...], tuple[list[PreparedLog], list[WindowResult]]] = OrderedDict()
-MEMO_SIZE = 32
-"""Form-stage replays kept (about a form stage's ladders): see :func:`replay`."""
-
-
-def remembered() -> int:
-    """How many replays :func:`replay` holds now (at most :data:`MEMO_SIZE`)."""
-    return len(_MEMO)
-
-
-def replay(
-    cfg: RoverConfig,
-    prepared: list[PreparedLog],
-    windows: list[Window],
-    settings: ReplaySettings,
-) -> list[WindowResult]:
-    """``windows`` of ``prepared`` replayed under ``cfg``, remembered for the form stages.
-
-    Why (stop 80): each form stage replays its nominal first, and that nominal is almost
-    always a replay the stage before made already (its own nominal where it kept it, its
-    adopted rung where it did not); on a clean case those repeats were 6 % of diagnose. A
-    replay is deterministic, so the remembered one is the same to the bit. The key is what
-    the replay reads: the configuration, the settings, the windows and each prepared log's
-    source and what was computed from it for a configuration (its setpoints and heading, as
-    bytes: equal keys are equal inputs); the entry holds its logs, so no key's ``id`` is
-    reused while it is remembered."""
-    key = (
-        repr(cfg),
-        repr(settings),
-        tuple((id(p.log), p.name, p.setpoint_err.tobytes(), p.yaw3.tobytes()) for p in prepared),
-        tuple((w.log_index, w.k0, w.k1) for w in windows),
-    )
-    hit = _MEMO.get(key)
-    if hit is not None:
-        _MEMO.move_to_end(key)
-        return hit[1]
-    out = Replayer(cfg, settings).run(prepared, windows)
-    _MEMO[key] = (list(prepared), out)
-    if len(_MEMO) > MEMO_SIZE:
-        _MEMO.popitem(last=False)
-    return out
 
 
 def reprepare(
@@ -105,7 +55,7 @@ def baseline(
     sensor_noise: dict[str, float],
 ) -> tuple[dict[str, float], Array, float]:
     """The nominal model's per-signal scale, per-window losses and a loss floor."""
-    base = replay(cfg, prepared, windows, settings)
+    base = Replayer(cfg, settings).run(prepared, windows)
     scale = rs.signal_scale(rs.stack(base, prepared), sensor_noise)
     l0 = rs.window_losses(base, scale)
     return scale, l0, 1e-12 * max(float(np.mean(l0)), 1e-300)
@@ -138,7 +88,7 @@ def fit_ladder(
 
     def losses_at(x: float) -> Array:
         c, p = variant(cfg, x)
-        return rs.window_losses(replay(c, p, windows, settings), scale)
+        return rs.window_losses(Replayer(c, settings).run(p, windows), scale)
 
     def crit(losses: Array) -> float:
         return float(np.mean(np.log((losses + eps) / (l0 + eps))))
