@@ -1,12 +1,105 @@
-"""benchmarks/diagnose_speed.py's comparison of two runs' findings: timings and the run's own
-folder aside, any other difference in ``result.json`` counts. No diagnosis runs here."""
+"""What makes a diagnose case cheaper must not change what it can find (issue 47, item 4).
+
+The replay's coarser step applies only where it is coarser than the rover's own, and the soil's
+other forms are skipped only when its first form's search is best at "off" (hard ground, where
+every form is the same model); a soil that improves the fit still gets every form tried.
+"""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
+import numpy as np
+import pytest
 from _bench import load_bench
+
+import rover_env.calibration.fit as fit_mod
+from rover_env.calibration.candidates import catalogue
+from rover_env.calibration.diagnosis.judge import form_mismatch
+from rover_env.calibration.replay import ReplaySettings, replay_step
+from rover_env.config import RoverConfig
+
+
+def test_replay_step_coarsens_only() -> None:
+    cfg = RoverConfig()
+    assert cfg.sim.timestep == pytest.approx(0.001)
+    assert replay_step(cfg, 0.002).sim.timestep == pytest.approx(0.002)
+    assert replay_step(cfg, None) is cfg
+    fine = replay_step(cfg, 0.0005)
+    assert fine is cfg  # never finer than the rover's own step
+    assert ReplaySettings().timestep == pytest.approx(0.002)
+
+
+def _fake_fit(c, best_at_off: bool) -> fit_mod.Fit:
+    off = c.off[0]
+    xs = np.array([off, off + 1.0, off + 2.0])
+    per_window = np.array([[1.0, 1.0], [2.0, 2.0], [3.0, 3.0]])
+    if not best_at_off:
+        per_window = per_window[::-1].copy()
+    z = np.zeros(1)
+    return fit_mod.Fit(
+        [c],
+        z + xs[int(np.argmin(per_window.sum(1)))],
+        z,
+        z + 1,
+        z,
+        1.0,
+        3,
+        {},
+        0.0,
+        "train",
+        curve=(xs, per_window),
+    )
+
+
+@pytest.mark.parametrize("best_at_off", [True, False])
+def test_soil_forms_searched_in_full_only_where_the_screen_finds_soil(
+    monkeypatch: pytest.MonkeyPatch, best_at_off: bool
+) -> None:
+    """The first form is searched in full, every other one screened at one rung; none more
+    when no form beats hard ground there, else the :data:`FORMS_FITTED` best."""
+    (soil,) = catalogue(["loose_soil"])
+    assert len(soil.forms) > fit_mod.FORMS_FITTED
+    calls: list[str] = []
+
+    def fake(ev, c, which, fixed, refine, t0):  # type: ignore[no-untyped-def]
+        calls.append(c.form)
+        return _fake_fit(c, best_at_off)
+
+    def screen(ev, c, which, fixed, first):  # type: ignore[no-untyped-def]
+        # Hard ground costs 2 (the fake curve's "off", two windows); the forms cost more
+        # there, or less and in reverse order of the catalogue.
+        n = len(c.forms)
+        costs = [5.0] * n if best_at_off else [1.0 - 0.1 * i for i in range(n)]
+        return {lab: v for (lab, _), v in zip(c.forms, costs, strict=True)}, 1.0, 2.0
+
+    monkeypatch.setattr(fit_mod, "_fit_1d", fake)
+    monkeypatch.setattr(fit_mod, "_screen_forms", screen)
+
+    class _Ev:
+        def log(self, msg: str) -> None:
+            pass
+
+    fit_mod._fit_forms(_Ev(), soil, "train", {}, 3, 0.0)  # type: ignore[arg-type]
+    labels = [label for label, _ in soil.forms]
+    if best_at_off:
+        assert calls == [labels[0]]
+    else:
+        assert calls == [labels[0], *labels[::-1][: fit_mod.FORMS_FITTED]]
+
+
+def test_disagreeing_groups_are_reported() -> None:
+    (c,) = catalogue(["torque_limit"])
+    z = np.zeros(1)
+    f = fit_mod.Fit([c], z - 0.3, z - 0.4, z - 0.2, z, 1.0, 3, {}, 0.0, "train")
+    assert form_mismatch(f) is None
+    f.groups = {"driven wheels": -0.33, "free wheels": 0.64, "joints": -0.42}
+    f.between = 0.5
+    text = form_mismatch(f)
+    assert text is not None and "free wheels 0.64" in text
+    f.between = 0.0
+    assert form_mismatch(f) is None
 
 
 def _write(out: Path, result: dict[str, object]) -> Path:
