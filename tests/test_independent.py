@@ -285,6 +285,24 @@ def test_nuisance_check_catches_an_out_of_band_draw() -> None:
     assert nuisance.within_tolerance(d) == ["wheel_radius"]
 
 
+def test_a_partial_build_draws_only_the_parts_named(tmp_path: Path) -> None:
+    full, drawing = nuisance.draw(3), nuisance.nominal()
+    d = nuisance.partial(3, ["centres_of_mass", "springs"])
+    for k in d:
+        inside = k in ("seg_com_offset_m", "spring_k", "spring_c")
+        assert d[k] == (full[k] if inside else drawing[k]), k
+    assert d["seg_com_offset_m"] != drawing["seg_com_offset_m"]
+    assert sorted(k for g in nuisance.GROUPS.values() for k in g) == sorted(full)  # every part
+    with pytest.raises(ValueError, match="wheels"):
+        nuisance.partial(3, ["wheels"])
+    paths = make_independent_logs(
+        tmp_path, {}, drives=1, seed=3, duration=1.0, nuisance=["centres_of_mass"]
+    )
+    truth = yaml.safe_load((paths[0].parent / "truth.yaml").read_text())
+    assert truth["nuisance"] == nuisance.partial(3, ["centres_of_mass"])
+    assert truth["nuisance_groups"] == ["centres_of_mass"]
+
+
 # --------------------------------------------------------------------------- (e) independence
 
 

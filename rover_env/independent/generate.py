@@ -16,6 +16,7 @@ the first ones without repeating their noise.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -41,12 +42,13 @@ def make_independent_logs(
     drives: int = 3,
     seed: int = 0,
     duration: float = 50.0,
-    nuisance: bool = True,
+    nuisance: bool | Sequence[str] = True,
     plan: list[drive.Manoeuvre] | drive.Schedule | None = None,
     first_index: int = 0,
 ) -> list[Path]:
     """Write ``drives`` logs of ``duration`` seconds (or ``plan``'s) into ``out``; returns the
-    CSV paths."""
+    CSV paths. ``nuisance``: the build drawn from ``seed`` (True), built to drawing (False),
+    or drawn in the named parts only (:data:`~rover_env.independent.nuisance.GROUPS`)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     eff = resolve(effects)
@@ -59,7 +61,10 @@ def make_independent_logs(
             raise ValueError("plan: manoeuvres are (duration > 0, left, right, ramp >= 0)")
         plan = [(float(a), float(b), float(c), float(d)) for a, b, c, d in plan]
         duration = float(sum(m[0] for m in plan))
-    draw = nuisance_mod.draw(seed) if nuisance else nuisance_mod.nominal()
+    if isinstance(nuisance, bool):
+        draw = nuisance_mod.draw(seed) if nuisance else nuisance_mod.nominal()
+    else:
+        draw = nuisance_mod.partial(seed, list(nuisance))
     params = nuisance_mod.apply(RoverParams(), draw)
     t = np.round(np.arange(0.0, duration + 0.5 / SAMPLE_HZ, 1.0 / SAMPLE_HZ), 9)
     paths: list[Path] = []
@@ -88,6 +93,7 @@ def make_independent_logs(
         "duration_s": duration,
         "effects": {k: {kk: float(vv) for kk, vv in v.items()} for k, v in effects.items()},
         "nuisance": draw if nuisance else None,
+        **({} if isinstance(nuisance, bool) else {"nuisance_groups": list(nuisance)}),
         "forms": {
             "physics_step_s": DT,
             "integrator": "implicitfast",

@@ -1,0 +1,80 @@
+"""Which build tolerance a clean drive's tilt comes from (issue 47; stop 80).
+
+On clean drives of the independent generator every effect's fit still finds something (the
+clean-fit allowance, ``configs/calibration/form_allowance.yaml``): a tilt of up to 2.4°, which
+a slope must clear before it is named. This script drives clean cases of that generator with
+its build tolerances all drawn (``all``), none (``none``: the implementations' difference
+alone), or one part at a time (:data:`rover_env.independent.nuisance.GROUPS`), and fits the
+slope alone on each (``diagnose --candidates slope``): the tilt each part of the build leaves.
+
+    python benchmarks/clean_tilt.py --seed0 70000 --seeds 10 --groups none,all,centres_of_mass
+
+Seeds 70000 and up are drawn by no benchmark block. Each case is a process of its own, two at
+a time; a case whose ``result.json`` exists is not run again. Prints one line a case and the
+medians, and writes ``clean_tilt.json`` to ``--work``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+from rover_env.independent import make_independent_logs
+from rover_env.independent.nuisance import GROUPS
+
+CONDITIONS = ("none", "all", *GROUPS)
+
+
+def case(work: Path, condition: str, seed: int) -> dict[str, Any]:
+    """One clean case: logs of the build ``condition`` names, the slope fitted alone."""
+    d = work / f"{condition}_{seed}"
+    out = d / "out"
+    if not (out / "result.json").exists():
+        nuisance: bool | list[str] = {"none": False, "all": True}.get(condition, [condition])
+        logs = make_independent_logs(d / "logs", {}, drives=3, seed=seed, nuisance=nuisance)
+        cmd = [sys.executable, "-m", "rover_env.cli", "diagnose", *map(str, logs)]
+        cmd += ["--out", str(out), "--candidates", "slope", "--workers", "1", "--quiet"]
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    fit = json.loads((out / "result.json").read_text())["fits"]["slope"]
+    deg, heading = fit["params"]["slope"]["deg"][0], fit["params"]["slope"]["heading_deg"][0]
+    return {"condition": condition, "seed": seed, "deg": deg, "heading_deg": heading}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seed0", type=int, default=70000)
+    ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--groups", default="none,all,centres_of_mass", help=", ".join(CONDITIONS))
+    ap.add_argument("--work", default="out/clean_tilt")
+    a = ap.parse_args(argv)
+    conditions = a.groups.split(",")
+    if unknown := [c for c in conditions if c not in CONDITIONS]:
+        ap.error(f"--groups: {', '.join(unknown)} not one of {', '.join(CONDITIONS)}")
+    work = Path(a.work)
+    jobs = [(c, a.seed0 + i) for i in range(a.seeds) for c in conditions]
+    rows: list[dict[str, Any]] = []
+    with ThreadPoolExecutor(2) as ex:
+        for k, r in enumerate(ex.map(lambda j: case(work, *j), jobs), 1):
+            rows.append(r)
+            print(
+                f"[{k}/{len(jobs)}] {r['condition']:16s} {r['seed']} tilt {r['deg']:.2f}°"
+                f" heading {r['heading_deg']:.0f}°",
+                flush=True,
+            )
+    for c in conditions:
+        v = sorted(r["deg"] for r in rows if r["condition"] == c)
+        print(
+            f"{c:16s} median {statistics.median(v):.2f}° ({v[0]:.2f}-{v[-1]:.2f}), {len(v)} builds"
+        )
+    (work / "clean_tilt.json").write_text(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
