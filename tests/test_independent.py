@@ -331,7 +331,18 @@ def test_imports_nothing_from_rover_env_but_logs() -> None:
     assert not bad, bad
 
 
-_STDLIB = {"argparse", "ast", "csv", "dataclasses", "functools", "math", "pathlib", "sys", "typing"}
+_STDLIB = {
+    "argparse",
+    "ast",
+    "collections",
+    "csv",
+    "dataclasses",
+    "functools",
+    "math",
+    "pathlib",
+    "sys",
+    "typing",
+}
 
 
 # --------------------------------------------------------------------------- entry point
