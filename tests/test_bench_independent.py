@@ -510,9 +510,10 @@ def test_the_allowance_line_counts_a_pairs_other_effect_kept_or_beside() -> None
 
 
 def test_a_missed_strong_single_is_given_its_first_reason() -> None:
-    """Stop 79: each single at >= 2 x threshold not named gets the first reason that holds,
-    in diagnose's order: the window test (gain, p, BIC), a tie, another effect, the clean-fit
-    allowance; weaker singles and named ones are not counted."""
+    """Stop 79: each single at >= 2 x threshold not named gets the first reason that holds:
+    the clean-fit allowance (it withdraws what passed every other rule), then in diagnose's
+    order the window test (gain, p, BIC), a tie, another effect; weaker singles and named
+    ones are not counted."""
     r = _load("_rules")
 
     def row(name: str, x: float, test: dict | None, **kw: object) -> dict:

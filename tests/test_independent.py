@@ -295,12 +295,12 @@ def test_a_partial_build_draws_only_the_parts_named(tmp_path: Path) -> None:
     assert sorted(k for g in nuisance.GROUPS.values() for k in g) == sorted(full)  # every part
     with pytest.raises(ValueError, match="wheels"):
         nuisance.partial(3, ["wheels"])
-    paths = make_independent_logs(
-        tmp_path, {}, drives=1, seed=3, duration=1.0, nuisance=["centres_of_mass"]
-    )
-    truth = yaml.safe_load((paths[0].parent / "truth.yaml").read_text())
-    assert truth["nuisance"] == nuisance.partial(3, ["centres_of_mass"])
-    assert truth["nuisance_groups"] == ["centres_of_mass"]
+    for given in (["centres_of_mass"], "centres_of_mass"):  # a list of parts, or one name
+        out = tmp_path / type(given).__name__
+        paths = make_independent_logs(out, {}, drives=1, seed=3, duration=1.0, nuisance=given)
+        truth = yaml.safe_load((paths[0].parent / "truth.yaml").read_text())
+        assert truth["nuisance"] == nuisance.partial(3, ["centres_of_mass"])
+        assert truth["nuisance_groups"] == ["centres_of_mass"]
 
 
 # --------------------------------------------------------------------------- (e) independence

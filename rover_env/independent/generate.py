@@ -48,7 +48,7 @@ def make_independent_logs(
 ) -> list[Path]:
     """Write ``drives`` logs of ``duration`` seconds (or ``plan``'s) into ``out``; returns the
     CSV paths. ``nuisance``: the build drawn from ``seed`` (True), built to drawing (False),
-    or drawn in the named parts only (:data:`~rover_env.independent.nuisance.GROUPS`)."""
+    or drawn in the named part or parts only (:data:`~rover_env.independent.nuisance.GROUPS`)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     eff = resolve(effects)
@@ -61,10 +61,13 @@ def make_independent_logs(
             raise ValueError("plan: manoeuvres are (duration > 0, left, right, ramp >= 0)")
         plan = [(float(a), float(b), float(c), float(d)) for a, b, c, d in plan]
         duration = float(sum(m[0] for m in plan))
+    # The parts drawn off the drawing: None for all (True) or none (False); one name or several.
+    groups: list[str] | None = None
     if isinstance(nuisance, bool):
         draw = nuisance_mod.draw(seed) if nuisance else nuisance_mod.nominal()
     else:
-        draw = nuisance_mod.partial(seed, list(nuisance))
+        groups = [nuisance] if isinstance(nuisance, str) else list(nuisance)
+        draw = nuisance_mod.partial(seed, groups)
     params = nuisance_mod.apply(RoverParams(), draw)
     t = np.round(np.arange(0.0, duration + 0.5 / SAMPLE_HZ, 1.0 / SAMPLE_HZ), 9)
     paths: list[Path] = []
@@ -93,7 +96,7 @@ def make_independent_logs(
         "duration_s": duration,
         "effects": {k: {kk: float(vv) for kk, vv in v.items()} for k, v in effects.items()},
         "nuisance": draw if nuisance else None,
-        **({} if isinstance(nuisance, bool) else {"nuisance_groups": list(nuisance)}),
+        **({} if groups is None else {"nuisance_groups": groups}),
         "forms": {
             "physics_step_s": DT,
             "integrator": "implicitfast",

@@ -178,8 +178,8 @@ class Options:
     50000-51800 it would have kept 200 of 225 right names and dropped 61 of 86 others,
     10 of 11 on clean drives (in-sample for the clean cases of 50800-51500, whose fits made
     the table then; stop 79 measured it again on 100 clean cases of blocks 49000-52100 with
-    its own code, the same verdicts on blocks 51800-52100); on fresh block 52000 it withdrew 6 names, 4 not the truth
-    (docs/calibration/README.md). Each effect of a pair is judged by its own allowance
+    its own code, the same verdicts on blocks 51800-52100); on fresh block 52000 it
+    withdrew 6 names, 4 not the truth (docs/calibration/README.md). Each effect of a pair is judged by its own allowance
     (stop 78: on block 52000 three false second effects of a pair fit stayed named; on
     fresh block 52100, 16 of 17 names right)."""
     odometry: OdometryBand | None = ODOMETRY_BAND
