@@ -22,6 +22,15 @@ results only (no replay). ``--write`` writes the table diagnose widens its inter
 A block directory is ``bench_independent.py``'s ``--out`` with its ``--work`` under
 ``work/`` (regenerable: ``bench_independent.py --seed0 SEED``). Writes ``allowance.md`` and
 ``allowance.png`` to ``--out``.
+
+A soil's stiffness has no clean fit (clean drives fit hard ground): its entry is the spread of
+fitted over true k_phi on the named soils of stored blocks (``--soil``, each block's
+``independent.json``), a factor diagnose divides the interval by
+(:data:`rover_env.calibration.form_allowance.FACTOR`). With ``--soil`` and no
+``--calibrate``, ``--write`` keeps the table's other entries:
+
+    python benchmarks/form_allowance.py --soil docs/calibration/block* \
+        --write configs/calibration/form_allowance.yaml
 """
 
 from __future__ import annotations
@@ -36,7 +45,7 @@ from typing import Any
 import numpy as np
 from _report import write_report
 
-from rover_env.calibration.form_allowance import Bias, FormAllowance, widen
+from rover_env.calibration.form_allowance import FACTOR, Bias, FormAllowance, widen
 
 SKIP = {"combined_slip", "loose_soil"}
 """A switch has no size; the soil's fit is a stiffness (its own acceptance line)."""
@@ -65,6 +74,32 @@ def allowance(fits: dict[str, list[float]]) -> dict[str, tuple[float, float, int
         for k, v in sorted(fits.items())
         if v
     }
+
+
+def soil_ratios(blocks: list[Path]) -> list[float]:
+    """Fitted over true k_phi of each case of ``blocks`` (their stored rows) whose truth
+    holds loose soil and whose final names include it."""
+    out = []
+    for b in blocks:
+        for r in json.loads((b / "independent.json").read_text()):
+            f = (r.get("fits") or {}).get("loose_soil") or {}
+            v, t = f.get("value"), f.get("truth")
+            if "loose_soil" not in (r.get("named") or []) or v is None or t is None:
+                continue
+            if 0.0 < v < math.inf and t > 0.0:
+                out.append(float(v) / float(t))
+    return out
+
+
+def factor(ratios: list[float]) -> tuple[float, float, int]:
+    """(q05, q95, n) of ``ratios``, taken on their logarithms (a factor either way counts
+    alike)."""
+    logs = np.log(ratios)
+    return (
+        float(np.exp(np.quantile(logs, 0.05))),
+        float(np.exp(np.quantile(logs, 0.95))),
+        len(ratios),
+    )
 
 
 def widened(name: str, lo: float, hi: float, q: tuple[float, float, int]) -> tuple[float, float]:
@@ -107,19 +142,36 @@ def named(rows: list[dict[str, Any]], allow: dict[str, tuple[float, float, int]]
     return out
 
 
-def write_table(allow: dict[str, tuple[float, float, int]], blocks: list[Path], path: Path) -> None:
-    """The allowance as diagnose reads it (:func:`rover_env.calibration.form_allowance.load_allowance`)."""
+def write_table(
+    allow: dict[str, tuple[float, float, int]], blocks: list[Path], soils: list[Path], path: Path
+) -> None:
+    """The allowance as diagnose reads it (:func:`rover_env.calibration.form_allowance.load_allowance`).
+    Without ``blocks`` the clean entries and their source are kept from the table at ``path``."""
     import yaml
 
+    source = (
+        "benchmarks/form_allowance.py on the independent generator's clean cases of blocks"
+        f" {', '.join(b.name for b in blocks)} (first diagnosis of each)"
+    )
+    if not blocks:
+        old = yaml.safe_load(path.read_text())
+        source = old["source"].split("; loose_soil:")[0]
+        kept = {k: v for k, v in old["effects"].items() if k not in FACTOR}
+        allow = {k: (v["low"], v["high"], v["cases"]) for k, v in kept.items()} | allow
+    if soils:
+        source += (
+            "; loose_soil: fitted over true k_phi of the named soils of blocks"
+            f" {', '.join(b.name for b in soils)}"
+        )
     doc = {
         "description": "Clean-fit allowance: 5 % and 95 % quantiles of each effect's fit on"
         " clean drives (a slope's tilt in degrees); diagnose widens a named effect's interval"
-        " for the truth to [lo - high, hi - low].",
-        "source": "benchmarks/form_allowance.py on the independent generator's clean cases of"
-        f" blocks {', '.join(b.name for b in blocks)} (first diagnosis of each)",
+        " for the truth to [lo - high, hi - low]. loose_soil: quantiles of fitted over true"
+        " k_phi on named soils, the interval for the truth [lo / high, hi / low].",
+        "source": source,
         "effects": {
             k: {"low": round(q05, 6), "high": round(q95, 6), "cases": n}
-            for k, (q05, q95, n) in allow.items()
+            for k, (q05, q95, n) in sorted(allow.items())
         },
     }
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -151,24 +203,46 @@ def table(allow: dict[str, tuple[float, float, int]], got: list[dict]) -> list[s
     return lines
 
 
-def plot(fits: dict[str, list[float]], got: list[dict], path: Path) -> None:
-    """Per effect: the clean fits (the form bias) beside fitted - truth of right singles."""
+def plot(fits: dict[str, list[float]], ratios: list[float], got: list[dict], path: Path) -> None:
+    """Per effect: the clean fits (the form bias) beside fitted - truth of right singles; a
+    soil's stiffness: fitted over true k_phi, the calibration's soils beside the evaluated."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    names = [n for n in fits if n != "load_dependent_friction"]
-    fig, axes = plt.subplots(1, len(names), figsize=(2.2 * len(names), 3.2))
-    for ax, name in zip(np.atleast_1d(axes), names, strict=True):
-        bias = [g["fit"][0] - g["truth"] for g in got if g["effect"] == name and g["truth"]]
-        ax.plot(np.zeros(len(fits[name])), fits[name], "o", alpha=0.4, label="clean fit")
-        ax.plot(np.ones(len(bias)), bias, "s", alpha=0.6, color="C3", label="fit - truth")
-        ax.axhline(0.0, color="k", lw=0.5)
-        ax.set_xticks([0, 1], ["clean", "named"])
+    names = [n for n in fits if n != "load_dependent_friction"] + (["loose_soil"] if ratios else [])
+    fig, axes = plt.subplots(1, len(names), figsize=(2.2 * len(names), 3.2), squeeze=False)
+    for ax, name in zip(axes[0], names, strict=True):
+        mine = [g for g in got if g["effect"] == name and g["truth"]]
+        if name in FACTOR:
+            ax.plot(np.zeros(len(ratios)), ratios, "o", alpha=0.4, label="calibration")
+            ax.plot(
+                np.ones(len(mine)),
+                [g["fit"][0] / g["truth"] for g in mine],
+                "s",
+                alpha=0.6,
+                color="C3",
+            )
+            ax.set_yscale("log")
+            ax.axhline(1.0, color="k", lw=0.5)
+            ax.set_xticks([0, 1], ["calibration", "named"])
+            ax.set_title("loose soil: fit / truth", fontsize=8)
+        else:
+            ax.plot(np.zeros(len(fits[name])), fits[name], "o", alpha=0.4, label="clean fit")
+            ax.plot(
+                np.ones(len(mine)),
+                [g["fit"][0] - g["truth"] for g in mine],
+                "s",
+                alpha=0.6,
+                color="C3",
+                label="fit - truth",
+            )
+            ax.axhline(0.0, color="k", lw=0.5)
+            ax.set_xticks([0, 1], ["clean", "named"])
+            ax.set_title(name.replace("_", " "), fontsize=8)
         ax.set_xlim(-0.6, 1.6)
-        ax.set_title(name.replace("_", " "), fontsize=8)
-    np.atleast_1d(axes)[0].legend(fontsize=6)
+    axes[0][0].legend(fontsize=6)
     fig.suptitle("Form bias: what clean logs fit, and how far right names sit from the truth")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -177,17 +251,31 @@ def plot(fits: dict[str, list[float]], got: list[dict], path: Path) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--calibrate", nargs="+", type=Path, required=True, help="block dirs")
+    ap.add_argument("--calibrate", nargs="+", type=Path, default=[], help="block dirs (clean fits)")
+    ap.add_argument(
+        "--soil", nargs="+", type=Path, default=[], help="block dirs (named soils' k_phi)"
+    )
     ap.add_argument("--evaluate", nargs="+", type=Path, default=[], help="block dirs")
     ap.add_argument("--out", type=Path, help="folder for allowance.md and .png (with --evaluate)")
     ap.add_argument("--write", type=Path, help="write the allowance table diagnose reads")
     a = ap.parse_args()
     if not a.write and not (a.evaluate and a.out):
         ap.error("give --write PATH, or --evaluate BLOCK... with --out DIR")
+    if not a.calibrate and not a.soil:
+        ap.error("give --calibrate BLOCK..., --soil BLOCK..., or both")
+    if a.write and not a.calibrate and not a.write.exists():
+        ap.error(f"--write {a.write}: --soil alone updates an existing table; give --calibrate")
     fits = clean_fits(a.calibrate)
     allow = allowance(fits)
+    if missing := [str(b) for b in a.soil if not (b / "independent.json").is_file()]:
+        ap.error(f"--soil: no independent.json in {', '.join(missing)}")
+    if a.soil:
+        ratios = soil_ratios(a.soil)
+        if len(ratios) < 10:
+            ap.error(f"--soil: {len(ratios)} named soils in those blocks, at least 10 needed")
+        allow["loose_soil"] = factor(ratios)
     if a.write:
-        write_table(allow, a.calibrate, a.write)
+        write_table(allow, a.calibrate, a.soil, a.write)
         print(f"wrote {a.write}: {', '.join(allow)}")
     if not a.evaluate:
         return
@@ -207,7 +295,7 @@ def main() -> None:
         "",
     ]
     write_report(a.out / "allowance.md", "\n".join(text))
-    plot(fits, got, a.out / "allowance.png")
+    plot(fits, ratios, got, a.out / "allowance.png")
     print("\n".join(text))
 
 

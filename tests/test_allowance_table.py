@@ -38,6 +38,33 @@ def test_the_shipped_table_loads_and_every_bias_is_ordered() -> None:
     assert 0.0 <= delay.low < delay.high and a.pad("command_delay") == (delay.high, 0.0)
 
 
+def test_the_shipped_soil_factor_brackets_one() -> None:
+    """Stop 81: a soil's stiffness is fitted a factor off the truth either way."""
+    b = load_allowance().effects["loose_soil"]
+    assert 0.0 < b.low < 1.0 < b.high and b.cases >= 40
+
+
+def test_a_soil_fit_is_widened_by_its_factor_and_never_withdrawn() -> None:
+    from rover_env.calibration.diagnosis.judge import allowance_reaches_off
+
+    a = FormAllowance({"loose_soil": Bias(0.5, 3.5, 80)})
+    assert a.pad("loose_soil") == (3.5, 0.5)  # fit = truth x f, f in [low, high]
+    f = _fit("loose_soil", [1.0], 0.05)  # u = 1e6 / k_phi: k_phi 1e6 [0.952e6, 1.053e6]
+    _, lo0, hi0 = f.physical()["loose_soil"]["k_phi"]
+    f.allowance = {"loose_soil": a.pad("loose_soil")}
+    v, lo, hi = f.physical()["loose_soil"]["k_phi"]
+    assert (
+        v == pytest.approx(1e6)
+        and lo == pytest.approx(lo0 / 3.5)
+        and hi == pytest.approx(hi0 / 0.5)
+    )
+    assert allowance_reaches_off(f) == []
+    soft = _fit("loose_soil", [0.05], 0.2)  # reaches u = 0 (hard ground): k_phi up to inf
+    soft.allowance = {"loose_soil": a.pad("loose_soil")}
+    assert math.isinf(soft.physical()["loose_soil"]["k_phi"][2])
+    assert allowance_reaches_off(soft) == []  # whether soil is there is the windows' question
+
+
 def test_pad_turns_the_spread_into_how_far_the_truth_may_sit() -> None:
     a = FormAllowance(
         {
@@ -94,6 +121,9 @@ def test_a_bad_table_fails_before_any_work_naming_file_and_key(tmp_path: Path) -
         load_allowance(bad)
     bad.write_text("effects:\n  warp_drive: {low: 0.0, high: 0.01, cases: 5}\n")
     with pytest.raises(ConfigError, match=r"a\.yaml: effects\.warp_drive: not a catalogue"):
+        load_allowance(bad)
+    bad.write_text("effects:\n  loose_soil: {low: 0.0, high: 3.0, cases: 5}\n")
+    with pytest.raises(ConfigError, match=r"a\.yaml: effects\.loose_soil\.low: a factor"):
         load_allowance(bad)
     bad.write_text("effects:\n  command_delay: {low: 0.0, hgh: 0.01, cases: 5}\n")
     with pytest.raises(ConfigError, match=r"unknown key.*hgh"):

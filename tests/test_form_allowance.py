@@ -81,7 +81,7 @@ def test_the_written_table_is_what_diagnose_reads(fa: ModuleType, tmp_path: Path
         _clean(tmp_path, i, 0.001 * i, 0.1 * i)
     allow = fa.allowance(fa.clean_fits([tmp_path]))
     path = tmp_path / "table.yaml"
-    fa.write_table(allow, [tmp_path], path)
+    fa.write_table(allow, [tmp_path], [], path)
     got = load_allowance(path)
     assert set(got.effects) == {"command_delay", "slope"}
     b = got.effects["command_delay"]
@@ -90,3 +90,67 @@ def test_the_written_table_is_what_diagnose_reads(fa: ModuleType, tmp_path: Path
     lo, hi = fa.widened("command_delay", 0.100, 0.120, allow["command_delay"])
     below, above = got.pad("command_delay")
     assert (0.100 - below, 0.120 + above) == (pytest.approx(lo), pytest.approx(hi))
+
+
+def _soil_block(block: Path, ratios: list[float], named: bool = True) -> None:
+    rows = [
+        {
+            "case": f"single_loose_soil_{i}",
+            "kind": "single",
+            "truth": {"loose_soil": {"k_phi": 1e6}},
+            "named": ["loose_soil"] if named else ["rolling_resistance"],
+            "named_fits": {"loose_soil": {"k_phi": [1e6 * r, 0.98e6 * r, 1.02e6 * r]}},
+            "fits": {"loose_soil": {"value": 1e6 * r, "truth": 1e6}},
+        }
+        for i, r in enumerate(ratios)
+    ]
+    block.mkdir(parents=True, exist_ok=True)
+    (block / "independent.json").write_text(json.dumps(rows))
+
+
+def test_the_soil_factor_is_the_spread_of_fitted_over_true_k_phi(
+    fa: ModuleType, tmp_path: Path
+) -> None:
+    """Stop 81: named soils only, read as factors; quantiles on the logarithms."""
+    ratios = [2.0 ** (k / 10) for k in range(-10, 11)]  # 0.5 .. 2, even in log
+    _soil_block(tmp_path / "b1", ratios)
+    _soil_block(tmp_path / "b2", [9.0, 0.1], named=False)  # soils not named: not counted
+    got = fa.soil_ratios([tmp_path / "b1", tmp_path / "b2"])
+    assert got == pytest.approx(ratios)
+    q05, q95, n = fa.factor(got)
+    assert n == 21 and q05 == pytest.approx(2.0**-0.9) and q95 == pytest.approx(2.0**0.9)
+    # An interval for the truth: [lo / q95, hi / q05]. A fit 1.9 x the truth, +-2 %:
+    lo, hi = fa.widened("loose_soil", 1.86e6, 1.94e6, (q05, q95, n))
+    assert lo == pytest.approx(1.86e6 / q95) and lo <= 1e6 <= hi
+    assert fa.widened("loose_soil", 1.86e6, 1.94e6, (0.5, 3.5, n))[1] == pytest.approx(3.88e6)
+    rows = json.loads((tmp_path / "b1" / "independent.json").read_text())
+    g = fa.named(rows, {"loose_soil": (q05, q95, n)})
+    stored = sum(x["fit"][1] <= x["truth"] <= x["fit"][2] for x in g)
+    wide = sum(x["widened"][0] <= x["truth"] <= x["widened"][1] for x in g)
+    assert (stored, wide, sum(x["refused"] for x in g)) == (1, 19, 0)  # never refuses a soil
+
+
+def test_soil_alone_updates_a_table_keeping_its_clean_entries(
+    fa: ModuleType, tmp_path: Path
+) -> None:
+    from rover_env.calibration.form_allowance import load_allowance
+
+    for i in range(21):
+        _clean(tmp_path / "clean", i, 0.001 * i, 0.1 * i)
+    path = tmp_path / "table.yaml"
+    fa.write_table(
+        fa.allowance(fa.clean_fits([tmp_path / "clean"])), [tmp_path / "clean"], [], path
+    )
+    before = path.read_text()
+    fa.write_table({"loose_soil": (0.6, 3.4, 12)}, [], [tmp_path / "b9"], path)
+    got = load_allowance(path)
+    assert set(got.effects) == {"command_delay", "loose_soil", "slope"}
+    assert got.pad("loose_soil") == (3.4, 0.6)
+    assert got.effects["command_delay"].high == pytest.approx(0.019)
+    assert (
+        "clean cases of blocks clean" in path.read_text()
+        and "named soils of blocks b9" in path.read_text()
+    )
+    fa.write_table({"loose_soil": (0.5, 3.0, 13)}, [], [tmp_path / "b8"], path)  # again: replaced
+    assert load_allowance(path).pad("loose_soil") == (3.0, 0.5)
+    assert "b9" not in path.read_text() and before.count("command_delay") == 1

@@ -192,7 +192,9 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
         + (
             f", then by the clean-fit allowance ({opts.form_allowance!r}): the 5-95 % spread of"
             " what the effect's fit finds on clean drives of another implementation, the model's"
-            " own form seen through it (an interval for the truth: fitted lo - high, hi - low)."
+            " own form seen through it (an interval for the truth: fitted lo - high, hi - low;"
+            " a soil's k_phi: lo / high, hi / low, the spread of fitted over true k_phi on"
+            " another implementation's named soils)."
             if opts.form_allowance
             else "."
         ),

@@ -20,6 +20,7 @@ from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import Candidate, Extensions
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.fit import Evaluator, Fit, information_criteria
+from rover_env.calibration.form_allowance import FACTOR
 from rover_env.calibration.replay import SIGNALS, WindowResult
 from rover_env.effects import CATALOGUE
 
@@ -337,11 +338,12 @@ def allowance_reaches_off(f: Fit) -> list[str]:
     """``effect.parameter`` for each effect of ``f`` with a clean-fit allowance
     (:attr:`.fit.Fit.allowance`, each effect of a pair by its own) whose widened 95 %
     interval for the truth reaches "off": what the model's own form gives on clean drives
-    does not exclude its absence."""
+    does not exclude its absence. A :data:`.form_allowance.FACTOR` effect (a soil's
+    stiffness) is not judged: its factor never reaches hard ground."""
     shown = f.physical(allow=True)
     out = []
     for c in f.candidates:
-        if c.discrete or not any(f.allowance.get(c.name, (0.0, 0.0))):
+        if c.discrete or c.name in FACTOR or not any(f.allowance.get(c.name, (0.0, 0.0))):
             continue
         p = CATALOGUE[c.name].params[0]
         _, lo, hi = next(iter(shown[c.name].values()))
