@@ -29,7 +29,7 @@ fitted over true k_phi on the named soils of stored blocks (``--soil``, each blo
 (:data:`rover_env.calibration.form_allowance.FACTOR`). With ``--soil`` and no
 ``--calibrate``, ``--write`` keeps the table's other entries:
 
-    python benchmarks/form_allowance.py --soil docs/calibration/block* \
+    python benchmarks/form_allowance.py --soil docs/calibration/block[0-9]* \\
         --write configs/calibration/form_allowance.yaml
 """
 
@@ -267,6 +267,7 @@ def main() -> None:
         ap.error(f"--write {a.write}: --soil alone updates an existing table; give --calibrate")
     fits = clean_fits(a.calibrate)
     allow = allowance(fits)
+    ratios: list[float] = []
     if missing := [str(b) for b in a.soil if not (b / "independent.json").is_file()]:
         ap.error(f"--soil: no independent.json in {', '.join(missing)}")
     if a.soil:

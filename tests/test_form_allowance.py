@@ -154,3 +154,35 @@ def test_soil_alone_updates_a_table_keeping_its_clean_entries(
     fa.write_table({"loose_soil": (0.5, 3.0, 13)}, [], [tmp_path / "b8"], path)  # again: replaced
     assert load_allowance(path).pad("loose_soil") == (3.0, 0.5)
     assert "b9" not in path.read_text() and before.count("command_delay") == 1
+
+
+def test_the_command_line_evaluates_with_or_without_soils(
+    fa: ModuleType,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    clean, soils = tmp_path / "clean", tmp_path / "soils"
+    for i in range(21):
+        _clean(clean, i, 0.001 * i, 0.1 * i)
+    _soil_block(soils, [2.0 ** (k / 10) for k in range(-10, 11)])
+    for extra in ([], ["--soil", str(soils)]):
+        argv = ["form_allowance.py", "--calibrate", str(clean), "--evaluate", str(soils)]
+        monkeypatch.setattr("sys.argv", [*argv, "--out", str(tmp_path / "out"), *extra])
+        fa.main()
+        text = (tmp_path / "out" / "allowance.md").read_text()
+        assert ("| loose_soil | 21 |" in text) == bool(extra)
+        assert (tmp_path / "out" / "allowance.png").stat().st_size > 0
+    monkeypatch.setattr(
+        "sys.argv",
+        ["form_allowance.py", "--soil", str(tmp_path), "--evaluate", str(soils), "--out", "o"],
+    )
+    with pytest.raises(SystemExit):
+        fa.main()  # a folder without independent.json: one clear error
+    assert f"no independent.json in {tmp_path}" in capsys.readouterr().err
+    monkeypatch.setattr(
+        "sys.argv", ["form_allowance.py", "--soil", str(soils), "--write", "t.yaml"]
+    )
+    with pytest.raises(SystemExit):
+        fa.main()  # --soil alone updates a table: none there
+    assert "--soil alone updates an existing table" in capsys.readouterr().err
