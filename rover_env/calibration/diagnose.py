@@ -123,6 +123,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "name_beyond_allowance",
         "name an effect only if its interval with the clean-fit allowance keeps clear of off",
     ),
+    (
+        "soil_from_motion",
+        "read a named soil's k_phi from the rover's motion (the pose signals' own minimum)",
+    ),
     ("screen", "screen each candidate on half the training windows before its full fit"),
     (
         "forms_beside_leader",
