@@ -9,7 +9,7 @@ k_phi then stands in for:
   springs, whose stiffness SPEC does not give; fitted before any effect on soil drives it
   runs to the end of its ladder, and beside the soil k_phi and the spring trade along a
   ridge (exploratory, stop 82, spent case 60808: k_phi 4.1 x the truth at 10 N m/rad,
-  0.58 x at 14.1, the training windows as good at either);
+  0.58 x at 14.1; against one reference the training windows prefer 10 N m/rad);
 * the free wheels read the soil's bulldozing through a reading gain profiled at its bound;
 * the driven wheels read the soil through the speed loop's gains.
 
@@ -18,9 +18,10 @@ of the wheels' turning becomes travel. So where the pose group has a minimum of 
 (inside the points the search evaluated), the reported k_phi and the configuration written
 are the pose group's; the interval is stretched to hold it, then widened as every named
 effect's (the groups' disagreement, sensor noise, the allowance). Where the groups agree,
-the two are the same within their noise. Measured before it was adopted, on the spent study 60800's soil cases
-(exploratory, first-pass fits): the pose group within 2 x of the true k_phi on 16 of 19,
-the fit over every signal on 11 of 19. Scored on fresh seeds: docs/calibration/study61600.
+the two are the same within their noise. Measured before it was adopted, on spent study
+60800's soil cases (exploratory, first-pass fits): the pose group within 2 x of the true
+k_phi on 19 of 25 (16 of the first 19, the count at registration), the fit over every
+signal on 14 of 25. Scored on fresh seeds: docs/calibration/study61600.
 """
 
 from __future__ import annotations
@@ -33,7 +34,8 @@ from rover_env.calibration.candidates import merge
 from rover_env.calibration.fit import Fit
 
 MOTION_GROUP = "pose"
-"""The signal group that reads the rover's motion (:data:`~rover_env.calibration.fit.SIGNAL_GROUPS`)."""
+"""The signal group that reads the rover's motion (of
+:data:`~rover_env.calibration.fit.SIGNAL_GROUPS`)."""
 
 FROM_MOTION = frozenset({"loose_soil"})
 """The effects whose magnitude is read from the rover's motion (one: the soil)."""

@@ -184,12 +184,12 @@ class Options:
     fresh block 52100, 16 of 17 names right)."""
     soil_from_motion: bool = True
     """Read a named soil's k_phi from the rover's motion, the pose group's own minimum, where
-    the pose has one (:func:`.motion.from_motion`). Why
-    (stop 82): the yaw joints, free wheels and driven wheels read the soil through forms of
-    this model (the yaw springs, a wheel's reading gain, the speed loop), and the fit over
-    every signal put the independent generator's k_phi at a median 1.68 x the truth (study
-    60800; 12 of 23 within 2 x); on that study's spent cases the pose group was within 2 x
-    on 16 of 19, every signal on 11 of 19 (scored on fresh seeds: study 61600)."""
+    the pose has one (:func:`.motion.from_motion`). Why (stop 82): the yaw joints, free
+    wheels and driven wheels read the soil through forms of this model (the yaw springs, a
+    wheel's reading gain, the speed loop), and the fit over every signal put the independent
+    generator's k_phi at a median 1.68 x the truth (study 60800; 12 of 23 within 2 x); on
+    that study's spent cases the pose group was within 2 x on 19 of 25 first-pass fits,
+    every signal on 14 of 25 (scored on fresh seeds: study 61600)."""
     odometry: OdometryBand | None = ODOMETRY_BAND
     """Name a rolling radius from dead reckoning against the pose (:mod:`.odometry`) beyond
     this band of what clean drives leave (None: off). Why (stop 75): the replay windows named
