@@ -21,7 +21,8 @@ effect's (the groups' disagreement, sensor noise, the allowance). Where the grou
 the two are the same within their noise. Measured before it was adopted, on spent study
 60800's soil cases (exploratory, first-pass fits): the pose group within 2 x of the true
 k_phi on 19 of 25 (16 of the first 19, the count at registration), the fit over every
-signal on 14 of 25. Scored on fresh seeds: docs/calibration/study61600.
+signal on 14 of 25. Scored on fresh seeds (docs/calibration/study61600, registered): 12 of
+19 soil singles within 2 x, short of the registered 70 %, so the option is off by default.
 """
 
 from __future__ import annotations

@@ -182,9 +182,12 @@ class Options:
     withdrew 6 names, 4 not the truth (docs/calibration/README.md). Each effect of a pair is judged by its own allowance
     (stop 78: on block 52000 three false second effects of a pair fit stayed named; on
     fresh block 52100, 16 of 17 names right)."""
-    soil_from_motion: bool = True
+    soil_from_motion: bool = False
     """Read a named soil's k_phi from the rover's motion, the pose group's own minimum, where
-    the pose has one (:func:`.motion.from_motion`). Why (stop 82): the yaw joints, free
+    the pose has one (:func:`.motion.from_motion`). Off by default: on fresh study 61600
+    (registered) it put k_phi within 2 x of the truth on 12 of 19 soil singles, short of the
+    registered 70 % (the fit over every signal: 12 of 23 on study 60800), at wider intervals
+    (median hi / lo 20 against 13). Why it was tried (stop 82): the yaw joints, free
     wheels and driven wheels read the soil through forms of this model (the yaw springs, a
     wheel's reading gain, the speed loop), and the fit over every signal put the independent
     generator's k_phi at a median 1.68 x the truth (study 60800; 12 of 23 within 2 x); on
