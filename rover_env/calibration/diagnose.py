@@ -125,7 +125,7 @@ SWITCHES: tuple[tuple[str, str], ...] = (
     ),
     (
         "soil_from_motion",
-        "read a named soil's k_phi from the rover's motion (the pose's own minimum; off: study 61600)",
+        "read a named soil's k_phi from the pose signals' own minimum (off: study 61600)",
     ),
     ("screen", "screen each candidate on half the training windows before its full fit"),
     (

@@ -416,12 +416,13 @@ def finish_chosen(d: Diagnosis) -> None:
             bias_correct(ev_s, s, d.sensor_noise, d.st)
             d.say(f"{s.fit.name}: finished from where its search stopped: {fmt_phys(s.fit)}")
     for s in d.chosen:
-        before = fmt_phys(s.fit) if opts.soil_from_motion else ""
-        if opts.soil_from_motion and from_motion(s.fit) is not None:
-            d.say(
-                f"{s.fit.name}: read from the rover's motion (the pose group's own minimum):"
-                f" {fmt_phys(s.fit)} (over every signal: {before})"
-            )
+        if opts.soil_from_motion:
+            before = fmt_phys(s.fit)
+            if from_motion(s.fit) is not None:
+                d.say(
+                    f"{s.fit.name}: read from the rover's motion (the pose group's own"
+                    f" minimum): {fmt_phys(s.fit)} (over every signal: {before})"
+                )
         widen_by_groups(s.fit)
     widen_by_sensor_noise(d)
     allow_form(d)

@@ -184,15 +184,13 @@ class Options:
     fresh block 52100, 16 of 17 names right)."""
     soil_from_motion: bool = False
     """Read a named soil's k_phi from the rover's motion, the pose group's own minimum, where
-    the pose has one (:func:`.motion.from_motion`). Off by default: on fresh study 61600
-    (registered) it put k_phi within 2 x of the truth on 12 of 19 soil singles, short of the
-    registered 70 % (the fit over every signal: 12 of 23 on study 60800), at wider intervals
-    (median hi / lo 20 against 13). Why it was tried (stop 82): the yaw joints, free
-    wheels and driven wheels read the soil through forms of this model (the yaw springs, a
-    wheel's reading gain, the speed loop), and the fit over every signal put the independent
-    generator's k_phi at a median 1.68 x the truth (study 60800; 12 of 23 within 2 x); on
-    that study's spent cases the pose group was within 2 x on 19 of 25 first-pass fits,
-    every signal on 14 of 25 (scored on fresh seeds: study 61600)."""
+    the pose has one (:func:`.motion.from_motion`). Why it was tried (stop 82): the yaw
+    joints, free wheels and driven wheels read the soil through forms of this model (the
+    yaw springs, a wheel's reading gain, the speed loop); on spent study 60800's cases the
+    pose group was within 2 x of the true k_phi on 19 of 25 first-pass fits, every signal
+    on 14 of 25. Off by default: on fresh study 61600 (registered) it put k_phi within 2 x
+    on 12 of 19 soil singles, short of the registered 70 % (the fit over every signal: 12
+    of 23 on study 60800), at wider intervals (median hi / lo 20 against 13)."""
     odometry: OdometryBand | None = ODOMETRY_BAND
     """Name a rolling radius from dead reckoning against the pose (:mod:`.odometry`) beyond
     this band of what clean drives leave (None: off). Why (stop 75): the replay windows named
