@@ -244,7 +244,11 @@ def test_each_effect_of_a_pair_is_judged_by_its_own_allowance(monkeypatch: Any) 
     def diag(chosen: list[Any]) -> Any:
         return SimpleNamespace(
             opts=SimpleNamespace(
-                name_beyond_allowance=True, noise_draws=0, polish=0, soil_from_motion=False
+                name_beyond_allowance=True,
+                noise_draws=0,
+                polish=0,
+                soil_from_motion=False,
+                soil_from_straight=False,
             ),
             ev=None,
             chosen=list(chosen),

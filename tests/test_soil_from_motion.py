@@ -102,7 +102,11 @@ def test_diagnose_applies_it_to_a_named_soil_only_when_asked(on: bool) -> None:
     said: list[str] = []
     d = SimpleNamespace(
         opts=SimpleNamespace(
-            soil_from_motion=on, noise_draws=0, polish=0, name_beyond_allowance=False
+            soil_from_motion=on,
+            soil_from_straight=False,
+            noise_draws=0,
+            polish=0,
+            name_beyond_allowance=False,
         ),
         ev=None,
         chosen=[SimpleNamespace(fit=f, fit_scale=None, test="")],

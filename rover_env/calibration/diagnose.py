@@ -127,6 +127,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "soil_from_motion",
         "read a named soil's k_phi from the pose signals' own minimum (off: study 61600)",
     ),
+    (
+        "soil_from_straight",
+        "read a named soil's k_phi from the pose signals on the windows without a turn",
+    ),
     ("screen", "screen each candidate on half the training windows before its full fit"),
     (
         "forms_beside_leader",

@@ -310,6 +310,19 @@ def make_windows(logs: list[PreparedLog], settings: ReplaySettings) -> list[Wind
     return out
 
 
+def straight_windows(logs: list[PreparedLog], windows: list[Window]) -> list[Window]:
+    """The windows of ``windows`` in which no sample is commanded to turn (the regimes
+    ``left_turn`` and ``right_turn``): there the yaw springs and the wheels' side forces,
+    which a turn loads, carry nothing."""
+    out = []
+    for w in windows:
+        reg = logs[w.log_index].regimes
+        turning = reg["left_turn"][w.k0 : w.k1 + 1] | reg["right_turn"][w.k0 : w.k1 + 1]
+        if not np.any(turning):
+            out.append(w)
+    return out
+
+
 @dataclass
 class WindowResult:
     """Residuals (sim - log) of one window at its scored samples."""

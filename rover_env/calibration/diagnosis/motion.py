@@ -53,7 +53,15 @@ def from_motion(f: Fit) -> float | None:
     if c.name not in FROM_MOTION or (f.sided and f.sided[0]):
         return None
     u = (f.groups or {}).get(MOTION_GROUP)
-    if u is None or not math.isfinite(u) or not c.lo[0] <= u <= c.hi[0] or u == c.off[0]:
+    return None if u is None else move_to(f, u)
+
+
+def move_to(f: Fit, u: float) -> float | None:
+    """Move a one-parameter fit to ``u`` where ``u`` lies inside its candidate's range, away
+    from "off": ``f.x``, ``f.ext`` and the interval stretched to hold it. Returns the value
+    it replaced, or None where nothing changed."""
+    c = f.candidates[0]
+    if not math.isfinite(u) or not c.lo[0] <= u <= c.hi[0] or u == c.off[0]:
         return None
     was = float(f.x[0])
     f.x = np.array([float(u)])

@@ -46,6 +46,7 @@ from rover_env.calibration.diagnosis.motion import from_motion
 from rover_env.calibration.diagnosis.parallel import map_parallel
 from rover_env.calibration.diagnosis.rotor import profile_rotor, rotor_test
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
+from rover_env.calibration.diagnosis.straight import from_straight
 from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
 from rover_env.calibration.fit import Evaluator, carry_form_pad, fit, stack_fits, widen_by_groups
 from rover_env.calibration.noise_interval import noise_se, widen_by_noise
@@ -416,13 +417,18 @@ def finish_chosen(d: Diagnosis) -> None:
             bias_correct(ev_s, s, d.sensor_noise, d.st)
             d.say(f"{s.fit.name}: finished from where its search stopped: {fmt_phys(s.fit)}")
     for s in d.chosen:
-        if opts.soil_from_motion:
-            before = fmt_phys(s.fit)
-            if from_motion(s.fit) is not None:
-                d.say(
-                    f"{s.fit.name}: read from the rover's motion (the pose group's own"
-                    f" minimum): {fmt_phys(s.fit)} (over every signal: {before})"
-                )
+        before = fmt_phys(s.fit) if opts.soil_from_straight or opts.soil_from_motion else ""
+        ev_s = ev if s.fit_scale is None else replace(ev, scale=s.fit_scale)
+        if opts.soil_from_straight and from_straight(ev_s, s.fit) is not None:
+            d.say(
+                f"{s.fit.name}: read from straight driving (the pose signals' own minimum on"
+                f" the windows without a turn): {fmt_phys(s.fit)} (over every signal: {before})"
+            )
+        elif opts.soil_from_motion and from_motion(s.fit) is not None:
+            d.say(
+                f"{s.fit.name}: read from the rover's motion (the pose group's own"
+                f" minimum): {fmt_phys(s.fit)} (over every signal: {before})"
+            )
         widen_by_groups(s.fit)
     widen_by_sensor_noise(d)
     allow_form(d)

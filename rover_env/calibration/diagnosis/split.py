@@ -11,9 +11,9 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from rover_env.calibration.diagnosis.state import Diagnosis
+from rover_env.calibration.diagnosis.state import STRAIGHT, Diagnosis
 from rover_env.calibration.ground import common_ground
-from rover_env.calibration.replay import Window, make_windows, prepare
+from rover_env.calibration.replay import Window, make_windows, prepare, straight_windows
 from rover_env.config import RoverConfig, load_rover
 from rover_env.logs import DriveLog, LogError, read_log
 
@@ -52,6 +52,8 @@ def split(d: Diagnosis) -> None:
         raise LogError("too little data: need at least 3 training and 3 held-out windows", files[0])
     sub_w = train_w[:: max(1, d.opts.numpy_every)]
     sets: dict[str, list[Window]] = {"train": train_w, "train_sub": sub_w, "held": held_w}
+    # Windows of every drive without a turn (:mod:`.straight` reads a named soil there).
+    sets[STRAIGHT] = straight_windows(prepared, train_w + held_w)
     d.files, d.logs, d.base, d.st, d.prepared, d.split = files, logs, base, st, prepared, text
     d.all_w, d.train_w, d.held_w, d.sets = all_w, train_w, held_w, sets
     d.say(f"{len(logs)} log(s), {text}; windows {len(train_w)} training, {len(held_w)} held out")

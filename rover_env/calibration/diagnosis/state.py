@@ -32,6 +32,8 @@ Table = dict[str, dict[str, Cell]]
 
 
 LEADING = " (leading, not named)"
+STRAIGHT = "straight"
+"""The window set of every drive's windows without a turn (:func:`.replay.straight_windows`)."""
 """Suffix of :attr:`Options.forms_beside` for forms fitted beside the leading candidate of a
 first pass that named nothing (:func:`.again.judge_again`); the report reads it back."""
 
@@ -191,6 +193,13 @@ class Options:
     on 14 of 25. Off by default: on fresh study 61600 (registered) it put k_phi within 2 x
     on 12 of 19 soil singles, short of the registered 70 % (the fit over every signal: 12
     of 23 on study 60800), at wider intervals (median hi / lo 20 against 13)."""
+    soil_from_straight: bool = True
+    """Read a named soil's k_phi from straight driving: the pose signals' own minimum over
+    the windows without a turn (:func:`.straight.from_straight`). Why (stop 83): in a turn
+    the yaw springs, whose stiffness SPEC does not give, trade with k_phi, and every signal
+    over every window put k_phi within 2 x on 16 of 27 spent soil cases of study 60800; the
+    pose on straight windows on 22 of 27 (and on 13 of 18 of spent study 61600's, where the
+    pose over every window had 12 of 18)."""
     odometry: OdometryBand | None = ODOMETRY_BAND
     """Name a rolling radius from dead reckoning against the pose (:mod:`.odometry`) beyond
     this band of what clean drives leave (None: off). Why (stop 75): the replay windows named

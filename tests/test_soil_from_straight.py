@@ -1,0 +1,148 @@
+"""A named soil's k_phi read from straight driving (rover_env.calibration.diagnosis.straight)."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+import pytest
+
+from rover_env.calibration.candidates import SOIL_FORMS, catalogue
+from rover_env.calibration.diagnosis import straight as st
+from rover_env.calibration.diagnosis.state import STRAIGHT
+from rover_env.calibration.fit import Fit
+from rover_env.calibration.replay import SIGNALS, Window, WindowResult, straight_windows
+
+REGOLITH = SOIL_FORMS[4][0]
+
+
+def _soil() -> Any:
+    return catalogue(["loose_soil"])[0].with_form(REGOLITH)
+
+
+def _fit(c: Any = None, x: float = 0.3) -> Fit:
+    c = c or _soil()
+    xv = np.array([x])
+    return Fit(
+        candidates=[c],
+        x=xv,
+        ci_lo=xv * 0.8,
+        ci_hi=xv * 1.2,
+        se=xv * 0.1,
+        cost=1.0,
+        nfev=10,
+        ext=c.to_ext(xv),
+        seconds=0.0,
+        which="train",
+    )
+
+
+class FakeEv:
+    """An evaluator whose pose residual on every window is ``log(u / u0)`` (its loss a
+    parabola in log u with its minimum at ``u0``); the other signals' residuals pull
+    elsewhere (toward ``u_other``), as the yaw joints do in a turn."""
+
+    def __init__(self, u0: float, u_other: float = 5.0, windows: int = 6, off: float = 3.0):
+        self.u0, self.u_other, self.off = u0, u_other, off
+        self.sets = {STRAIGHT: [Window(0, 0, 10)] * windows}
+        self.scale = {s: 1.0 for s in SIGNALS}
+        self.calls: list[tuple[str, str | None]] = []
+
+    def run(self, ext: dict[str, Any], which: str, ref: str | None = None) -> list[WindowResult]:
+        self.calls.append((which, ref))
+        k = ext["loose_soil"]["k_phi"]
+        u = 1e6 / k if k > 0 else 0.0
+        pose = self.off if u <= 0 else math.log(u / self.u0)
+        other = self.off if u <= 0 else math.log(u / self.u_other)
+        out = []
+        for w in self.sets[which]:
+            n = 5
+            out.append(
+                WindowResult(
+                    window=w,
+                    idx=np.arange(n),
+                    resid=np.full((n, 11), other),
+                    sim=np.zeros((n, 11)),
+                    pose_idx=np.arange(n),
+                    pose_resid=np.full((n, 3), pose),
+                    pose_sim=np.zeros((n, 3)),
+                )
+            )
+        return out
+
+
+@pytest.mark.parametrize("u0", [0.05, 0.2, 0.9, 2.5, 7.0])
+def test_pose_minimum_finds_the_pose_signals_own_minimum(u0: float) -> None:
+    ev = FakeEv(u0)
+    u = st.pose_minimum(ev, _soil(), _soil().to_ext(np.array([1.0])))  # type: ignore[arg-type]
+    assert u is not None and u == pytest.approx(u0, rel=0.05)
+    # replayed on the straight windows only, profiled over their own windows
+    assert {c for c in ev.calls} == {(STRAIGHT, STRAIGHT)}
+
+
+def test_pose_minimum_beyond_the_softest_soil_stops_at_the_range() -> None:
+    u = st.pose_minimum(FakeEv(40.0), _soil(), {})  # type: ignore[arg-type]
+    assert u == pytest.approx(_soil().hi[0])
+
+
+def test_hard_ground_that_fits_the_pose_as_well_reads_nothing() -> None:
+    assert st.pose_minimum(FakeEv(0.9, off=0.0), _soil(), {}) is None  # type: ignore[arg-type]
+
+
+def test_from_straight_moves_a_named_soil_and_stretches_its_interval() -> None:
+    f = _fit(x=0.3)
+    assert st.from_straight(FakeEv(2.0), f) == pytest.approx(0.3)  # type: ignore[arg-type]
+    assert f.x[0] == pytest.approx(2.0, rel=0.05)
+    assert f.ext["loose_soil"]["k_phi"] == pytest.approx(1e6 / f.x[0])
+    assert f.ext["loose_soil"]["preset"] == 1.0  # the soil's form stays
+    assert f.ci_lo[0] == pytest.approx(0.24) and f.ci_hi[0] == pytest.approx(f.x[0])
+
+
+@pytest.mark.parametrize("case", ["few windows", "other effect", "one-sided"])
+def test_from_straight_leaves_alone(case: str) -> None:
+    f = _fit()
+    ev = FakeEv(2.0, windows=st.MIN_WINDOWS - 1 if case == "few windows" else 6)
+    if case == "other effect":
+        rr = catalogue(["rolling_resistance"])[0]
+        f = _fit(rr, 0.02)
+    if case == "one-sided":
+        f.sided = ("upper",)
+    x = float(f.x[0])
+    assert st.from_straight(ev, f) is None  # type: ignore[arg-type]
+    assert f.x[0] == x and ev.calls == []
+
+
+def test_straight_windows_drop_every_window_with_a_turning_sample() -> None:
+    n = 30
+    left, right = np.zeros(n, bool), np.zeros(n, bool)
+    left[12] = True  # one sample of a left turn
+    right[25] = True
+    log = SimpleNamespace(regimes={"left_turn": left, "right_turn": right})
+    ws = [Window(0, 0, 9), Window(0, 10, 19), Window(0, 20, 29), Window(0, 13, 24)]
+    assert straight_windows([log], ws) == [ws[0], ws[3]]  # type: ignore[list-item]
+
+
+@pytest.mark.parametrize("on", [True, False])
+def test_diagnose_applies_it_to_a_named_soil_only_when_asked(on: bool) -> None:
+    from rover_env.calibration.diagnosis import select as sel
+
+    f = _fit(x=0.3)
+    said: list[str] = []
+    d = SimpleNamespace(
+        opts=SimpleNamespace(
+            soil_from_straight=on,
+            soil_from_motion=False,
+            noise_draws=0,
+            polish=0,
+            name_beyond_allowance=False,
+        ),
+        ev=FakeEv(2.0),
+        chosen=[SimpleNamespace(fit=f, fit_scale=None, test="")],
+        allowance=None,
+        say=said.append,
+    )
+    sel.finish_chosen(d)  # type: ignore[arg-type]
+    assert f.x[0] == (pytest.approx(2.0, rel=0.05) if on else 0.3)
+    assert any("straight driving" in m for m in said) is on
