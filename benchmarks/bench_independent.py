@@ -342,6 +342,8 @@ def fits(final: dict[str, Any], truth: Any) -> dict[str, dict[str, Any]]:
                     raw = (f.get("params_without_allowance") or f["params"])[name][param]
                     row["lo_raw"], row["hi_raw"] = raw[1], raw[2]
                     row["side"] = (f.get("sides") or {}).get(name, {}).get(param, "")
+                    read = f.get("read_from") or {}
+                    row["read_from"] = read.get("rule")  # a soil read off the fit (None: the fit)
                     if name == "slope" and "heading_deg" in f["params"][name]:
                         row["heading"] = list(f["params"][name]["heading_deg"])
                         row["truth_heading"] = params.get("heading_deg", 0.0)

@@ -551,3 +551,12 @@ def test_a_missed_strong_single_is_given_its_first_reason() -> None:
     ):
         assert part in line, (part, line)
     assert "none missed" in r.missed_line(rows[-1:], ratio)
+
+
+def test_a_soil_row_says_where_its_k_phi_was_read(b: ModuleType) -> None:
+    """The row's fit carries the diagnosis's ``read_from`` rule (None: the fit itself)."""
+    soil = {"params": {"loose_soil": {"k_phi": [1e6, 5e5, 2e6]}}, "sides": {}}
+    for read, want in (({"rule": "straight", "replaced": {}}, "straight"), (None, None)):
+        final = {"final": {"loose_soil": {**soil, "read_from": read}}, "fits": {}}
+        row = b.fits(final, {"loose_soil": {"k_phi": 8.14e5}})["loose_soil"]
+        assert row["read_from"] == want and row["value"] == 1e6

@@ -116,3 +116,5 @@ def test_diagnose_applies_it_to_a_named_soil_only_when_asked(on: bool) -> None:
     sel.finish_chosen(d)  # type: ignore[arg-type]
     assert f.x[0] == pytest.approx(1.2 if on else 0.3)
     assert any("rover's motion" in m for m in said) is on
+    read = getattr(d.chosen[0], "read_from", None)
+    assert (read["rule"] if read else None) == ("motion" if on else None)

@@ -146,3 +146,8 @@ def test_diagnose_applies_it_to_a_named_soil_only_when_asked(on: bool) -> None:
     sel.finish_chosen(d)  # type: ignore[arg-type]
     assert f.x[0] == (pytest.approx(2.0, rel=0.05) if on else 0.3)
     assert any("straight driving" in m for m in said) is on
+    read = getattr(d.chosen[0], "read_from", None)  # recorded in result.json's fit
+    assert (read["rule"] if read else None) == ("straight" if on else None)
+    if read:
+        k, lo, hi = read["replaced"]["loose_soil"]["k_phi"]
+        assert k == pytest.approx(1e6 / 0.3) and lo < k < hi  # the fit before the move

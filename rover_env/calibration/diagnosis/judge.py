@@ -498,6 +498,7 @@ def fit_dict(s: Scored) -> dict[str, Any]:
         "nfev": s.fit.nfev,
         "seconds": s.fit.seconds,
         "reweighed_from": s.reweighed_from,
+        "read_from": s.read_from,
     }
 
 

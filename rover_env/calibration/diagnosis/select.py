@@ -417,21 +417,32 @@ def finish_chosen(d: Diagnosis) -> None:
             bias_correct(ev_s, s, d.sensor_noise, d.st)
             d.say(f"{s.fit.name}: finished from where its search stopped: {fmt_phys(s.fit)}")
     for s in d.chosen:
-        before = fmt_phys(s.fit) if opts.soil_from_straight or opts.soil_from_motion else ""
-        ev_s = ev if s.fit_scale is None else replace(ev, scale=s.fit_scale)
-        if opts.soil_from_straight and from_straight(ev_s, s.fit) is not None:
-            d.say(
-                f"{s.fit.name}: read from straight driving (the pose signals' own minimum on"
-                f" the windows without a turn): {fmt_phys(s.fit)} (over every signal: {before})"
-            )
-        elif opts.soil_from_motion and from_motion(s.fit) is not None:
-            d.say(
-                f"{s.fit.name}: read from the rover's motion (the pose group's own"
-                f" minimum): {fmt_phys(s.fit)} (over every signal: {before})"
-            )
+        read_soil(d, s)
         widen_by_groups(s.fit)
     widen_by_sensor_noise(d)
     allow_form(d)
+
+
+def read_soil(d: Diagnosis, s: Scored) -> None:
+    """A named soil's k_phi read from straight driving or the rover's motion, where the
+    options ask (:mod:`.straight`, :mod:`.motion`); ``s.read_from`` records what it replaced."""
+    opts = d.opts
+    if not (opts.soil_from_straight or opts.soil_from_motion):
+        return
+    before, was = fmt_phys(s.fit), s.fit.physical()
+    ev_s = d.ev if s.fit_scale is None else replace(d.ev, scale=s.fit_scale)
+    if opts.soil_from_straight and from_straight(ev_s, s.fit) is not None:
+        rule = "straight"
+        how = "straight driving (the pose signals' own minimum on the windows without a turn)"
+    elif opts.soil_from_motion and from_motion(s.fit) is not None:
+        rule, how = "motion", "the rover's motion (the pose group's own minimum)"
+    else:
+        return
+    s.read_from = {
+        "rule": rule,
+        "replaced": {e: {k: list(v) for k, v in p.items()} for e, p in was.items()},
+    }
+    d.say(f"{s.fit.name}: read from {how}: {fmt_phys(s.fit)} (over every signal: {before})")
 
 
 def widen_by_sensor_noise(d: Diagnosis) -> None:

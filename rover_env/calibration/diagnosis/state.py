@@ -407,6 +407,10 @@ class Scored:
     logs leave (:func:`rover_env.calibration.diagnosis.fit_stage.detection_limit`)."""
     reweighed_from: dict[str, dict[str, list[float]]] | None = None
     """The fit under the stage's own signal scale, before :attr:`Options.reweigh`'s refits."""
+    read_from: dict[str, object] | None = None
+    """Where a named soil's magnitude was read instead of the fit over every signal
+    (:attr:`Options.soil_from_straight`, :attr:`Options.soil_from_motion`): ``rule`` and the
+    ``replaced`` fit's parameters (value, interval)."""
     fit_scale: dict[str, float] | None = None
     """The signal scale the fit was made with when it is not the stage's own (a reweighed
     refit, :attr:`Options.reweigh`): the replay's bias is measured with the same weights."""
