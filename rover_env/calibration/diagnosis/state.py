@@ -199,7 +199,8 @@ class Options:
     the yaw springs, whose stiffness SPEC does not give, trade with k_phi, and every signal
     over every window put k_phi within 2 x on 16 of 27 spent soil cases of study 60800; the
     pose on straight windows on 22 of 27 (and on 13 of 18 of spent study 61600's, where the
-    pose over every window had 12 of 18)."""
+    pose over every window had 12 of 18). On fresh study 62400 (registered): 13 of 15 soil
+    singles within 2 x, every named one (docs/calibration/study62400)."""
     odometry: OdometryBand | None = ODOMETRY_BAND
     """Name a rolling radius from dead reckoning against the pose (:mod:`.odometry`) beyond
     this band of what clean drives leave (None: off). Why (stop 75): the replay windows named
