@@ -88,33 +88,3 @@ def test_a_pair_is_left_alone() -> None:
     other = catalogue(["slope"])[0]
     f = _fit(candidates=[soil.candidates[0], other], x=np.array([0.3, 1.0, 0.0]))
     assert from_motion(f) is None
-
-
-@pytest.mark.parametrize("on", [True, False])
-def test_diagnose_applies_it_to_a_named_soil_only_when_asked(on: bool) -> None:
-    """``finish_chosen`` moves a named soil to the pose with ``Options.soil_from_motion`` and
-    says so; without it the fit over every signal stands."""
-    from types import SimpleNamespace
-
-    from rover_env.calibration.diagnosis import select as sel
-
-    f = _fit()
-    said: list[str] = []
-    d = SimpleNamespace(
-        opts=SimpleNamespace(
-            soil_from_motion=on,
-            soil_from_straight=False,
-            noise_draws=0,
-            polish=0,
-            name_beyond_allowance=False,
-        ),
-        ev=None,
-        chosen=[SimpleNamespace(fit=f, fit_scale=None, test="")],
-        allowance=None,
-        say=said.append,
-    )
-    sel.finish_chosen(d)  # type: ignore[arg-type]
-    assert f.x[0] == pytest.approx(1.2 if on else 0.3)
-    assert any("rover's motion" in m for m in said) is on
-    read = getattr(d.chosen[0], "read_from", None)
-    assert (read["rule"] if read else None) == ("motion" if on else None)

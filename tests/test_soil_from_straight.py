@@ -124,30 +124,38 @@ def test_straight_windows_drop_every_window_with_a_turning_sample() -> None:
     assert straight_windows([log], ws) == [ws[0], ws[3]]  # type: ignore[list-item]
 
 
-@pytest.mark.parametrize("on", [True, False])
-def test_diagnose_applies_it_to_a_named_soil_only_when_asked(on: bool) -> None:
+@pytest.mark.parametrize("rule", ["straight", "motion", None])
+def test_diagnose_reads_a_named_soil_only_where_asked(rule: str | None) -> None:
+    """``finish_chosen`` reads a named soil from straight driving
+    (``Options.soil_from_straight``) or from the pose over every window
+    (``Options.soil_from_motion``), says so and records it; with neither the fit over every
+    signal stands."""
     from rover_env.calibration.diagnosis import select as sel
 
     f = _fit(x=0.3)
+    f.groups = {"joints": 0.3, "pose": 1.2}  # the pose group's own minimum over every window
     said: list[str] = []
     d = SimpleNamespace(
         opts=SimpleNamespace(
-            soil_from_straight=on,
-            soil_from_motion=False,
+            soil_from_straight=rule == "straight",
+            soil_from_motion=rule == "motion",
             noise_draws=0,
             polish=0,
             name_beyond_allowance=False,
         ),
-        ev=FakeEv(2.0),
+        ev=FakeEv(2.0),  # the pose's minimum over the straight windows
         chosen=[SimpleNamespace(fit=f, fit_scale=None, test="")],
         allowance=None,
         say=said.append,
     )
     sel.finish_chosen(d)  # type: ignore[arg-type]
-    assert f.x[0] == (pytest.approx(2.0, rel=0.05) if on else 0.3)
-    assert any("straight driving" in m for m in said) is on
+    assert f.x[0] == pytest.approx({"straight": 2.0, "motion": 1.2, None: 0.3}[rule], rel=0.05)
+    words = {"straight": "straight driving", "motion": "rover's motion"}
+    assert [w for w in words.values() if any(w in m for m in said)] == (
+        [words[rule]] if rule else []
+    )
     read = getattr(d.chosen[0], "read_from", None)  # recorded in result.json's fit
-    assert (read["rule"] if read else None) == ("straight" if on else None)
+    assert (read["rule"] if read else None) == rule
     if read:
         k, lo, hi = read["replaced"]["loose_soil"]["k_phi"]
         assert k == pytest.approx(1e6 / 0.3) and lo < k < hi  # the fit before the move
