@@ -32,10 +32,10 @@ Table = dict[str, dict[str, Cell]]
 
 
 LEADING = " (leading, not named)"
-STRAIGHT = "straight"
-"""The window set of every drive's windows without a turn (:func:`.replay.straight_windows`)."""
 """Suffix of :attr:`Options.forms_beside` for forms fitted beside the leading candidate of a
 first pass that named nothing (:func:`.again.judge_again`); the report reads it back."""
+STRAIGHT = "straight"
+"""The window set of every drive's windows without a turn (:func:`.replay.straight_windows`)."""
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ as fitted; its interval is stretched to hold it, then widened as every named eff
 Measured before it was adopted (exploratory, notes soil_straight83.py): the pose on straight
 windows within 2 x of the true k_phi on 22 of 27 spent soil cases of study 60800 (every
 signal over every window, diagnose's default then: 16 of 27; every signal on straight
-windows: 15 of 27, soft by 2-8 x on stiff soils, the driven wheels' reading) and 13 of 18
+windows: 15 of 27, soft on most stiff soils) and 13 of 18
 of study 61600's (the pose over every window: 12 of 18). Scored on fresh seeds (study 62400,
 registered): 13 of 15 soil singles within 2 x, every one named as soil; intervals held the
 truth 16 of 16 (docs/calibration/study62400).
