@@ -80,7 +80,7 @@ def simulate_plan(
     """The drive ``plan`` as ``cfg`` would log it (exact sensors, pose at 1 Hz), on the
     logs' declared ``ground`` (None: flat hard ground)."""
     sim = RoverSim(cfg, "flat" if ground is None else ground, backend="auto")
-    sim.reset()
+    sim.reset(sunk=True)
     sched = drive_schedule(plan, np.random.default_rng(seed), duration, cfg.motor.max_wheel_speed)
     rec = run_drive(sim, sched, duration)
     terrain = "flat" if ground is None else to_dict(ground)

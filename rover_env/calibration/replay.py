@@ -393,7 +393,7 @@ class Replayer:
         # wrong direction (a 6.3 deg cross-slope: 25 deg off in a pivot, the free wheels
         # replayed at 0.71 rad RMS under the truth, and slopes were fitted low).
         yaw1 = float(p.yaw3[k0] - th[1] - th[4])
-        s.reset(0.0, 0.0, yaw1, settle=0.0, theta=th)
+        s.reset(0.0, 0.0, yaw1, settle=0.0, theta=th, sunk=True)
         d.time = float(log.t[k0])
         qv = np.zeros(self._nv)
         qv[s.index.wheel_dof] = p.phi_rate[k0]

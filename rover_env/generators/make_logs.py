@@ -113,7 +113,7 @@ def make_logs(
         k = first_index + i
         rng_plan, rng_sens, rng_pose = (np.random.default_rng(s) for s in kid.spawn(3))
         sim = RoverSim(truth_cfg, "flat", backend="auto")
-        sim.reset()
+        sim.reset(sunk=True)
         sched = drive_schedule(plan, rng_plan, duration, nominal.motor.max_wheel_speed)
         if progress:
             print(f"make-logs: drive {k + 1}/{first_index + drives} ({plan}, {sim.backend})")

@@ -11,6 +11,7 @@ in one process).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -48,6 +49,7 @@ from rover_env.sim.model import fill_hfield, hfield_data, scene_xml, static_defl
 from rover_env.sim.speed_loop import advance_setpoints
 from rover_env.sim.tire_layer import TireLayer, TireState
 from rover_env.soil import SoilParams, load_soil
+from rover_env.soil import static_sinkage as soil_static_sinkage
 from rover_env.terrain import Terrain
 
 Array = NDArray[np.float64]
@@ -215,6 +217,12 @@ def effect_soil(terrain: TerrainConfig, effects: Sequence[Effect]) -> SoilParams
     return dataclasses.replace(base, name=f"{base.name} (loose_soil)", **changes)
 
 
+@functools.lru_cache(maxsize=64)
+def _static_sinkage(load: float, radius: float, width: float, params: SoilParams) -> float:
+    """:func:`rover_env.soil.static_sinkage`, once per soil (replays reset every window)."""
+    return soil_static_sinkage(load, radius, width, params, tol=1e-7)
+
+
 def resolve_auto_backend(cfg: RoverConfig) -> str:
     """``backend="auto"``: the compiled plugin where it can run this model, else numpy."""
     if plugin_refusals(cfg.extensions):
@@ -364,13 +372,18 @@ class RoverSim:
         yaw: float = 0.0,
         settle: float = 0.5,
         theta: Array | None = None,
+        sunk: bool = False,
     ) -> None:
         """Place the rover at rest on the ground at (x, y) heading ``yaw``, then let it settle.
 
         The chassis is oriented to the local ground plane and lifted by the static tire
         deflection so the settling transient is small; ``settle`` seconds with zero speed
         targets then bring it to equilibrium and set time back to 0. ``theta`` sets initial
-        joint angles theta_1..theta_5.
+        joint angles theta_1..theta_5. ``sunk``: where axle 1 stands on loose soil, its
+        wheels start at the soil's static sinkage instead (:meth:`rest_depth`): the tire's
+        27 mm in a stiff soil is a loaded spring that throws the rover up, beyond what the
+        settling absorbs from k_phi ~5e6 (replays, make-logs and proposed drives use it; the
+        registered envs keep the tire's depth, so their episodes stay as they were).
         """
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
@@ -385,7 +398,7 @@ class RoverSim:
         rot = np.column_stack([fwd, left, n])
         quat = np.zeros(4)
         mujoco.mju_mat2Quat(quat, rot.ravel())
-        hub = self.radius - static_deflection(self.phys_cfg)
+        hub = self.radius - (self.rest_depth(x, y) if sunk else static_deflection(self.phys_cfg))
         # Put axle 1 above the ground point (x, y) along the normal.
         pos = np.array([x, y, h[0]]) + n * hub
         d.qpos[0:3] = pos
@@ -421,6 +434,22 @@ class RoverSim:
             if self._plugin is not None:
                 self._plugin.clear_ground_memory(d.plugin_state)
             mujoco.mj_forward(m, d)
+
+    def rest_depth(self, x: float, y: float) -> float:
+        """Depth (m) a wheel at rest at (x, y) sits below the surface under a sixth of the
+        weight: the tire's static deflection on hard ground, the soil's static sinkage on
+        loose soil (the wheel is rigid there, docs/soil.md).
+
+        Why not the tire's everywhere: a wheel put 27 mm deep in a soil whose static sinkage
+        is 2.5 mm (k_phi 6e6) starts under ~35 times its load and throws the rover 13 cm up;
+        at k_phi 2.5e7 it was still bouncing 2 s later (stop 84's probe).
+        """
+        k = int(self.terrain.soil_index(np.array([x]), np.array([y]))[0])
+        if k == 0:
+            return static_deflection(self.phys_cfg)
+        g = self.phys_cfg.geometry
+        load = self.phys_cfg.masses.total * 9.81 / 6
+        return _static_sinkage(load, g.wheel_radius, g.wheel_width, self.terrain.soils[k - 1])
 
     def _terrain_of(self, terrain: TerrainConfig) -> Terrain:
         """The ground as simulated: ``terrain`` with the model extensions' loose soil (one
