@@ -131,6 +131,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "soil_from_straight",
         "read a named soil's k_phi from the pose signals on the windows without a turn",
     ),
+    (
+        "pegged_last",
+        "name a fit at its range's far end only after fits inside their ranges (off: unscored)",
+    ),
     ("screen", "screen each candidate on half the training windows before its full fit"),
     (
         "forms_beside_leader",

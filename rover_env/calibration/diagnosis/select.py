@@ -35,6 +35,7 @@ from rover_env.calibration.diagnosis.judge import (
     interval_reaches_off,
     p_improved,
     passes_window_test,
+    pegged,
     plugin_capable,
     score,
     screened,
@@ -54,7 +55,8 @@ from rover_env.calibration.noise_interval import noise_se, widen_by_noise
 
 def name_winner(d: Diagnosis) -> None:
     """Sets the winner: of the significant candidates, in order of
-    :func:`all_windows_evidence`, the first whose interval, the replay's bias in
+    :func:`all_windows_evidence` (with :attr:`~.state.Options.pegged_last`, fits that end
+    at their range's far end after the others), the first whose interval, the replay's bias in
     it (and a torque limit's rotor inertia, :func:`.rotor.profile_rotor`), keeps clear of
     "off" (one that reaches it is not named with confidence)."""
     ev = d.ev
@@ -69,11 +71,21 @@ def name_winner(d: Diagnosis) -> None:
         profile_rotor(d, s)
 
     d.winner = first_confident(
-        sorted([s for s in d.ranked if s.significant], key=all_windows_evidence),
+        naming_order(d.ranked, d.opts.pegged_last),
         correct,
         lambda s: None,
         d.say,
         detection_limits(d),
+    )
+
+
+def naming_order(ranked: list[Scored], pegged_last: bool) -> list[Scored]:
+    """The significant candidates in the order they are tried for the name: by
+    :func:`all_windows_evidence`; with ``pegged_last`` a fit that ends at its range's far
+    end (:func:`.judge.pegged`) after every fit inside its range, never dropped."""
+    return sorted(
+        [s for s in ranked if s.significant],
+        key=lambda s: (pegged_last and bool(pegged(s.fit)), all_windows_evidence(s)),
     )
 
 

@@ -201,6 +201,12 @@ class Options:
     pose on straight windows on 22 of 27 (and on 13 of 18 of spent study 61600's, where the
     pose over every window had 12 of 18). On fresh study 62400 (registered): 13 of 15 soil
     singles within 2 x, every named one (docs/calibration/study62400)."""
+    pegged_last: bool = False
+    """Name a candidate whose fit ends at its range's far end (:func:`.judge.pegged`: the
+    effect at its largest, the logs wanting more) only after the significant candidates
+    fitted inside their ranges. Why (stop 84, exploratory): a rolling resistance at c_rr 0.3,
+    its range's top, came first on exactly the 4 spent soil singles that lost the soil's
+    name. Off until fresh cases score it."""
     odometry: OdometryBand | None = ODOMETRY_BAND
     """Name a rolling radius from dead reckoning against the pose (:mod:`.odometry`) beyond
     this band of what clean drives leave (None: off). Why (stop 75): the replay windows named

@@ -1,0 +1,55 @@
+"""A fit that ends at its range's far end is the effect at its largest, not an estimate
+(``judge.pegged``); with ``Options.pegged_last`` it is tried for the name after the
+significant fits inside their ranges (stop 84: a rolling resistance at c_rr 0.3, the
+range's top, took the soil's name on four spent soil singles)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rover_env.calibration.candidates import catalogue
+from rover_env.calibration.diagnosis.judge import pegged
+from rover_env.calibration.diagnosis.select import naming_order
+from rover_env.calibration.diagnosis.state import Options, Scored
+from rover_env.calibration.fit import Fit
+
+
+def _fit(name: str, *x: float) -> Fit:
+    (c,) = catalogue([name])
+    v = np.array(x)
+    return Fit(
+        [c], v, v - 0.01, v + 0.01, np.full(len(x), 0.005), 0.0, 0, c.to_ext(v), 0.0, "train"
+    )
+
+
+def _scored(f: Fit, d_bic: float) -> Scored:
+    s = Scored(f, 0.0, np.zeros(3), 0.5, 1e-4, d_bic, d_bic, 32, significant=True)
+    s.held_losses = np.ones(16)
+    return s
+
+
+def test_only_the_end_away_from_off_is_pegged() -> None:
+    assert pegged(_fit("rolling_resistance", 0.3)) == ["rolling_resistance.c_rr"]
+    assert pegged(_fit("rolling_resistance", 0.2995)) == ["rolling_resistance.c_rr"]
+    assert pegged(_fit("rolling_resistance", 0.29)) == []
+    assert pegged(_fit("rolling_resistance", 0.0)) == []  # at off: absent, not at its largest
+    assert pegged(_fit("torque_limit", -0.8)) == ["torque_limit.fraction"]
+    assert pegged(_fit("torque_limit", 1.0)) == ["torque_limit.fraction"]
+    assert pegged(_fit("loose_soil", 10.0)) == ["loose_soil.inv_k_phi"]  # k_phi 1e5, softest
+    assert pegged(_fit("loose_soil", 1e-4)) == []  # next to hard ground, which is off
+    assert pegged(_fit("slope", 3.0, -14.0)) == ["slope.tilt_y_deg"]
+
+
+def test_a_pegged_fit_is_tried_after_the_fits_inside_their_ranges() -> None:
+    # Spent case 61844 (a soil single): the rolling resistance at 0.3 led the soil on
+    # training ΔBIC (-56.5 against -53.5) and was named.
+    rr = _scored(_fit("rolling_resistance", 0.3), -56.5)
+    soil = _scored(_fit("loose_soil", 0.6), -53.5)
+    slope = _scored(_fit("slope", 1.0, 0.5), -2.0)
+    slope.significant = False
+    ranked = [rr, soil, slope]
+    assert naming_order(ranked, pegged_last=False) == [rr, soil]
+    assert naming_order(ranked, pegged_last=True) == [soil, rr]
+    soil.significant = False  # alone, a pegged fit is still tried
+    assert naming_order(ranked, pegged_last=True) == [rr]
+    assert Options().pegged_last is False  # off until fresh cases score it
