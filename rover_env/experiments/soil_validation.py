@@ -320,7 +320,7 @@ def soil_endurance(
 ) -> dict[str, Any]:
     """Random speed targets held for random spells on the rough soil scene.
 
-    Raises :class:`rover_env.sim.simulator.SimulationError` on any MuJoCo warning or NaN.
+    Raises :class:`rover_env.sim.index.SimulationError` on any MuJoCo warning or NaN.
     Flips and arena exits are counted and the rover put back.
     """
     rng = np.random.default_rng(seed)
