@@ -87,6 +87,19 @@ def test_pose_minimum_beyond_the_softest_soil_stops_at_the_range() -> None:
     assert u == pytest.approx(_soil().hi[0])
 
 
+def test_a_minimum_at_the_softest_rung_is_no_reading_where_ends_are_refused() -> None:
+    """``end=False`` (``--pegged-last``): a best rung at the range's soft end reads nothing
+    (three spent soil singles read at 0.05-0.15 x the truth there); inside, as before."""
+    soil = _soil()
+    assert st.pose_minimum(FakeEv(40.0), soil, {}, end=False) is None  # type: ignore[arg-type]
+    assert st.pose_minimum(FakeEv(8.0), soil, {}, end=False) is None  # type: ignore[arg-type]
+    u = st.pose_minimum(FakeEv(2.5), soil, {}, end=False)  # type: ignore[arg-type]
+    assert u == pytest.approx(2.5, rel=0.05)
+    f = _fit(x=0.3)
+    assert st.from_straight(FakeEv(40.0), f, end=False) is None  # type: ignore[arg-type]
+    assert f.x[0] == 0.3
+
+
 def test_hard_ground_that_fits_the_pose_as_well_reads_nothing() -> None:
     assert st.pose_minimum(FakeEv(0.9, off=0.0), _soil(), {}) is None  # type: ignore[arg-type]
 
@@ -139,6 +152,7 @@ def test_diagnose_reads_a_named_soil_only_where_asked(rule: str | None) -> None:
         opts=SimpleNamespace(
             soil_from_straight=rule == "straight",
             soil_from_motion=rule == "motion",
+            pegged_last=False,
             noise_draws=0,
             polish=0,
             name_beyond_allowance=False,

@@ -443,7 +443,7 @@ def read_soil(d: Diagnosis, s: Scored) -> None:
         return
     before, was = fmt_phys(s.fit), s.fit.physical()
     ev_s = d.ev if s.fit_scale is None else replace(d.ev, scale=s.fit_scale)
-    if opts.soil_from_straight and from_straight(ev_s, s.fit) is not None:
+    if opts.soil_from_straight and from_straight(ev_s, s.fit, not opts.pegged_last) is not None:
         rule = "straight"
         how = "straight driving (the pose signals' own minimum on the windows without a turn)"
     elif opts.soil_from_motion and from_motion(s.fit) is not None:

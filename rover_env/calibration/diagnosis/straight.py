@@ -44,12 +44,16 @@ REFINE = 8
 
 
 def pose_minimum(
-    ev: Evaluator, c: Candidate, fixed: Extensions, which: str = STRAIGHT
+    ev: Evaluator, c: Candidate, fixed: Extensions, which: str = STRAIGHT, end: bool = True
 ) -> float | None:
     """The value of ``c``'s one parameter (beside ``fixed``) that minimises the pose
     signals' loss over window set ``which``: the rungs of its magnitude ladder, then a
     bounded search in log-magnitude between the best rung's neighbours. None where "off"
-    fits the pose at least as well (nothing to read there)."""
+    fits the pose at least as well (nothing to read there), and with ``end`` False where
+    the best rung is the range's far end: the pose's minimum may lie beyond the range, so
+    what is found there is the effect at its largest, not a reading
+    (:func:`.judge.pegged`; stop 84: three spent soil singles read at 0.05-0.15 x the
+    truth so)."""
     col = list(SIGNAL_GROUPS).index(MOTION_GROUP)
     lo, hi, off = c.lo[0], c.hi[0], c.off[0]
     seen: dict[float, float] = {}
@@ -68,6 +72,8 @@ def pose_minimum(
     if not rungs or any(v <= off for v in rungs):
         return None  # a one-sided magnitude above "off" only (as the soil's 1 / k_phi)
     j = int(np.argmin([cost(v) for v in rungs]))
+    if not end and j == len(rungs) - 1:
+        return None
     a = rungs[j - 1] if j > 0 else max(rungs[0] / 3.0, off + 1e-9)
     b = rungs[j + 1] if j < len(rungs) - 1 else rungs[j]
     if b > a:
@@ -83,10 +89,11 @@ def pose_minimum(
     return None if not math.isfinite(seen[best]) or cost(off) <= seen[best] else best
 
 
-def from_straight(ev: Evaluator, f: Fit) -> float | None:
+def from_straight(ev: Evaluator, f: Fit, end: bool = True) -> float | None:
     """Move a one-effect fit of :data:`.motion.FROM_MOTION` to :func:`pose_minimum` over the
-    straight windows, where there are at least :data:`MIN_WINDOWS`. Updates ``f`` as
-    :func:`.motion.move_to`; returns the value it replaced, or None where nothing changed."""
+    straight windows, where there are at least :data:`MIN_WINDOWS` (``end``: as there).
+    Updates ``f`` as :func:`.motion.move_to`; returns the value it replaced, or None where
+    nothing changed."""
     if len(f.candidates) != 1 or f.x.size != 1:
         return None
     c = f.candidates[0]
@@ -94,5 +101,5 @@ def from_straight(ev: Evaluator, f: Fit) -> float | None:
         return None
     if len(ev.sets.get(STRAIGHT, ())) < MIN_WINDOWS:
         return None
-    u = pose_minimum(ev, c, f.ext)
+    u = pose_minimum(ev, c, f.ext, end=end)
     return None if u is None else move_to(f, u)
