@@ -77,8 +77,9 @@ class ReplaySettings:
     soil_lead: float = 2.0
     """On loose soil (a ``loose_soil`` extension), each window is started this much earlier
     from the log and driven by its commands, unscored, before its burn-in: a window starts
-    on virgin soil with its wheels on the surface, while the logged rover's wheels had sunk
-    and its middle and rear wheels ran in the front ones' ruts (0.5 m of wheelbase, ~3 s at
+    on virgin soil with its wheels at its static sinkage (stop 84; before, at the tire's
+    27 mm, which threw the rover up on stiff soil), while the logged rover's wheels had
+    sunk under way and its middle and rear wheels ran in the front ones' ruts (0.5 m of wheelbase, ~3 s at
     0.15 m/s). The scored samples are the same as on hard ground. Measured on logs made with
     a soil looser than the fit's form (k_phi 4e5, phi 28, n0 1.1), the truth's replay cost 1.51 x
     the best k_phi's without a lead, 1.16 x with 2 s and 1.55 x with 5 s (docs/calibration,
