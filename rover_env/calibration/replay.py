@@ -79,11 +79,12 @@ class ReplaySettings:
     from the log and driven by its commands, unscored, before its burn-in: a window starts
     on virgin soil with its wheels at its static sinkage (stop 84; before, at the tire's
     27 mm, which threw the rover up on stiff soil), while the logged rover's wheels had
-    sunk under way and its middle and rear wheels ran in the front ones' ruts (0.5 m of wheelbase, ~3 s at
-    0.15 m/s). The scored samples are the same as on hard ground. Measured on logs made with
-    a soil looser than the fit's form (k_phi 4e5, phi 28, n0 1.1), the truth's replay cost 1.51 x
-    the best k_phi's without a lead, 1.16 x with 2 s and 1.55 x with 5 s (docs/calibration,
-    stop 28: on soil that loose the replay stays noisy)."""
+    sunk under way and its middle and rear wheels ran in the front ones' ruts (0.5 m of
+    wheelbase, ~3 s at 0.15 m/s). The scored samples are the same as on hard ground.
+    Measured on logs made with a soil looser than the fit's form (k_phi 4e5, phi 28, n0
+    1.1), the truth's replay cost 1.51 x the best k_phi's without a lead, 1.16 x with 2 s
+    and 1.55 x with 5 s (docs/calibration, stop 28: on soil that loose the replay stays
+    noisy)."""
     timestep: float | None = 0.002
     """Physics step of the replay (s), when coarser than the rover's own (None: the rover's).
     Why 2 ms: the timestep study (docs/timestep.md) passes every physical check at 2 ms
