@@ -10,7 +10,7 @@ import numpy as np
 from rover_env.calibration.candidates import catalogue
 from rover_env.calibration.diagnosis.judge import pegged
 from rover_env.calibration.diagnosis.select import naming_order
-from rover_env.calibration.diagnosis.state import Options, Scored
+from rover_env.calibration.diagnosis.state import Scored
 from rover_env.calibration.fit import Fit
 
 
@@ -52,4 +52,3 @@ def test_a_pegged_fit_is_tried_after_the_fits_inside_their_ranges() -> None:
     assert naming_order(ranked, pegged_last=True) == [soil, rr]
     soil.significant = False  # alone, a pegged fit is still tried
     assert naming_order(ranked, pegged_last=True) == [rr]
-    assert Options().pegged_last is False  # off until fresh cases score it

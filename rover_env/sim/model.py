@@ -80,9 +80,14 @@ def segment_inertia(cfg: RoverConfig, seg: int) -> SegmentInertia:
     return SegmentInertia(mass=float(mass), com=com, diaginertia=inertia)
 
 
+def wheel_load(cfg: RoverConfig) -> float:
+    """The weight shared equally by six wheels (N): what a wheel carries at rest on level ground."""
+    return cfg.masses.total * 9.81 / 6
+
+
 def static_deflection(cfg: RoverConfig) -> float:
-    """Tire compression with the weight shared equally by six wheels (m)."""
-    return cfg.masses.total * 9.81 / 6 / cfg.tire.C_z
+    """Tire compression under :func:`wheel_load` (m)."""
+    return wheel_load(cfg) / cfg.tire.C_z
 
 
 def _f(v: float) -> str:

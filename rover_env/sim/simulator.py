@@ -50,7 +50,13 @@ from rover_env.sim.index import (
     SimulationError,
     WheelTruth,
 )
-from rover_env.sim.model import fill_hfield, hfield_data, scene_xml, static_deflection
+from rover_env.sim.model import (
+    fill_hfield,
+    hfield_data,
+    scene_xml,
+    static_deflection,
+    wheel_load,
+)
 from rover_env.sim.speed_loop import advance_setpoints
 from rover_env.sim.tire_layer import TireLayer, TireState
 from rover_env.soil import SoilParams, load_soil
@@ -325,7 +331,7 @@ class RoverSim:
         if k == 0:
             return static_deflection(self.phys_cfg)
         g = self.phys_cfg.geometry
-        load = self.phys_cfg.masses.total * 9.81 / 6
+        load = wheel_load(self.phys_cfg)
         return _static_sinkage(load, g.wheel_radius, g.wheel_width, self.terrain.soils[k - 1])
 
     def _terrain_of(self, terrain: TerrainConfig) -> Terrain:
