@@ -306,10 +306,8 @@ def test_every_switch_defaults_to_its_option_and_turns_off() -> None:
     assert "fit_joint_height" in names and len(set(names)) == len(names)
     base = ap.parse_args(["diagnose", "a.csv", "--out", "o"])
     # off by default: the joint loop (stop 68); forms adopted in at most 1 of 114 diagnoses
-    # (stop 69); the soil read from the motion, short of its registered line (stop 82); pegged
-    # fits named last, not yet scored on fresh cases (stop 84)
+    # (stop 69); the soil read from the motion, short of its registered line (stop 82)
     off = {
-        "pegged_last",
         "joint_motor_loop",
         "fit_speed_loop",
         "fit_com_height",

@@ -150,6 +150,10 @@ SOIL_LAMBDAS = (0.3, 0.6, 0.9)
 """SOIL.md's exit-angle ratio lambda over the span it quotes (0.3 to 0.9; "the least
 certain" constant, which each implementation chooses per preset)."""
 
+SOIL_SETS = ((1.0, "SOIL.md's regolith"), (2.0, "Wong's dry sand"))
+"""The literature's constant sets a soil is also fitted under, by the effect's ``preset``
+index (:data:`rover_env.effects.LOOSE_SOIL_PRESETS`)."""
+
 SOIL_FORMS: tuple[tuple[str, Extensions], ...] = tuple(
     (
         f"{mem_label}, {sig_label}",
@@ -159,9 +163,10 @@ SOIL_FORMS: tuple[tuple[str, Extensions], ...] = tuple(
     for sig_label, sig in (("tire's relaxation", 0.0), ("short relaxation", SOIL_SIGMA_SHORT))
 ) + tuple(
     (
-        f"SOIL.md's regolith, lambda {lam:g}, no memory",
-        {"loose_soil": {"memory": 0.0, "sigma": 0.0, "preset": 1.0, "lam": lam}},
+        f"{name}, lambda {lam:g}, no memory",
+        {"loose_soil": {"memory": 0.0, "sigma": 0.0, "preset": preset, "lam": lam}},
     )
+    for preset, name in SOIL_SETS
     for lam in SOIL_LAMBDAS
 )
 """The soil's designs, which SOIL.md leaves open, and the soil's other constants.
@@ -175,11 +180,15 @@ is matched by the memoryless one to 0.11 mm at rest. In a reversing turn on k_ph
 its driven wheels replay at 0.27 rad RMS with the tire's relaxation length and 0.003 with
 5 mm (docs/calibration, stop 32).
 
-The last three: SOIL.md's reference constants (regolith) at each of :data:`SOIL_LAMBDAS`,
-memoryless. Why (stop 55): k_phi alone cannot carry another soil's shear modulus K,
-cohesion and lambda. On the independent generator's regolith (k_phi 5.1e5) no mars-sand
-soil of any k_phi or lambda replayed the training windows better than hard ground (the
-joints moved with the free wheels' resistance), while rolling resistance took the slip.
+Then SOIL.md's reference constants (regolith) and Wong's dry sand in SOIL.md's form
+(:data:`SOIL_SETS`), each at every one of :data:`SOIL_LAMBDAS`, memoryless. Why the regolith
+(stop 55): k_phi alone cannot carry another soil's shear modulus K, cohesion and lambda. On
+the independent generator's regolith (k_phi 5.1e5) no mars-sand soil of any k_phi or lambda
+replayed the training windows better than hard ground (the joints moved with the free
+wheels' resistance), while rolling resistance took the slip. Why the dry sand (stop 85):
+k_phi's unit is N/m^(n+2), and at the same sinkage a sand of n 1.1 carries 1.9 x the k_phi of
+the regolith's n 1.0; study 63200's dry-sand soils, all read under the regolith, sat at a
+median 0.66 x their truth (regolith soils 1.13 x), three of them below 0.5 x.
 """
 
 

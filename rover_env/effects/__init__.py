@@ -107,7 +107,8 @@ class Param:
     off: float
     doc: str
     discrete: bool = False
-    """Only ``off`` and ``hi`` are meaningful (a switch): fitted by trying it, not by gradient."""
+    """Only whole numbers in [lo, hi] are meaningful (a switch or a choice, as ``on`` or a
+    soil's ``preset``): fitted by trying them, not by gradient."""
     moderate: float = 0.0
     """A typical clearly-present value, for examples and ``make-logs`` defaults only: the
     diagnosis never reads it (its fits start from a search over [lo, hi]; issue 16)."""
@@ -143,9 +144,10 @@ class Effect:
                 raise EffectError(
                     f"extensions.{self.name}.{p.name}: {v!r} outside [{p.lo}, {p.hi}] {p.unit}"
                 )
-            if p.discrete and v not in (p.off, p.hi):
+            if p.discrete and v != round(v):
                 raise EffectError(
-                    f"extensions.{self.name}.{p.name}: a switch, must be {p.off} or {p.hi}"
+                    f"extensions.{self.name}.{p.name}: a choice, must be a whole number in "
+                    f"[{p.lo:g}, {p.hi:g}], got {v!r}"
                 )
             self.values[p.name] = v
 
@@ -575,10 +577,11 @@ class LoadDependentFriction(TireEffect):
         return mu_x * k, mu_y * k
 
 
-LOOSE_SOIL_PRESETS = ("mars-sand", "regolith")
-"""The soil presets whose other constants (c, k_c, n1, K, lambda, ...) a ``loose_soil`` effect
+LOOSE_SOIL_PRESETS = ("mars-sand", "regolith", "dry-sand")
+"""The soil presets whose other constants (c, k_c, n, K, lambda, ...) a ``loose_soil`` effect
 on hard ground takes, by its ``preset`` index: the sand of the soil scenarios
-(configs/soil/mars-sand.yaml) and SOIL.md's reference set (configs/soil/regolith.yaml)."""
+(configs/soil/mars-sand.yaml), SOIL.md's reference set (configs/soil/regolith.yaml) and
+Wong's dry sand in SOIL.md's form (configs/soil/dry-sand.yaml)."""
 
 LOOSE_SOIL_BASE = LOOSE_SOIL_PRESETS[0]
 """The default preset (``preset`` 0)."""
@@ -593,7 +596,8 @@ class LooseSoil(Effect):
     internal friction angle of Mohr-Coulomb's shear strength c + p tan(phi) and ``n0`` the
     sinkage exponent at zero slip (n = n0 + n1 |s|). ``k_phi`` 0 is off: hard ground, the Gim
     tire. On hard ground the other soil constants are those of the preset ``preset`` names
-    (:data:`LOOSE_SOIL_PRESETS`: 0 ``mars-sand``, 1 ``regolith``, SOIL.md's reference set);
+    (:data:`LOOSE_SOIL_PRESETS`: 0 ``mars-sand``, 1 ``regolith``, SOIL.md's reference set,
+    2 ``dry-sand``, Wong's dry sand);
     on a terrain that already has loose soil over the ground, its constants. ``phi_deg``,
     ``n0`` and ``lam`` (SOIL.md's exit-angle ratio, which it calls the least certain
     constant) replace the soil's own where they are not 0 ("softer than modelled"). Soil
@@ -628,9 +632,10 @@ class LooseSoil(Effect):
             "preset",
             "-",
             0.0,
-            1.0,
+            2.0,
             0.0,
-            "the other soil constants on hard ground: 0 mars-sand, 1 regolith (SOIL.md's set)",
+            "the other soil constants on hard ground: 0 mars-sand, 1 regolith (SOIL.md's set), "
+            "2 dry-sand (Wong's dry sand)",
             discrete=True,
         ),
         Param(
