@@ -88,7 +88,7 @@ def test_a_form_at_the_end_of_its_range_is_said_so() -> None:
 def test_a_small_trade_is_reported_beside_the_named_effect() -> None:
     """A trade under the share (``trade_excused``) is said with its signals, their RMS
     ratios and the share, so the user sees what the named effect made worse."""
-    from rover_env.calibration.report import trade_note
+    from rover_env.calibration.report_notes import trade_note
 
     worse = {"theta_4": {"rms_ratio": 1.155, "p": 0.006, "windows": 16, "share": 0.0007}}
     text = trade_note({"effects": "command_lag", "worse": worse})
@@ -100,7 +100,7 @@ def test_a_limit_the_rotor_test_withdrew_is_reported_as_not_named() -> None:
     """The headline for stop 62's rotor test: nothing named, the rotor that did as well and
     the p that the limit is better; the comparison sentence carries that p too."""
     from rover_env.calibration.diagnosis.rotor import rotor_text
-    from rover_env.calibration.report import rotor_note
+    from rover_env.calibration.report_notes import rotor_note
 
     w = {"effects": ["torque_limit"], "p_torque_better": 0.42, "armature": 0.0707}
     text = rotor_note(w, None)
@@ -123,7 +123,7 @@ def test_a_limit_the_rotor_test_withdrew_is_reported_as_not_named() -> None:
 def test_a_partner_named_alone_after_the_limit_s_withdrawal_is_explained() -> None:
     """Stop 63: the limit withdrawn, its partner named from its own fit; the headline says
     both, with the rotor and the p."""
-    from rover_env.calibration.report import rotor_kept_note
+    from rover_env.calibration.report_notes import rotor_kept_note
 
     w = {"effects": ["loose_soil", "torque_limit"], "p_torque_better": 0.57, "armature": 0.1}
     text = rotor_kept_note({**w, "kept": "loose_soil"})
@@ -181,7 +181,7 @@ def test_the_headline_says_each_withdrawal_beside_what_stays_named() -> None:
 def test_the_allowance_note_says_what_became_of_the_pairs_other_effect() -> None:
     """Stop 78: a pair's effect withdrawn by its allowance leaves the other named by its own
     fit ("kept") or not named ("beside"); the note says which."""
-    from rover_env.calibration.report import allowance_note
+    from rover_env.calibration.report_notes import allowance_note
 
     w = {"effects": ["slope"], "params": {"slope": "deg=0.79 [0, 3.3]"}}
     plain = allowance_note(w, beside=False)

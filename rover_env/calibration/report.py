@@ -12,6 +12,15 @@ from rover_env.calibration.diagnosis.judge import form_mismatch
 from rover_env.calibration.diagnosis.rotor import rotor_text
 from rover_env.calibration.diagnosis.state import LEADING, Diagnosis, Options, Scored
 from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
+from rover_env.calibration.report_notes import (
+    allowance_note,
+    rotor_kept_note,
+    rotor_note,
+    trade_note,
+    trade_refused_note,
+)
+from rover_env.calibration.report_notes import p_text as _p
+from rover_env.calibration.report_notes import phys_text as _phys
 from rover_env.calibration.residuals import REGIMES, Cell
 
 
@@ -19,32 +28,6 @@ def _f(x: float, d: int = 3) -> str:
     if x is None or not np.isfinite(x):
         return "–"
     return f"{x:.{d}g}"
-
-
-def _p(p: float) -> str:
-    if not np.isfinite(p):
-        return "–"
-    return "<1e-6" if p < 1e-6 else f"{p:.2g}"
-
-
-def _phys(s: Scored) -> str:
-    out = []
-    sides = s.fit.sides()
-    for eff, params in s.fit.physical().items():
-        for k, (v, lo, hi) in params.items():
-            side = sides.get(eff, {}).get(k, "")
-            if k == "heading_deg":
-                out.append(f"heading {v:.0f}°")
-            elif side == "upper":
-                out.append(f"{eff}.{k} < {hi:.3g} (95 %, one-sided; fitted {v:.3g})")
-            elif side == "lower":
-                out.append(f"{eff}.{k} > {lo:.3g} (95 %, one-sided; fitted {v:.3g})")
-            elif np.isfinite(lo) and np.isfinite(hi) and lo != hi:
-                out.append(f"{eff}.{k} = {v:.4g} (95 %: {lo:.3g} … {hi:.3g})")
-            else:
-                out.append(f"{eff}.{k} = {v:.4g}")
-    out += [f"{c.name} in the form '{c.form}'" for c in s.fit.candidates if c.form]
-    return "; ".join(out)
 
 
 def _change(gain: float) -> str:
@@ -257,80 +240,6 @@ def _odometry_method(opts: Options) -> list[str]:
         f" its 95 % interval is the clean drives' 2.5-97.5 % ({100 * b.ci_lo:+.2f} to"
         f" {100 * b.ci_hi:+.2f} %) seen through the twins' sensitivity to the radius."
     ]
-
-
-def trade_note(excused: dict[str, Any]) -> str:
-    """The paragraph on a trade too small to refuse the naming (:attr:`Options.trade_share`)."""
-    worse = ", ".join(f"{k} to {v['rms_ratio']:.2f} x" for k, v in excused["worse"].items())
-    share = next(iter(excused["worse"].values()))["share"]
-    return (
-        f"{excused['effects']} takes signals left above their floor further from the logs"
-        f" ({worse} their RMS before), but they lost {share:.2g} of what the other signals"
-        " gained (each in units of its floor): too little to stand for an effect outside the"
-        " catalogue. Read them as where the model's form differs from the rover's."
-    )
-
-
-def trade_refused_note(nn: dict[str, Any], demoted: list[Scored] | None, lead: str) -> str:
-    """Why the best fit is not named: it trades a signal for another (:func:`.diagnosis.select.settle`)."""
-    worse = "; ".join(
-        f"{k} {v['rms_ratio']:.2f}x its RMS before (one-sided Wilcoxon over {v['windows']}"
-        f" windows, p {_p(v['p'])})"
-        for k, v in nn["worse"].items()
-    )
-    return (
-        f"{lead} The best fit, {' + '.join(nn['effects'])}"
-        f" ({'; '.join(_phys(s) for s in demoted or [])}), improves the held-out drive but"
-        f" makes signals it leaves above their floor worse: {worse}. An effect of the"
-        " catalogue that trades one signal for another is standing in for something"
-        " outside it (a mass, a spring, a tire stiffness); the configuration is left as it was."
-    )
-
-
-def allowance_note(withdrawn: dict[str, Any], beside: bool) -> str:
-    """Why a fit the windows' tests passed is not named: its interval with the clean-fit
-    allowance reaches "off" (:func:`.diagnosis.select.withdraw_within_allowance`)."""
-    fits = "; ".join(f"{k} {v}" for k, v in withdrawn["params"].items())
-    kept, also = withdrawn.get("kept"), ", ".join(withdrawn.get("beside") or [])
-    return (
-        ("" if beside else "**Nothing named.** ")
-        + f"Fitted and significant but not named: {fits}. Its interval for the truth, widened"
-        " by the clean-fit allowance (what this model's own form gives on clean drives of"
-        ' another implementation), reaches "off": the logs do not tell the effect from the'
-        " model's form. The configuration keeps it off; a longer drive, or one that excites"
-        " it more, narrows the interval."
-        + (f" {kept}, fitted beside it, is named by its own fit." if kept else "")
-        + (f" Not named either: {also}, fitted beside it." if also else "")
-    )
-
-
-def rotor_note(
-    withdrawn: dict[str, Any],
-    demoted: list[Scored] | None,
-    lead: str = "**Nothing named with confidence.**",
-) -> str:
-    """Why a torque limit the rotor test withdrew is not named (:func:`.diagnosis.select.rotor_check`)."""
-    return (
-        f"{lead} The best fit, {' + '.join(withdrawn['effects'])}"
-        f" ({'; '.join(_phys(s) for s in demoted or [])}), improves the held-out drive, but a"
-        f" heavier or lighter rotor in the torque limit's place (`motor.armature`"
-        f" {withdrawn['armature']:.3g} kg m²) does as well there (p {_p(withdrawn['p_torque_better'])}"
-        " that the limit is better, window by window): these drives reach the limit only while"
-        " the wheels accelerate, where it is measured as the torque over the rotor inertia."
-        " The configuration is left as it was; the rotor inertia from the motor's and the"
-        " gearhead's data, or a drive that holds a motor at its limit without accelerating it,"
-        " decides."
-    )
-
-
-def rotor_kept_note(withdrawn: dict[str, Any]) -> str:
-    """Why a torque limit fitted beside the named effect is not named with it."""
-    return (
-        f"A torque limit fitted beside {withdrawn.get('kept', 'it')} was not named: a heavier or"
-        f" lighter rotor in its place (`motor.armature` {withdrawn['armature']:.3g} kg m²) does"
-        f" as well on the held-out windows (p {_p(withdrawn['p_torque_better'])} that the limit is"
-        f" better). {withdrawn.get('kept', 'It')} is named from its own fit, without the limit."
-    )
 
 
 def _headline(
