@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from rover_env.calibration import residuals as rs
+from rover_env.calibration.bootstrap import bootstrap_interval, bootstrap_over_forms
 from rover_env.calibration.candidates import catalogue, magnitude_ladder
 from rover_env.calibration.diagnosis.judge import (
     better_worse,
@@ -20,14 +21,7 @@ from rover_env.calibration.diagnosis.judge import (
 )
 from rover_env.calibration.diagnosis.select import all_windows_evidence, first_confident, runner_up
 from rover_env.calibration.diagnosis.state import Scored
-from rover_env.calibration.fit import (
-    Evaluator,
-    Fit,
-    bootstrap_interval,
-    bootstrap_over_forms,
-    fit,
-    stack_fits,
-)
+from rover_env.calibration.fit import Evaluator, Fit, fit, stack_fits
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
 from rover_env.config import RoverConfig
 from rover_env.effects import CATALOGUE
@@ -367,7 +361,7 @@ def test_a_candidates_form_is_fixed_counted_and_recovered_from_its_extensions() 
 
     (soil,) = catalogue(["loose_soil"])
     labels = [f for f, _ in soil.forms]
-    assert len(labels) == 7 and soil.k == 1
+    assert len(labels) == 10 and len(set(labels)) == 10 and soil.k == 1
     forget = soil.with_form("no memory, short relaxation")
     assert forget.k == 2 and forget.forms == ()
     ext = forget.to_ext(np.array([1.0]))

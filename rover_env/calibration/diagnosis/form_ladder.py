@@ -14,8 +14,9 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from rover_env.calibration import residuals as rs
+from rover_env.calibration.bootstrap import parabola_min
 from rover_env.calibration.diagnosis.state import FormFit
-from rover_env.calibration.fit import information_criteria, parabola_min
+from rover_env.calibration.fit import information_criteria
 from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window, prepare
 from rover_env.config import RoverConfig
 

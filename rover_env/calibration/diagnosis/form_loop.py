@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rover_env.calibration import residuals as rs
+from rover_env.calibration.bootstrap import parabola_min
 from rover_env.calibration.diagnosis.form_ladder import (
     baseline,
     fit_ladder,
@@ -19,7 +20,6 @@ from rover_env.calibration.diagnosis.form_ladder import (
     reprepared,
 )
 from rover_env.calibration.diagnosis.state import FormFit
-from rover_env.calibration.fit import parabola_min
 from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window
 from rover_env.config import ANTI_WINDUP_FORMS, FITTED_ANTI_WINDUP_FORMS, RoverConfig
 
