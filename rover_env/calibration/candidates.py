@@ -150,9 +150,12 @@ SOIL_LAMBDAS = (0.3, 0.6, 0.9)
 """SOIL.md's exit-angle ratio lambda over the span it quotes (0.3 to 0.9; "the least
 certain" constant, which each implementation chooses per preset)."""
 
-SOIL_SETS = ((1.0, "SOIL.md's regolith"), (2.0, "Wong's dry sand"))
+SOIL_SETS: tuple[tuple[float, str], ...] = ((1.0, "SOIL.md's regolith"),)
 """The literature's constant sets a soil is also fitted under, by the effect's ``preset``
-index (:data:`rover_env.effects.LOOSE_SOIL_PRESETS`)."""
+index (:data:`rover_env.effects.LOOSE_SOIL_PRESETS`). Wong's dry sand (preset 2) was among
+them for fresh study 64000 (registered, stop 85) and is not: its dry-sand soils came within
+2 x on 4 of 5, but 3 of 8 regolith soils took the dry sand's constants and came out 2.3-4.1 x
+their truth (regolith soils within 2 x: 3 of 8, against 11 of 15 in study 63200)."""
 
 SOIL_FORMS: tuple[tuple[str, Extensions], ...] = tuple(
     (
@@ -180,15 +183,14 @@ is matched by the memoryless one to 0.11 mm at rest. In a reversing turn on k_ph
 its driven wheels replay at 0.27 rad RMS with the tire's relaxation length and 0.003 with
 5 mm (docs/calibration, stop 32).
 
-Then SOIL.md's reference constants (regolith) and Wong's dry sand in SOIL.md's form
-(:data:`SOIL_SETS`), each at every one of :data:`SOIL_LAMBDAS`, memoryless. Why the regolith
-(stop 55): k_phi alone cannot carry another soil's shear modulus K, cohesion and lambda. On
+Then SOIL.md's reference constants (regolith; :data:`SOIL_SETS`) at each of
+:data:`SOIL_LAMBDAS`, memoryless. Why (stop 55): k_phi alone cannot carry another soil's shear modulus K, cohesion and lambda. On
 the independent generator's regolith (k_phi 5.1e5) no mars-sand soil of any k_phi or lambda
 replayed the training windows better than hard ground (the joints moved with the free
-wheels' resistance), while rolling resistance took the slip. Why the dry sand (stop 85):
-k_phi's unit is N/m^(n+2), and at the same sinkage a sand of n 1.1 carries 1.9 x the k_phi of
-the regolith's n 1.0; study 63200's dry-sand soils, all read under the regolith, sat at a
-median 0.66 x their truth (regolith soils 1.13 x), three of them below 0.5 x.
+wheels' resistance), while rolling resistance took the slip. k_phi's unit is N/m^(n+2):
+at the same sinkage a sand of n 1.1 carries 1.9 x the k_phi of the regolith's n 1.0, so a
+sand is read in the regolith's unit (study 63200's dry-sand soils: a median 0.66 x their
+truth; regolith soils 1.13 x).
 """
 
 

@@ -201,15 +201,16 @@ class Options:
     pose on straight windows on 22 of 27 (and on 13 of 18 of spent study 61600's, where the
     pose over every window had 12 of 18). On fresh study 62400 (registered): 13 of 15 soil
     singles within 2 x, every named one (docs/calibration/study62400)."""
-    pegged_last: bool = True
+    pegged_last: bool = False
     """Name a candidate whose fit ends at its range's far end (:func:`.judge.pegged`: the
     effect at its largest, the logs wanting more) only after the significant candidates
     fitted inside their ranges, and read no soil from straight driving whose best rung is
     the range's soft end (:func:`.straight.pose_minimum`). Why (stop 84, exploratory): a
     rolling resistance at c_rr 0.3, its range's top, came first on exactly the 4 spent soil
     singles that lost the soil's name; re-run with it, 3 of them named the soil, their
-    straight reads at the range's soft end (0.05-0.15 x the truth). On since stop 85, with
-    the dry sand's soil forms, scored together by fresh study 64000."""
+    straight reads at the range's soft end (0.05-0.15 x the truth). Off: on fresh study
+    64000 (registered, with the dry sand's soil forms) it refused the straight read of 3
+    named soils, whose fits over every signal stood at 6.56, 0.65 and 4.10 x the truth."""
     odometry: OdometryBand | None = ODOMETRY_BAND
     """Name a rolling radius from dead reckoning against the pose (:mod:`.odometry`) beyond
     this band of what clean drives leave (None: off). Why (stop 75): the replay windows named
