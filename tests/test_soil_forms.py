@@ -32,10 +32,10 @@ def test_the_preset_sets_the_other_constants_and_lambda_replaces_its_own() -> No
     r = _soil({"k_phi": 5e5, "preset": 1.0, "lam": 0.6})
     assert (r.k_phi, r.c, r.k_x, r.k_c, r.phi_deg, r.n0, r.lam) == (
         5e5, reg.c, reg.k_x, reg.k_c, reg.phi_deg, reg.n0, 0.6)  # fmt: skip
-    dune = load_soil("dry-sand")
+    sand = load_soil("dry-sand")
     d = _soil({"k_phi": 5e5, "preset": 2.0, "lam": 0.6})
     assert (d.k_phi, d.c, d.k_x, d.k_c, d.phi_deg, d.n0, d.n1, d.lam) == (
-        5e5, dune.c, dune.k_x, dune.k_c, dune.phi_deg, dune.n0, dune.n1, 0.6)  # fmt: skip
+        5e5, sand.c, sand.k_x, sand.k_c, sand.phi_deg, sand.n0, sand.n1, 0.6)  # fmt: skip
     assert _soil({"k_phi": 5e5, "phi_deg": 30.0}).phi_deg == 30.0
     for bad in (0.5, 1.5, 3.0):
         with pytest.raises(EffectError, match="preset"):

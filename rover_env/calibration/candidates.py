@@ -184,10 +184,11 @@ its driven wheels replay at 0.27 rad RMS with the tire's relaxation length and 0
 5 mm (docs/calibration, stop 32).
 
 Then SOIL.md's reference constants (regolith; :data:`SOIL_SETS`) at each of
-:data:`SOIL_LAMBDAS`, memoryless. Why (stop 55): k_phi alone cannot carry another soil's shear modulus K, cohesion and lambda. On
-the independent generator's regolith (k_phi 5.1e5) no mars-sand soil of any k_phi or lambda
-replayed the training windows better than hard ground (the joints moved with the free
-wheels' resistance), while rolling resistance took the slip. k_phi's unit is N/m^(n+2):
+:data:`SOIL_LAMBDAS`, memoryless. Why (stop 55): k_phi alone cannot carry another soil's
+shear modulus K, cohesion and lambda. On the independent generator's regolith (k_phi 5.1e5)
+no mars-sand soil of any k_phi or lambda replayed the training windows better than hard
+ground (the joints moved with the free wheels' resistance), while rolling resistance took
+the slip. k_phi's unit is N/m^(n+2):
 at the same sinkage a sand of n 1.1 carries 1.9 x the k_phi of the regolith's n 1.0, so a
 sand is read in the regolith's unit (study 63200's dry-sand soils: a median 0.66 x their
 truth; regolith soils 1.13 x).
