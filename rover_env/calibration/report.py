@@ -14,13 +14,13 @@ from rover_env.calibration.diagnosis.state import LEADING, Diagnosis, Options, S
 from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
 from rover_env.calibration.report_notes import (
     allowance_note,
+    p_text,
+    phys_text,
     rotor_kept_note,
     rotor_note,
     trade_note,
     trade_refused_note,
 )
-from rover_env.calibration.report_notes import p_text as _p
-from rover_env.calibration.report_notes import phys_text as _phys
 from rover_env.calibration.residuals import REGIMES, Cell
 
 
@@ -256,7 +256,7 @@ def _headline(
     )
     lead = "**Not named with confidence:**" if named else "**Nothing named with confidence.**"
     if named:
-        L.append(f"**Named:** {' + '.join(named)} — {'; '.join(_phys(s) for s in chosen)}.")
+        L.append(f"**Named:** {' + '.join(named)} — {'; '.join(phys_text(s) for s in chosen)}.")
         if result.get("trade_excused"):
             L.append("\n" + trade_note(result["trade_excused"]))
     if nn:
@@ -379,7 +379,7 @@ def write_report(d: Diagnosis) -> Path:
     ]
     for i, s in enumerate(ranked, 1):
         L.append(
-            f"| {i} | {s.fit.name} | {_phys(s)} | {_f(s.fit.cost, 4)} | {_change(s.gain)} | {_p(s.p)} "
+            f"| {i} | {s.fit.name} | {phys_text(s)} | {_f(s.fit.cost, 4)} | {_change(s.gain)} | {p_text(s.p)} "
             f"| {s.d_aic:+.1f} | {s.d_bic:+.1f} | {_sig(s)} |"
         )
     L += ["", "![candidates](candidates.png)", ""]
@@ -396,7 +396,7 @@ def write_report(d: Diagnosis) -> Path:
         ]
         for s in tried:
             L.append(
-                f"| {s.fit.name} | {_phys(s)} | {_change(s.gain)} | {_p(s.p)} | {s.d_bic:+.1f} |"
+                f"| {s.fit.name} | {phys_text(s)} | {_change(s.gain)} | {p_text(s.p)} | {s.d_bic:+.1f} |"
                 f" {_sig(s)} |"
             )
         L.append("")
@@ -468,7 +468,7 @@ def tie_text(tie: dict[str, Any]) -> str:
     return (
         f"**Tie:** {a} is not shown better than {b} on the held-out drive (held-out reduction "
         f"{100 * tie['held_gain'][0]:.0f} % vs {100 * tie['held_gain'][1]:.0f} %; one-sided"
-        f" Wilcoxon p that {a} is better: {_p(tie['p_winner_better'])}). The data cannot separate"
+        f" Wilcoxon p that {a} is better: {p_text(tie['p_winner_better'])}). The data cannot separate"
         f" them. Separating drive: plan `{tie['plan']}` (seed {seed}, {duration:g} s):"
         f" {tie['why']}. " + drive_it_text([(tie["plan"], seed, duration)])
     )
