@@ -277,7 +277,14 @@ def ray_instance() -> Iterator[Any]:
         "ray", reason='Ray is not installed (pip install -e ".[cluster]"); Ray tests skipped'
     )
     ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])  # workers lack tests/
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    # Ray starts its workers at nice 15: beside the other pytest-xdist worker (nice 0) they got
+    # ~3 % of a core, and this module took 8 min instead of 30 s. Tests run them at nice 0.
+    ray.init(
+        num_cpus=2,
+        include_dashboard=False,
+        log_to_driver=False,
+        _system_config={"worker_niceness": 0},
+    )
     try:
         yield ray
     finally:
