@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 import yaml
-from bench_independent import truth_ratio
+from _independent_tables import truth_ratio
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue

@@ -26,6 +26,11 @@ def b() -> ModuleType:
     return _load("bench_independent")
 
 
+@pytest.fixture(scope="module")
+def tables(b: ModuleType) -> ModuleType:
+    return _load("_independent_tables")
+
+
 def test_the_plan_is_deterministic_and_its_seeds_are_its_own(b: ModuleType) -> None:
     a = json.dumps(b.cases(), sort_keys=True)
     assert a == json.dumps(b.cases(), sort_keys=True)
@@ -276,6 +281,7 @@ def test_named_effects_keep_their_fits_for_the_false_alarm_tables(tmp_path: Path
     """A named effect that is not the truth (a clean case's false alarm) is listed with its
     fitted value and interval, from the row or, for older rows, the case's result.json."""
     b = _load("bench_independent")
+    cells = _load("_cells")
     final = {
         "final": {
             "rolling_resistance + slope": {
@@ -297,9 +303,9 @@ def test_named_effects_keep_their_fits_for_the_false_alarm_tables(tmp_path: Path
     b.backfill([old, skip, gone], tmp_path)
     assert old["named_fits"] == got
     assert "named_fits" not in skip and "named_fits" not in gone
-    text = b.named_cell(old)
+    text = cells.named_cell(old)
     assert "rolling_resistance (c_rr 0.013 [0.01, 0.016])" in text
-    assert b.named_cell(gone) == "slope" and b.named_cell(skip) == "—"
+    assert cells.named_cell(gone) == "slope" and cells.named_cell(skip) == "—"
 
 
 def test_the_registered_evidence_rule_reads_the_first_diagnosis() -> None:
@@ -332,7 +338,9 @@ def test_the_registered_evidence_rule_reads_the_first_diagnosis() -> None:
     assert "in 2 of 3 cases" in line and "among them in 1" in line and "clean cases 1" in line
 
 
-def test_the_torque_line_splits_reached_limits_from_unreached_ones(b: ModuleType) -> None:
+def test_the_torque_line_splits_reached_limits_from_unreached_ones(
+    b: ModuleType, tables: ModuleType
+) -> None:
     """Issue 47's torque line: a cut at or beyond its threshold must be named with a covering
     interval; one below it needs a torque drive proposed (evidence or untested), not just
     any follow-up."""
@@ -354,7 +362,7 @@ def test_the_torque_line_splits_reached_limits_from_unreached_ones(b: ModuleType
         row(-0.1, 0.4, False, "torque_limit"),  # not reached, the drive proposed
         row(-0.1, 0.4, False, "", followup=True),  # not reached, only another effect's drive
     ]
-    (line,) = [x for x in b.acceptance(rows) if x.startswith("- Torque")]
+    (line,) = [x for x in tables.acceptance(rows) if x.startswith("- Torque")]
     assert "reached (cut ≥ its threshold): named covering 1/2" in line
     assert "not reached: a torque drive proposed 1/2" in line
 
@@ -446,16 +454,20 @@ def test_the_odometry_line_counts_radii_named_by_dead_reckoning(tmp_path: Path) 
     assert "(interval holding it 0)" in r.odometry_line(rows)
 
 
-def test_a_truth_is_measured_against_the_threshold_on_its_side(b: ModuleType) -> None:
-    assert b.truth_ratio("command_lag", {"truth": 0.2, "threshold": 0.05}) == pytest.approx(4.0)
+def test_a_truth_is_measured_against_the_threshold_on_its_side(tables: ModuleType) -> None:
+    assert tables.truth_ratio("command_lag", {"truth": 0.2, "threshold": 0.05}) == pytest.approx(
+        4.0
+    )
     # A cut counts as its size; a slope as its tilt (its fit row's truth is the tilt).
-    assert b.truth_ratio("torque_limit", {"truth": -0.3, "threshold": 0.1}) == pytest.approx(3.0)
-    assert b.truth_ratio("slope", {"truth": 3.0, "threshold": 1.5}) == pytest.approx(2.0)
+    assert tables.truth_ratio("torque_limit", {"truth": -0.3, "threshold": 0.1}) == pytest.approx(
+        3.0
+    )
+    assert tables.truth_ratio("slope", {"truth": 3.0, "threshold": 1.5}) == pytest.approx(2.0)
     # Loose soil in the variable diagnose fits, 1e6 / k_phi.
-    assert b.truth_ratio("loose_soil", {"truth": 5e5, "threshold": 0.5}) == pytest.approx(4.0)
+    assert tables.truth_ratio("loose_soil", {"truth": 5e5, "threshold": 0.5}) == pytest.approx(4.0)
     f = {"truth": 0.2, "threshold": None, "detectable": 0.1}
-    assert b.truth_ratio("friction", f) is None
-    assert b.truth_ratio("friction", f, "detectable") == pytest.approx(2.0)
+    assert tables.truth_ratio("friction", f) is None
+    assert tables.truth_ratio("friction", f, "detectable") == pytest.approx(2.0)
 
 
 def test_the_allowance_line_counts_withdrawn_names_against_the_truth() -> None:
