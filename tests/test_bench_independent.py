@@ -27,7 +27,7 @@ def b() -> ModuleType:
 
 
 @pytest.fixture(scope="module")
-def tables(b: ModuleType) -> ModuleType:
+def tables() -> ModuleType:
     return _load("_independent_tables")
 
 
