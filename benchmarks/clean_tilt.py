@@ -49,15 +49,19 @@ def case(work: Path, condition: str, seed: int, effect: str = "slope") -> dict[s
     if effect == "slope":
         deg, heading = params["deg"][0], params["heading_deg"][0]
         return {"condition": condition, "seed": seed, "deg": deg, "heading_deg": heading}
-    name = CATALOGUE[effect].params[0].name
+    name = _key(effect)
     return {"condition": condition, "seed": seed, name: params[name][0]}
+
+
+def _key(effect: str) -> str:
+    """The parameter a row reports: the effect's first (a slope's tilt, ``deg``)."""
+    return str(CATALOGUE[effect].params[0].name)
 
 
 def _line(r: dict[str, Any], effect: str) -> str:
     if effect == "slope":
         return f"tilt {r['deg']:.2f}° heading {r['heading_deg']:.0f}°"
-    name = CATALOGUE[effect].params[0].name
-    return f"{name} {r[name]:.4g}"
+    return f"{_key(effect)} {r[_key(effect)]:.4g}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -83,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
                 f"[{k}/{len(jobs)}] {r['condition']:16s} {r['seed']} {_line(r, a.effect)}",
                 flush=True,
             )
-    key = "deg" if a.effect == "slope" else CATALOGUE[a.effect].params[0].name
+    key = _key(a.effect)
     for c in conditions:
         v = sorted(r[key] for r in rows if r["condition"] == c)
         m = statistics.median(v)
