@@ -17,6 +17,7 @@ from rover_env.calibration.candidates import Extensions, merge
 from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window, WindowResult
 from rover_env.calibration.residuals import residual_vector
 from rover_env.config import RoverConfig
+from rover_env.effects import build_effects
 
 Array = NDArray[np.float64]
 
@@ -79,8 +80,17 @@ class Evaluator:
 
         return replace(self.base, extensions=merge(self.base.extensions, ext))
 
+    def model_key(self, ext: Extensions) -> str:
+        """The cache's name for the model ``ext`` makes over :attr:`base`: the effects that
+        are on, each with every parameter (its defaults written out). Two extension sets
+        that build the same simulator share one replay: the soil's first form spells out
+        its defaults, the bare candidate's ladder (its noise threshold and detection limit)
+        does not, and each replayed the same soils again (5 replays of a window set)."""
+        full = build_effects(merge(self.base.extensions, ext))
+        return json.dumps([[e.name, e.values] for e in full if not e.is_off], sort_keys=True)
+
     def _replay(self, ext: Extensions, which: str) -> list[WindowResult]:
-        key = (json.dumps(ext, sort_keys=True), which)
+        key = (self.model_key(ext), which)
         if key not in self.cache:
             t0 = time.perf_counter()
             rp = Replayer(self.config(ext), self.settings, backend="auto")
@@ -103,7 +113,7 @@ class Evaluator:
         was replayed under ``ext`` (a numpy-only model's or a screened fit's)."""
         if which.startswith("train"):
             return which
-        key = json.dumps(ext, sort_keys=True)
+        key = self.model_key(ext)
         sub_only = (key, "train_sub") in self.cache and (key, "train") not in self.cache
         return "train_sub" if sub_only else "train"
 
@@ -141,7 +151,7 @@ class Evaluator:
         if not (self.profile_zeros or self.profile_free_gain or self.free_common_max > 0.0):
             return raw
         ref = which if which.startswith("train") else ref or self.reference(ext, which)
-        key = (json.dumps(ext, sort_keys=True), f"{which} (profiled on {ref})")
+        key = (self.model_key(ext), f"{which} (profiled on {ref})")
         if key not in self.cache:
             shift = self.zero_shift(ext, which, ref) if self.profile_zeros else np.zeros(5)
             g, c = self.free_gains(ext, which, ref)

@@ -1,0 +1,77 @@
+"""The evaluator's replay cache names a model by the simulator it builds: extension sets
+that differ only in spelled-out defaults, or in effects that are off, share one replay;
+any other difference, over the evaluator's own extensions too, replays again."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import pytest
+
+from rover_env.calibration import evaluator as evaluator_mod
+from rover_env.calibration.evaluator import Evaluator
+from rover_env.calibration.replay import ReplaySettings
+from rover_env.config import load_rover
+
+SOIL_DEFAULTS = {"memory": 1.0, "sigma": 0.0, "preset": 0.0, "lam": 0.0}
+
+
+class _Replayer:
+    """Counts the simulators built, and what they were built from."""
+
+    built: list[dict[str, Any]] = []
+
+    def __init__(self, cfg: Any, settings: Any, backend: str = "auto") -> None:
+        _Replayer.built.append(dict(cfg.extensions))
+
+    def run(self, logs: list[Any], windows: list[Any]) -> list[Any]:
+        return []
+
+
+@pytest.fixture
+def built(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
+    _Replayer.built = []
+    monkeypatch.setattr(evaluator_mod, "Replayer", _Replayer)
+    return _Replayer.built
+
+
+def _ev(extensions: dict[str, Any] | None = None) -> Evaluator:
+    base = load_rover("proto_explorer")
+    if extensions is not None:
+        base = replace(base, extensions=extensions)
+    return Evaluator(base, ReplaySettings(), [], {"train": [], "held": []}, log=lambda s: None)
+
+
+def test_spelled_out_defaults_and_effects_that_are_off_share_a_replay(
+    built: list[dict[str, Any]],
+) -> None:
+    ev = _ev()
+    ev.run({"loose_soil": {"k_phi": 2.7e6}}, "train")
+    ev.run({"loose_soil": {"k_phi": 2.7e6, **SOIL_DEFAULTS}}, "train")
+    assert len(built) == 1 and ev.replays == 1
+    ev.run({}, "train")
+    ev.run({"loose_soil": {"k_phi": 0.0}, "command_delay": {"delay": 0.0}}, "train")
+    assert len(built) == 2
+    ev.run({"loose_soil": {"k_phi": 2.7e6}}, "held")  # another window set
+    assert len(built) == 3
+
+
+def test_another_value_or_form_replays_again(built: list[dict[str, Any]]) -> None:
+    ev = _ev()
+    ev.run({"loose_soil": {"k_phi": 2.7e6}}, "train")
+    ev.run({"loose_soil": {"k_phi": 2.7e6, "memory": 0.0}}, "train")
+    ev.run({"loose_soil": {"k_phi": 2.6e6}}, "train")
+    assert len(built) == 3
+
+
+def test_the_key_reads_the_extensions_merged_over_the_evaluators_own(
+    built: list[dict[str, Any]],
+) -> None:
+    """Over a base whose soil forgets (memory 0), the bare candidate keeps that memory and
+    the first form's spelled-out memory 1 does not: two simulators."""
+    ev = _ev({"loose_soil": {"k_phi": 1e6, "memory": 0.0}})
+    ev.run({"loose_soil": {"k_phi": 2.7e6}}, "train")
+    ev.run({"loose_soil": {"k_phi": 2.7e6, **SOIL_DEFAULTS}}, "train")
+    assert len(built) == 2
+    assert built[0]["loose_soil"]["memory"] == 0.0 and built[1]["loose_soil"]["memory"] == 1.0
