@@ -5,7 +5,7 @@ any other difference, over the evaluator's own extensions too, replays again."""
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
+from typing import Any, ClassVar
 
 import pytest
 
@@ -20,7 +20,7 @@ SOIL_DEFAULTS = {"memory": 1.0, "sigma": 0.0, "preset": 0.0, "lam": 0.0}
 class _Replayer:
     """Counts the simulators built, and what they were built from."""
 
-    built: list[dict[str, Any]] = []
+    built: ClassVar[list[dict[str, Any]]] = []
 
     def __init__(self, cfg: Any, settings: Any, backend: str = "auto") -> None:
         _Replayer.built.append(dict(cfg.extensions))
