@@ -40,7 +40,9 @@ def _ev(extensions: dict[str, Any] | None = None) -> Evaluator:
     base = load_rover("proto_explorer")
     if extensions is not None:
         base = replace(base, extensions=extensions)
-    return Evaluator(base, ReplaySettings(), [], {"train": [], "held": []}, log=lambda s: None)
+    return Evaluator(
+        base, ReplaySettings(), [], {"train": [], "train_sub": [], "held": []}, log=lambda s: None
+    )
 
 
 def test_spelled_out_defaults_and_effects_that_are_off_share_a_replay(
@@ -75,3 +77,21 @@ def test_the_key_reads_the_extensions_merged_over_the_evaluators_own(
     ev.run({"loose_soil": {"k_phi": 2.7e6, **SOIL_DEFAULTS}}, "train")
     assert len(built) == 2
     assert built[0]["loose_soil"]["memory"] == 0.0 and built[1]["loose_soil"]["memory"] == 1.0
+
+
+def test_the_profiles_set_follows_the_spelling_replayed(built: list[dict[str, Any]]) -> None:
+    """A screened fit at "off" spells the nominal model its own way: replayed on the subset
+    only, it is profiled over the subset, although the nominal model was replayed on every
+    training window (results as before the cache's key named the model)."""
+    ev = _ev()
+    off = {"loose_soil": {"k_phi": 0.0}}
+    ev.run({}, "train")
+    ev.run(off, "train_sub")
+    assert len(built) == 2  # another window set
+    ev.run(off, "train")  # the nominal model on every window: no replay
+    assert len(built) == 2
+    fresh = _ev()
+    fresh.run({}, "train")
+    fresh.run(off, "train_sub")
+    assert fresh.reference(off, "held") == "train_sub" and fresh.reference({}, "held") == "train"
+    assert ev.reference(off, "held") == "train"
