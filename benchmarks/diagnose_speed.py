@@ -61,8 +61,9 @@ def diagnose_seconds(
     return dt, named
 
 
-TIMING = frozenset({"seconds", "replay_seconds"})
-"""``result.json`` keys that hold a run's own timing, not what it found."""
+TIMING = frozenset({"seconds", "replay_seconds", "replays"})
+"""``result.json`` keys that hold a run's own cost (seconds, replays made), not what it
+found."""
 
 
 def findings(out: Path) -> Any:

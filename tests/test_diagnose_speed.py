@@ -108,7 +108,7 @@ def _write(out: Path, result: dict[str, object]) -> Path:
     return out
 
 
-def test_findings_ignore_timings_and_the_folder_but_nothing_else(tmp_path: Path) -> None:
+def test_findings_ignore_costs_and_the_folder_but_nothing_else(tmp_path: Path) -> None:
     ds = load_bench("diagnose_speed")
 
     def result(out: Path, secs: float, value: float) -> dict[str, object]:
@@ -118,6 +118,7 @@ def test_findings_ignore_timings_and_the_folder_but_nothing_else(tmp_path: Path)
             "fits": {"slope": fit},
             "seconds": secs,
             "replay_seconds": secs / 2,
+            "replays": int(secs) * 3,  # replays made: a cost (a cache makes fewer)
             "config": str(out / "rover.yaml"),
         }
 
