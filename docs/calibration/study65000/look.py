@@ -1,6 +1,6 @@
 """Study 65000's registered hypotheses from its rows (one look, after the stop).
 
-    python docs/calibration/study65000/look.py ROWS.json [ROWS.json ...]
+python docs/calibration/study65000/look.py ROWS.json [ROWS.json ...]
 """
 
 import json
