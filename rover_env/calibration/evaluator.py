@@ -162,7 +162,7 @@ class Evaluator:
         if not (self.profile_zeros or self.profile_free_gain or self.free_common_max > 0.0):
             return raw
         ref = which if which.startswith("train") else ref or self.reference(ext, which)
-        key = (self.model_key(ext), f"{which} (profiled on {ref})")
+        key = (json.dumps(ext, sort_keys=True), f"{which} (profiled on {ref})")
         if key not in self.cache:
             shift = self.zero_shift(ext, which, ref) if self.profile_zeros else np.zeros(5)
             g, c = self.free_gains(ext, which, ref)
