@@ -309,3 +309,95 @@ def test_each_effect_of_a_pair_is_judged_by_its_own_allowance(monkeypatch: Any) 
     sel.withdraw_within_allowance(d)
     assert d.chosen == [] and sorted(d.allowance_withdrawn["effects"]) == ["command_lag", "slope"]
     assert calls == [] and "beside" not in d.allowance_withdrawn
+
+
+def test_after_a_withdrawal_the_next_candidate_is_tried_alone(monkeypatch: Any) -> None:
+    """Stop 88: when the allowance withdraws every name, the next significant candidate in
+    the naming order is named by its own fit, judged by its own allowance, as one under its
+    detection limit lets the next be tried (study 65000: a 2.9 deg slope withdrawn hid a
+    rolling resistance of 0.106 [0.071, 0.114] for 0.076). A torque limit is not tried, and
+    nothing is when a name stays or the option is off."""
+    from rover_env.calibration.diagnosis import select as sel
+
+    table = FormAllowance(
+        {
+            "rolling_resistance": Bias(0.0, 0.032, 50),
+            "friction": Bias(-0.226, 0.059, 50),
+            "slope": Bias(0.3, 2.4, 50),
+        }
+    )
+
+    def cand(name: str, x: list[float], half: float, d_bic: float) -> Any:
+        f = _fit(name, x, half)
+        return SimpleNamespace(
+            fit=f, test="", fit_scale=None, significant=True, d_bic=d_bic, gain=0.3,
+            n_train=40, held_losses=[1.0] * 10,
+        )  # fmt: skip
+
+    def diag(ranked: list[Any], on: bool = True) -> Any:
+        slope = ranked[0]
+        return SimpleNamespace(
+            opts=SimpleNamespace(
+                next_after_withdrawn=on,
+                pegged_last=False,
+                noise_draws=0,
+                polish=0,
+                soil_from_motion=False,
+                soil_from_straight=False,
+            ),
+            ev=None,
+            ranked=ranked,
+            winner=slope,
+            chosen=[],
+            demoted=[slope],
+            allowance=table,
+            allowance_withdrawn={"effects": ["slope"], "params": {"slope": "deg=2.9 [0, 5]"}},
+            noise={"wheel_3L": 1.0},
+            final_floor={"wheel_3L": 1.0},
+            say=lambda m: None,
+        )
+
+    judged: list[str] = []
+
+    def alone(d: Any, s: Any) -> Any:
+        judged.append(s.fit.name)
+        return None if s.fit.name == "command_delay" else {"wheel_3L": 2.0}
+
+    monkeypatch.setattr(sel, "named_alone", alone)
+    slope = cand("slope", [2.0, 2.1], 0.2, -30.0)
+    limit = cand("torque_limit", [-0.5], 0.05, -29.0)
+    rr = cand("rolling_resistance", [0.106], 0.02, -20.0)  # [0.086, 0.126]: clear of 0.032
+    fr = cand("friction", [-0.42], 0.06, -3.5)
+    d = diag([fr, limit, rr, slope][::-1])  # ranked: the winner first, the order by d_bic
+    sel.name_next(d)
+    assert judged == ["rolling_resistance"]  # the limit is skipped, the friction not reached
+    assert d.chosen == [rr] and d.allowance_withdrawn["next"] == "rolling_resistance"
+    assert d.final_floor == {"wheel_3L": 2.0} and rr.fit.allowance == {
+        "rolling_resistance": (0.032, 0.0)
+    }
+
+    # Within its own allowance the next one is withdrawn too, and the one after is tried.
+    judged.clear()
+    weak = cand("rolling_resistance", [0.04], 0.01, -20.0)  # [0.03, 0.05] - 0.032 reaches 0
+    delay = cand("command_delay", [0.05], 0.005, -10.0)  # not named by its own fit
+    d = diag([slope, weak, delay, fr])
+    sel.name_next(d)
+    assert judged == ["rolling_resistance", "command_delay", "friction"]
+    assert d.chosen == [fr] and d.allowance_withdrawn["next"] == "friction"
+    assert d.allowance_withdrawn["effects"] == ["slope", "rolling_resistance"]
+    assert set(d.allowance_withdrawn["params"]) == {"slope", "rolling_resistance"}
+    assert d.demoted == [slope, weak] and "clean-fit" in weak.test
+
+    # Nothing left to name: nothing named, the nominal floor.
+    judged.clear()
+    d = diag([slope, cand("rolling_resistance", [0.04], 0.01, -20.0)])
+    sel.name_next(d)
+    assert d.chosen == [] and "next" not in d.allowance_withdrawn
+    assert d.final_floor == d.noise
+    # Off, or a name kept: nothing tried.
+    judged.clear()
+    for d in (diag([slope, rr], on=False), diag([slope, rr])):
+        if d.opts.next_after_withdrawn:
+            d.chosen = [slope]
+        sel.name_next(d)
+    assert judged == []

@@ -192,3 +192,6 @@ def test_the_allowance_note_says_what_became_of_the_pairs_other_effect() -> None
     gone = allowance_note({**w, "beside": ["command_lag"]}, beside=False)
     assert "Not named either: command_lag, fitted beside it." in gone
     assert gone.startswith("**Nothing named.**")
+    after = allowance_note({**w, "next": "rolling_resistance"}, beside=True)
+    assert "rolling_resistance, next in the naming order, is named by its own fit." in after
+    assert "next in the naming order" not in plain

@@ -124,6 +124,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "name an effect only if its interval with the clean-fit allowance keeps clear of off",
     ),
     (
+        "next_after_withdrawn",
+        "when the clean-fit allowance withdraws every name, try the next candidate alone",
+    ),
+    (
         "soil_from_motion",
         "read a named soil's k_phi from the pose signals' own minimum (off: study 61600)",
     ),

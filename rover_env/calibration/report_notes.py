@@ -71,6 +71,7 @@ def allowance_note(withdrawn: dict[str, Any], beside: bool) -> str:
     allowance reaches "off" (:func:`.diagnosis.select.withdraw_within_allowance`)."""
     fits = "; ".join(f"{k} {v}" for k, v in withdrawn["params"].items())
     kept, also = withdrawn.get("kept"), ", ".join(withdrawn.get("beside") or [])
+    after = withdrawn.get("next")
     return (
         ("" if beside else "**Nothing named.** ")
         + f"Fitted and significant but not named: {fits}. Its interval for the truth, widened"
@@ -80,6 +81,7 @@ def allowance_note(withdrawn: dict[str, Any], beside: bool) -> str:
         " it more, narrows the interval."
         + (f" {kept}, fitted beside it, is named by its own fit." if kept else "")
         + (f" Not named either: {also}, fitted beside it." if also else "")
+        + (f" {after}, next in the naming order, is named by its own fit." if after else "")
     )
 
 

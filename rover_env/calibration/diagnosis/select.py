@@ -114,6 +114,7 @@ def select(d: Diagnosis) -> None:
     settle(d)
     rotor_check(d)
     finish_intervals(d)
+    name_next(d)
 
 
 def rotor_check(d: Diagnosis) -> None:
@@ -158,7 +159,14 @@ def partner_alone(d: Diagnosis, partners: list[str]) -> tuple[Scored, dict[str, 
     singles = [s for s in d.ranked if [c.name for c in s.fit.candidates] == partners]
     if not singles or not singles[0].significant:
         return None
-    s = singles[0]
+    floor = named_alone(d, singles[0])
+    return None if floor is None else (singles[0], floor)
+
+
+def named_alone(d: Diagnosis, s: Scored) -> dict[str, float] | None:
+    """The floor of the model with ``s``'s single fit named by itself, or None when it is
+    not: its interval, the replay's bias in it, must keep clear of "off", its magnitude
+    reach its detection limit (:func:`first_confident`) and it must trade no signal."""
 
     def correct(x: Scored) -> None:
         if x is not d.winner:  # the winner's interval holds the bias already
@@ -171,7 +179,44 @@ def partner_alone(d: Diagnosis, partners: list[str]) -> tuple[Scored, dict[str, 
     if worse:
         d.say(f"{s.fit.name} alone trades {', '.join(worse)}: not named")
         return None
-    return s, floor
+    return floor
+
+
+def name_next(d: Diagnosis) -> None:
+    """After the clean-fit allowance withdrew every name: the next significant candidates in
+    the naming order, each by its own fit (:func:`named_alone`), finished and judged by its
+    own allowance, until one is named (``next`` in ``allowance_withdrawn``; the others it
+    withdraws join ``effects``) or none is left (:attr:`.state.Options.next_after_withdrawn`).
+    A name under its detection limit lets the next candidate be tried
+    (:func:`first_confident`); one the allowance withdrew had ended the naming. Not tried:
+    a torque limit (its rotor test compares with the configured model, not alone) and the
+    effects fitted beside a withdrawn pair (judged alone already: :func:`partner_alone`)."""
+    w = d.allowance_withdrawn
+    if not d.opts.next_after_withdrawn or w is None or d.chosen:
+        return
+    done = set(w["effects"]) | set(w.get("beside", [])) | {"torque_limit"}
+    tried = {id(s) for s in d.demoted} | {id(d.winner)}
+    for s in naming_order(d.ranked, d.opts.pegged_last):
+        names = [c.name for c in s.fit.candidates]
+        if id(s) in tried or done & set(names):
+            continue
+        floor = named_alone(d, s)
+        if floor is None:
+            continue
+        d.chosen = [s]
+        finish_chosen(d)
+        off = {n.split(".")[0] for n in allowance_reaches_off(s.fit)}
+        if not off:
+            w["next"], d.final_floor = s.fit.name, floor
+            d.say(f"{s.fit.name}, next in the naming order: named {fmt_phys(s.fit)}")
+            return
+        s.test = "not named: the interval of " + ", ".join(sorted(off))
+        s.test += " with the clean-fit allowance reaches off"
+        d.say(f"{s.fit.name} {fmt_phys(s.fit)}, next in the naming order: {s.test}")
+        w["effects"] = w["effects"] + names
+        w["params"] = {**w["params"], **{n: fmt_phys(s.fit, {n}) for n in sorted(off)}}
+        d.demoted, d.chosen = [*d.demoted, s], []
+    d.final_floor = d.noise
 
 
 def tie(d: Diagnosis) -> dict[str, Any] | None:
