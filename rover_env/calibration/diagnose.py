@@ -125,7 +125,8 @@ SWITCHES: tuple[tuple[str, str], ...] = (
     ),
     (
         "next_after_withdrawn",
-        "when the clean-fit allowance withdraws every name, try the next candidate alone",
+        "when the clean-fit allowance withdraws every name, try the next candidate alone"
+        " (off: block 52400)",
     ),
     (
         "soil_from_motion",

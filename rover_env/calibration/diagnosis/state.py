@@ -184,14 +184,16 @@ class Options:
     withdrew 6 names, 4 not the truth (docs/calibration/README.md). Each effect of a pair is judged by its own allowance
     (stop 78: on block 52000 three false second effects of a pair fit stayed named; on
     fresh block 52100, 16 of 17 names right)."""
-    next_after_withdrawn: bool = True
+    next_after_withdrawn: bool = False
     """When the clean-fit allowance withdraws every named effect, try the next significant
     candidate in the naming order, named only by its own fit and judged the same way
     (:func:`.select.name_next`), as a candidate under its detection limit lets the next be
-    tried. Why (stop 88): on study 65000 a 2.9 deg slope named first and withdrawn ended the
-    naming while the rolling resistance behind it (0.106 [0.071, 0.114] for 0.076, held out
-    46 % better) was never tried; on the 12 spent cases with a withdrawal at hand it would
-    have named that one more right and none wrong (docs/calibration/README.md)."""
+    tried. Why it was tried (stop 88): on study 65000 a 2.9 deg slope named first and
+    withdrawn ended the naming while the rolling resistance behind it (0.106 [0.071, 0.114]
+    for 0.076, held out 46 % better) was never tried. Off: fresh block 52400 (registered)
+    failed its primary line, final names right 9/11 under 85 %, on two names the rule did
+    not make (outside cases); the rule made no final name in 87 cases, 1 right one in a
+    first diagnosis, and nothing on 60 clean cases (docs/calibration/README.md)."""
     soil_from_motion: bool = False
     """Read a named soil's k_phi from the rover's motion, the pose group's own minimum, where
     the pose has one (:func:`.motion.from_motion`). Why it was tried (stop 82): the yaw
