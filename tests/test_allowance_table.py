@@ -27,6 +27,14 @@ def _fit(name: str, x: list[float], half: float) -> Fit:
     return Fit([c], xa, xa - half, xa + half, se, 0.0, 0, c.to_ext(xa), 0.0, "train")
 
 
+def _finishing(**switches: bool) -> SimpleNamespace:
+    """Options for finishing a named fit with no replays: no polish, no noise draws, no
+    soil read; ``switches`` beside them."""
+    return SimpleNamespace(
+        noise_draws=0, polish=0, soil_from_motion=False, soil_from_straight=False, **switches
+    )
+
+
 def test_the_shipped_table_loads_and_every_bias_is_ordered() -> None:
     a = load_allowance()
     assert {"command_delay", "slope", "torque_limit"} <= set(a.effects)
@@ -243,13 +251,7 @@ def test_each_effect_of_a_pair_is_judged_by_its_own_allowance(monkeypatch: Any) 
 
     def diag(chosen: list[Any]) -> Any:
         return SimpleNamespace(
-            opts=SimpleNamespace(
-                name_beyond_allowance=True,
-                noise_draws=0,
-                polish=0,
-                soil_from_motion=False,
-                soil_from_straight=False,
-            ),
+            opts=_finishing(name_beyond_allowance=True),
             ev=None,
             chosen=list(chosen),
             demoted=[],
@@ -337,14 +339,7 @@ def test_after_a_withdrawal_the_next_candidate_is_tried_alone(monkeypatch: Any) 
     def diag(ranked: list[Any], on: bool = True) -> Any:
         slope = ranked[0]
         return SimpleNamespace(
-            opts=SimpleNamespace(
-                next_after_withdrawn=on,
-                pegged_last=False,
-                noise_draws=0,
-                polish=0,
-                soil_from_motion=False,
-                soil_from_straight=False,
-            ),
+            opts=_finishing(next_after_withdrawn=on, pegged_last=False),
             ev=None,
             ranked=ranked,
             winner=slope,
