@@ -205,13 +205,12 @@ def name_next(d: Diagnosis) -> None:
             continue
         d.chosen = [s]
         finish_chosen(d)
-        off = {n.split(".")[0] for n in allowance_reaches_off(s.fit)}
+        off = effects_off(s)
         if not off:
             w["next"], d.final_floor = s.fit.name, floor
             d.say(f"{s.fit.name}, next in the naming order: named {fmt_phys(s.fit)}")
             return
-        s.test = "not named: the interval of " + ", ".join(sorted(off))
-        s.test += " with the clean-fit allowance reaches off"
+        s.test = withdrawn_test(off)
         d.say(f"{s.fit.name} {fmt_phys(s.fit)}, next in the naming order: {s.test}")
         w["effects"] = w["effects"] + names
         w["params"] = {**w["params"], **{n: fmt_phys(s.fit, {n}) for n in sorted(off)}}
@@ -550,7 +549,7 @@ def withdraw_within_allowance(d: Diagnosis) -> None:
     same way). Other named fits stay as they are; the final floor is the kept effects'."""
     if not d.opts.name_beyond_allowance:
         return
-    out = [(s, {n.split(".")[0] for n in allowance_reaches_off(s.fit)}) for s in d.chosen]
+    out = [(s, effects_off(s)) for s in d.chosen]
     gone = [(s, off) for s, off in out if off]
     if not gone:
         return
@@ -563,8 +562,7 @@ def withdraw_within_allowance(d: Diagnosis) -> None:
     }
     d.allowance_withdrawn = w
     for s, off in gone:
-        s.test = f"not named: the interval of {', '.join(sorted(off))} with the clean-fit"
-        s.test += " allowance reaches off"
+        s.test = withdrawn_test(off)
         d.say(f"{s.fit.name} {fmt_phys(s.fit)}: {s.test} (the model's form gives as much)")
     d.demoted, d.chosen = d.demoted + [s for s, _ in gone], kept
     d.final_floor = chosen_floor(d, kept) if kept else d.noise
@@ -581,6 +579,17 @@ def withdraw_within_allowance(d: Diagnosis) -> None:
             d.say(f"{partner.fit.name} stands alone (its own fit): named {fmt_phys(partner.fit)}")
     if beside and alone is None:
         w["beside"] = beside  # not named: fitted beside what was withdrawn
+
+
+def effects_off(s: Scored) -> set[str]:
+    """The effects of ``s`` whose interval, the clean-fit allowance in it, reaches "off"."""
+    return {n.split(".")[0] for n in allowance_reaches_off(s.fit)}
+
+
+def withdrawn_test(off: set[str]) -> str:
+    """Why effects ``off`` (:func:`effects_off`) are not named."""
+    what = ", ".join(sorted(off))
+    return f"not named: the interval of {what} with the clean-fit allowance reaches off"
 
 
 def runner_up(winner: Scored, ranked: list[Scored]) -> Scored | None:
