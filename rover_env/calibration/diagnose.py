@@ -129,6 +129,11 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         " (off: block 52400)",
     ),
     (
+        "one_wheel",
+        "withdraw a named rolling resistance where the two free wheels' dead reckoning"
+        " disagree (one wheel's own drag)",
+    ),
+    (
         "soil_from_motion",
         "read a named soil's k_phi from the pose signals' own minimum (off: study 61600)",
     ),

@@ -10,10 +10,17 @@ import numpy as np
 
 from rover_env.calibration.diagnosis.judge import form_mismatch
 from rover_env.calibration.diagnosis.rotor import rotor_text
-from rover_env.calibration.diagnosis.state import LEADING, Diagnosis, Options, Scored
+from rover_env.calibration.diagnosis.state import (
+    LEADING,
+    ODOMETRY_BAND,
+    Diagnosis,
+    Options,
+    Scored,
+)
 from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
 from rover_env.calibration.report_notes import (
     allowance_note,
+    one_wheel_note,
     p_text,
     phys_text,
     rotor_kept_note,
@@ -214,6 +221,16 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
             else ""
         ),
         *_odometry_method(opts),
+        *(
+            [
+                "- One wheel: a named rolling resistance is withdrawn where the two free wheels'"
+                " travel against the pose (as for odometry) differs from the named model's twins"
+                f" by more than {100 * (opts.odometry or ODOMETRY_BAND).split:.0f} % between"
+                " them (the ground drags both alike, a dragging brake one)."
+            ]
+            if opts.one_wheel
+            else []
+        ),
         f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay, {result['seconds']:.0f} s in all.",
     ]
 
@@ -267,6 +284,9 @@ def _headline(
         L.append(("\n" if named else "") + rotor_note(rotor, demoted, lead))
     if allowed:
         L.append(("\n" if L else "") + allowance_note(allowed, bool(L)))
+    one = result.get("one_wheel")
+    if one and one.get("withdrawn"):
+        L.append(("\n" if L else "") + one_wheel_note(one, bool(L)))
     if not L:
         L.append("**No candidate explains the gap significantly.**")
     if tie:

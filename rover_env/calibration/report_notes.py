@@ -85,6 +85,26 @@ def allowance_note(withdrawn: dict[str, Any], beside: bool) -> str:
     )
 
 
+def one_wheel_note(rec: dict[str, Any], beside: bool) -> str:
+    """Why a fitted rolling resistance is not named: the free wheels' dead reckoning says one
+    wheel drags, not the ground (:func:`.diagnosis.one_wheel.withdraw_one_wheel`)."""
+    fits = "; ".join(f"{k} {v}" for k, v in rec["params"].items())
+    kept, also = rec.get("kept"), ", ".join(rec.get("beside") or [])
+    slow = "3L" if rec["3L"] > rec["3R"] else "3R"  # more path per turn: the wheel held back
+    return (
+        ("" if beside else "**Nothing named.** ")
+        + f"Fitted but not named: {fits}. The ground's rolling resistance slows both free"
+        f" wheels alike, but their travel against the pose differs from the model's twins by"
+        f" {100 * rec['3L']:+.2f} % (3L) and {100 * rec['3R']:+.2f} % (3R), {100 * abs(rec['split']):.1f} %"
+        f" apart, beyond the {100 * rec['limit']:.0f} % clean drives of another implementation"
+        " leave: one wheel's own drag (a dragging brake, a tight bearing), which the catalogue"
+        f" does not model. Free wheel {slow} turns the less per metre: inspect it first; the"
+        " configuration keeps the rolling resistance off."
+        + (f" {kept}, fitted beside it, is named by its own fit." if kept else "")
+        + (f" Not named either: {also}, fitted beside it." if also else "")
+    )
+
+
 def rotor_note(
     withdrawn: dict[str, Any],
     demoted: list[Scored] | None,

@@ -1,7 +1,7 @@
 """``diagnose()``: the stages in order over one :class:`~.state.Diagnosis`.
 
 split (:mod:`.split`) → form (:mod:`.form`) → floor (:mod:`.floor`) → fit
-(:mod:`.fit_stage`) → select (:mod:`.select`) → odometry (:mod:`.odometry`) → evidence
+(:mod:`.fit_stage`) → select (:mod:`.select`) → odometry (:mod:`.odometry`) → one wheel (:mod:`.one_wheel`) → evidence
 (:mod:`.evidence_stage`) → write (:mod:`.write`). After selection the model form is judged again (:mod:`.again`) beside the
 winner or, with none named, the leading candidate; when that changes the forms, the
 diagnosis runs again from the start under the new options.
@@ -19,6 +19,7 @@ from rover_env.calibration.diagnosis import (
     floor,
     form,
     odometry,
+    one_wheel,
     select,
     split,
 )
@@ -54,6 +55,7 @@ def run(paths: list[str | Path], out: str | Path, opts: Options) -> dict[str, An
         return run(paths, out, rerun)
     select.select(d)
     odometry.name_by_odometry(d)
+    one_wheel.withdraw_one_wheel(d)
     evidence_stage.seek_evidence(d)
     write_stage.write(d)
     return d.result

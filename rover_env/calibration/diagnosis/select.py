@@ -566,10 +566,18 @@ def withdraw_within_allowance(d: Diagnosis) -> None:
         d.say(f"{s.fit.name} {fmt_phys(s.fit)}: {s.test} (the model's form gives as much)")
     d.demoted, d.chosen = d.demoted + [s for s, _ in gone], kept
     d.final_floor = chosen_floor(d, kept) if kept else d.noise
-    alone = partner_alone(d, beside) if beside and not kept else None
+    stand_alone(d, beside, w)
+
+
+def stand_alone(d: Diagnosis, beside: list[str], w: dict[str, Any]) -> None:
+    """After a withdrawal (recorded in ``w``) left nothing named: the one effect fitted
+    ``beside`` what was withdrawn, named by its own fit (:func:`partner_alone`), finished
+    as the pair was and judged by its own allowance (``kept`` in ``w``); else ``beside`` in
+    ``w``, not named."""
+    alone = partner_alone(d, beside) if beside and not d.chosen else None
     if alone is not None:
         partner, floor = alone
-        d.chosen = [partner]  # finished as the pair was, then judged by its own allowance
+        d.chosen = [partner]
         finish_chosen(d)
         if allowance_reaches_off(partner.fit):
             d.say(f"{partner.fit.name} alone {fmt_phys(partner.fit)}: within its allowance too")

@@ -194,6 +194,11 @@ class Options:
     failed its primary line, final names right 9/11 under 85 %, on two names the rule did
     not make (outside cases); the rule made no final name in 87 cases, 1 right one in a
     first diagnosis, and nothing on 60 clean cases (docs/calibration/README.md)."""
+    one_wheel: bool = True
+    """Withdraw a named rolling resistance where dead reckoning's two free wheels disagree
+    beyond the odometry band's ``split`` (:mod:`.one_wheel`): the ground drags every wheel
+    alike, a dragging brake one. Why (stop 89): a brake dragging on one free wheel was named
+    a rolling resistance in 13 of 24 spent outside cases of the independent generator."""
     soil_from_motion: bool = False
     """Read a named soil's k_phi from the rover's motion, the pose group's own minimum, where
     the pose has one (:func:`.motion.from_motion`). Why it was tried (stop 82): the yaw
@@ -508,6 +513,9 @@ class Diagnosis:
     odometry: dict[str, Any] | None = None
     """Dead reckoning on the logs and on the named model's twins, and whether it named a
     rolling radius (:func:`.odometry.name_by_odometry`; None: off)."""
+    one_wheel: dict[str, Any] | None = None
+    """Beside a named rolling resistance: the free wheels' dead-reckoning split and whether
+    it withdrew the name (:func:`.one_wheel.withdraw_one_wheel`)."""
     # evidence (:mod:`.evidence_stage`)
     evidence: list[dict[str, Any]] = field(default_factory=list)
     rotor: dict[str, Any] | None = None
