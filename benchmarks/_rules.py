@@ -199,10 +199,12 @@ def odometry(result: dict[str, Any]) -> dict[str, Any] | None:
     dr = result.get("dead_reckoning")
     if not dr or "band" not in dr:  # stop 74 reported it without a decision
         return None
+    diff = dr.get("difference") or {}
     return {
         "named": bool(dr.get("named")),
-        "difference": (dr.get("difference") or {}).get("both"),
-        "driven": (dr.get("difference") or {}).get("driven"),
+        "difference": diff.get("both"),
+        "split": diff["3L"] - diff["3R"] if "3L" in diff and "3R" in diff else None,
+        "driven": diff.get("driven"),
         "fraction": dr.get("fraction"),
         "why_not": dr.get("why_not"),
         "after_withdrawn": dr.get("after_withdrawn"),

@@ -150,3 +150,22 @@ def test_another_implementation_s_dragging_brake_parts_the_free_wheels(
     assert (abs(split) > ODOMETRY_BAND.split) == apart, diff
     if apart:
         assert (split > 0) == (effects["brake_drag"]["wheel"] == 4)
+
+
+def test_the_split_benchmark_takes_each_plan_s_cases_round_robin() -> None:
+    """``benchmarks/one_wheel_split.py``: every plan's first rolling-resistance single and
+    first clean case, then the seconds, ...; each case once, from its own plan's seeds."""
+    from _bench import load_bench
+
+    bench = load_bench("one_wheel_split")
+    got = bench.planned(60000, 2, ["single_rolling_resistance", "clean"])
+    assert len(got) == 2 * (5 + 10) and len({c["seed"] for c in got}) == len(got)
+    first = [bench.tag(c) for c in got[:4]]
+    assert [t.rsplit("_", 1)[0] for t in first] == [
+        "single_rolling_resistance",
+        "clean_none",
+        "single_rolling_resistance",
+        "clean_none",
+    ]
+    assert [c["seed"] // 100 for c in got[:4]] == [600, 600, 601, 601]
+    assert all(c["seed"] // 100 in (600, 601) for c in got)
