@@ -169,3 +169,24 @@ def test_the_split_benchmark_takes_each_plan_s_cases_round_robin() -> None:
     ]
     assert [c["seed"] // 100 for c in got[:4]] == [600, 600, 601, 601]
     assert all(c["seed"] // 100 in (600, 601) for c in got)
+
+
+def test_a_pair_s_other_effect_is_not_named_by_the_pair_s_fit() -> None:
+    """A rolling resistance fitted together with a delay and withdrawn: the delay was fitted
+    beside it, so it is named only by its own fit; with no single fit of it at hand it is
+    listed ``beside``, and only the rolling resistance's value is given as withdrawn."""
+    from rover_env.calibration.candidates import merge
+
+    rr, delay = catalogue(["rolling_resistance", "command_delay"])
+    x = np.array([0.08, 0.05])
+    ext = merge(rr.to_ext(x[:1]), delay.to_ext(x[1:]))
+    pair = SimpleNamespace(
+        fit=Fit([rr, delay], x, x - 0.01, x + 0.01, x * 0 + 0.005, 0.0, 0, ext, 0.0, "train"),
+        test="",
+    )
+    d = _diagnosis([pair], 0.04, -0.03)
+    d.ranked = []
+    withdraw_one_wheel(d)
+    assert d.chosen == [] and d.demoted == [pair]
+    assert d.one_wheel["beside"] == ["command_delay"]
+    assert list(d.one_wheel["params"]) == ["rolling_resistance"]

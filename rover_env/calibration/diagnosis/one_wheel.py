@@ -73,7 +73,7 @@ def withdraw_one_wheel(d: Diagnosis) -> None:
     rec.update(
         withdrawn=True,
         effects=names,
-        params={c.name: fmt_phys(s.fit, {c.name}) for s in hit for c in s.fit.candidates},
+        params={n: fmt_phys(s.fit, {n}) for s in hit for n in names if n in s.fit.ext},
     )
     why = (
         f"not named: the free wheels disagree (3L {diff['3L']:+.2%}, 3R {diff['3R']:+.2%}"
