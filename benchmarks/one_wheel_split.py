@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 from bench_independent import DRIVES, DURATION, cases, tag
 
 from rover_env.calibration.diagnosis import floor, form, split
@@ -104,7 +105,17 @@ def brake_rows(blocks: list[Path]) -> list[dict[str, Any]]:
             rec = r.get("one_wheel") or {}
             diff = (r.get("dead_reckoning") or {}).get("difference")
             sp = rec.get("split", (diff["3L"] - diff["3R"]) if diff else float("nan"))
-            rows.append({"case": res.parent.parent.name, "split": sp, "named": r["named"]})
+            truth = yaml.safe_load((res.parent.parent / "logs" / "truth.yaml").read_text())
+            torque = float(truth["effects"]["brake_drag"]["torque"])
+            rows.append(
+                {
+                    "case": res.parent.parent.name,
+                    "split": sp,
+                    "torque": torque,
+                    "asked": bool(rec),  # a rolling resistance named before the rule
+                    "named": r["named"],
+                }
+            )
     return rows
 
 
@@ -138,11 +149,13 @@ def report(path: Path, blocks: list[Path], md: Path) -> None:
         b = np.array([r["split"] for r in brakes], dtype=float)
         lines += [
             "",
-            f"Brake drags ({len(brakes)} cases of {', '.join(str(x) for x in blocks)}):"
-            f" beyond the limit {int(np.sum(np.abs(b) > lim))}.",
+            f"Brake drags ({len(brakes)} cases, first diagnoses): beyond the limit"
+            f" {int(np.sum(np.abs(b) > lim))}; a rolling resistance named before the rule in"
+            f" {sum(r['asked'] for r in brakes)}, withdrawn by it in"
+            f" {sum(r['asked'] and abs(r['split']) > lim for r in brakes)}.",
         ]
-    fig, ax = plt.subplots(figsize=(7, 3.5))
-    bins = np.linspace(-0.12, 0.12, 49)
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 3.8))
+    bins = np.linspace(-0.18, 0.18, 73)
     for k in kinds:
         ax.hist([r["split"] for r in rows if r["case"].startswith(k)], bins, alpha=0.6, label=k)
     if brakes:
@@ -152,6 +165,16 @@ def report(path: Path, blocks: list[Path], md: Path) -> None:
     ax.set_xlabel("free wheels' split 3L - 3R (logs minus twins)")
     ax.set_ylabel("cases")
     ax.legend(fontsize=8)
+    if brakes:
+        t = np.array([r["torque"] for r in brakes])
+        a = np.abs(np.array([r["split"] for r in brakes], dtype=float))
+        rr = np.array([r["asked"] for r in brakes])
+        bx.scatter(t[~rr], a[~rr], s=18, label="no rolling resistance named")
+        bx.scatter(t[rr], a[rr], s=22, marker="x", label="rolling resistance named before the rule")
+        bx.axhline(lim, color="k", lw=0.8, ls="--")
+        bx.set_xlabel("brake drag torque (N m)")
+        bx.set_ylabel("|3L - 3R|")
+        bx.legend(fontsize=8)
     fig.tight_layout()
     md.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(md.with_suffix(".png"), dpi=110)

@@ -198,7 +198,10 @@ class Options:
     """Withdraw a named rolling resistance where dead reckoning's two free wheels disagree
     beyond the odometry band's ``split`` (:mod:`.one_wheel`): the ground drags every wheel
     alike, a dragging brake one. Why (stop 89): a brake dragging on one free wheel was named
-    a rolling resistance in 13 of 24 spent outside cases of the independent generator."""
+    a rolling resistance in 13 of 24 spent outside cases of the independent generator. On
+    fresh study 67200 (registered) it withdrew 8 of 12 such names (final rolling resistances
+    on brake drags 4/28) and no rolling-resistance single or clean case of 120 parted the
+    wheels that far (docs/calibration/README.md)."""
     soil_from_motion: bool = False
     """Read a named soil's k_phi from the rover's motion, the pose group's own minimum, where
     the pose has one (:func:`.motion.from_motion`). Why it was tried (stop 82): the yaw
