@@ -78,20 +78,16 @@ def test_only_a_rolling_resistance_is_judged_and_the_switch_turns_it_off() -> No
     assert nan.chosen == [rr] and not nan.one_wheel["withdrawn"]
 
 
-def test_what_stays_named_keeps_its_name() -> None:
+def test_what_stays_named_keeps_its_name(monkeypatch) -> None:
     """A withdrawn rolling resistance beside another named fit: the other stays (its floor
     is the kept model's)."""
+    import rover_env.calibration.diagnosis.select as select
+
     rr, delay = _scored("rolling_resistance", 0.08), _scored("command_delay", 0.05)
     d = _diagnosis([delay, rr], 0.04, -0.03)
     floors: list[Any] = []
-    import rover_env.calibration.diagnosis.one_wheel as ow
-
-    keep = ow.chosen_floor
-    ow.chosen_floor = lambda d_, ch: floors.append(ch) or {"kept": 1.0}  # type: ignore[assignment]
-    try:
-        withdraw_one_wheel(d)
-    finally:
-        ow.chosen_floor = keep
+    monkeypatch.setattr(select, "chosen_floor", lambda d_, ch: floors.append(ch) or {"kept": 1.0})
+    withdraw_one_wheel(d)
     assert d.chosen == [delay] and d.demoted == [rr] and floors == [[delay]]
     assert d.final_floor == {"kept": 1.0}
 

@@ -11,7 +11,7 @@ free wheels' differences from the named model's twins disagree by more than clea
 of another implementation leave (the odometry band's ``split``, 5 %: at most 4.2 % on 325
 spent cases without a radius or soil, stop 75, the bar odometry already holds a radius to).
 What it was fitted beside is named only by its own fit, as the clean-fit allowance does
-(:func:`.select.stand_alone`). On spent case 52463 (0.19 N m on wheel 3L, named a rolling
+(:func:`.select.withdraw`). On spent case 52463 (0.19 N m on wheel 3L, named a rolling
 resistance of 0.081) the free wheels disagree by 6.3 %; on the spent rolling-resistance
 singles and clean cases of blocks 52300-52400 and study 65000, by -3.4 to +3.4 %. Scored
 on fresh study 67200 (registered): 8 of 12 such names withdrawn, none of 120 fresh
@@ -27,7 +27,7 @@ import numpy as np
 from rover_env.calibration.candidates import merge
 from rover_env.calibration.diagnosis.judge import fmt_phys
 from rover_env.calibration.diagnosis.odometry import scales, twin_scales
-from rover_env.calibration.diagnosis.select import chosen_floor, stand_alone
+from rover_env.calibration.diagnosis.select import withdraw
 from rover_env.calibration.diagnosis.state import ODOMETRY_BAND, Diagnosis
 from rover_env.estimation.estimator import static_rolling_radius
 
@@ -84,7 +84,4 @@ def withdraw_one_wheel(d: Diagnosis) -> None:
     for s in hit:
         s.test = why
         d.say(f"{s.fit.name} {fmt_phys(s.fit)}: {why}")
-    d.demoted = d.demoted + hit
-    d.chosen = [s for s in d.chosen if s not in hit]
-    d.final_floor = chosen_floor(d, d.chosen) if d.chosen else d.noise
-    stand_alone(d, [n for n in beside if n not in SHARED], rec)
+    withdraw(d, hit, beside, rec)

@@ -1,8 +1,8 @@
 """``diagnose()``: the stages in order over one :class:`~.state.Diagnosis`.
 
 split (:mod:`.split`) → form (:mod:`.form`) → floor (:mod:`.floor`) → fit
-(:mod:`.fit_stage`) → select (:mod:`.select`) → odometry (:mod:`.odometry`) → one wheel (:mod:`.one_wheel`) → evidence
-(:mod:`.evidence_stage`) → write (:mod:`.write`). After selection the model form is judged again (:mod:`.again`) beside the
+(:mod:`.fit_stage`) → select (:mod:`.select`) → odometry (:mod:`.odometry`) → one wheel
+(:mod:`.one_wheel`) → evidence (:mod:`.evidence_stage`) → write (:mod:`.write`). After selection the model form is judged again (:mod:`.again`) beside the
 winner or, with none named, the leading candidate; when that changes the forms, the
 diagnosis runs again from the start under the new options.
 """

@@ -553,7 +553,6 @@ def withdraw_within_allowance(d: Diagnosis) -> None:
     gone = [(s, off) for s, off in out if off]
     if not gone:
         return
-    kept = [s for s, off in out if not off]
     names = [c.name for s, off in gone for c in s.fit.candidates if c.name in off]
     beside = [c.name for s, off in gone for c in s.fit.candidates if c.name not in off]
     w: dict[str, Any] = {
@@ -564,16 +563,17 @@ def withdraw_within_allowance(d: Diagnosis) -> None:
     for s, off in gone:
         s.test = withdrawn_test(off)
         d.say(f"{s.fit.name} {fmt_phys(s.fit)}: {s.test} (the model's form gives as much)")
-    d.demoted, d.chosen = d.demoted + [s for s, _ in gone], kept
-    d.final_floor = chosen_floor(d, kept) if kept else d.noise
-    stand_alone(d, beside, w)
+    withdraw(d, [s for s, _ in gone], beside, w)
 
 
-def stand_alone(d: Diagnosis, beside: list[str], w: dict[str, Any]) -> None:
-    """After a withdrawal (recorded in ``w``) left nothing named: the one effect fitted
-    ``beside`` what was withdrawn, named by its own fit (:func:`partner_alone`), finished
-    as the pair was and judged by its own allowance (``kept`` in ``w``); else ``beside`` in
-    ``w``, not named."""
+def withdraw(d: Diagnosis, gone: list[Scored], beside: list[str], w: dict[str, Any]) -> None:
+    """Demote the named fits ``gone`` (their withdrawal recorded in ``w``); the final floor
+    is what stays named's. If nothing stays, the one effect fitted ``beside`` what was
+    withdrawn is named by its own fit (:func:`partner_alone`), finished as the pair was and
+    judged by its own allowance (``kept`` in ``w``); else ``beside`` in ``w``, not named."""
+    d.demoted = d.demoted + gone
+    d.chosen = [s for s in d.chosen if s not in gone]
+    d.final_floor = chosen_floor(d, d.chosen) if d.chosen else d.noise
     alone = partner_alone(d, beside) if beside and not d.chosen else None
     if alone is not None:
         partner, floor = alone
