@@ -134,6 +134,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         " disagree (one wheel's own drag)",
     ),
     (
+        "partner_limit",
+        "name a second effect only if it reaches its detection limit beside the winner",
+    ),
+    (
         "soil_from_motion",
         "read a named soil's k_phi from the pose signals' own minimum (off: study 61600)",
     ),

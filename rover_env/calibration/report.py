@@ -207,8 +207,13 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
         + " A runner-up (the next significant candidate, or one"
         " that improves the held-out drive more than the winner and lowers the training BIC without passing"
         " the window test) not worse than the winner at p < "
-        f"{opts.tie_alpha:g} is reported as a tie. Second effect by forward selection under the same rules."
-        " Named with confidence only if the chosen effects make no held-out signal they leave"
+        f"{opts.tie_alpha:g} is reported as a tie. Second effect by forward selection under the same rules"
+        + (
+            " (its detection limit measured beside the winner)."
+            if opts.name_above_limit and opts.partner_limit
+            else "."
+        )
+        + " Named with confidence only if the chosen effects make no held-out signal they leave"
         " above its floor worse (per-window mean squares, one-sided Wilcoxon at p <"
         f" {opts.alpha:g}) by at least {opts.trade_share:g} of what the other signals gain"
         " (each in units of its floor): an effect that trades one signal for another stands"

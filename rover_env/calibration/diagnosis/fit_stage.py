@@ -18,7 +18,7 @@ import numpy as np
 from scipy import optimize
 
 from rover_env.calibration import residuals as rs
-from rover_env.calibration.candidates import Candidate, catalogue
+from rover_env.calibration.candidates import Candidate, Extensions, catalogue, merge
 from rover_env.calibration.diagnosis.judge import (
     better_worse,
     fit_budget,
@@ -193,7 +193,11 @@ def _price_gap(f: float, q: np.ndarray, price: float) -> float:
 
 
 def detection_limit(
-    ev: Evaluator, c: Candidate, which: str, scale: dict[str, float]
+    ev: Evaluator,
+    c: Candidate,
+    which: str,
+    scale: dict[str, float],
+    hold: Extensions | None = None,
 ) -> dict[str, float]:
     """Per side of "off": the smallest magnitude of the effect that, were it in the logs,
     would pay its training BIC price against the residual the logs leave now, the losses
@@ -212,11 +216,15 @@ def detection_limit(
     logs the model leaves 4-20 x that, and an effect 3 x its noise threshold can be
     invisible (block 47700's torque cut of -0.61, case 47721: threshold 0.18, the cut
     itself bettering the training windows by 0.1 in sum of log ratios, against a price of
-    3.5). Reported, not used to name.
+    3.5). A name must reach it (:attr:`.state.Options.name_above_limit`, stop 73).
+
+    ``hold``: effects kept beside ``c`` (a winner a partner is sought beside), so that
+    "now" is the model with them: the limit of a second effect (:func:`.select.partner_limits`).
     """
     if c.discrete or not c.ladder:
         return {}
-    ref = ev.run(c.to_ext(np.array(c.off)), which)
+    held = hold or {}
+    ref = ev.run(merge(held, c.to_ext(np.array(c.off))), which)
     r_ref = rs.window_losses(ref, scale)
     r_ref = np.maximum(r_ref, 1e-12 * max(float(np.mean(r_ref)), 1e-300))
     price = len(c.labels) * math.log(max(len(ref), 2))
@@ -224,7 +232,7 @@ def detection_limit(
     paid: dict[str, list[tuple[float, float]]] = {}  # (rung, its sum over the price)
     for x, key, mag in _ladder_magnitudes(c):
         try:
-            res = ev.run(c.to_ext(x), which)
+            res = ev.run(merge(held, c.to_ext(x)), which)
         except (EffectError, SimulationError):
             continue
         e = np.array([_window_change(a, b, scale) for a, b in zip(res, ref, strict=True)])

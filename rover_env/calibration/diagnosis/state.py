@@ -202,6 +202,11 @@ class Options:
     fresh study 67200 (registered) it withdrew 8 of 12 such names (final rolling resistances
     on brake drags 4/28) and no rolling-resistance single or clean case of 120 parted the
     wheels that far (docs/calibration/README.md)."""
+    partner_limit: bool = True
+    """A second effect, as the winner, is named only if it reaches its detection limit,
+    measured beside the winner (:func:`.select.partner_limits`; with
+    :attr:`name_above_limit`). Why (stop 90): on one or two drives of a command lag a
+    friction beside it below its limit was named."""
     soil_from_motion: bool = False
     """Read a named soil's k_phi from the rover's motion, the pose group's own minimum, where
     the pose has one (:func:`.motion.from_motion`). Why it was tried (stop 82): the yaw
@@ -516,6 +521,9 @@ class Diagnosis:
     odometry: dict[str, Any] | None = None
     """Dead reckoning on the logs and on the named model's twins, and whether it named a
     rolling radius (:func:`.odometry.name_by_odometry`; None: off)."""
+    partner_limits: dict[str, dict[str, float]] | None = None
+    """Each significant pair's partner's detection limit beside the winner (effect -> side
+    -> magnitude; :func:`.select.partner_limits`; None: none measured)."""
     one_wheel: dict[str, Any] | None = None
     """Beside a named rolling resistance: the free wheels' dead-reckoning split and whether
     it withdrew the name (:func:`.one_wheel.withdraw_one_wheel`)."""

@@ -125,6 +125,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "rotor_withdrawn": d.rotor_withdrawn,
         "allowance_withdrawn": d.allowance_withdrawn,
         "one_wheel": d.one_wheel,
+        "partner_limits": d.partner_limits,
         "not_named": d.traded,
         "trade_excused": d.trade_excused,
         "second_dropped": d.dropped,
