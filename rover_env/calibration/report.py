@@ -420,9 +420,10 @@ def write_report(d: Diagnosis) -> Path:
             "|---|---|---|---|---|---|",
         ]
         for s in tried:
+            why = s.test.removeprefix("not named: ") if s.test.startswith("not named") else ""
             L.append(
                 f"| {s.fit.name} | {phys_text(s)} | {_change(s.gain)} | {p_text(s.p)} | {s.d_bic:+.1f} |"
-                f" {_sig(s)} |"
+                f" {f'no: {why}' if why else _sig(s)} |"
             )
         L.append("")
     if not named:

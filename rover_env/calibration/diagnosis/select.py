@@ -320,7 +320,8 @@ def partner_limits(d: Diagnosis, pairs: list[Scored]) -> dict[str, dict[str, flo
             plug = plugin_capable(c) and all(plugin_capable(w) for w in winner.fit.candidates)
             which = "train" if plug or c.discrete else "train_sub"
             out[c.name] = detection_limit(d.ev, c, which, d.noise, hold=winner.fit.ext)
-            d.say(f"beside {winner.fit.name}: {c.name}'s detection limit {out[c.name]}")
+            shown = ", ".join(f"{k} {v:.3g}" for k, v in out[c.name].items()) or "none"
+            d.say(f"beside {winner.fit.name}: {c.name}'s detection limit {shown}")
     d.partner_limits = out
     return out
 
