@@ -5,6 +5,7 @@ replays whose answer is known in closed form, as tests/test_detection_limit.py."
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -124,3 +125,58 @@ def test_off_it_measures_nothing() -> None:
     case = _diagnosis(partner_limit=False)
     assert partner_limits(case.d, [case.pair]) is None  # type: ignore[arg-type]
     assert case.d.ev.runs == [] and case.d.partner_limits is None
+
+
+def test_the_few_drives_report_counts_what_the_rule_removed(tmp_path: Path) -> None:
+    import json
+
+    from _bench import load_bench
+
+    bench = load_bench("few_drives")
+    rows = [
+        # a right winner and a wrong partner the rule refused
+        {
+            "case": "a",
+            "kind": "single",
+            "truth": {"command_lag": {"tau": 0.3}},
+            "drives": 2,
+            "named": ["command_lag"],
+            "named_off": ["command_lag", "friction"],
+            "acted": True,
+            "partner_limits": {"friction": {"-": 0.69}},
+            "diagnose_s": 40.0,
+        },
+        # a right partner it refused (harm)
+        {
+            "case": "b",
+            "kind": "pair",
+            "truth": {"slope": {"deg": 3}, "friction": {"fraction": -0.5}},
+            "drives": 2,
+            "named": ["slope"],
+            "named_off": ["slope", "friction"],
+            "acted": True,
+            "partner_limits": {"friction": {"-": 0.6}},
+            "diagnose_s": 50.0,
+        },
+        # a clean case naming something either way
+        {
+            "case": "c",
+            "kind": "clean",
+            "truth": "none",
+            "drives": 2,
+            "named": ["slope"],
+            "named_off": ["slope"],
+            "acted": False,
+            "partner_limits": None,
+            "diagnose_s": 30.0,
+        },
+    ]
+    path = tmp_path / "rows.jsonl"
+    path.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    text = bench.report(path, tmp_path / "few.md")
+    assert "| single | 1 | 1 / 1 | 0 / 1 | 0 / 0 |" in text
+    assert "| pair | 1 | 1 / 2 | 0 / 0 | 0 / 0 |" in text
+    assert "| clean | 1 | 0 / 0 | 1 / 1 | 0 / 0 |" in text
+    assert "right names the rule removed (H1): 1 in 1 cases" in text
+    assert "wrong names the rule removed: 1 in 1 cases" in text
+    assert (tmp_path / "few.md").read_text() == text

@@ -135,7 +135,8 @@ SWITCHES: tuple[tuple[str, str], ...] = (
     ),
     (
         "partner_limit",
-        "name a second effect only if it reaches its detection limit beside the winner",
+        "name a second effect only if it reaches its detection limit beside the winner"
+        " (off: study 71000)",
     ),
     (
         "soil_from_motion",

@@ -202,11 +202,15 @@ class Options:
     fresh study 67200 (registered) it withdrew 8 of 12 such names (final rolling resistances
     on brake drags 4/28) and no rolling-resistance single or clean case of 120 parted the
     wheels that far (docs/calibration/README.md)."""
-    partner_limit: bool = True
+    partner_limit: bool = False
     """A second effect, as the winner, is named only if it reaches its detection limit,
     measured beside the winner (:func:`.select.partner_limits`; with
-    :attr:`name_above_limit`). Why (stop 90): on one or two drives of a command lag a
-    friction beside it below its limit was named."""
+    :attr:`name_above_limit`). Why it was tried (stop 90): on one or two drives of a
+    command lag a friction beside it below its limit was named. Off by default: fresh
+    study 71000 (registered; 130 cases on one and two drives) failed its power line, 0 of 3
+    wrong names in two-name diagnoses removed (all three from odometry's radius or a single
+    window name, which it cannot touch); it acted in 3 cases and changed no final name,
+    and removed no right one (docs/calibration/README.md)."""
     soil_from_motion: bool = False
     """Read a named soil's k_phi from the rover's motion, the pose group's own minimum, where
     the pose has one (:func:`.motion.from_motion`). Why it was tried (stop 82): the yaw
