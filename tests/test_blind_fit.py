@@ -302,9 +302,11 @@ def test_every_switch_defaults_to_its_option_and_turns_off() -> None:
     # off by default: the joint loop (stop 68); forms adopted in at most 1 of 114 diagnoses
     # (stop 69); the soil read from the motion, short of its registered line (stop 82); pegged
     # fits named last, which study 64000 did not bear out (stop 85); the next candidate after
-    # a withdrawn name, by block 52400's registered decision (stop 88)
+    # a withdrawn name, by block 52400's registered decision (stop 88); a partner's limit
+    # beside the winner, by study 71000's (stop 90)
     off = {
         "next_after_withdrawn",
+        "partner_limit",
         "pegged_last",
         "joint_motor_loop",
         "fit_speed_loop",
