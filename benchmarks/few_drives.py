@@ -137,16 +137,19 @@ def report(rows_path: Path, md: Path) -> str:
             f" | {cnt['named'][1]} / {cnt['named_off'][1]}"
             f" | {cnt['named'][2]} / {cnt['named_off'][2]} |"
         )
-    lost = [r for r in ok if score(r, "named_off")[0] - score(r, "named")[0]]
-    removed = [r for r in ok if score(r, "named_off")[1] - score(r, "named")[1]]
+    # per case: (right, wrong) names named without the rule and not with it
+    gone = [
+        tuple(len(a - b) for a, b in zip(score(r, "named_off"), score(r, "named"), strict=True))
+        for r in ok
+    ]
     lines += [
         "",
         f"cases where the rule acted (a second effect judged beside the winner): "
         f"{sum(r['acted'] for r in ok)}",
-        f"right names the rule removed (H1): {sum(len(score(r, 'named_off')[0] - score(r, 'named')[0]) for r in ok)}"
-        f" in {len(lost)} cases",
-        f"wrong names the rule removed: {sum(len(score(r, 'named_off')[1] - score(r, 'named')[1]) for r in ok)}"
-        f" in {len(removed)} cases",
+        f"right names the rule removed (H1): {sum(g[0] for g in gone)}"
+        f" in {sum(g[0] > 0 for g in gone)} cases",
+        f"wrong names the rule removed: {sum(g[1] for g in gone)}"
+        f" in {sum(g[1] > 0 for g in gone)} cases",
         "",
         "| case | truth | named (rule) | named (without) | partner limits |",
         "|---|---|---|---|---|",
