@@ -33,18 +33,17 @@ Writes ``OUT/effect_twin.md``, ``.json`` and ``.png`` (OUT defaults to the first
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 import tempfile
 from collections import defaultdict
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
+from _motor import parse_motor, with_motor
 from bench_independent import DRIVES, DURATION
 from truth_ceiling import case_row, single_cases, truth_ext
 
@@ -55,7 +54,6 @@ from rover_env.calibration.diagnosis.state import Diagnosis, Options
 from rover_env.calibration.fit import SIGNAL_GROUPS
 from rover_env.calibration.replay import Replayer, WindowResult, prepare
 from rover_env.calibration.residuals import SIGNALS
-from rover_env.config import MotorSpec, RoverConfig
 from rover_env.independent.generate import make_independent_logs
 from rover_env.logs import read_log
 
@@ -144,15 +142,6 @@ def measure(
         twin_res = Replayer(d.base, d.st).run(twin_prep, d.all_w)
         truth_res = Replayer(d.ev.config(truth), d.st).run(d.prepared, d.all_w)
     return changes(nominal, twin_res, truth_res, d.noise, kinds)
-
-
-def with_motor(cfg: RoverConfig, motor: dict[str, Any]) -> RoverConfig:
-    """``cfg`` with its motor's fields scaled by the numbers in ``motor`` (set by strings)."""
-    m = cfg.motor
-    kw: dict[str, Any] = {
-        k: v if isinstance(v, str) else getattr(m, k) * v for k, v in motor.items()
-    }
-    return replace(cfg, motor=replace(m, **kw))
 
 
 def _one(args: tuple[dict[str, Any], str, dict[str, Any]]) -> dict[str, Any]:
@@ -270,18 +259,6 @@ def measure_all(
     jobs = [(case, work, motor) for case, work in single_cases(blocks, works, only)]
     with ProcessPoolExecutor(max(1, workers)) as pool:
         return list(pool.map(_one, jobs))
-
-
-def parse_motor(text: str) -> tuple[str, Any]:
-    """``FIELD=FACTOR`` (a number: a factor) or ``FIELD=VALUE`` (a word: the value)."""
-    key, sep, value = text.partition("=")
-    fields = {f.name for f in dataclasses.fields(MotorSpec)}
-    if not sep or key not in fields:
-        raise SystemExit(f"--motor {text!r}: FIELD=FACTOR with FIELD one of {sorted(fields)}")
-    try:
-        return key, float(value)
-    except ValueError:
-        return key, value
 
 
 def main() -> int:

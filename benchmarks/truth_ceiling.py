@@ -33,24 +33,33 @@ from typing import Any
 import numpy as np
 import yaml
 from _independent_tables import truth_ratio
+from _motor import parse_motor, with_motor
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue
 from rover_env.calibration.diagnosis import floor, form, split
+from rover_env.calibration.diagnosis.form_ladder import reprepare
 from rover_env.calibration.diagnosis.judge import gain, p_improved, training_criteria
 from rover_env.calibration.diagnosis.state import Diagnosis, Options
 
 SKIPPED = ("loose_soil",)
 
 
-def test_at_truth(logs_dir: Path, truth: dict[str, dict[str, float]]) -> dict[str, Any]:
-    """The naming test of the truth against the nominal model (after the model forms)."""
+def test_at_truth(
+    logs_dir: Path, truth: dict[str, dict[str, float]], motor: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """The naming test of the truth against the nominal model (after the model forms);
+    ``motor`` scales the configuration's motor fields first (:func:`_motor.with_motor`),
+    so the forms and both replays are those of a model with another motor."""
     logs = sorted(str(p) for p in logs_dir.glob("*.csv"))
     kinds = [d["kind"] for d in yaml.safe_load((logs_dir / "truth.yaml").read_text())["drives"]]
     opts = Options(progress=False, workers=1)
     with tempfile.TemporaryDirectory() as tmp:
         d = Diagnosis(logs, Path(tmp), opts)
         split.split(d)
+        if motor:
+            d.base = with_motor(d.base, motor)
+            d.prepared = reprepare(d.prepared, d.base, d.st)
         form.fit_model_form(d)
         floor.baseline(d)
         ev = d.ev
@@ -86,9 +95,17 @@ def case_row(case: dict[str, Any]) -> dict[str, Any]:
     return row
 
 
-def truth_ext(case: dict[str, Any]) -> dict[str, dict[str, float]]:
-    """The case's truth as model extensions (with its equivalent effect, if any)."""
-    return {**case["truth"], **(case.get("equivalent") or {})}
+def truth_ext(
+    case: dict[str, Any], motor: dict[str, Any] | None = None
+) -> dict[str, dict[str, float]]:
+    """The case's truth as model extensions (with its equivalent effect, if any). A torque
+    cut is a fraction of the configured limit: under ``motor``'s factor on ``torque_limit``
+    the same limit in N m is the fraction ``(1 + f) / factor - 1``."""
+    ext = {**case["truth"], **(case.get("equivalent") or {})}
+    s = (motor or {}).get("torque_limit")
+    if "torque_limit" in ext and isinstance(s, float):
+        ext["torque_limit"] = {"fraction": (1 + ext["torque_limit"]["fraction"]) / s - 1}
+    return ext
 
 
 def single_cases(
@@ -110,11 +127,11 @@ def single_cases(
     return jobs
 
 
-def _one(args: tuple[dict[str, Any], str]) -> dict[str, Any]:
-    case, work = args
+def _one(args: tuple[dict[str, Any], str, dict[str, Any]]) -> dict[str, Any]:
+    case, work, motor = args
     row = case_row(case)
     try:
-        row.update(test_at_truth(Path(work) / case["case"] / "logs", truth_ext(case)))
+        row.update(test_at_truth(Path(work) / case["case"] / "logs", truth_ext(case, motor), motor))
     except Exception as exc:  # a case that cannot be replayed is reported, not skipped
         row["error"] = f"{type(exc).__name__}: {exc}"
     print(f"{row['case']}: {row.get('passes', row.get('error'))}", flush=True)
@@ -178,17 +195,27 @@ def main() -> int:
     ap.add_argument("--block", action="append", required=True, help="folder with independent.json")
     ap.add_argument("--work", action="append", required=True, help="its bench work folder")
     ap.add_argument("--out", default=None, help="where to write (default: the first block)")
+    ap.add_argument(
+        "--motor",
+        action="append",
+        default=[],
+        metavar="FIELD=FACTOR",
+        help="scale a motor field of the model first (armature=2; anti_windup=conditional sets it)",
+    )
     ap.add_argument("--workers", type=int, default=1)
     a = ap.parse_args()
     if len(a.block) != len(a.work):
         ap.error("give one --work per --block")
-    jobs = single_cases(a.block, a.work)
+    motor = dict(parse_motor(m) for m in a.motor)
+    jobs = [(case, work, motor) for case, work in single_cases(a.block, a.work)]
     with ProcessPoolExecutor(max(1, a.workers)) as pool:
         rows = list(pool.map(_one, jobs))
     out = Path(a.out or a.block[0])
     out.mkdir(parents=True, exist_ok=True)
     (out / "truth_ceiling.json").write_text(json.dumps(rows, indent=1, default=float))
-    lines = ["# The naming test at the true effect", "", f"Blocks: {', '.join(a.block)}.", ""]
+    lines = ["# The naming test at the true effect", "", f"Blocks: {', '.join(a.block)}."]
+    lines += [f"Motor: {', '.join(a.motor)} (factors on the configuration's)."] if a.motor else []
+    lines += [""]
     lines += [*table(rows), "", "| case | x threshold | held gain | p | ΔBIC | passes | named |"]
     lines += ["|---|---|---|---|---|---|---|"]
     for r in sorted(rows, key=lambda r: (r["effect"], r["case"])):

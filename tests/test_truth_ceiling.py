@@ -35,3 +35,15 @@ def test_the_table_counts_strong_cases_only_and_names_against_the_truth(tc: Modu
     assert lines.index("| friction | 2 | 0 | 1 | 1 |") < lines.index(
         "| command_lag | 1 | 1 | 1 | 0 |"
     )
+
+
+def test_a_torque_cut_is_read_against_the_motor_it_is_replayed_with(tc: ModuleType) -> None:
+    # A cut to 0.8 of a configured 3.0 N m is 2.4 N m; a motor of 0.9333 x that limit
+    # (2.8 N m) reaches 2.4 N m at a cut of 1 - 2.4 / 2.8.
+    case = {"truth": {"torque_limit": {"fraction": -0.2}}, "equivalent": None}
+    got = tc.truth_ext(case, {"torque_limit": 2.8 / 3.0, "anti_windup": "back_calculation"})
+    assert got["torque_limit"]["fraction"] == pytest.approx(2.4 / 2.8 - 1)
+    assert tc.truth_ext(case, {"armature": 2.0}) == case["truth"]
+    assert tc.truth_ext(case) == case["truth"]
+    lag = {"truth": {"command_lag": {"tau": 0.1}}}
+    assert tc.truth_ext(lag, {"torque_limit": 0.5}) == lag["truth"]
