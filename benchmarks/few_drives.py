@@ -14,6 +14,11 @@ writes the summary table.
     python benchmarks/few_drives.py --seed0 71000 --drives 2 --out /tmp/few/rows.jsonl \\
         --work /tmp/few/work --workers 2
     python benchmarks/few_drives.py --report /tmp/few/rows.jsonl --md /tmp/few/few.md
+
+``--rule odometry_noise`` (study 71200) scores odometry's band widened for the pose's own
+noise instead (:attr:`rover_env.calibration.diagnosis.state.OdometryBand.noise_z`): one
+diagnosis per case, whose ``dead_reckoning`` also records what the clean band alone decided
+(``without_noise``), so the names without the rule are the same run's with that decision.
 """
 
 from __future__ import annotations
@@ -37,7 +42,31 @@ def truth_names(case: dict[str, Any]) -> set[str]:
     return set(case["truth"]) if isinstance(case["truth"], dict) else set()
 
 
-def run_case(case: dict[str, Any], root: Path, drives: int, workers: int) -> dict[str, Any]:
+RULES = ("partner_limit", "odometry_noise")
+"""The rules this script scores: study 71000's and study 71200's."""
+
+
+def without_noise(named: list[str], dr: dict[str, Any] | None) -> list[str]:
+    """The names a diagnosis would have given with odometry's clean band alone: the same
+    run's names with the rolling radius as that band decided (``dr``: its dead reckoning)."""
+    if not dr or "without_noise" not in dr:
+        return list(named)
+    rest = [n for n in named if n != "rolling_radius" or not dr.get("named")]
+    return rest + (["rolling_radius"] if dr["without_noise"] == "named" else [])
+
+
+def odometry_row(dr: dict[str, Any] | None) -> dict[str, Any] | None:
+    """What a case's dead reckoning read and decided, for the rows."""
+    if not dr:
+        return None
+    keys = ("named", "without_noise", "why_not", "noise_se", "noise_samples", "band_with_noise")
+    keys += ("fraction", "sensitivity", "interval_with_noise")
+    return {"difference": (dr.get("difference") or {}).get("both")} | {k: dr.get(k) for k in keys}
+
+
+def run_case(
+    case: dict[str, Any], root: Path, drives: int, workers: int, rule: str = "partner_limit"
+) -> dict[str, Any]:
     """One case: its logs, the diagnosis with the rule, and without it where it acted."""
     d = root / tag(case)
     if d.exists():
@@ -50,16 +79,21 @@ def run_case(case: dict[str, Any], root: Path, drives: int, workers: int) -> dic
         )
     ]
     t1 = time.perf_counter()
-    on = diagnose(paths, d / "out", Options(progress=False, workers=workers))
+    opts = Options(progress=False, workers=workers, partner_limit=rule == "partner_limit")
+    on = diagnose(paths, d / "out", opts)
     t2 = time.perf_counter()
-    acted = on.get("partner_limits") is not None
-    off = (
-        diagnose(
-            paths, d / "out_off", Options(progress=False, workers=workers, partner_limit=False)
+    if rule == "odometry_noise":
+        off = {"named": without_noise(on["named"], on.get("dead_reckoning"))}
+        acted = sorted(off["named"]) != sorted(on["named"])
+    else:
+        acted = on.get("partner_limits") is not None
+        off = (
+            diagnose(
+                paths, d / "out_off", Options(progress=False, workers=workers, partner_limit=False)
+            )
+            if acted
+            else on
         )
-        if acted
-        else on
-    )
     pairs = {
         k: {"significant": bool(v.get("significant")), "test": v.get("test", "")}
         for k, v in (on.get("second_tried") or {}).items()
@@ -76,9 +110,14 @@ def run_case(case: dict[str, Any], root: Path, drives: int, workers: int) -> dic
         "acted": acted,
         "partner_limits": on.get("partner_limits"),
         "pairs": pairs,
+        **(
+            {"rule": rule, "odometry": odometry_row(on.get("dead_reckoning"))}
+            if rule != RULES[0]
+            else {}
+        ),
         "make_logs_s": t1 - t0,
         "diagnose_s": t2 - t1,
-        "off_s": time.perf_counter() - t2 if acted else 0.0,
+        "off_s": time.perf_counter() - t2 if acted and rule == RULES[0] else 0.0,
     }
 
 
@@ -91,7 +130,7 @@ def run(args: argparse.Namespace) -> None:
     for i, case in enumerate(todo, 1):
         t = time.perf_counter()
         try:
-            row = run_case(case, Path(args.work), args.drives, args.workers)
+            row = run_case(case, Path(args.work), args.drives, args.workers, args.rule)
         except Exception as exc:  # recorded, the study goes on
             row = {"case": tag(case), "kind": case["kind"], "error": f"{type(exc).__name__}: {exc}"}
         with out.open("a") as fh:
@@ -108,6 +147,18 @@ def score(row: dict[str, Any], key: str) -> tuple[set[str], set[str]]:
     truth = truth_names(row)
     named = set(row.get(key) or [])
     return named & truth, named - truth
+
+
+def odometry_text(o: dict[str, Any] | None) -> str:
+    """A row's dead reckoning in a table cell."""
+    if not o or o.get("difference") is None:
+        return "-"
+    se = o.get("noise_se")
+    se_text = f"{100 * se:.2f}" if isinstance(se, float) and se == se else "-"
+    return (
+        f"{100 * o['difference']:+.2f} % (se {se_text} %, {o.get('noise_samples')} intervals):"
+        f" {o.get('why_not') or 'named'}"
+    )
 
 
 def report(rows_path: Path, md: Path) -> str:
@@ -142,24 +193,27 @@ def report(rows_path: Path, md: Path) -> str:
         tuple(len(a - b) for a, b in zip(score(r, "named_off"), score(r, "named"), strict=True))
         for r in ok
     ]
+    odo = bool(ok) and ok[0].get("rule") == "odometry_noise"
+    acted = "its decision differed" if odo else "a second effect judged beside the winner"
     lines += [
         "",
-        f"cases where the rule acted (a second effect judged beside the winner): "
-        f"{sum(r['acted'] for r in ok)}",
+        f"cases where the rule acted ({acted}): {sum(r['acted'] for r in ok)}",
         f"right names the rule removed (H1): {sum(g[0] for g in gone)}"
         f" in {sum(g[0] > 0 for g in gone)} cases",
         f"wrong names the rule removed: {sum(g[1] for g in gone)}"
         f" in {sum(g[1] > 0 for g in gone)} cases",
         "",
-        "| case | truth | named (rule) | named (without) | partner limits |",
+        f"| case | truth | named (rule) | named (without) | {'odometry' if odo else 'partner limits'} |",
         "|---|---|---|---|---|",
     ]
     for r in ok:
         if r["acted"] or r["named"] != r["named_off"]:
-            lim = {
+            lim: Any = {
                 k: {s: round(v, 4) for s, v in (x or {}).items()}
                 for k, x in (r["partner_limits"] or {}).items()
             }
+            if odo:
+                lim = odometry_text(r.get("odometry"))
             lines.append(
                 f"| {r['case']} | {r['truth']} | {', '.join(r['named']) or '-'}"
                 f" | {', '.join(r['named_off']) or '-'} | {lim} |"
@@ -184,6 +238,7 @@ def main() -> None:
     ap.add_argument("--resume", action="store_true", help="skip the cases --out holds")
     ap.add_argument("--out", default="out/few_drives.jsonl", help="rows, one per case")
     ap.add_argument("--work", default="out/few_drives", help="logs and reports per case")
+    ap.add_argument("--rule", choices=RULES, default=RULES[0], help="the rule scored")
     ap.add_argument("--report", type=Path, default=None, help="summarise these rows")
     ap.add_argument("--md", type=Path, default=Path("out/few_drives.md"))
     args = ap.parse_args()

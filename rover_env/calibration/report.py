@@ -240,6 +240,17 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
     ]
 
 
+def _noise_clause(z: float) -> str:
+    """The odometry band's widening for the pose's own noise, in the method's words."""
+    if z <= 0:
+        return ""
+    return (
+        f"; widened in quadrature by {z:g} standard errors of the statistic from the pose"
+        " fixes' own noise, read from their scatter across the heading: short straight"
+        " driving reads it to per cent"
+    )
+
+
 def _odometry_method(opts: Options) -> list[str]:
     """The method's bullet on naming a rolling radius from dead reckoning."""
     b = opts.odometry
@@ -251,7 +262,7 @@ def _odometry_method(opts: Options) -> list[str]:
         " wheels' travel against the pose (straight, moving pose intervals, along the heading)"
         " differs between the logs and the named model's twins beyond what clean drives of"
         f" another implementation leave ({100 * b.lo:+.2f} to {100 * b.hi:+.2f} %, centre"
-        f" {100 * b.mid:+.2f} %), both free wheels agree (within {100 * b.split:.1f} %), the"
+        f" {100 * b.mid:+.2f} %{_noise_clause(b.noise_z)}), both free wheels agree (within {100 * b.split:.1f} %), the"
         " driven wheels read the same change (their difference within"
         f" {100 * b.driven:.0f} % of the free wheels': a radius moves every wheel alike, the"
         " slip of loose soil, a drag or a load moves them apart), the change that closes it"
@@ -703,7 +714,13 @@ def _reckoning_lines(r: dict[str, Any] | None) -> list[str]:
         return ["", f"Dead reckoning: not compared with this model's twins ({r['why_not']})."]
     if diff is None or diff != diff:  # none straight and moving
         return []
-    lo, hi = r["band"]
+    lo, hi = r.get("band_with_noise") or r["band"]
+    se = r.get("noise_se")
+    noise = (
+        f" (widened for the pose's own noise on these logs: {100 * se:.2f} % standard error)"
+        if r.get("band_with_noise") and se is not None
+        else ""
+    )
     d = r["difference"]
     verdict = (
         "named the rolling radius (above)"
@@ -726,7 +743,7 @@ def _reckoning_lines(r: dict[str, Any] | None) -> list[str]:
         f" {100 * d['3R']:+.2f} %{driven}; the logs {100 * r['logs']['both']:+.2f} %, the twins"
         f" {100 * r['model']['both']:+.2f} %, path over travel at the static rolling radius,"
         f" minus 1); clean drives of another implementation leave {100 * lo:+.2f} to"
-        f" {100 * hi:+.2f} %: {verdict}. A rolling radius change shows one for one; a rolling"
+        f" {100 * hi:+.2f} %{noise}: {verdict}. A rolling radius change shows one for one; a rolling"
         " resistance drags the free wheels (about +1 %), loose soil makes them bulldoze (up to"
         " +24 %), a dragging brake slows one of them." + held,
     ]

@@ -71,3 +71,55 @@ def travel_scale(logs: list[DriveLog], r_e: float, wheels: tuple[int, ...] = FRE
     """Path over the travel of ``wheels`` (the free ones) minus 1, over all ``logs``
     together (NaN when none has a straight, moving interval)."""
     return scale_of([path_and_travel(g, r_e, wheels) for g in logs])
+
+
+NOISE_SAMPLES = 10
+"""Fewest straight pose intervals (moving or not) that measure the pose's own noise."""
+
+
+def pose_noise_parts(
+    pose: NDArray[np.float64],
+    phi: NDArray[np.float64],
+    r_e: float,
+) -> tuple[float, float, NDArray[np.float64]]:
+    """(the path's sensitivity to the pose fixes' noise, the free wheels' travel, the
+    cross-track pose increments) of :func:`path_and_travel_of` on one log. The path is linear
+    in each fix's noise e_k: it moves by sum_k c_k . e_k, so independent noise of standard
+    deviation sigma per axis moves it by sigma sqrt(sum |c_k|^2) (the first number; within a
+    straight run the fixes between intervals cancel, so it grows with the runs, not the
+    metres). Across the heading a straight interval's increment is that noise alone (and a
+    little side slip): those increments measure sigma sqrt(2), from the logs themselves."""
+    have = np.flatnonzero(np.all(np.isfinite(pose), axis=1))
+    if have.size < 2:
+        return 0.0, 0.0, np.zeros(0)
+    x, y, yaw = pose[have].T
+    free = np.mean(phi[have][:, list(FREE)], axis=1)
+    mid = yaw[:-1] + 0.5 * np.angle(np.exp(1j * np.diff(yaw)))
+    along = np.diff(x) * np.cos(mid) + np.diff(y) * np.sin(mid)
+    cross = -np.diff(x) * np.sin(mid) + np.diff(y) * np.cos(mid)
+    straight = np.abs(np.angle(np.exp(1j * np.diff(yaw)))) < STRAIGHT
+    ok = (np.abs(np.diff(free)) * r_e > MOVING) & straight
+    # d|along_i| = sign(along_i) u_i . (e_{i+1} - e_i), u_i the interval's heading.
+    u = np.column_stack([np.cos(mid), np.sin(mid)]) * np.sign(along)[:, None]
+    c = np.zeros((x.size, 2))
+    i = np.flatnonzero(ok)
+    np.add.at(c, i + 1, u[i])
+    np.add.at(c, i, -u[i])
+    travel = float((np.abs(np.diff(free)) * r_e)[ok].sum())
+    return float(np.sum(c * c)), travel, cross[straight]
+
+
+def scale_noise(logs: list[DriveLog], r_e: float) -> tuple[float, int]:
+    """(the standard error of :func:`travel_scale` over ``logs`` from the pose fixes' noise,
+    the straight pose intervals that measured that noise). NaN when fewer than
+    :data:`NOISE_SAMPLES` intervals measure it or nothing straight moves: a drive of turns
+    reads its path over a few short straight bits, where a few millimetres of fix noise is
+    per cent of the path (spent study 71000: one drive's clean spread 3 x three drives')."""
+    parts = [pose_noise_parts(g.pose, g.phi, r_e) for g in logs]
+    sens = sum(p[0] for p in parts)
+    travel = sum(p[1] for p in parts)
+    cross = np.concatenate([p[2] for p in parts]) if parts else np.zeros(0)
+    if cross.size < NOISE_SAMPLES or travel <= 0:
+        return math.nan, int(cross.size)
+    sigma_inc = 1.4826 * float(np.median(np.abs(cross - np.median(cross))))
+    return sigma_inc / math.sqrt(2.0) * math.sqrt(sens) / travel, int(cross.size)

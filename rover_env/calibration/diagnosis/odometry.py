@@ -21,7 +21,9 @@ stays named: the wheels' travel does not depend on the windows' verdict (stop 77
 
 from __future__ import annotations
 
+import math
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -37,6 +39,7 @@ from rover_env.estimation.dead_reckoning import (
     FREE,
     path_and_travel,
     path_and_travel_of,
+    scale_noise,
     scale_of,
 )
 from rover_env.estimation.estimator import static_rolling_radius
@@ -97,15 +100,25 @@ def name_by_odometry(d: Diagnosis) -> None:
     on_twins = twin_scales(d.ev.config(ref_ext), d.prepared, r_e)
     diff = {k: on_logs[k] - on_twins[k] for k in WHEELS}
     rec.update(model=on_twins, difference=diff)
-    why = refusal(diff, band, named)
-    if why is not None:
+    se, samples = scale_noise([p.log for p in d.prepared], r_e)
+    rec.update(noise_se=se, noise_samples=samples)
+    before = refusal(diff, band, named)  # the clean band alone, as before study 71200
+    band, why = with_noise(band, se, samples)
+    if band.noise_z > 0 and why is None:
+        rec.update(band_with_noise=[band.lo, band.hi], interval_with_noise=[band.ci_lo, band.ci_hi])
+    why = why or refusal(diff, band, named)
+    est = None
+    if why is None or before is None:
+        est = estimate(d, cand, ref_ext, diff["both"], on_twins["both"], band, r_e)
+        if not cand.lo[0] <= est[0] <= cand.hi[0]:
+            beyond = f"{est[0]:+.3f} is beyond a rolling radius's range"
+            why, before = why or beyond, before or beyond
+    rec["without_noise"] = before or "named"
+    if why is not None or est is None:
         rec["why_not"] = why
         return
-    x, lo, hi, g = estimate(d, cand, ref_ext, diff["both"], on_twins["both"], band, r_e)
+    x, lo, hi, g = est
     rec.update(sensitivity=g, fraction=[x, lo, hi])
-    if not cand.lo[0] <= x <= cand.hi[0]:
-        rec["why_not"] = f"{x:+.3f} is beyond a rolling radius's range"
-        return
     fit = Fit(
         candidates=[cand],
         x=np.array([x]),
@@ -126,10 +139,39 @@ def name_by_odometry(d: Diagnosis) -> None:
     s.test = (
         f"odometry: the logs travel {diff['both']:+.2%} per free-wheel turn against the"
         f" model's twins, beyond clean drives' {band.lo:+.2%} to {band.hi:+.2%}"
+        + (f" (with the pose's noise, {se:.2%} standard error)" if band.noise_z > 0 else "")
     )
     rec["named"] = True
     d.chosen.append(s)
     d.say(f"{NAME}: named by {s.test}: {x:+.4f} [{lo:+.4f}, {hi:+.4f}]")
+
+
+def with_noise(band: OdometryBand, se: float, samples: int) -> tuple[OdometryBand, str | None]:
+    """The band the logs' statistic is judged by, given its standard error ``se`` from the
+    pose's noise (:func:`widened`), or why it is not judged: too few straight pose intervals
+    to measure that noise (``band.noise_z`` 0: the clean band alone)."""
+    if band.noise_z <= 0:
+        return band, None
+    if not math.isfinite(se):
+        return band, f"{samples} straight pose intervals: too few to measure the pose's own noise"
+    return widened(band, se), None
+
+
+def widened(band: OdometryBand, se: float) -> OdometryBand:
+    """``band`` and its interval, each side about the centre, widened in quadrature by the
+    logs' own noise: ``band.noise_z`` standard errors ``se`` for the band, 1.96 for the 95 %
+    interval (the clean spread and the fixes' noise are independent)."""
+
+    def out(edge: float, z: float) -> float:
+        return band.mid + math.copysign(math.hypot(edge - band.mid, z * se), edge - band.mid)
+
+    return replace(
+        band,
+        lo=out(band.lo, band.noise_z),
+        hi=out(band.hi, band.noise_z),
+        ci_lo=out(band.ci_lo, 1.96),
+        ci_hi=out(band.ci_hi, 1.96),
+    )
 
 
 def withdrawn(d: Diagnosis) -> list[str]:

@@ -54,6 +54,13 @@ class OdometryBand:
     ci_hi: float
     split: float
     driven: float = 0.5
+    noise_z: float = 3.0
+    """The band and its interval widen, in quadrature, by this many standard errors of the
+    logs' statistic from the pose fixes' own noise (:func:`.odometry.widened`; 0: not). The
+    band was measured on three-drive cases, whose straight travel (10-20 m) holds that noise
+    to about 0.25 %; a drive of turns reads its path over a few short straight bits (0.3-1 m
+    in spent study 71000), where it is 2-3 %, and each of the three radii named wrongly on
+    one drive there had under 1 m. Scored on fresh study 71200."""
 
 
 ODOMETRY_BAND = OdometryBand(
