@@ -18,6 +18,7 @@ RANKS = {
     "rover_env.rut": 0,
     "rover_env.kinematics": 0,
     "rover_env.config": 0,
+    "rover_env.drive_datasheet": 0,  # a drive's datasheet -> the wheel-referred motor block
     "rover_env.logs": 0,
     "rover_env.bags": 0,  # ROS bags <-> SPEC §6 logs (rosbags, numpy)
     "rover_env.bag_map": 0,  # import-bag's topic map
