@@ -28,8 +28,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+import rover_env.independent.motor as gen_motor
 import rover_env.independent.nuisance as nuisance
 from rover_env.config import RoverConfig, load_rover
+from rover_env.drive_datasheet import VoltageDrive
 from rover_env.independent.effects import resolve
 from rover_env.independent.model import RoverParams
 from rover_env.independent.simulate import simulate
@@ -41,6 +43,21 @@ PLANS: dict[str, list[tuple[float, float]]] = {
     "hard step": [(1.0, 0.0), (3.0, 3.0)],
     "steps": [(1.0, 0.0), (3.0, 1.0), (3.0, 0.6), (3.0, 2.5), (3.0, 2.2), (3.0, 0.0)],
 }
+DATASHEET: dict[str, Any] = VoltageDrive(
+    supply=gen_motor.V_MAX,
+    resistance=gen_motor.R_ARM,
+    torque_constant=gen_motor.K_T_DATASHEET,
+    gear=gen_motor.GEAR,
+    efficiency=gen_motor.EFF,
+    rotor_inertia=gen_motor.ROTOR,
+    current_limit=gen_motor.I_MAX,
+    kp=6.0,
+    ki=30.0,
+    tracking_time=gen_motor.T_TRACK,
+).motor_fields()
+"""The generator's nominal drive converted by :class:`rover_env.drive_datasheet.VoltageDrive`
+(its tracking time 0.05 s is 0.19 of the wheel-referred integral time 5.6 / 21 s; the row
+above writes a quarter of it, the voltage PI's own 6 / 30 s)."""
 MODELS: dict[str, dict[str, Any]] = {
     "configuration (clamp, 2, 40, 0.025)": {},
     "conditional anti-windup": {"anti_windup": "conditional"},
@@ -56,6 +73,7 @@ MODELS: dict[str, dict[str, Any]] = {
         "tracking_ratio": 0.25,
         "armature": 0.05,
     },
+    "generator's drive from its datasheet (VoltageDrive: T_t 0.05 s, limit 2.8)": DATASHEET,
     "generator's loop (conditional, 5.6, 21, 0.05)": {
         "anti_windup": "conditional",
         "speed_gain": 5.6,
