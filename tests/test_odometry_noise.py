@@ -146,3 +146,28 @@ def test_few_drives_reads_the_names_without_the_rule_from_the_same_run(tmp_path)
     assert "right names the rule removed (H1): 0 in 0 cases" in text
     assert "wrong names the rule removed: 1 in 1 cases" in text
     assert "| c | none | - | rolling_radius | +3.00 % (se 2.00 %, 4 intervals): within |" in text
+
+
+def test_the_report_asks_for_a_straight_where_the_drives_cannot_read_a_radius() -> None:
+    """Advice, not a decision: too few straight intervals, or a standard error of 1 % or more,
+    and no radius named; nothing where the statistic is read to better than that."""
+    from rover_env.calibration.report import _reckoning_lines
+
+    both = {"both": 0.035, "3L": 0.034, "3R": 0.036}
+    r = {
+        "logs": both,
+        "model": {"both": 0.0, "3L": 0.0, "3R": 0.0},
+        "difference": both,
+        "band": [-0.025, 0.025],
+        "named": False,
+        "noise_se": math.nan,
+        "noise_samples": 3,
+        "why_not": "3 straight pose intervals: too few to measure the pose's own noise",
+    }
+    text = " ".join(_reckoning_lines(r))
+    assert "only 3 straight pose intervals" in text
+    assert "rover-env drive-plan --plan straight" in text
+    noisy = {**r, "noise_se": 0.022, "noise_samples": 16, "band_with_noise": [-0.07, 0.07]}
+    assert "a 2.2 % standard error" in " ".join(_reckoning_lines(noisy))
+    for quiet in ({**noisy, "noise_se": 0.004}, {**noisy, "named": True}):
+        assert "drive-plan" not in " ".join(_reckoning_lines(quiet))

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -714,6 +715,42 @@ def _reckoning_lines(r: dict[str, Any] | None) -> list[str]:
         return ["", f"Dead reckoning: not compared with this model's twins ({r['why_not']})."]
     if diff is None or diff != diff:  # none straight and moving
         return []
+    return _reckoning_compared(r, diff) + _straight_advice(r)
+
+
+STRAIGHT_ADVICE_SE = 0.01
+"""A standard error of dead reckoning's statistic (from the pose's own noise) at which the
+report suggests a measured straight: a third of the clean band's half-width, where the
+widening starts to hide radii the band would otherwise see (study 71200: 0.2-0.3 % on three
+drives, up to 3.7 % on one)."""
+
+
+def _straight_advice(r: dict[str, Any]) -> list[str]:
+    """What to drive when the logs' straight travel is too short to read a rolling radius:
+    too few straight pose intervals to measure the pose's noise, or a standard error that
+    widens the band by a third of it or more. Advice only; nothing is decided by it."""
+    if r.get("named") or "noise_samples" not in r:
+        return []
+    se = float(r.get("noise_se") or math.nan)
+    few = not math.isfinite(se)
+    if not few and se < STRAIGHT_ADVICE_SE:
+        return []
+    why = (
+        f"only {r.get('noise_samples', 0)} straight pose intervals, too few to measure the"
+        " pose's own noise"
+        if few
+        else f"the pose's noise leaves the statistic a {100 * se:.1f} % standard error"
+    )
+    return [
+        "",
+        f"To read a rolling radius from dead reckoning these drives are short of straight"
+        f" travel ({why}): drive a measured straight, `rover-env drive-plan --plan straight"
+        " --duration 50 --out plans`, and diagnose again with it.",
+    ]
+
+
+def _reckoning_compared(r: dict[str, Any], diff: float) -> list[str]:
+    """The logs' statistic against the twins' and the band it was judged by."""
     lo, hi = r.get("band_with_noise") or r["band"]
     se = r.get("noise_se")
     noise = (
