@@ -63,13 +63,13 @@ def test_the_noise_is_read_from_the_logs_across_the_heading() -> None:
     sigma = 0.008
     noisy = pose.copy()
     noisy[:, :2] += rng.normal(0.0, sigma, (len(pose), 2))
-    log = SimpleNamespace(pose=noisy, phi=phi)
+    log = SimpleNamespace(t=np.arange(len(pose), dtype=float), pose=noisy, phi=phi)
     se, samples = scale_noise([log], R)  # type: ignore[list-item]
     sens, travel, _ = pose_noise_parts(pose, phi, R)
     assert samples >= NOISE_SAMPLES
     assert se == pytest.approx(sigma * math.sqrt(sens) / travel, rel=0.35)
     # Too few straight intervals to measure it: no standard error.
-    short = SimpleNamespace(pose=noisy[:6], phi=phi[:6])
+    short = SimpleNamespace(t=np.arange(6.0), pose=noisy[:6], phi=phi[:6])
     se, samples = scale_noise([short], R)  # type: ignore[list-item]
     assert samples < NOISE_SAMPLES and math.isnan(se)
 
@@ -171,3 +171,27 @@ def test_the_report_asks_for_a_straight_where_the_drives_cannot_read_a_radius() 
     assert "a 2.2 % standard error" in " ".join(_reckoning_lines(noisy))
     for quiet in ({**noisy, "noise_se": 0.004}, {**noisy, "named": True}):
         assert "drive-plan" not in " ".join(_reckoning_lines(quiet))
+
+
+def test_a_fast_pose_reference_is_read_as_one_hz_fixes() -> None:
+    """A 10 Hz pose (motion capture, RTK) reads what 1 Hz fixes read: between 10 Hz fixes a
+    rover at 0.2 m/s moves 2 cm, under the 5 cm an interval needs, so unthinned it reads
+    nothing; 1 Hz fixes come back unchanged."""
+    from rover_env.estimation.dead_reckoning import FIX_SPACING, fixes, path_and_travel
+
+    f = -0.05
+    t = np.arange(0.0, 30.0 + 1e-9, 0.1)
+    speed = np.where(t < 20.0, 0.2, 0.1)
+    x = np.r_[0.0, np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(t))]
+    pose = np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
+    phi = np.zeros((t.size, 6))
+    phi[:, 4] = phi[:, 5] = np.r_[0.0, np.cumsum(np.abs(np.diff(x)))] / (R * (1 + f))
+    fast = SimpleNamespace(t=t, pose=pose, phi=phi)
+    assert path_and_travel_of(pose, phi, R) == (0.0, 0.0)
+    path, travel = path_and_travel(fast, R)  # type: ignore[arg-type]
+    assert path / travel - 1 == pytest.approx(f, abs=1e-9)
+    kept = np.flatnonzero(np.isfinite(fixes(t, pose)[:, 0]))
+    assert np.all(np.diff(t[kept]) >= FIX_SPACING - 1e-9)
+    assert np.all(np.diff(t[kept]) <= FIX_SPACING + 0.1 + 1e-9)
+    slow = np.where((np.round(t * 10) % 10 == 0)[:, None], pose, np.nan)
+    assert np.array_equal(fixes(t, slow), slow, equal_nan=True)

@@ -27,13 +27,37 @@ STRAIGHT = 0.02
 FREE = (4, 5)
 """The free wheels' columns in a log's wheel angles (3L, 3R)."""
 
+FIX_SPACING = 0.9
+"""Fewest seconds between the pose fixes dead reckoning reads; closer ones are thinned. The
+statistic is judged per interval between fixes (moving: over :data:`MOVING` of travel), and
+its clean band was measured on 1 Hz fixes: a 10-100 Hz reference (motion capture, RTK,
+a fused odometry topic) would leave every interval shorter than 5 cm and nothing to read
+(10 Hz fixes on the independent generator: no interval; thinned to 1 Hz: the 1 Hz reading)."""
+
+
+def fixes(t: NDArray[np.float64], pose: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``pose`` (N, 3, NaN where not sampled) with its fixes thinned to at least
+    :data:`FIX_SPACING` apart (the first kept, then each first one that far after the last
+    kept); 1 Hz fixes come back as they are."""
+    have = np.flatnonzero(np.all(np.isfinite(pose), axis=1))
+    if have.size < 2 or np.min(np.diff(t[have])) >= FIX_SPACING:
+        return pose
+    keep = [int(have[0])]
+    for k in have[1:]:
+        if t[k] - t[keep[-1]] >= FIX_SPACING:
+            keep.append(int(k))
+    out = np.full_like(pose, np.nan)
+    out[keep] = pose[keep]
+    return out
+
 
 def path_and_travel(
     log: DriveLog, r_e: float, wheels: tuple[int, ...] = FREE
 ) -> tuple[float, float]:
     """(the pose's path along its heading, the mean travel of ``wheels`` (the free ones) at
-    ``r_e``) over the straight, moving intervals between the log's pose samples (m, m)."""
-    return path_and_travel_of(log.pose, log.phi, r_e, wheels)
+    ``r_e``) over the straight, moving intervals between the log's pose fixes
+    (:func:`fixes`) (m, m)."""
+    return path_and_travel_of(fixes(log.t, log.pose), log.phi, r_e, wheels)
 
 
 def path_and_travel_of(
@@ -115,7 +139,7 @@ def scale_noise(logs: list[DriveLog], r_e: float) -> tuple[float, int]:
     :data:`NOISE_SAMPLES` intervals measure it or nothing straight moves: a drive of turns
     reads its path over a few short straight bits, where a few millimetres of fix noise is
     per cent of the path (spent study 71000: one drive's clean spread 3 x three drives')."""
-    parts = [pose_noise_parts(g.pose, g.phi, r_e) for g in logs]
+    parts = [pose_noise_parts(fixes(g.t, g.pose), g.phi, r_e) for g in logs]
     sens = sum(p[0] for p in parts)
     travel = sum(p[1] for p in parts)
     cross = np.concatenate([p[2] for p in parts]) if parts else np.zeros(0)
