@@ -195,3 +195,24 @@ def test_a_fast_pose_reference_is_read_as_one_hz_fixes() -> None:
     assert np.all(np.diff(t[kept]) <= FIX_SPACING + 0.1 + 1e-9)
     slow = np.where((np.round(t * 10) % 10 == 0)[:, None], pose, np.nan)
     assert np.array_equal(fixes(t, slow), slow, equal_nan=True)
+
+
+def test_the_replay_reads_a_fast_pose_as_the_same_fixes() -> None:
+    """prepare thins a 50 Hz pose as dead reckoning does (the pose's share of each window's
+    loss was measured on 1 Hz fixes); a 1 Hz pose is left as it is."""
+    from rover_env.calibration.replay import ReplaySettings, prepare
+    from rover_env.config import load_rover
+    from rover_env.estimation.dead_reckoning import fixes
+    from rover_env.logs import DriveLog, LogMeta
+
+    n = 501
+    t = np.arange(n) / 50.0
+    pose = np.column_stack([0.2 * t, np.zeros(n), np.zeros(n)])
+    meta = LogMeta(rover="proto_explorer", sample_rate_hz=50.0, terrain="flat")
+    log = DriveLog(t, np.zeros((n, 4)), np.zeros((n, 6)), np.zeros((n, 5)), pose, meta)
+    cfg, st = load_rover("proto_explorer"), ReplaySettings()
+    kept = np.isfinite(prepare(log, cfg, "fast", st).log.pose[:, 0])
+    assert 10 <= kept.sum() <= 12 and np.array_equal(kept, np.isfinite(fixes(t, pose)[:, 0]))
+    slow = np.where((np.arange(n) % 50 == 0)[:, None], pose, np.nan)
+    log1 = DriveLog(t, log.cmd, log.phi, log.theta, slow, meta)
+    assert np.array_equal(prepare(log1, cfg, "slow", st).log.pose, slow, equal_nan=True)

@@ -46,6 +46,7 @@ from numpy.typing import NDArray
 
 from rover_env.config import JOINTS, WHEELS, MotorSpec, RoverConfig, TerrainConfig, to_dict
 from rover_env.effects import CommandEffect, build_effects, command_rows
+from rover_env.estimation.dead_reckoning import fixes
 from rover_env.executor import die_with_parent
 from rover_env.logs import DriveLog
 from rover_env.sim.simulator import RoverSim, physical_config
@@ -248,6 +249,12 @@ def regimes(log: DriveLog, phi_rate: Array) -> dict[str, NDArray[np.bool_]]:
 
 
 def prepare(log: DriveLog, cfg: RoverConfig, name: str, settings: ReplaySettings) -> PreparedLog:
+    """``log`` made ready for replays under ``cfg``. A pose reference faster than 1 Hz is
+    read as fixes at least :data:`~rover_env.estimation.dead_reckoning.FIX_SPACING` apart
+    (:func:`~rover_env.estimation.dead_reckoning.fixes`): every weight and threshold that
+    reads the pose (its share of a window's loss, the gap tolerance, the odometry band) was
+    measured on 1 Hz fixes, and a 50 Hz pose would be most of each window's loss."""
+    log = dataclasses.replace(log, pose=fixes(log.t, log.pose))
     t = log.t
     phi_rate = _slopes(t, log.phi, settings.rate_window)
     theta_rate = _slopes(t, log.theta, settings.rate_window)
