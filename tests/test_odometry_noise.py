@@ -195,6 +195,11 @@ def test_a_fast_pose_reference_is_read_as_one_hz_fixes() -> None:
     assert np.all(np.diff(t[kept]) <= FIX_SPACING + 0.1 + 1e-9)
     slow = np.where((np.round(t * 10) % 10 == 0)[:, None], pose, np.nan)
     assert np.array_equal(fixes(t, slow), slow, equal_nan=True)
+    # A yaw between whole fixes is not a fix: left where it is.
+    yaw_only = pose.copy()
+    yaw_only[::3, :2] = np.nan
+    got = fixes(t, yaw_only)
+    assert np.array_equal(got[::3], yaw_only[::3], equal_nan=True)
 
 
 def test_the_replay_reads_a_fast_pose_as_the_same_fixes() -> None:

@@ -38,7 +38,8 @@ a fused odometry topic) would leave every interval shorter than 5 cm and nothing
 def fixes(t: NDArray[np.float64], pose: NDArray[np.float64]) -> NDArray[np.float64]:
     """``pose`` (N, 3, NaN where not sampled) with its fixes thinned to at least
     :data:`FIX_SPACING` apart (the first kept, then each first one that far after the last
-    kept); 1 Hz fixes come back as they are."""
+    kept); 1 Hz fixes come back as they are, and rows that are not whole fixes (a yaw alone)
+    are left as they are."""
     have = np.flatnonzero(np.all(np.isfinite(pose), axis=1))
     if have.size < 2 or np.min(np.diff(t[have])) >= FIX_SPACING:
         return pose
@@ -46,8 +47,8 @@ def fixes(t: NDArray[np.float64], pose: NDArray[np.float64]) -> NDArray[np.float
     for k in have[1:]:
         if t[k] - t[keep[-1]] >= FIX_SPACING:
             keep.append(int(k))
-    out = np.full_like(pose, np.nan)
-    out[keep] = pose[keep]
+    out = pose.copy()
+    out[np.setdiff1d(have, keep)] = np.nan
     return out
 
 
