@@ -37,7 +37,6 @@ from rover_env.calibration.replay import PreparedLog
 from rover_env.config import RoverConfig
 from rover_env.estimation.dead_reckoning import (
     FREE,
-    fixes,
     path_and_travel,
     path_and_travel_of,
     scale_noise,
@@ -65,7 +64,7 @@ def twin_scales(cfg: RoverConfig, prepared: list[PreparedLog], r_e: float) -> di
     got: dict[str, list[tuple[float, float]]] = {k: [] for k in WHEELS}
     for p in prepared:
         phi, _, pose = rs.twin_states(p, cfg)
-        pose = np.where(np.isfinite(fixes(p.log.t, p.log.pose)), pose, np.nan)
+        pose = np.where(np.isfinite(p.log.pose), pose, np.nan)  # prepare's fixes
         for k, w in WHEELS.items():
             got[k].append(path_and_travel_of(pose, phi, r_e, w))
     return {k: scale_of(v) for k, v in got.items()}
