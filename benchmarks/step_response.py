@@ -51,8 +51,8 @@ DATASHEET: dict[str, Any] = VoltageDrive(
     efficiency=gen_motor.EFF,
     rotor_inertia=gen_motor.ROTOR,
     current_limit=gen_motor.I_MAX,
-    kp=6.0,
-    ki=30.0,
+    kp=RoverParams().kp[0],
+    ki=RoverParams().ki[0],
     tracking_time=gen_motor.T_TRACK,
 ).motor_fields()
 """The generator's nominal drive converted by :class:`rover_env.drive_datasheet.VoltageDrive`

@@ -254,7 +254,9 @@ def prepare(log: DriveLog, cfg: RoverConfig, name: str, settings: ReplaySettings
     (:func:`~rover_env.estimation.dead_reckoning.fixes`): every weight and threshold that
     reads the pose (its share of a window's loss, the gap tolerance, the odometry band) was
     measured on 1 Hz fixes, and a 50 Hz pose would be most of each window's loss."""
-    log = dataclasses.replace(log, pose=fixes(log.t, log.pose))
+    pose = fixes(log.t, log.pose)
+    if pose is not log.pose:  # a faster pose; 1 Hz logs pass as they are
+        log = dataclasses.replace(log, pose=pose)
     t = log.t
     phi_rate = _slopes(t, log.phi, settings.rate_window)
     theta_rate = _slopes(t, log.theta, settings.rate_window)
