@@ -1,0 +1,218 @@
+"""Which signal group reads an effect at which size: each group's own best value, on logs of
+the independent generator.
+
+For each case the generator drives a rover (its build drawn from the seed) with the effect
+at the given size, or clean; ``diagnose``'s first stages run as they do (the split, the
+model's forms, the replay floor), and the effect's candidate is replayed over a grid of
+values on the training windows and on every drive's straight windows. For each value the
+script keeps the mean log loss ratio over the windows (what ``diagnose`` fits by) and each
+signal group's summed loss; each group's best grid value is the size that group alone would
+read. Why (stop 93): a rolling resistance was read at about half its size, and the groups
+disagree about it (the joints low, the free wheels and the pose near the truth); this shows
+where an effect's read comes from. A diagnostic that knows the answer: ``diagnose`` reads
+nothing of it.
+
+    python benchmarks/group_reads.py --effect rolling_resistance \\
+        --cases 70814=0.04 70813=0.025 --clean 70803 70804 --out out/group_reads
+
+Writes ``OUT/group_reads.md``, ``.jsonl`` and ``.png`` (each group's read against the truth).
+Seeds 70000-70999 are this project's exploratory seeds: no registered block draws them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from _report import write_report
+
+from rover_env.calibration import residuals as rs
+from rover_env.calibration.candidates import catalogue
+from rover_env.calibration.diagnosis import floor, form, split
+from rover_env.calibration.diagnosis.state import STRAIGHT, Diagnosis, Options
+from rover_env.calibration.fit import SIGNAL_GROUPS, group_losses
+from rover_env.effects import CATALOGUE
+from rover_env.independent.generate import make_independent_logs
+
+SETS = ("train", STRAIGHT)
+"""The window sets read: the training windows (what ``diagnose`` fits on) and every drive's
+windows without a turn."""
+
+
+def parse_effect(text: str) -> tuple[str, str]:
+    """``NAME`` (the effect's first parameter) or ``NAME.PARAM``."""
+    name, _, param = text.partition(".")
+    if name not in CATALOGUE:
+        raise SystemExit(f"--effect: {name!r} is not in the catalogue ({', '.join(CATALOGUE)})")
+    params = [p.name for p in CATALOGUE[name].params]
+    param = param or params[0]
+    if param not in params:
+        raise SystemExit(f"--effect: {name} has no parameter {param!r} (has {', '.join(params)})")
+    return name, param
+
+
+def parse_case(text: str) -> tuple[int, float]:
+    """``SEED=VALUE``: a case's seed and the size injected."""
+    seed, sep, value = text.partition("=")
+    try:
+        if not sep:
+            raise ValueError
+        return int(seed), float(value)
+    except ValueError:
+        raise SystemExit(f"--cases: expected SEED=VALUE, got {text!r}") from None
+
+
+def read_case(job: dict[str, Any]) -> dict[str, Any]:
+    """One case: its logs, the forms, and every group's loss over the grid on each set."""
+    name, param, size, seed = job["effect"], job["param"], job["size"], job["seed"]
+    d = Path(job["work"]) / f"{seed}_{size:g}"
+    eff = {name: {param: size}} if size else {}
+    paths = sorted((d / "logs").glob("drive_*.csv")) or make_independent_logs(
+        d / "logs", eff, drives=job["drives"], seed=seed, duration=job["duration"]
+    )
+    dg = Diagnosis([str(p) for p in paths], d / "out", Options(progress=False))
+    split.split(dg)
+    form.fit_model_form(dg)
+    floor.baseline(dg)
+    (cand,) = catalogue([name])
+    col = [p.name for p in CATALOGUE[name].params].index(param)
+    row: dict[str, Any] = {
+        "seed": seed,
+        "truth": size,
+        "forms": {f.name: round(float(f.value), 4) for f in dg.forms if f.adopted},
+    }
+    for which in SETS:
+        l0, ratios, groups = None, [], []
+        for v in job["grid"]:
+            x = np.array(cand.off, dtype=float)
+            x[col] = v
+            res = dg.ev.run(cand.to_ext(x), which)
+            loss = rs.window_losses(res, dg.ev.scale)
+            l0 = loss if l0 is None else l0
+            ratios.append(float(np.mean(np.log(loss / l0))))
+            groups.append([float(g) for g in group_losses(res, dg.ev.scale).sum(axis=0)])
+        g = np.array(groups)
+        row[which] = {
+            "windows": len(l0) if l0 is not None else 0,
+            "ratio": ratios,
+            "groups": groups,
+            "best": job["grid"][int(np.argmin(ratios))],
+            "group_best": {
+                k: job["grid"][int(np.argmin(g[:, i]))] for i, k in enumerate(SIGNAL_GROUPS)
+            },
+        }
+    return row
+
+
+def table(rows: list[dict[str, Any]], name: str, param: str) -> str:
+    """The markdown report: per case, the read of all signals and of each group alone."""
+    head = ["seed", "truth", *(f"{w}: {k}" for w in SETS for k in ("all", *SIGNAL_GROUPS)), "forms"]
+    lines = [
+        f"# Which signal group reads `{name}.{param}`",
+        "",
+        "Each cell: the grid value that minimises that group's loss (all: the mean log loss"
+        " ratio over the windows, what `diagnose` fits by) on the training windows and on"
+        " every drive's straight windows (`benchmarks/group_reads.py`).",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|" + "---|" * len(head),
+    ]
+    for r in sorted(rows, key=lambda r: (r["truth"], r["seed"])):
+        cells = [str(r["seed"]), f"{r['truth']:g}"]
+        for w in SETS:
+            cells += [f"{r[w]['best']:g}", *(f"{r[w]['group_best'][k]:g}" for k in SIGNAL_GROUPS)]
+        forms = ", ".join(f"{k} {v:g}" for k, v in r["forms"].items() if not k.startswith("zero"))
+        lines.append("| " + " | ".join([*cells, forms or "-"]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def plot(rows: list[dict[str, Any]], path: Path, name: str, param: str) -> None:
+    """Each group's read (training windows) against the truth, clean cases at 0."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.0, 4.5))
+    keys = ["all", *SIGNAL_GROUPS]
+    for i, k in enumerate(keys):
+        x = np.array([r["truth"] for r in rows])
+        y = np.array(
+            [r["train"]["best"] if k == "all" else r["train"]["group_best"][k] for r in rows]
+        )
+        jitter = (i - (len(keys) - 1) / 2) * 0.02 * max(float(np.abs(x).max()), 1e-9)
+        ax.scatter(x + jitter, y, label=k, marker="os^vD"[i % 5], s=28)
+    top = max(max(r["truth"] for r in rows), 1e-9)
+    ax.plot([0, top], [0, top], color="grey", lw=0.8, ls="--", label="read = truth")
+    ax.set_xlabel(f"true {param}")
+    ax.set_ylabel(f"{param} read (training windows)")
+    ax.set_title(f"{name}: each signal group's own read")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--effect", required=True, help="NAME[.PARAM] (default: its first parameter)")
+    ap.add_argument("--cases", nargs="*", default=[], help="SEED=VALUE: cases with the effect")
+    ap.add_argument("--clean", type=int, nargs="*", default=[], help="clean cases")
+    ap.add_argument(
+        "--grid",
+        type=str,
+        default=None,
+        help="comma-separated values (default: 0 to 2.5 x the largest)",
+    )
+    ap.add_argument("--drives", type=int, default=3)
+    ap.add_argument("--duration", type=float, default=50.0)
+    ap.add_argument("--work", type=Path, default=Path("out/group_reads/work"))
+    ap.add_argument("--out", type=Path, default=Path("out/group_reads"))
+    ap.add_argument("--workers", type=int, default=2)
+    a = ap.parse_args(argv)
+    name, param = parse_effect(a.effect)
+    cases = [parse_case(c) for c in a.cases]
+    if not cases and not a.clean:
+        raise SystemExit("--cases or --clean: at least one case")
+    top = max([abs(v) for _, v in cases] or [0.0])
+    try:
+        grid = (
+            [float(v) for v in a.grid.split(",")]
+            if a.grid
+            else [float(v) for v in np.linspace(0.0, 2.5 * top, 11)]
+        )
+    except ValueError:
+        raise SystemExit(f"--grid: not comma-separated numbers: {a.grid!r}") from None
+    if len(grid) < 2 or len(set(grid)) < 2 or not all(math.isfinite(v) for v in grid):
+        raise SystemExit(f"--grid: at least two different finite values: {a.grid!r}")
+    base = {"effect": name, "param": param, "grid": grid, "work": str(a.work)}
+    base |= {"drives": a.drives, "duration": a.duration}
+    jobs = [{**base, "seed": s, "size": v} for s, v in cases]
+    jobs += [{**base, "seed": s, "size": 0.0} for s in a.clean]
+    a.out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    with ProcessPoolExecutor(max(1, a.workers)) as ex:
+        for i, row in enumerate(ex.map(read_case, jobs), 1):
+            rows.append(row)
+            print(
+                f"[{i}/{len(jobs)}] seed {row['seed']} truth {row['truth']:g}: read"
+                f" {row['train']['best']:g} (train), {row[STRAIGHT]['best']:g} (straight);"
+                f" groups {row['train']['group_best']}",
+                flush=True,
+            )
+    with open(a.out / "group_reads.jsonl", "w", encoding="utf-8") as f:
+        for r in rows:
+            f.write(json.dumps(r) + "\n")
+    write_report(a.out / "group_reads.md", table(rows, name, param))
+    plot(rows, a.out / "group_reads.png", name, param)
+    print(f"wrote {a.out / 'group_reads.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

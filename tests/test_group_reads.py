@@ -1,0 +1,39 @@
+"""benchmarks/group_reads.py: its arguments refused by name, and each group's read in the table."""
+
+from __future__ import annotations
+
+import pytest
+from _bench import load_bench
+
+
+def test_bad_arguments_are_refused_by_name(capsys: pytest.CaptureFixture[str]) -> None:
+    gr = load_bench("group_reads")
+    assert gr.parse_effect("rolling_resistance") == ("rolling_resistance", "c_rr")
+    assert gr.parse_effect("slope.heading_deg") == ("slope", "heading_deg")
+    assert gr.parse_case("70814=0.04") == (70814, 0.04)
+    with pytest.raises(SystemExit, match="'rolling_drag' is not in the catalogue"):
+        gr.parse_effect("rolling_drag")
+    with pytest.raises(SystemExit, match="slope has no parameter 'tilt'"):
+        gr.parse_effect("slope.tilt")
+    with pytest.raises(SystemExit, match="expected SEED=VALUE, got '70814'"):
+        gr.parse_case("70814")
+    with pytest.raises(SystemExit, match="at least two different finite values"):
+        gr.main(["--effect", "rolling_resistance", "--clean", "1", "--grid", "0.01,0.01"])
+    with pytest.raises(SystemExit, match="at least one case"):
+        gr.main(["--effect", "rolling_resistance"])
+
+
+def test_the_table_gives_every_groups_read_on_both_window_sets() -> None:
+    gr = load_bench("group_reads")
+    groups = list(gr.SIGNAL_GROUPS)
+    row = {"seed": 7, "truth": 0.04, "forms": {"yaw_spring": 14.0, "zero_theta_1": 0.01}}
+    for k, which in enumerate(gr.SETS):
+        reads = {g: 0.01 * (i + 1) + k for i, g in enumerate(groups)}
+        row[which] = {"best": 0.02 + k, "group_best": reads}
+    lines = gr.table([row], "rolling_resistance", "c_rr").splitlines()
+    head = [c.strip() for c in lines[4].strip("|").split("|")]
+    cells = [c.strip() for c in lines[6].strip("|").split("|")]
+    got = dict(zip(head, cells, strict=True))
+    assert got["train: all"] == "0.02" and got["straight: all"] == "1.02"
+    assert got[f"train: {groups[0]}"] == "0.01" and got[f"straight: {groups[-1]}"] == "1.04"
+    assert got["forms"] == "yaw_spring 14"  # the joint zeros are left out
