@@ -162,10 +162,13 @@ def test_a_limit_the_drives_never_reach_gets_the_drive_that_asks_for_it(monkeypa
     z = np.zeros(1)
     tl = Scored(fit.Fit([c], z, z, z, z, 1.0, 3, {}, 0.0, "train"), 1.0, z, 0.0, 0.5, 2.0, 2.0, 16)
 
-    def d(thr: dict, chosen=(), ev_list=(), res: float = 0.05) -> SimpleNamespace:
+    def d(
+        thr: dict, chosen=(), ev_list=(), res: float = 0.05, rotor_range: float = 2.0
+    ) -> SimpleNamespace:
         tl.threshold = thr
+        opts = Options(progress=False, limit_resolution=res, rotor_range=rotor_range)
         return SimpleNamespace(
-            opts=Options(progress=False, limit_resolution=res), chosen=list(chosen),
+            opts=opts, chosen=list(chosen),
             evidence=list(ev_list), ranked=[tl], base=RoverConfig(), noise={},
             ev=SimpleNamespace(settings=ReplaySettings()), say=lambda m: None,
         )  # fmt: skip
@@ -174,8 +177,68 @@ def test_a_limit_the_drives_never_reach_gets_the_drive_that_asks_for_it(monkeypa
     assert p["plan"] == "accel" and "only cuts beyond 30 %" in p["reason"]
     assert "a cut of 5 %" in p["reason"]
     assert asked == [{"torque_limit": {"fraction": -0.05}}]
+    # Above the tires' traction a cut under the rotor floor reads as the rotor's tolerance.
+    assert p["rotor_floor"] == pytest.approx(-0.348, abs=1e-3)
+    assert "a cut under 35 % acts as a rotor inertia within its tolerance (x2)" in p["reason"]
+    assert "0.91 N m a wheel against a limit of 3 N m" in p["reason"]
+    (q,) = untested_limit(d({"-": 0.30}, rotor_range=1.0))  # type: ignore[arg-type]
+    assert q["rotor_floor"] == 0.0 and "rotor inertia" not in q["reason"]
     assert "no cut moved" in untested_limit(d({}))[0]["reason"]  # type: ignore[arg-type]
     assert untested_limit(d({"-": 0.04})) == []  # type: ignore[arg-type]
     assert untested_limit(d({"-": 0.3}, chosen=[tl])) == []  # type: ignore[arg-type]
     assert untested_limit(d({"-": 0.3}, ev_list=[{"effect": "torque_limit"}])) == []  # type: ignore[arg-type]
     assert untested_limit(d({"-": 0.3}, res=0.0)) == []  # type: ignore[arg-type]
+
+
+def test_the_rotor_floor_is_the_cut_a_heavier_rotor_mimics_where_the_limit_binds() -> None:
+    """Stop 93: above the tires' traction a limit binds only while a wheel spins up, at
+    (limit - transmitted torque) / J. Measured in the simulator from rest (a 4 rad/s step,
+    the loop saturated between 0.5 and 2 rad/s): the nominal spin-up gives the torque the
+    tire passes, and that one number predicts the spin-up with the rotor twice as heavy and
+    with the limit cut to ``rotor_floor`` (within 5 %). The floor itself takes the tire's
+    most (mu_x F_z r): the smallest cut that reads as that rotor."""
+    from dataclasses import replace
+
+    import mujoco
+    import numpy as np
+
+    from rover_env.calibration.diagnosis.rotor import rotor_floor, traction_torque
+    from rover_env.config import RoverConfig
+    from rover_env.sim.simulator import RoverSim
+
+    cfg = RoverConfig()
+    assert traction_torque(cfg) == pytest.approx(0.4 * cfg.masses.total * 9.81 / 6 * 0.085)
+    floor = rotor_floor(cfg, 2.0)
+    limit, tf = cfg.motor.torque_limit, traction_torque(cfg)
+    assert limit * (1 + floor) - tf == pytest.approx((limit - tf) / 2.0)
+    assert rotor_floor(cfg, 1.0) == 0.0
+    assert rotor_floor(replace(cfg, motor=replace(cfg.motor, torque_limit=0.8 * tf)), 2.0) == 0.0
+
+    def spin_up(c: RoverConfig) -> tuple[float, float]:
+        sim = RoverSim(c)
+        sim.reset()
+        sim.step(round(0.5 / sim.dt))
+        sim.set_speed_targets(np.full(4, 4.0))
+        t, w, phi = [], [], sim.sensors().phi[:4].copy()
+        for k in range(1, 200):
+            sim.step(1)
+            now = sim.sensors().phi[:4].copy()
+            t.append(k * sim.dt)
+            w.append(float(np.mean(now - phi)) / sim.dt)
+            phi = now
+        tt, ww = np.array(t), np.array(w)
+        band = (ww > 0.5) & (ww < 2.0) & (tt < tt[np.argmax(ww > 2.0)])
+        body = sim.model.jnt_bodyid[
+            mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_JOINT, "wheel_1L")
+        ]
+        return float(np.polyfit(tt[band], ww[band], 1)[0]), float(sim.model.body_inertia[body][1])
+
+    a0 = cfg.motor.armature
+    nominal, iw = spin_up(cfg)
+    passed = limit - nominal * (a0 + iw)  # the torque the tire passes while the wheel spins up
+    assert 0.0 < passed <= tf
+    heavy, _ = spin_up(replace(cfg, motor=replace(cfg.motor, armature=2 * a0)))
+    cut, _ = spin_up(replace(cfg, motor=replace(cfg.motor, torque_limit=limit * (1 + floor))))
+    assert heavy == pytest.approx((limit - passed) / (2 * a0 + iw), rel=0.05)
+    assert cut == pytest.approx((limit * (1 + floor) - passed) / (a0 + iw), rel=0.05)
+    assert cut < 0.65 * nominal  # the cut is far from the nominal rotor, near the heavy one

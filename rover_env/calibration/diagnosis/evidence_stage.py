@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from rover_env.calibration import evidence, fit
+from rover_env.calibration.diagnosis.rotor import rotor_floor, traction_torque
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.fit import Evaluator
 from rover_env.config import RoverConfig
@@ -104,7 +105,10 @@ def untested_limit(d: Diagnosis) -> list[dict[str, Any]]:
     moves a signal by one replay floor) exceeds :attr:`Options.limit_resolution`: the logs
     then reach the limit only for cuts beyond it. Simulated like an evidence drive, with a
     cut of that resolution. Kept apart from the evidence: it is about what these drives did
-    not test, not about a candidate they support.
+    not test, not about a candidate they support. Where the limit is above the tires'
+    traction, the reason also says below which cut (``rotor_floor``,
+    :func:`.rotor.rotor_floor`) no drive can tell a cut from the rotor inertia's tolerance
+    (:attr:`Options.rotor_range`), and what does: the rotor's datasheet inertia.
     """
     res = d.opts.limit_resolution
     named = {c.name for s in d.chosen for c in s.fit.candidates}
@@ -133,6 +137,17 @@ def untested_limit(d: Diagnosis) -> list[dict[str, Any]]:
         f"these drives reach the motors' limit for {seen}{beside}; a cut of {100 * res:.0f} %"
         " needs a drive that asks for it"
     )
+    floor = rotor_floor(d.base, d.opts.rotor_range)
+    p["rotor_floor"] = floor
+    if -floor > res:
+        p["reason"] += (
+            f"; but the tires pass at most {traction_torque(d.base):.2f} N m a wheel against"
+            f" a limit of {d.base.motor.torque_limit:g} N m, so on any drive the limit binds"
+            f" only while a wheel spins up or down, where a cut under {100 * -floor:.0f} % acts"
+            f" as a rotor inertia within its tolerance (x{d.opts.rotor_range:g}) does: for"
+            " smaller cuts give motor.armature from the drive's datasheet and a smaller"
+            " --rotor-range"
+        )
     d.say(
         f"torque limit untested ({p['reason']}): propose a drive of plan {p['plan']!r}; in"
         f" simulation a cut of {100 * res:.0f} % moves {p['best_signal']} by"

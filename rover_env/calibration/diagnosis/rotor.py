@@ -35,9 +35,31 @@ from rover_env.calibration.diagnosis.state import Diagnosis, Scored
 from rover_env.calibration.fit import fit, information_criteria
 from rover_env.calibration.replay import Replayer
 from rover_env.config import RoverConfig
+from rover_env.effects import GRAVITY
 
 FACTORS = tuple(float(2.0 ** (k / 2)) for k in range(-2, 5))
 """Rotor inertias tried, as factors on the configured one: 0.5 to 4, sqrt 2 apart."""
+
+
+def traction_torque(cfg: RoverConfig) -> float:
+    """The most torque (N m) a driven wheel's tire passes to hard ground: mu_x times a sixth of
+    the rover's weight, at the wheel's radius (0.91 N m for the configuration)."""
+    return cfg.tire.mu_x * cfg.masses.total * GRAVITY / 6.0 * cfg.geometry.wheel_radius
+
+
+def rotor_floor(cfg: RoverConfig, factor: float) -> float:
+    """The smallest torque cut (a fraction, <= 0) that no drive tells from a rotor inertia off
+    by ``factor``: where the limit is above the tires' traction (:func:`traction_torque`) it
+    binds only while a slipping wheel spins up or down, at (limit - traction) / J both ways
+    (the tire opposes the motor in both), so a rotor ``factor`` times heavier reads as a
+    limit of traction + (limit - traction) / factor. 0 where the limit is within the
+    traction (it binds in steady driving) or ``factor`` <= 1. Why (stop 93): the
+    untested-limit drive is proposed for cuts from 5 %, which where the limit binds act as
+    the rotor's tolerance does (``tests/test_evidence.py`` measures it)."""
+    limit, traction = cfg.motor.torque_limit, traction_torque(cfg)
+    if factor <= 1.0 or limit <= traction:
+        return 0.0
+    return (traction + (limit - traction) / factor) / limit - 1.0
 
 
 def with_armature(cfg: RoverConfig, armature: float) -> RoverConfig:
