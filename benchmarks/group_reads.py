@@ -167,7 +167,8 @@ def main(argv: list[str] | None = None) -> int:
         "--grid",
         type=str,
         default=None,
-        help="comma-separated values (default: 0 to 2.5 x the largest)",
+        help="comma-separated values; --grid=-0.3,0,0.3 where the first is negative"
+        " (default: 0 to 2.5 x the largest)",
     )
     ap.add_argument("--drives", type=int, default=3)
     ap.add_argument("--duration", type=float, default=50.0)
