@@ -107,8 +107,9 @@ def untested_limit(d: Diagnosis) -> list[dict[str, Any]]:
     cut of that resolution. Kept apart from the evidence: it is about what these drives did
     not test, not about a candidate they support. Where the limit is above the tires'
     traction, the reason also says below which cut (``rotor_floor``,
-    :func:`.rotor.rotor_floor`) no drive can tell a cut from the rotor inertia's tolerance
-    (:attr:`Options.rotor_range`), and what does: the rotor's datasheet inertia.
+    :func:`.rotor.rotor_floor`) a cut acts, wherever the limit binds, as the rotor inertia's
+    tolerance (:attr:`Options.rotor_range`) does, and what reads it: the rotor's datasheet
+    inertia.
     """
     res = d.opts.limit_resolution
     named = {c.name for s in d.chosen for c in s.fit.candidates}

@@ -48,9 +48,10 @@ def traction_torque(cfg: RoverConfig) -> float:
 
 
 def rotor_floor(cfg: RoverConfig, factor: float) -> float:
-    """The smallest torque cut (a fraction, <= 0) that no drive tells from a rotor inertia off
-    by ``factor``: where the limit is above the tires' traction (:func:`traction_torque`) it
-    binds only while a slipping wheel spins up or down, at (limit - traction) / J both ways
+    """The torque cut (a fraction, <= 0) that acts as a rotor inertia ``factor`` times
+    heavier wherever the limit binds: a limit above the tires' traction
+    (:func:`traction_torque`) binds only while a slipping wheel spins up or down, at
+    (limit - traction) / J both ways
     (the tire opposes the motor in both), so a rotor ``factor`` times heavier reads as a
     limit of traction + (limit - traction) / factor. 0 where the limit is within the
     traction (it binds in steady driving) or ``factor`` <= 1. Why (stop 93): the
