@@ -15,7 +15,9 @@ nothing of it.
     python benchmarks/group_reads.py --effect rolling_resistance \\
         --cases 70814=0.04 70813=0.025 --clean 70803 70804 --out out/group_reads
 
-Writes ``OUT/group_reads.md``, ``.jsonl`` and ``.png`` (each group's read against the truth).
+``--motor FIELD=FACTOR`` gives the model another motor first (``armature=2``: the rotor of the
+independent generator's drive, as a datasheet would give it). Writes ``OUT/group_reads.md``,
+``.jsonl`` and ``.png`` (each group's read against the truth).
 Seeds 70000-70999 are this project's exploratory seeds: no registered block draws them.
 """
 
@@ -29,11 +31,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from _motor import parse_motor, with_motor
 from _report import write_report
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue
 from rover_env.calibration.diagnosis import floor, form, split
+from rover_env.calibration.diagnosis.form import reprepare
 from rover_env.calibration.diagnosis.state import STRAIGHT, Diagnosis, Options
 from rover_env.calibration.fit import SIGNAL_GROUPS, group_losses
 from rover_env.effects import CATALOGUE
@@ -77,6 +81,9 @@ def read_case(job: dict[str, Any]) -> dict[str, Any]:
     )
     dg = Diagnosis([str(p) for p in paths], d / "out", Options(progress=False))
     split.split(dg)
+    if job["motor"]:  # another motor for the model (a datasheet's), before its forms
+        dg.base = with_motor(dg.base, job["motor"])
+        dg.prepared = reprepare(dg.prepared, dg.base, dg.st)
     form.fit_model_form(dg)
     floor.baseline(dg)
     (cand,) = catalogue([name])
@@ -174,6 +181,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--duration", type=float, default=50.0)
     ap.add_argument("--work", type=Path, default=Path("out/group_reads/work"))
     ap.add_argument("--out", type=Path, default=Path("out/group_reads"))
+    ap.add_argument(
+        "--motor",
+        action="append",
+        default=[],
+        metavar="FIELD=FACTOR",
+        help="scale a motor field of the model first (armature=2; anti_windup=conditional sets it)",
+    )
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
     name, param = parse_effect(a.effect)
@@ -193,6 +207,7 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"--grid: at least two different finite values: {a.grid!r}")
     base = {"effect": name, "param": param, "grid": grid, "work": str(a.work)}
     base |= {"drives": a.drives, "duration": a.duration}
+    base["motor"] = dict(parse_motor(m) for m in a.motor)
     jobs = [{**base, "seed": s, "size": v} for s, v in cases]
     jobs += [{**base, "seed": s, "size": 0.0} for s in a.clean]
     a.out.mkdir(parents=True, exist_ok=True)
