@@ -4,6 +4,7 @@ what the independent generator's effects look like under another speed loop
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 from dataclasses import replace
 from typing import Any
@@ -30,3 +31,20 @@ def parse_motor(text: str) -> tuple[str, Any]:
         return key, float(value)
     except ValueError:
         return key, value
+
+
+def add_motor_argument(ap: argparse.ArgumentParser) -> None:
+    """The ``--motor FIELD=FACTOR`` option (repeatable; read with :func:`motors`)."""
+    ap.add_argument(
+        "--motor",
+        action="append",
+        default=[],
+        metavar="FIELD=FACTOR",
+        help="scale a motor field of the model first (armature=2, speed_gain=2.8;"
+        " anti_windup=conditional sets it)",
+    )
+
+
+def motors(args: argparse.Namespace) -> dict[str, Any]:
+    """The fields ``--motor`` scales or sets."""
+    return dict(parse_motor(m) for m in args.motor)

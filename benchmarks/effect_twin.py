@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 import yaml
-from _motor import parse_motor, with_motor
+from _motor import add_motor_argument, motors, with_motor
 from bench_independent import DRIVES, DURATION
 from truth_ceiling import case_row, single_cases, truth_ext
 
@@ -267,19 +267,13 @@ def main() -> int:
     ap.add_argument("--work", action="append", required=True, help="its bench work folder")
     ap.add_argument("--out", default=None, help="where to write (default: the first block)")
     ap.add_argument("--only", default=None, help="one effect's cases only")
-    ap.add_argument(
-        "--motor",
-        action="append",
-        default=[],
-        metavar="FIELD=FACTOR",
-        help="scale a motor field of the model (speed_gain=2.8; anti_windup=conditional sets it)",
-    )
+    add_motor_argument(ap)
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--from-json", default=None, help="tabulate a saved effect_twin.json again")
     a = ap.parse_args()
     if len(a.block) != len(a.work):
         ap.error("give one --work per --block")
-    motor = dict(parse_motor(m) for m in a.motor)
+    motor = motors(a)
     if a.from_json:
         rows = json.loads(Path(a.from_json).read_text())
     else:

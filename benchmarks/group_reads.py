@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _motor import parse_motor, with_motor
+from _motor import add_motor_argument, motors, with_motor
 from _report import write_report
 
 from rover_env.calibration import residuals as rs
@@ -181,13 +181,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--duration", type=float, default=50.0)
     ap.add_argument("--work", type=Path, default=Path("out/group_reads/work"))
     ap.add_argument("--out", type=Path, default=Path("out/group_reads"))
-    ap.add_argument(
-        "--motor",
-        action="append",
-        default=[],
-        metavar="FIELD=FACTOR",
-        help="scale a motor field of the model first (armature=2; anti_windup=conditional sets it)",
-    )
+    add_motor_argument(ap)
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
     name, param = parse_effect(a.effect)
@@ -207,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"--grid: at least two different finite values: {a.grid!r}")
     base = {"effect": name, "param": param, "grid": grid, "work": str(a.work)}
     base |= {"drives": a.drives, "duration": a.duration}
-    base["motor"] = dict(parse_motor(m) for m in a.motor)
+    base["motor"] = motors(a)
     jobs = [{**base, "seed": s, "size": v} for s, v in cases]
     jobs += [{**base, "seed": s, "size": 0.0} for s in a.clean]
     a.out.mkdir(parents=True, exist_ok=True)

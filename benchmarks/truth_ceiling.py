@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 import yaml
 from _independent_tables import truth_ratio
-from _motor import parse_motor, with_motor
+from _motor import add_motor_argument, motors, with_motor
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue
@@ -195,18 +195,12 @@ def main() -> int:
     ap.add_argument("--block", action="append", required=True, help="folder with independent.json")
     ap.add_argument("--work", action="append", required=True, help="its bench work folder")
     ap.add_argument("--out", default=None, help="where to write (default: the first block)")
-    ap.add_argument(
-        "--motor",
-        action="append",
-        default=[],
-        metavar="FIELD=FACTOR",
-        help="scale a motor field of the model first (armature=2; anti_windup=conditional sets it)",
-    )
+    add_motor_argument(ap)
     ap.add_argument("--workers", type=int, default=1)
     a = ap.parse_args()
     if len(a.block) != len(a.work):
         ap.error("give one --work per --block")
-    motor = dict(parse_motor(m) for m in a.motor)
+    motor = motors(a)
     jobs = [(case, work, motor) for case, work in single_cases(a.block, a.work)]
     with ProcessPoolExecutor(max(1, a.workers)) as pool:
         rows = list(pool.map(_one, jobs))

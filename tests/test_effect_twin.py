@@ -100,17 +100,27 @@ def test_the_summary_orders_effects_by_their_cosine_and_skips_failed_cases(
     assert lines[3] == "| command_delay | 2 | 2.00 | 1.10 | +0.97 | 2 |"
 
 
-def test_motor_fields_are_scaled_by_numbers_and_set_by_words(et: ModuleType) -> None:
+def test_motor_fields_are_scaled_by_numbers_and_set_by_words() -> None:
+    """benchmarks/_motor.py: the ``--motor`` option of effect_twin, truth_ceiling and
+    group_reads."""
+    import argparse
+
     from rover_env.config import load_rover
 
-    assert et.parse_motor("speed_gain=2.1") == ("speed_gain", 2.1)
-    assert et.parse_motor("anti_windup=conditional") == ("anti_windup", "conditional")
+    mo = load_bench("_motor")
+    assert mo.parse_motor("speed_gain=2.1") == ("speed_gain", 2.1)
+    assert mo.parse_motor("anti_windup=conditional") == ("anti_windup", "conditional")
     with pytest.raises(SystemExit, match="speed_gian"):
-        et.parse_motor("speed_gian=2")
+        mo.parse_motor("speed_gian=2")
     with pytest.raises(SystemExit, match="FIELD=FACTOR"):
-        et.parse_motor("speed_gain")
+        mo.parse_motor("speed_gain")
+    ap = argparse.ArgumentParser()
+    mo.add_motor_argument(ap)
+    args = ap.parse_args(["--motor", "armature=2", "--motor", "anti_windup=conditional"])
+    assert mo.motors(args) == {"armature": 2.0, "anti_windup": "conditional"}
+    assert mo.motors(ap.parse_args([])) == {}
     cfg = load_rover()
-    m = et.with_motor(cfg, {"speed_gain": 2.0, "anti_windup": "conditional"}).motor
+    m = mo.with_motor(cfg, {"speed_gain": 2.0, "anti_windup": "conditional"}).motor
     assert m.speed_gain == pytest.approx(2 * cfg.motor.speed_gain)
     assert m.anti_windup == "conditional"
     assert m.integral_gain == cfg.motor.integral_gain
