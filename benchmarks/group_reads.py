@@ -189,6 +189,9 @@ def main(argv: list[str] | None = None) -> int:
     if not cases and not a.clean:
         raise SystemExit("--cases or --clean: at least one case")
     top = max([abs(v) for _, v in cases] or [0.0])
+    if not a.grid and top == 0.0:
+        raise SystemExit("--grid: give the values when no case has the effect (--cases)")
+    motor = motors(a)
     try:
         grid = (
             [float(v) for v in a.grid.split(",")]
@@ -201,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"--grid: at least two different finite values: {a.grid!r}")
     base = {"effect": name, "param": param, "grid": grid, "work": str(a.work)}
     base |= {"drives": a.drives, "duration": a.duration}
-    base["motor"] = motors(a)
+    base["motor"] = motor
     jobs = [{**base, "seed": s, "size": v} for s, v in cases]
     jobs += [{**base, "seed": s, "size": 0.0} for s in a.clean]
     a.out.mkdir(parents=True, exist_ok=True)

@@ -19,6 +19,10 @@ def test_bad_arguments_are_refused_by_name(capsys: pytest.CaptureFixture[str]) -
         gr.parse_case("70814")
     with pytest.raises(SystemExit, match="at least two different finite values"):
         gr.main(["--effect", "rolling_resistance", "--clean", "1", "--grid", "0.01,0.01"])
+    with pytest.raises(SystemExit, match="give the values when no case has the effect"):
+        gr.main(["--effect", "rolling_resistance", "--clean", "1"])
+    with pytest.raises(SystemExit, match="speed_gian"):
+        gr.main(["--effect", "rolling_resistance", "--cases", "1=0.02", "--motor", "speed_gian=2"])
     with pytest.raises(SystemExit, match="at least one case"):
         gr.main(["--effect", "rolling_resistance"])
 
