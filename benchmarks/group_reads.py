@@ -154,8 +154,8 @@ def plot(rows: list[dict[str, Any]], path: Path, name: str, param: str) -> None:
         )
         jitter = (i - (len(keys) - 1) / 2) * 0.02 * max(float(np.abs(x).max()), 1e-9)
         ax.scatter(x + jitter, y, label=k, marker="os^vD"[i % 5], s=28)
-    top = max(max(r["truth"] for r in rows), 1e-9)
-    ax.plot([0, top], [0, top], color="grey", lw=0.8, ls="--", label="read = truth")
+    lo, hi = min(0.0, *(r["truth"] for r in rows)), max(0.0, *(r["truth"] for r in rows))
+    ax.plot([lo, hi], [lo, hi], color="grey", lw=0.8, ls="--", label="read = truth")
     ax.set_xlabel(f"true {param}")
     ax.set_ylabel(f"{param} read (training windows)")
     ax.set_title(f"{name}: each signal group's own read")
@@ -183,8 +183,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("out/group_reads"))
     add_motor_argument(ap)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--from-jsonl", type=Path, default=None, help="tabulate saved rows again")
     a = ap.parse_args(argv)
     name, param = parse_effect(a.effect)
+    if a.from_jsonl is not None:
+        saved = [json.loads(line) for line in a.from_jsonl.read_text().splitlines() if line]
+        return write(saved, a.out, name, param)
     cases = [parse_case(c) for c in a.cases]
     if not cases and not a.clean:
         raise SystemExit("--cases or --clean: at least one case")
@@ -221,9 +225,15 @@ def main(argv: list[str] | None = None) -> int:
     with open(a.out / "group_reads.jsonl", "w", encoding="utf-8") as f:
         for r in rows:
             f.write(json.dumps(r) + "\n")
-    write_report(a.out / "group_reads.md", table(rows, name, param))
-    plot(rows, a.out / "group_reads.png", name, param)
-    print(f"wrote {a.out / 'group_reads.md'}")
+    return write(rows, a.out, name, param)
+
+
+def write(rows: list[dict[str, Any]], out: Path, name: str, param: str) -> int:
+    """The table and the figure of ``rows`` into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    write_report(out / "group_reads.md", table(rows, name, param))
+    plot(rows, out / "group_reads.png", name, param)
+    print(f"wrote {out / 'group_reads.md'}")
     return 0
 
 

@@ -41,3 +41,24 @@ def test_the_table_gives_every_groups_read_on_both_window_sets() -> None:
     assert got["train: all"] == "0.02" and got["straight: all"] == "1.02"
     assert got[f"train: {groups[0]}"] == "0.01" and got[f"straight: {groups[-1]}"] == "1.04"
     assert got["forms"] == "yaw_spring 14"  # the joint zeros are left out
+
+
+def test_saved_rows_are_tabulated_again(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import json
+
+    gr = load_bench("group_reads")
+    groups = list(gr.SIGNAL_GROUPS)
+    rows = []
+    for truth in (-0.4, 0.0):
+        row = {"seed": 1, "truth": truth, "forms": {}}
+        for which in gr.SETS:
+            row[which] = {"best": truth, "group_best": dict.fromkeys(groups, truth)}
+        rows.append(row)
+    saved = tmp_path / "rows.jsonl"
+    saved.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    assert (
+        gr.main(["--effect", "torque_limit", "--from-jsonl", str(saved), "--out", str(tmp_path)])
+        == 0
+    )
+    assert "| 1 | -0.4 | -0.4 |" in (tmp_path / "group_reads.md").read_text()
+    assert (tmp_path / "group_reads.png").stat().st_size > 1000
