@@ -37,7 +37,7 @@ from _report import write_report
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue
 from rover_env.calibration.diagnosis import floor, form, split
-from rover_env.calibration.diagnosis.form import reprepare
+from rover_env.calibration.diagnosis.form import ZERO_PREFIX, reprepare
 from rover_env.calibration.diagnosis.state import STRAIGHT, Diagnosis, Options
 from rover_env.calibration.fit import SIGNAL_GROUPS, group_losses
 from rover_env.effects import CATALOGUE
@@ -74,7 +74,8 @@ def parse_case(text: str) -> tuple[int, float]:
 def read_case(job: dict[str, Any]) -> dict[str, Any]:
     """One case: its logs, the forms, and every group's loss over the grid on each set."""
     name, param, size, seed = job["effect"], job["param"], job["size"], job["seed"]
-    d = Path(job["work"]) / f"{seed}_{size:g}"
+    # The folder names everything the logs depend on: a rerun with other drives regenerates.
+    d = Path(job["work"]) / f"{seed}_{size:g}_{job['drives']}x{job['duration']:g}s"
     eff = {name: {param: size}} if size else {}
     paths = sorted((d / "logs").glob("drive_*.csv")) or make_independent_logs(
         d / "logs", eff, drives=job["drives"], seed=seed, duration=job["duration"]
@@ -133,7 +134,9 @@ def table(rows: list[dict[str, Any]], name: str, param: str) -> str:
         cells = [str(r["seed"]), f"{r['truth']:g}"]
         for w in SETS:
             cells += [f"{r[w]['best']:g}", *(f"{r[w]['group_best'][k]:g}" for k in SIGNAL_GROUPS)]
-        forms = ", ".join(f"{k} {v:g}" for k, v in r["forms"].items() if not k.startswith("zero"))
+        forms = ", ".join(
+            f"{k} {v:g}" for k, v in r["forms"].items() if not k.startswith(ZERO_PREFIX)
+        )
         lines.append("| " + " | ".join([*cells, forms or "-"]) + " |")
     return "\n".join(lines) + "\n"
 
