@@ -24,6 +24,7 @@ Seeds 70000-70999 are this project's exploratory seeds: no registered block draw
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 from concurrent.futures import ProcessPoolExecutor
@@ -35,7 +36,7 @@ from _motor import add_motor_argument, motors, with_motor
 from _report import write_report
 
 from rover_env.calibration import residuals as rs
-from rover_env.calibration.candidates import catalogue
+from rover_env.calibration.candidates import Candidate, catalogue
 from rover_env.calibration.diagnosis import floor, form, split
 from rover_env.calibration.diagnosis.form import ZERO_PREFIX, reprepare
 from rover_env.calibration.diagnosis.state import STRAIGHT, Diagnosis, Options
@@ -60,27 +61,71 @@ def parse_effect(text: str) -> tuple[str, str]:
     return name, param
 
 
-def parse_case(text: str) -> tuple[int, float]:
-    """``SEED=VALUE``: a case's seed and the size injected."""
-    seed, sep, value = text.partition("=")
+def parse_case(text: str, name: str = "") -> tuple[int, float, dict[str, float]]:
+    """``SEED=VALUE[,PARAM=VALUE...]``: a case's seed, the size injected, and the effect's
+    other parameters, held at those values in the logs and over the grid (a slope's
+    ``heading_deg``: its size is read along the true heading)."""
+    head, *rest = text.split(",")
+    seed, sep, value = head.partition("=")
     try:
         if not sep:
             raise ValueError
-        return int(seed), float(value)
+        others = {k: float(v) for k, _, v in (r.partition("=") for r in rest)}
+        case = int(seed), float(value), others
     except ValueError:
-        raise SystemExit(f"--cases: expected SEED=VALUE, got {text!r}") from None
+        raise SystemExit(f"--cases: expected SEED=VALUE[,PARAM=VALUE...], got {text!r}") from None
+    known = [p.name for p in CATALOGUE[name].params] if name in CATALOGUE else list(others)
+    for k in others:
+        if k not in known:
+            raise SystemExit(f"--cases {text!r}: {name} has no parameter {k!r}")
+    return case
+
+
+def parse_option(text: str) -> tuple[str, Any]:
+    """``FIELD=VALUE``: one of ``diagnose``'s :class:`Options` (``fit_com_height=true``),
+    the value read as that field's default's type."""
+    field, sep, value = text.partition("=")
+    defaults = {f.name: getattr(Options(), f.name) for f in dataclasses.fields(Options)}
+    if not sep or field not in defaults:
+        raise SystemExit(f"--option {text!r}: expected FIELD=VALUE, FIELD one of Options'")
+    kind = type(defaults[field])
+    try:
+        if kind is bool:
+            if value.lower() not in ("true", "false", "1", "0"):
+                raise ValueError
+            return field, value.lower() in ("true", "1")
+        return field, kind(value) if kind in (int, float, str) else float(value)
+    except ValueError:
+        raise SystemExit(f"--option {text!r}: {value!r} is not a {kind.__name__}") from None
+
+
+def grid_extension(
+    cand: Candidate, param: str, col: int, v: float, others: dict[str, float]
+) -> dict[str, dict[str, float]]:
+    """The model replayed at grid value ``v``: the candidate's own mapping at ``v`` (its
+    other parameters off), or, where the case holds the effect's other parameters, the
+    catalogue's parameters as they are (a slope's heading read at its true size, where
+    heading 0 is a direction, not off)."""
+    if others:
+        return {cand.name: {param: v, **others}}
+    x = np.array(cand.off, dtype=float)
+    x[col] = v
+    return cand.to_ext(x)
 
 
 def read_case(job: dict[str, Any]) -> dict[str, Any]:
     """One case: its logs, the forms, and every group's loss over the grid on each set."""
     name, param, size, seed = job["effect"], job["param"], job["size"], job["seed"]
+    others: dict[str, float] = job.get("others", {})
     # The folder names everything the logs depend on: a rerun with other drives regenerates.
-    d = Path(job["work"]) / f"{seed}_{size:g}_{job['drives']}x{job['duration']:g}s"
-    eff = {name: {param: size}} if size else {}
+    held = "".join(f"_{k}{v:g}" for k, v in sorted(others.items()))
+    d = Path(job["work"]) / f"{seed}_{size:g}{held}_{job['drives']}x{job['duration']:g}s"
+    eff = {name: {param: size, **others}} if size or others else {}
     paths = sorted((d / "logs").glob("drive_*.csv")) or make_independent_logs(
         d / "logs", eff, drives=job["drives"], seed=seed, duration=job["duration"]
     )
-    dg = Diagnosis([str(p) for p in paths], d / "out", Options(progress=False))
+    opts = Options(progress=False, **job.get("options", {}))
+    dg = Diagnosis([str(p) for p in paths], d / "out", opts)
     split.split(dg)
     if job["motor"]:  # another motor for the model (a datasheet's), before its forms
         dg.base = with_motor(dg.base, job["motor"])
@@ -92,14 +137,13 @@ def read_case(job: dict[str, Any]) -> dict[str, Any]:
     row: dict[str, Any] = {
         "seed": seed,
         "truth": size,
+        "others": others,
         "forms": {f.name: round(float(f.value), 4) for f in dg.forms if f.adopted},
     }
     for which in SETS:
         l0, ratios, groups = None, [], []
         for v in job["grid"]:
-            x = np.array(cand.off, dtype=float)
-            x[col] = v
-            res = dg.ev.run(cand.to_ext(x), which)
+            res = dg.ev.run(grid_extension(cand, param, col, v, others), which)
             loss = rs.window_losses(res, dg.ev.scale)
             l0 = loss if l0 is None else l0
             ratios.append(float(np.mean(np.log(loss / l0))))
@@ -119,7 +163,9 @@ def read_case(job: dict[str, Any]) -> dict[str, Any]:
 
 def table(rows: list[dict[str, Any]], name: str, param: str) -> str:
     """The markdown report: per case, the read of all signals and of each group alone."""
-    head = ["seed", "truth", *(f"{w}: {k}" for w in SETS for k in ("all", *SIGNAL_GROUPS)), "forms"]
+    held = any(r.get("others") for r in rows)  # a slope's size where its heading is read
+    head = ["seed", "truth", *(["held"] if held else [])]
+    head += [*(f"{w}: {k}" for w in SETS for k in ("all", *SIGNAL_GROUPS)), "forms"]
     lines = [
         f"# Which signal group reads `{name}.{param}`",
         "",
@@ -132,6 +178,8 @@ def table(rows: list[dict[str, Any]], name: str, param: str) -> str:
     ]
     for r in sorted(rows, key=lambda r: (r["truth"], r["seed"])):
         cells = [str(r["seed"]), f"{r['truth']:g}"]
+        if held:
+            cells.append(", ".join(f"{k} {v:g}" for k, v in r.get("others", {}).items()) or "-")
         for w in SETS:
             cells += [f"{r[w]['best']:g}", *(f"{r[w]['group_best'][k]:g}" for k in SIGNAL_GROUPS)]
         forms = ", ".join(
@@ -171,7 +219,13 @@ def plot(rows: list[dict[str, Any]], path: Path, name: str, param: str) -> None:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--effect", required=True, help="NAME[.PARAM] (default: its first parameter)")
-    ap.add_argument("--cases", nargs="*", default=[], help="SEED=VALUE: cases with the effect")
+    ap.add_argument(
+        "--cases",
+        nargs="*",
+        default=[],
+        help="SEED=VALUE[,PARAM=VALUE...]: cases with the effect, its other parameters held"
+        " (slope: 70831=3,heading_deg=70)",
+    )
     ap.add_argument("--clean", type=int, nargs="*", default=[], help="clean cases")
     ap.add_argument(
         "--grid",
@@ -185,6 +239,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--work", type=Path, default=Path("out/group_reads/work"))
     ap.add_argument("--out", type=Path, default=Path("out/group_reads"))
     add_motor_argument(ap)
+    ap.add_argument(
+        "--option",
+        action="append",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="one of diagnose's options for the forms (fit_com_height=true)",
+    )
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--from-jsonl", type=Path, default=None, help="tabulate saved rows again")
     a = ap.parse_args(argv)
@@ -192,10 +253,10 @@ def main(argv: list[str] | None = None) -> int:
     if a.from_jsonl is not None:
         saved = [json.loads(line) for line in a.from_jsonl.read_text().splitlines() if line]
         return write(saved, a.out, name, param)
-    cases = [parse_case(c) for c in a.cases]
+    cases = [parse_case(c, name) for c in a.cases]
     if not cases and not a.clean:
         raise SystemExit("--cases or --clean: at least one case")
-    top = max([abs(v) for _, v in cases] or [0.0])
+    top = max([abs(v) for _, v, _ in cases] or [0.0])
     if not a.grid and top == 0.0:
         raise SystemExit("--grid: give the values when no case has the effect (--cases)")
     motor = motors(a)
@@ -212,7 +273,8 @@ def main(argv: list[str] | None = None) -> int:
     base = {"effect": name, "param": param, "grid": grid, "work": str(a.work)}
     base |= {"drives": a.drives, "duration": a.duration}
     base["motor"] = motor
-    jobs = [{**base, "seed": s, "size": v} for s, v in cases]
+    base["options"] = dict(parse_option(o) for o in a.option)
+    jobs = [{**base, "seed": s, "size": v, "others": o} for s, v, o in cases]
     jobs += [{**base, "seed": s, "size": 0.0} for s in a.clean]
     a.out.mkdir(parents=True, exist_ok=True)
     rows = []
