@@ -15,6 +15,10 @@ nothing of it.
     python benchmarks/group_reads.py --effect rolling_resistance \\
         --cases 70814=0.04 70813=0.025 --clean 70803 70804 --out out/group_reads
 
+A case may hold the effect's other parameters: ``--effect slope.deg --cases
+70833=3,heading_deg=70`` reads a slope's size along its true heading, ``--effect
+slope.heading_deg --cases 70833=70,deg=3`` its heading at its true size (stop 94).
+``--option FIELD=VALUE`` sets one of ``diagnose``'s options for the forms.
 ``--motor FIELD=FACTOR`` gives the model another motor first (``armature=2``: the rotor of the
 independent generator's drive, as a datasheet would give it). Writes ``OUT/group_reads.md``,
 ``.jsonl`` and ``.png`` (each group's read against the truth).
