@@ -117,8 +117,9 @@ def grid_extension(
     return cand.to_ext(x)
 
 
-def read_case(job: dict[str, Any]) -> dict[str, Any]:
-    """One case: its logs, the forms, and every group's loss over the grid on each set."""
+def prepared_case(job: dict[str, Any]) -> Diagnosis:
+    """A case's logs (generated once into the work folder) and ``diagnose``'s first stages
+    on them: the split, the model's forms, the replay floor."""
     name, param, size, seed = job["effect"], job["param"], job["size"], job["seed"]
     others: dict[str, float] = job.get("others", {})
     # The folder names everything the logs depend on: a rerun with other drives regenerates.
@@ -131,11 +132,19 @@ def read_case(job: dict[str, Any]) -> dict[str, Any]:
     opts = Options(progress=False, **job.get("options", {}))
     dg = Diagnosis([str(p) for p in paths], d / "out", opts)
     split.split(dg)
-    if job["motor"]:  # another motor for the model (a datasheet's), before its forms
+    if job.get("motor"):  # another motor for the model (a datasheet's), before its forms
         dg.base = with_motor(dg.base, job["motor"])
         dg.prepared = reprepare(dg.prepared, dg.base, dg.st)
     form.fit_model_form(dg)
     floor.baseline(dg)
+    return dg
+
+
+def read_case(job: dict[str, Any]) -> dict[str, Any]:
+    """One case: its logs, the forms, and every group's loss over the grid on each set."""
+    name, param, size, seed = job["effect"], job["param"], job["size"], job["seed"]
+    others: dict[str, float] = job.get("others", {})
+    dg = prepared_case(job)
     (cand,) = catalogue([name])
     col = [p.name for p in CATALOGUE[name].params].index(param)
     row: dict[str, Any] = {
