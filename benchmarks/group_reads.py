@@ -31,6 +31,7 @@ import argparse
 import dataclasses
 import json
 import math
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -287,23 +288,42 @@ def main(argv: list[str] | None = None) -> int:
     base |= {"drives": a.drives, "duration": a.duration}
     base["motor"] = motor
     base["options"] = dict(parse_option(o) for o in a.option)
+    rows = run_cases(read_case, base, cases, a.clean, a.workers, a.out / "group_reads.jsonl", said)
+    return write(rows, a.out, name, param)
+
+
+def said(row: dict[str, Any]) -> str:
+    """A case's progress line."""
+    return (
+        f"seed {row['seed']} truth {row['truth']:g}: read {row['train']['best']:g} (train),"
+        f" {row[STRAIGHT]['best']:g} (straight); groups {row['train']['group_best']}"
+    )
+
+
+def run_cases(
+    read: Callable[[dict[str, Any]], dict[str, Any]],
+    base: dict[str, Any],
+    cases: list[tuple[int, float, dict[str, float]]],
+    clean: list[int],
+    workers: int,
+    path: Path,
+    line: Callable[[dict[str, Any]], str],
+) -> list[dict[str, Any]]:
+    """Every case (``base`` with its seed, size and held parameters; clean ones at 0) read
+    by ``read`` in ``workers`` processes, a progress line each; the rows, also saved to
+    ``path`` as JSON lines."""
     jobs = [{**base, "seed": s, "size": v, "others": o} for s, v, o in cases]
-    jobs += [{**base, "seed": s, "size": 0.0} for s in a.clean]
-    a.out.mkdir(parents=True, exist_ok=True)
+    jobs += [{**base, "seed": s, "size": 0.0} for s in clean]
+    path.parent.mkdir(parents=True, exist_ok=True)
     rows = []
-    with ProcessPoolExecutor(max(1, a.workers)) as ex:
-        for i, row in enumerate(ex.map(read_case, jobs), 1):
+    with ProcessPoolExecutor(max(1, workers)) as ex:
+        for i, row in enumerate(ex.map(read, jobs), 1):
             rows.append(row)
-            print(
-                f"[{i}/{len(jobs)}] seed {row['seed']} truth {row['truth']:g}: read"
-                f" {row['train']['best']:g} (train), {row[STRAIGHT]['best']:g} (straight);"
-                f" groups {row['train']['group_best']}",
-                flush=True,
-            )
-    with open(a.out / "group_reads.jsonl", "w", encoding="utf-8") as f:
+            print(f"[{i}/{len(jobs)}] {line(row)}", flush=True)
+    with open(path, "w", encoding="utf-8") as f:
         for r in rows:
             f.write(json.dumps(r) + "\n")
-    return write(rows, a.out, name, param)
+    return rows
 
 
 def write(rows: list[dict[str, Any]], out: Path, name: str, param: str) -> int:

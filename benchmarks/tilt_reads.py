@@ -24,13 +24,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from _report import write_report
-from group_reads import parse_case, prepared_case
+from group_reads import parse_case, prepared_case, run_cases
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.fit import SIGNAL_GROUPS, group_losses
@@ -138,6 +137,11 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
     plt.close(fig)
 
 
+def said(row: dict[str, Any]) -> str:
+    """A case's progress line."""
+    return f"seed {row['seed']} truth {row['truth']}: {row['reads']}"
+
+
 def write(rows: list[dict[str, Any]], out: Path) -> int:
     """The table and the figure of ``rows`` into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
@@ -179,17 +183,7 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"--sizes: positive finite sizes, got {a.sizes!r}")
     base = {"effect": "slope", "param": "deg", "work": str(a.work), "drives": a.drives}
     base |= {"duration": a.duration, "tilts": tilt_grid(sizes)}
-    jobs = [{**base, "seed": s, "size": v, "others": o} for s, v, o in cases]
-    jobs += [{**base, "seed": s, "size": 0.0} for s in a.clean]
-    a.out.mkdir(parents=True, exist_ok=True)
-    rows = []
-    with ProcessPoolExecutor(max(1, a.workers)) as ex:
-        for i, row in enumerate(ex.map(read_case, jobs), 1):
-            rows.append(row)
-            print(f"[{i}/{len(jobs)}] seed {row['seed']} truth {row['truth']}: {row['reads']}")
-    with open(a.out / "tilt_reads.jsonl", "w", encoding="utf-8") as f:
-        for r in rows:
-            f.write(json.dumps(r) + "\n")
+    rows = run_cases(read_case, base, cases, a.clean, a.workers, a.out / "tilt_reads.jsonl", said)
     return write(rows, a.out)
 
 
