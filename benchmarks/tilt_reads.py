@@ -43,7 +43,9 @@ def tilt_grid(sizes: list[float]) -> list[tuple[float, float]]:
     return [(0.0, 0.0)] + [(s, h) for s in sizes if s > 0 for h in HEADINGS]
 
 
-def best_tilts(grid: list[tuple[float, float]], ratios: list[float], groups: Any) -> dict:
+def best_tilts(
+    grid: list[tuple[float, float]], ratios: list[float], groups: Any
+) -> dict[str, list[float]]:
     """Each key's best (deg, heading): all signals by the mean log loss ratio, each group by
     its summed loss over the windows."""
     g = np.asarray(groups, dtype=float)
@@ -106,7 +108,11 @@ def table(rows: list[dict[str, Any]]) -> str:
         lines.append("| " + " | ".join(cells) + " |")
     clean = [r for r in rows if not r["truth"][0]]
     if clean:
-        lines += ["", "| on clean builds | " + " | ".join(KEYS) + " |", "|" + "---|" * 6]
+        lines += [
+            "",
+            "| on clean builds | " + " | ".join(KEYS) + " |",
+            "|" + "---|" * (1 + len(KEYS)),
+        ]
         med = [float(np.median([r["reads"][k][0] for r in clean])) for k in KEYS]
         top = [max(r["reads"][k][0] for r in clean) for k in KEYS]
         lines.append("| median size read | " + " | ".join(f"{v:g}" for v in med) + " |")
