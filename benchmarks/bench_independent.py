@@ -328,9 +328,14 @@ def fits(final: dict[str, Any], truth: Any) -> dict[str, dict[str, Any]]:
         side = "deg" if name == "slope" else ("+" if v > 0 else "-")
         thr = (final["fits"].get(name, {}).get("threshold") or {}).get(side)
         det = (final["fits"].get(name, {}).get("detectable") or {}).get(side)
+        bar = (final["fits"].get(name, {}).get("nameable") or {}).get(side)
         row: dict[str, Any] = {"truth": v, "value": None, "lo": None, "hi": None}
         row.update(
-            side="", threshold=thr, detectable=det, test=window_test(final["fits"].get(name, {}))
+            side="",
+            threshold=thr,
+            detectable=det,
+            nameable=bar,
+            test=window_test(final["fits"].get(name, {})),
         )
         for src in (final["final"], final["fits"]):
             for key, f in src.items():

@@ -396,3 +396,33 @@ def test_after_a_withdrawal_the_next_candidate_is_tried_alone(monkeypatch: Any) 
             d.chosen = [slope]
         sel.name_next(d)
     assert judged == []
+
+
+def test_the_naming_bar_is_where_the_allowance_stops_withdrawing_a_sharp_fit() -> None:
+    """The report's "named from": per side, the larger of the detection limit and the
+    allowance's edge; a fit just past the edge (a narrow interval) is not withdrawn, one
+    just short of it is, on both sides of off and for a tilt."""
+    from rover_env.calibration.diagnosis.judge import allowance_reaches_off
+    from rover_env.calibration.form_allowance import naming_bar
+
+    a = FormAllowance(
+        {
+            "friction": Bias(-0.23, 0.06, 50),
+            "slope": Bias(0.3, 2.4, 50),
+            "loose_soil": Bias(0.57, 3.4, 50),
+        }
+    )
+    assert a.edge("friction", "+") == 0.06 and a.edge("friction", "-") == 0.23
+    assert a.edge("slope", "deg") == 2.4
+    assert a.edge("loose_soil", "+") == 0.0  # a factor never withdraws a name
+    assert a.edge("command_lag", "+") == 0.0  # no entry
+    bar = naming_bar("friction", {"+": 0.02, "-": 0.4, "x+": 9.0}, a)
+    assert bar == {"+": 0.06, "-": 0.4}  # the larger of the two; a slope's axes left out
+    assert naming_bar("friction", {"+": math.inf}, a) == {}  # never paid: not a bar
+    assert naming_bar("friction", {"+": 0.02}, None) == {"+": 0.02}
+    for name, side, x in (("friction", "+", 0.06), ("friction", "-", -0.23), ("slope", "deg", 2.4)):
+        for k, withdrawn in ((1.02, False), (0.98, True)):
+            point = [x * k] if name != "slope" else [0.0, x * k]
+            f = _fit(name, point, 0.001)
+            f.allowance = {name: a.pad(name)}  # type: ignore[dict-item]
+            assert bool(allowance_reaches_off(f)) is withdrawn, (name, side, k)

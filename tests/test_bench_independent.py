@@ -367,6 +367,32 @@ def test_the_torque_line_splits_reached_limits_from_unreached_ones(
     assert "not reached: a torque drive proposed 1/2" in line
 
 
+def test_the_named_from_line_counts_only_truths_twice_the_bar(tables: ModuleType) -> None:
+    """Stop 95: the acceptance line against the report's "named from" counts a single whose
+    truth is at least twice the bar on its side; rows without a bar (stored before it) and
+    truths under twice it are left out, and the effect table shows the bar."""
+
+    def row(truth: float, bar: float | None, named: bool) -> dict:
+        fit = {"truth": truth, "value": truth, "lo": truth - 0.01, "hi": truth + 0.01}
+        return {
+            "kind": "single", "seed": 1, "effects": {"command_lag": {"tau": truth}},
+            "truth": {"command_lag": {"tau": truth}}, "named": ["command_lag"] * named,
+            "first_named": [], "fits": {"command_lag": fit | {"threshold": 0.002, "nameable": bar}},
+            "followup": [], "unexplained": [], "make_logs_s": 1.0, "diagnose_s": 1.0, "followup_s": 0.0,
+        }  # fmt: skip
+
+    rows = [
+        row(0.2, 0.05, True),
+        row(0.11, 0.05, False),
+        row(0.09, 0.05, False),
+        row(0.3, None, False),
+    ]
+    (line,) = [x for x in tables.acceptance(rows) if "named from" in x]
+    assert line.endswith("named right 1/2 (50 %)"), line
+    table = "\n".join(tables._effect_table(rows, "command_lag"))
+    assert "| 0.05 |" in table and "named from" in table
+
+
 def test_the_trade_line_counts_refused_and_excused_namings() -> None:
     """Stop 61's trade share is scored from ``result.json``: a refused naming (``not_named``)
     and an excused one (``trade_excused``), each against the case's truth."""

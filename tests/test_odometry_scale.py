@@ -174,6 +174,15 @@ def test_the_report_line_gives_the_difference_and_the_verdict() -> None:
     assert "not compared with this model's twins (loose soil is named)" in _reckoning_lines(soil)[1]
 
 
+def static_r_e_over_r(r: dict) -> float:
+    """r_e over the wheel radius of the configuration a diagnosis ran on."""
+    from rover_env.config import load_rover
+    from rover_env.estimation.estimator import static_rolling_radius
+
+    cfg = load_rover(r["config"] or "proto_explorer")
+    return static_rolling_radius(cfg) / cfg.geometry.wheel_radius
+
+
 def test_diagnose_names_a_radius_the_windows_miss_from_dead_reckoning(tmp_path) -> None:
     """The stage inside a whole diagnosis (this project's own logs: identifiability, not
     validity): an 8 % smaller radius that the windows do not name is named by odometry, its
@@ -204,5 +213,10 @@ def test_diagnose_names_a_radius_the_windows_miss_from_dead_reckoning(tmp_path) 
     assert lo <= truth <= hi and hi < 0.0
     dr = r["dead_reckoning"]
     assert dr["named"] and dr["difference"]["both"] < dr["band_with_noise"][0] < -0.025
+    # The report's "named from": the band's edge in radius units, which the truth is beyond;
+    # the windows' own bar for the radius is lowered to it (either route names a radius).
+    edge = (dr["centre"] - dr["band_with_noise"][0]) * static_r_e_over_r(r)
+    assert dr["nameable"]["-"] == pytest.approx(edge, rel=1e-9) and edge < -truth
+    assert r["fits"]["rolling_radius"]["nameable"]["-"] <= dr["nameable"]["-"]
     cfg = yaml.safe_load((tmp_path / "out" / "rover.yaml").read_text())
     assert cfg["extensions"]["rolling_radius"]["fraction"] == pytest.approx(value)

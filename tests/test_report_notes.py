@@ -48,13 +48,23 @@ def test_the_report_tables_each_effect_s_threshold_beside_its_detection_limit() 
     from rover_env.calibration.report import visibility_lines
 
     fits = {
-        "torque_limit": {"threshold": {"-": 0.178, "+": 44.0}, "detectable": {"-": 0.971}},
-        "slope": {"threshold": {"deg": 0.754}, "detectable": {"deg": 5.97}},
+        "torque_limit": {
+            "threshold": {"-": 0.178, "+": 44.0},
+            "detectable": {"-": 0.971},
+            "nameable": {"-": 0.971},
+        },
+        "slope": {
+            "threshold": {"deg": 0.754},
+            "detectable": {"deg": 1.5},
+            "nameable": {"deg": 2.4},
+        },
+        "friction": {"threshold": {"+": 0.03}, "detectable": {"+": 0.05}},  # stored before stop 95
         "combined_slip": {"threshold": {}, "detectable": {}},
     }
     text = "\n".join(visibility_lines(fits))
-    assert "| slope | deg 0.754 | deg 5.97 |" in text
-    assert "| torque_limit | + 44, - 0.178 | - 0.971 |" in text
+    assert "| slope | deg 0.754 | deg 1.5 | deg 2.4 |" in text
+    assert "| torque_limit | + 44, - 0.178 | - 0.971 | - 0.971 |" in text
+    assert "| friction | + 0.03 | + 0.05 | – |" in text
     assert "combined_slip" not in text
     assert visibility_lines({}) == []
 

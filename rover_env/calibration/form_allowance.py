@@ -76,6 +76,33 @@ class FormAllowance:
             return b.high, b.low
         return max(0.0, b.high), max(0.0, -b.low)
 
+    def edge(self, effect: str, side: str) -> float:
+        """The magnitude on ``side`` of "off" ("+", "-"; a slope: "deg") below which a
+        fit's interval, however narrow, widened by the allowance still reaches "off": what
+        a clean build of another implementation fits there. 0 for a :data:`FACTOR` effect
+        (its allowance never withdraws a name) or one without an entry."""
+        pad = self.pad(effect)
+        if pad is None or effect in FACTOR:
+            return 0.0
+        return pad[1] if side == "-" else pad[0]
+
+
+def naming_bar(
+    effect: str, detectable: dict[str, float], allowance: FormAllowance | None
+) -> dict[str, float]:
+    """Per side of "off", the smallest magnitude a diagnosis can name on these logs: the
+    larger of the detection limit (what pays the training BIC's price against what the
+    model leaves) and the allowance's edge (:meth:`FormAllowance.edge`). The noise
+    threshold counts the sensors only; this counts the model's form too, so an effect
+    under it is not named whatever the sensors (issue 47: "3.7 x the report's own
+    threshold" was not named because that threshold left the form out). Sides without a
+    detection limit are left out: what pays the price there was not measured."""
+    return {
+        side: max(d, allowance.edge(effect, side) if allowance else 0.0)
+        for side, d in detectable.items()
+        if side in ("+", "-", "deg") and math.isfinite(d)
+    }
+
 
 def widen(
     effect: str, lo: float, hi: float, pad: tuple[float, float], bounds: tuple[float, float]

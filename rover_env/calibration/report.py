@@ -513,32 +513,37 @@ def tie_text(tie: dict[str, Any]) -> str:
 
 
 def visibility_lines(fits: dict[str, dict[str, Any]]) -> list[str]:
-    """The report's table of how large each effect must be to be seen on these logs."""
+    """The report's table of how large each effect must be to be seen, and to be named, on
+    these logs."""
     rows = []
     for name, f in sorted(fits.items()):
         thr, det = f.get("threshold") or {}, f.get("detectable") or {}
+        bar = f.get("nameable") or {}
         sides = sorted((set(thr) | set(det)) & {"+", "-", "deg"})  # not a slope's axes
         if not sides:
             continue
 
         def cell(d: dict[str, float], sides: list[str] = sides) -> str:
-            return ", ".join(f"{s} {d[s]:.3g}" for s in sides if s in d) or "–"
+            return ", ".join(f"{s} {d[s]:.3g}" for s in sides if d.get(s) is not None) or "–"
 
-        rows.append(f"| {name} | {cell(thr)} | {cell(det)} |")
+        rows.append(f"| {name} | {cell(thr)} | {cell(det)} | {cell(bar)} |")
     if not rows:
         return []
     return [
         "## How large an effect these logs can show",
         "",
         "Per effect and side of off (a slope: degrees): the noise threshold, the magnitude that"
-        " moves its most sensitive signal by one replay floor (what a perfect model leaves),"
-        " and the detection limit, the magnitude that would pay the training BIC's price"
-        " against what this model leaves on these logs (its form, the noise). Where the"
-        " second is far above the first, the model's form, not the sensors, limits what a"
-        " diagnosis can name.",
+        " moves its most sensitive signal by one replay floor (what a perfect model leaves);"
+        " the detection limit, the magnitude that would pay the training BIC's price"
+        " against what this model leaves on these logs (its form, the noise); and the"
+        " smallest magnitude a diagnosis names here, the larger of the detection limit and"
+        " what clean drives of another implementation fit (the clean-fit allowance; a rolling"
+        " radius: the smaller of that and dead reckoning's band). Where the last is far"
+        " above the first, the model's form, not the sensors, limits what a diagnosis can"
+        " name: an effect under it is not named, however clear its signal.",
         "",
-        "| effect | noise threshold | detection limit on these logs |",
-        "|---|---|---|",
+        "| effect | noise threshold | detection limit on these logs | named from |",
+        "|---|---|---|---|",
         *rows,
         "",
     ]

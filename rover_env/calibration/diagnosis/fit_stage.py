@@ -35,6 +35,7 @@ from rover_env.calibration.diagnosis.judge import (
 from rover_env.calibration.diagnosis.parallel import map_candidates
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
 from rover_env.calibration.fit import Evaluator, fit, signal_change
+from rover_env.calibration.form_allowance import naming_bar
 from rover_env.calibration.replay import ReplaySettings, WindowResult, prepare
 from rover_env.effects import EffectError
 from rover_env.sim.simulator import SimulationError
@@ -67,6 +68,7 @@ def fit_one(d: Diagnosis, c: Candidate) -> Scored:
         s = score(d, fit(d.ev, [c], w, max_nfev=fit_budget([c], opts)), d.held0, {})
         s.threshold = noise_threshold(d.ev, c, w, d.noise)
         s.detectable = detection_limit(d.ev, c, w, d.noise)
+        s.nameable = naming_bar(c.name, s.detectable, d.allowance)
         return s
 
     s = screened(fit_at, which, c.discrete, opts)
@@ -92,6 +94,7 @@ def reweighed(d: Diagnosis, w: Scored, passes: int) -> Scored:
         ns = score(d, f, d.held0, {})
         ns.fit_scale, ns.threshold, ns.reweighed_from = sc, cur.threshold, before
         ns.detectable = cur.detectable  # a property of the drives and the model, not the fit
+        ns.nameable = cur.nameable
         width = np.maximum(np.abs(cur.fit.ci_hi - cur.fit.ci_lo), 1e-12)
         moved = float((np.abs(ns.fit.x - cur.fit.x) / width).max())
         d.say(

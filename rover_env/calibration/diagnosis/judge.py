@@ -517,6 +517,7 @@ def fit_dict(s: Scored) -> dict[str, Any]:
         "screened": s.screened,
         "threshold": s.threshold,
         "detectable": s.detectable,
+        "nameable": s.nameable,
         "nfev": s.fit.nfev,
         "seconds": s.fit.seconds,
         "reweighed_from": s.reweighed_from,

@@ -106,6 +106,8 @@ def name_by_odometry(d: Diagnosis) -> None:
     band, why = with_noise(band, se, samples)
     if band.noise_z > 0 and why is None:
         rec.update(band_with_noise=[band.lo, band.hi], interval_with_noise=[band.ci_lo, band.ci_hi])
+    if why is None:
+        rec["nameable"] = lower_bar(d, band, d.base.geometry.wheel_radius / r_e)
     why = why or refusal(diff, band, named)
     est = None
     if why is None or before is None:
@@ -144,6 +146,18 @@ def name_by_odometry(d: Diagnosis) -> None:
     rec["named"] = True
     d.chosen.append(s)
     d.say(f"{NAME}: named by {s.test}: {x:+.4f} [{lo:+.4f}, {hi:+.4f}]")
+
+
+def lower_bar(d: Diagnosis, band: OdometryBand, g: float) -> dict[str, float]:
+    """Per side, the radius change dead reckoning names on these logs (the band's edge over
+    the travel's sensitivity to it, ``g``, about the wheel radius over r_e; the twins'
+    measured one is read only for a named radius), and the window fit's
+    :attr:`~.state.Scored.nameable` lowered to it: either route names a rolling radius."""
+    bar = {"+": (band.hi - band.mid) / g, "-": (band.mid - band.lo) / g}
+    for s in d.ranked:
+        if s.fit.name == NAME:
+            s.nameable = {k: min(v, s.nameable.get(k, math.inf)) for k, v in bar.items()}
+    return bar
 
 
 def with_noise(band: OdometryBand, se: float, samples: int) -> tuple[OdometryBand, str | None]:

@@ -450,6 +450,9 @@ class Scored:
     detectable: dict[str, float] = field(default_factory=dict)
     """Smallest magnitude that would pay the training BIC's price against the residual these
     logs leave (:func:`rover_env.calibration.diagnosis.fit_stage.detection_limit`)."""
+    nameable: dict[str, float] = field(default_factory=dict)
+    """Smallest magnitude a diagnosis names on these logs: the larger of :attr:`detectable`
+    and the clean-fit allowance's edge (:func:`rover_env.calibration.form_allowance.naming_bar`)."""
     reweighed_from: dict[str, dict[str, list[float]]] | None = None
     """The fit under the stage's own signal scale, before :attr:`Options.reweigh`'s refits."""
     read_from: dict[str, object] | None = None
