@@ -540,7 +540,7 @@ def visibility_lines(fits: dict[str, dict[str, Any]]) -> list[str]:
         " what clean drives of another implementation fit (the clean-fit allowance; a rolling"
         " radius: the smaller of that and dead reckoning's band). Where the last is far"
         " above the first, the model's form, not the sensors, limits what a diagnosis can"
-        " name: an effect under it is not named, however clear its signal.",
+        " name: a fit smaller than it is not named, however clear its signal.",
         "",
         "| effect | noise threshold | detection limit on these logs | named from |",
         "|---|---|---|---|",
