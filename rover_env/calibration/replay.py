@@ -45,7 +45,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rover_env.config import JOINTS, WHEELS, MotorSpec, RoverConfig, TerrainConfig, to_dict
-from rover_env.effects import CommandEffect, build_effects, command_rows
+from rover_env.effects import CommandEffect, build_effects, command_sequence
 from rover_env.estimation.dead_reckoning import fixes
 from rover_env.executor import die_with_parent
 from rover_env.logs import DriveLog
@@ -167,12 +167,19 @@ def loop_commands(log: DriveLog, cfg: RoverConfig) -> Array:
     for e in effects:
         e.reset(np.zeros(4))
     out = cmd.copy()
-    for k in range(len(cmd) - 1):
-        n = int(step_of[k + 1] - step_of[k])
-        if n <= 0:
-            continue
-        rows = command_rows(effects, cmd[k], dt, n)
-        out[k] = rows.mean(axis=0)
+    n = np.diff(step_of)
+    held = np.flatnonzero(n > 0)  # the intervals with substeps, in order
+    if not held.size:
+        return out
+    # Every substep's output at once (the same numbers as interval by interval), then each
+    # interval's mean, the intervals of one length together: a (k, n, 4) mean over its
+    # middle axis sums each interval's rows as ``rows.mean(axis=0)`` does, to the bit
+    # (numpy's pairwise sum; a running sum, ``np.add.reduceat``, moves the last bits).
+    rows = command_sequence(effects, np.repeat(cmd[held], n[held], axis=0), dt)
+    starts = np.concatenate([[0], np.cumsum(n[held])[:-1]])
+    for m in np.unique(n[held]):
+        pick = n[held] == m
+        out[held[pick]] = rows[starts[pick][:, None] + np.arange(m)].mean(axis=1)
     return out
 
 

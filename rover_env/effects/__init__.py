@@ -50,6 +50,7 @@ __all__ = [
     "TireEffect",
     "build_effects",
     "command_rows",
+    "command_sequence",
     "effect_class",
     "validate_extensions",
 ]
@@ -193,6 +194,13 @@ class CommandEffect(Effect):
         u = np.asarray(targets, dtype=np.float64)
         return np.array([self.step(u, dt) for _ in range(n)]).reshape(n, -1)
 
+    def sequence(self, rows: Array, dt: float) -> Array:
+        """(n, 4) what :meth:`step` returns on each of ``rows`` (one row of targets per
+        substep), in order: the same numbers; an effect may compute them at once (a replay
+        drives a window's rows between two read-outs in one call)."""
+        r = np.asarray(rows, dtype=np.float64)
+        return np.array([self.step(u, dt) for u in r]).reshape(len(r), -1)
+
     def prime(self, t: Array, cmd: Array, t_now: float, dt: float) -> None:
         """Set the internal state as if commands ``cmd[k]`` (held from ``t[k]``) had run.
 
@@ -207,8 +215,19 @@ def command_rows(effects: Sequence[CommandEffect], targets: Array, dt: float, n:
     the first's :meth:`CommandEffect.block`, then the others' ``step`` row by row."""
     rows = effects[0].block(targets, dt, n)
     for e in effects[1:]:
-        rows = np.array([e.step(r, dt) for r in rows])
+        rows = e.sequence(rows, dt)
     return rows
+
+
+def command_sequence(effects: Sequence[CommandEffect], rows: Array, dt: float) -> Array:
+    """(n, 4) what the motors get when the targets are ``rows[j]`` on substep j, through
+    command effects in the simulator's order: :func:`command_rows` over runs of held rows
+    gives the same numbers (issue 47: a replay's per-row calls were a third of a lag's
+    replay)."""
+    out = np.asarray(rows, dtype=np.float64)
+    for e in effects:
+        out = e.sequence(out, dt)
+    return out
 
 
 class TireEffect(Effect):
@@ -439,18 +458,46 @@ class CommandLag(CommandEffect):
             self.x = out[-1].copy()
         return out
 
+    def sequence(self, rows: Array, dt: float) -> Array:
+        r = np.asarray(rows, dtype=np.float64).reshape(-1, 4)
+        n = len(r)
+        tau = self["tau"]
+        if tau <= 0.0:
+            if n:
+                self.x = r[-1].copy()
+            return r.copy()
+        a = math.exp(-dt / tau)
+        cols = []  # block()'s recursion on Python floats, the target varying by row
+        for ucol, xi in zip(r.T.tolist(), self.x.tolist(), strict=True):
+            col = []
+            for ui in ucol:
+                xi = ui + (xi - ui) * a
+                col.append(xi)
+            cols.append(col)
+        out = np.ascontiguousarray(np.array(cols, dtype=np.float64).T.reshape(n, 4))
+        if n:
+            self.x = out[-1].copy()
+        return out
+
     def prime(self, t: Array, cmd: Array, t_now: float, dt: float) -> None:
         tau = self["tau"]
-        x = [0.0, 0.0, 0.0, 0.0]
-        tt = np.asarray(t, dtype=np.float64).tolist()
-        cc = np.asarray(cmd, dtype=np.float64).reshape(-1, 4).tolist()
-        for k in range(len(tt)):  # Python floats: numpy's elementwise results, to the bit
-            if tt[k] >= t_now - 1e-12:
-                break
-            t_end = min(tt[k + 1] if k + 1 < len(tt) else t_now, t_now)
-            n = round((t_end - tt[k]) / dt)
-            f = math.exp(-n * dt / tau) if tau > 0 else 0.0
-            x = [c + (xi - c) * f for c, xi in zip(cc[k], x, strict=True)]
+        ta = np.asarray(t, dtype=np.float64)
+        # the samples sent before now (t is increasing), each held to the next or to now
+        sent = ta < t_now - 1e-12
+        k_now = len(ta) if sent.all() else int(np.argmin(sent))
+        ends = np.minimum(np.append(ta[1 : k_now + 1], t_now)[:k_now], t_now)
+        steps = np.round((ends - ta[:k_now]) / dt).astype(np.int64).tolist()
+        decay = {  # one exp per distinct hold, as math.exp gave it per sample
+            n: math.exp(-n * dt / tau) if tau > 0 else 0.0 for n in set(steps)
+        }
+        f = [decay[n] for n in steps]
+        cc = np.asarray(cmd, dtype=np.float64).reshape(-1, 4)[:k_now].T.tolist()
+        x = []
+        for col in cc:  # Python floats: numpy's elementwise results, to the bit
+            xi = 0.0
+            for c, fk in zip(col, f, strict=True):
+                xi = c + (xi - c) * fk
+            x.append(xi)
         self.x = np.array(x, dtype=np.float64)
 
 
@@ -488,6 +535,22 @@ class CommandDelay(CommandEffect):
         for j in range(n):  # step()'s delay line; the held row is shared, never written
             self._hist.append(u)
             out[j] = self._hist.popleft() if len(self._hist) > lag else self._fill
+        return out
+
+    def sequence(self, rows: Array, dt: float) -> Array:
+        r = np.asarray(rows, dtype=np.float64).reshape(-1, 4)
+        lag = round(self["delay"] / dt)
+        if lag == 0:
+            return r.copy()
+        # step()'s delay line at once: each substep appends its row and, once more than
+        # ``lag`` are held, hands out the oldest; until then the fill
+        n, h = len(r), len(self._hist)
+        line = np.concatenate([np.array(list(self._hist)).reshape(h, 4), r])
+        filled = min(n, max(0, lag - h))
+        out = np.empty((n, 4))
+        out[:filled] = self._fill
+        out[filled:] = line[: n - filled]
+        self._hist = deque(line[n - filled :])
         return out
 
     def prime(self, t: Array, cmd: Array, t_now: float, dt: float) -> None:

@@ -38,6 +38,7 @@ from rover_env.effects import (
     TireEffect,
     build_effects,
     command_rows,
+    command_sequence,
     plugin_refusals,
 )
 from rover_env.rut import check_overflow, refused_writes
@@ -432,7 +433,10 @@ class RoverSim:
                 self.speed_targets[:] = u
                 self.step(int(n))
             return
-        if self._cmd_effects or self._hinge_effects:
+        if self._cmd_effects and not self._hinge_effects:
+            self._drive_commanded(tt, nn)
+            return
+        if self._hinge_effects:
             for u, n in zip(tt, nn, strict=True):
                 self.speed_targets[:] = u
                 self._step_commanded(int(n), check=False)
@@ -442,6 +446,24 @@ class RoverSim:
         for u, n in zip(tt, nn, strict=True):
             self.speed_targets[:] = d.ctrl[vel] = u
             mujoco.mj_step(m, d, int(n))
+        self.check()
+
+    def _drive_commanded(self, tt: Array, nn: NDArray[np.int64]) -> None:
+        """:meth:`drive`'s rows through the command effects on the plugin: every substep's
+        motor targets at once (:func:`command_sequence`), queued ``SCHEDULE_ROWS`` at a
+        time across rows. The same substeps and targets as row by row
+        (:meth:`_step_commanded`), so the same numbers to the bit; a lag's replay spent
+        a third of its time in the per-row calls (benchmarks/bench_replay.py)."""
+        m, d = self.model, self.data
+        assert self._plugin is not None
+        rows = command_sequence(self._cmd_effects, np.repeat(tt, nn, axis=0), self.dt)
+        for j in range(0, len(rows), SCHEDULE_ROWS):
+            chunk = rows[j : j + SCHEDULE_ROWS]
+            self._plugin.queue_commands(d.plugin_state, chunk)
+            mujoco.mj_step(m, d, len(chunk))
+        self._substep += len(rows)
+        if len(tt):
+            self.speed_targets[:] = tt[-1]
         self.check()
 
     def _advance_setpoints(self, u: Array) -> None:
