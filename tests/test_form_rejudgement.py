@@ -286,3 +286,35 @@ def test_the_report_says_when_the_forms_were_fitted_beside_a_leader() -> None:
     assert "fitted beside slope (the leading candidate of a first pass that named nothing" in led
     assert "fitted beside slope (named in a first pass" in named
     assert LEADING not in led and LEADING not in named
+
+
+def test_the_rival_is_a_fully_fitted_plugin_candidate_the_training_windows_favour() -> None:
+    """With a winner named (``Options.forms_beside_rival``): the candidate whose training
+    BIC is below the winner's and below nominal's, fully fitted (not screened out), the
+    lowest such; never the winner nor a pair holding its effect."""
+    from rover_env.calibration.diagnosis.again import rival
+
+    a = np.array
+
+    def scored(names: list[str], d_bic: float, screened: bool = False) -> Scored:
+        cs = catalogue(names)
+        n = len(cs)
+        f = Fit(
+            cs, a([0.1] * n), a([0.0] * n), a([0.2] * n), a([0.05] * n), 1.0, 1, {}, 0.0, "train"
+        )
+        s = Scored(f, 1.0, np.ones(3), 0.2, 0.01, d_bic, d_bic, 3)
+        s.screened = screened
+        return s
+
+    def riv(winner: Scored, *ranked: Scored) -> str | None:
+        s = rival(SimpleNamespace(ranked=[winner, *ranked]), winner)  # type: ignore[arg-type]
+        return None if s is None else s.fit.name
+
+    friction = scored(["friction"], -7.0)
+    torque = scored(["torque_limit"], -11.1)
+    screened = scored(["slope"], -20.0, screened=True)  # screened out: never a rival
+    pair = scored(["friction", "command_lag"], -15.0)  # holds the winner's effect
+    assert riv(friction, torque, screened, pair) == "torque_limit"
+    assert riv(friction, scored(["command_lag"], -6.0)) is None  # not below the winner's
+    assert riv(scored(["slope"], 3.0), scored(["command_lag"], 1.0)) is None  # nor nominal's
+    assert riv(torque, friction) is None

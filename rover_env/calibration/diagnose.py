@@ -155,6 +155,11 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "forms_beside_leader",
         "with nothing named, fit the model form again beside the leading candidate",
     ),
+    (
+        "forms_beside_rival",
+        "with a winner named, fit the model form again beside the candidate the training"
+        " windows favour over it (off: not scored)",
+    ),
 )
 """The on/off options of :class:`Options` the command line sets, ``--name`` / ``--no-name``."""
 

@@ -40,6 +40,27 @@ def leader(d: Diagnosis) -> Scored | None:
     return min(leading, key=lambda s: s.d_bic, default=None)
 
 
+RIVAL = " (the training windows' favourite, not named)"
+"""How the progress lines name the rival beside which the forms are fitted again."""
+
+
+def rival(d: Diagnosis, winner: Scored) -> Scored | None:
+    """The candidate the training windows favour over the named ``winner``: fully fitted,
+    replayed by the plugin, its training BIC below the winner's and below nominal's; the
+    lowest such (:attr:`Options.forms_beside_rival`)."""
+    w_names = {c.name for c in winner.fit.candidates}
+    rivals = [
+        s
+        for s in d.ranked
+        if s is not winner
+        and not s.screened
+        and not {c.name for c in s.fit.candidates} & w_names
+        and all(plugin_capable(c) for c in s.fit.candidates)
+        and s.d_bic < min(winner.d_bic, 0.0)
+    ]
+    return min(rivals, key=lambda s: s.d_bic, default=None)
+
+
 def forms_beside(d: Diagnosis, s: Scored, role: str) -> Options | None:
     """The options of a second pass under the forms fitted again beside ``s``'s effect, or
     None when they come out as before."""
@@ -82,6 +103,11 @@ def judge_again(d: Diagnosis) -> Options | None:
     # A numpy-only effect would cost ~20 x per form replay: not refitted.
     if first and opts.forms_beside_winner and all(plugin_capable(c) for c in winner.fit.candidates):
         again = forms_beside(d, winner, "")
+        if again is not None:
+            return again
+    rv = rival(d, winner) if first and opts.forms_beside_rival else None
+    if rv is not None:
+        again = forms_beside(d, rv, RIVAL)
         if again is not None:
             return again
     # The joint zeros are profiled out of every fit (Evaluator.profile_zeros), the nominal

@@ -352,6 +352,18 @@ class Options:
     held-out reversing windows bend theta_5 3-4 x more than the logs). Neither case is named
     with it: the leader's forms are a precondition, not a cure. In 50513 the leader is a
     command lag (friction was screened out), beside which the forms come out as before."""
+    forms_beside_rival: bool = False
+    """With a winner named and its forms unchanged beside it (:attr:`forms_beside_winner`):
+    fit the model's forms again beside the rival, the candidate the training windows favour
+    over the winner (fully fitted, one the plugin replays, a training BIC below the
+    winner's and below nominal's) and, if they come out otherwise, run the diagnosis again
+    under them (:func:`.again.rival`). Why (stop 97, exploratory seed 70862, a torque cut of
+    78 %): the forms chosen before any effect kept the clamp anti-windup; the limit was
+    fitted at -0.8 with the lowest training BIC (-11.1) but the held-out drive 0.9 % worse,
+    and a friction of -0.44 was named (held out 24 % better). Beside the limit the
+    conditional anti-windup is adopted (dBIC -5.4) and the limit's held-out drive comes out
+    62 % better; the forms are re-chosen beside the winner only. Off by default: not scored
+    on fresh cases."""
     forms_given: list[FormFit] | None = None
     """The forms to use instead of fitting them (set by the second pass)."""
     forms_beside: str | None = None

@@ -1,0 +1,124 @@
+"""One of ``diagnose``'s on/off options against the default, on the same fresh logs (issue 47).
+
+Each case is a single effect on the independent generator (its build tolerances drawn from
+the seed): torque-limit cuts the drives reach (``--torque N``: the generator's fraction
+uniform in [-0.8, -0.5]) and then the other catalogue effects in turn at magnitudes drawn
+log-uniform as ``bench_independent.py`` draws them. Each case's logs are diagnosed twice,
+side by side, one worker each: as ``diagnose`` runs by default and with ``--OPTION``. A row
+per case (what each named, the truth's fit, seconds) goes to ``--json`` after each case.
+
+    python benchmarks/option_ab.py --option forms-beside-rival --seed0 71600 --torque 8 \\
+        --others 8 --work out/option_ab --json out/option_ab/rows.json
+
+A study's hypotheses and its look script are registered before it runs
+(docs/calibration/studyNNNNN/).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from bench_independent import catalogue_truth, generator_params
+
+from rover_env.independent import make_independent_logs
+
+OTHERS = (
+    "command_delay",
+    "command_lag",
+    "slope",
+    "rolling_resistance",
+    "loose_soil",
+    "friction",
+    "rolling_radius",
+    "load_dependent_friction",
+)
+"""The other effects, in the order their cases are drawn."""
+
+
+def plan(seed0: int, torque: int, others: int) -> list[tuple[int, str, dict[str, float]]]:
+    """(seed, effect, the generator's parameters) of every case, from the seeds alone: a
+    torque cut and another effect in turn (a run stopped early keeps both kinds)."""
+    kinds = ["torque"] * torque + ["other"] * others
+    order = sorted(range(len(kinds)), key=lambda k: (k if k < torque else k - torque, k))
+    out = []
+    for k in order:
+        seed = seed0 + k
+        if kinds[k] == "torque":
+            rng = np.random.default_rng([seed, 97])
+            out.append((seed, "torque_limit", {"fraction": float(rng.uniform(-0.8, -0.5))}))
+        else:
+            eff = OTHERS[(k - torque) % len(OTHERS)]
+            out.append((seed, eff, generator_params(eff, seed)))
+    return out
+
+
+def diagnose(logs: list[Path], out: Path, extra: list[str]) -> dict[str, Any]:
+    """One ``rover-env diagnose`` (one worker): what it named, the fits, its seconds."""
+    if not (out / "result.json").exists():
+        cmd = [sys.executable, "-m", "rover_env.cli", "diagnose", *map(str, logs)]
+        cmd += ["--out", str(out), "--workers", "1", "--quiet", *extra]
+        t0 = time.perf_counter()
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+        (out / "wall_seconds.txt").write_text(f"{time.perf_counter() - t0:.1f}\n")
+    r = json.loads((out / "result.json").read_text())
+    final = {k: v["params"] for k, v in (r.get("final") or {}).items()}
+    return {
+        "named": r["named"],
+        "final": final,
+        "fits": {k: v.get("params") for k, v in (r.get("fits") or {}).items()},
+        "forms_beside": r.get("model_form_beside"),
+        "seconds": float((out / "wall_seconds.txt").read_text()),
+    }
+
+
+def run_case(
+    work: Path, option: str, seed: int, effect: str, params: dict[str, float]
+) -> dict[str, Any]:
+    d = work / f"case_{seed}"
+    logs = sorted((d / "logs").glob("drive_*.csv"))
+    if len(logs) < 3:
+        logs = make_independent_logs(d / "logs", {effect: params}, drives=3, seed=seed)
+    with ThreadPoolExecutor(2) as ex:
+        off = ex.submit(diagnose, logs, d / "off", [])
+        on = ex.submit(diagnose, logs, d / "on", [f"--{option}"])
+        arms = {"off": off.result(), "on": on.result()}
+    truth = catalogue_truth(effect, params)
+    return {"seed": seed, "effect": effect, "params": params, "truth": truth, **arms}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--option", required=True, help="a diagnose switch, without its dashes")
+    ap.add_argument("--seed0", type=int, required=True)
+    ap.add_argument("--torque", type=int, default=8)
+    ap.add_argument("--others", type=int, default=8)
+    ap.add_argument("--work", type=Path, default=Path("out/option_ab"))
+    ap.add_argument("--json", type=Path, default=None)
+    a = ap.parse_args(argv)
+    rows = []
+    cases = plan(a.seed0, a.torque, a.others)
+    for k, (seed, effect, params) in enumerate(cases, 1):
+        row = run_case(a.work, a.option, seed, effect, params)
+        rows.append(row)
+        print(
+            f"[{k}/{len(cases)}] {seed} {effect} {params}: off {row['off']['named']}"
+            f" ({row['off']['seconds']:.0f} s), on {row['on']['named']}"
+            f" ({row['on']['seconds']:.0f} s)",
+            flush=True,
+        )
+        if a.json is not None:
+            a.json.parent.mkdir(parents=True, exist_ok=True)
+            a.json.write_text(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
