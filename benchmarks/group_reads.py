@@ -5,7 +5,8 @@ For each case the generator drives a rover (its build drawn from the seed) with 
 at the given size, or clean; ``diagnose``'s first stages run as they do (the split, the
 model's forms, the replay floor), and the effect's candidate is replayed over a grid of
 values on the training windows and on every drive's straight windows. For each value the
-script keeps the mean log loss ratio over the windows (what ``diagnose`` fits by) and each
+script keeps the mean log loss ratio over the windows (what ``diagnose``'s naming test
+judges by; its fits minimise the summed losses) and each
 signal group's summed loss; each group's best grid value is the size that group alone would
 read. Why (stop 93): a rolling resistance was read at about half its size, and the groups
 disagree about it (the joints low, the free wheels and the pose near the truth); this shows
@@ -184,7 +185,8 @@ def table(rows: list[dict[str, Any]], name: str, param: str) -> str:
         f"# Which signal group reads `{name}.{param}`",
         "",
         "Each cell: the grid value that minimises that group's loss (all: the mean log loss"
-        " ratio over the windows, what `diagnose` fits by) on the training windows and on"
+        " ratio over the windows, what `diagnose`'s naming test judges by) on the training"
+        " windows and on"
         " every drive's straight windows (`benchmarks/group_reads.py`).",
         "",
         "| " + " | ".join(head) + " |",

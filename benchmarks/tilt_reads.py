@@ -6,7 +6,8 @@ no truth to hold, and what a slope single must clear is the tilt a clean build i
 (the clean-fit allowance: 0.27-2.37 deg over 100 clean cases). Here each case's training
 windows (after ``diagnose``'s split, forms and floor) are replayed over a polar grid of
 tilts (``--sizes`` x 12 headings, 30 deg apart) and each signal group's own best tilt is
-kept beside all signals' (the mean log loss ratio, what ``diagnose`` fits by). Why (stop
+kept beside all signals' (the mean log loss ratio, what ``diagnose``'s naming test judges
+by). Why (stop
 94): slopes of 2-3 deg were fitted at 1.6-1.7 deg, the joints pulling them low, and then
 withdrawn because the allowance's interval reached "off"; whether a group reads slopes
 right *and* clean builds flat is what a read from that group would need. A diagnostic that
@@ -95,7 +96,8 @@ def table(rows: list[dict[str, Any]]) -> str:
         "# Which signal group reads a ground tilt (size @ heading, deg)",
         "",
         "Each cell: the tilt of the polar grid that minimises that group's summed loss (all:"
-        " the mean log loss ratio, what `diagnose` fits by) on the training windows; in"
+        " the mean log loss ratio, what `diagnose`'s naming test judges by) on the training"
+        " windows; in"
         " brackets the heading's error against the truth (`benchmarks/tilt_reads.py`).",
         "",
         "| seed | truth | " + " | ".join(KEYS) + " |",
