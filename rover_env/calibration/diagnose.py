@@ -158,7 +158,7 @@ SWITCHES: tuple[tuple[str, str], ...] = (
     (
         "forms_beside_rival",
         "with a winner named, fit the model form again beside the candidate the training"
-        " windows favour over it (off: not scored)",
+        " windows favour over it (off: study 71600)",
     ),
 )
 """The on/off options of :class:`Options` the command line sets, ``--name`` / ``--no-name``."""

@@ -362,8 +362,9 @@ class Options:
     fitted at -0.8 with the lowest training BIC (-11.1) but the held-out drive 0.9 % worse,
     and a friction of -0.44 was named (held out 24 % better). Beside the limit the
     conditional anti-windup is adopted (dBIC -5.4) and the limit's held-out drive comes out
-    62 % better; the forms are re-chosen beside the winner only. Off by default: not scored
-    on fresh cases."""
+    62 % better; the forms are re-chosen beside the winner only. Off by default: on fresh
+    study 71600 (16 cases, 8 of them cuts of 51-80 %) it changed no name; no such rival
+    arose (docs/calibration/README.md)."""
     forms_given: list[FormFit] | None = None
     """The forms to use instead of fitting them (set by the second pass)."""
     forms_beside: str | None = None
