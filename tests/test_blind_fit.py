@@ -303,7 +303,8 @@ def test_every_switch_defaults_to_its_option_and_turns_off() -> None:
     # (stop 69); the soil read from the motion, short of its registered line (stop 82); pegged
     # fits named last, which study 64000 did not bear out (stop 85); the next candidate after
     # a withdrawn name, by block 52400's registered decision (stop 88); a partner's limit
-    # beside the winner, by study 71000's (stop 90)
+    # beside the winner, by study 71000's (stop 90); the forms beside a rival, by study
+    # 71600's (stop 97)
     off = {
         "next_after_withdrawn",
         "partner_limit",
@@ -313,6 +314,7 @@ def test_every_switch_defaults_to_its_option_and_turns_off() -> None:
         "fit_com_height",
         "fit_slip_floor",
         "soil_from_motion",
+        "forms_beside_rival",
     }
     for name in names:
         on = getattr(Options(), name)
