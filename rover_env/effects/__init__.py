@@ -212,7 +212,7 @@ class CommandEffect(Effect):
 def command_rows(effects: Sequence[CommandEffect], targets: Array, dt: float, n: int) -> Array:
     """(n, 4) what the motors get over ``n`` substeps with ``targets`` held, through command
     effects in the simulator's order (each takes the last one's output, substep by substep):
-    the first's :meth:`CommandEffect.block`, then the others' ``step`` row by row."""
+    the first's :meth:`CommandEffect.block`, then the others' :meth:`CommandEffect.sequence`."""
     rows = effects[0].block(targets, dt, n)
     for e in effects[1:]:
         rows = e.sequence(rows, dt)
@@ -435,28 +435,7 @@ class CommandLag(CommandEffect):
         return self.x
 
     def block(self, targets: Array, dt: float, n: int) -> Array:
-        u = np.asarray(targets, dtype=np.float64)
-        tau = self["tau"]
-        if tau <= 0.0:
-            if n:
-                self.x = u.copy()
-            return np.tile(u, (n, 1))
-        a = math.exp(-dt / tau)
-        # step()'s recursion, row by row, on Python floats: the same IEEE operations as
-        # numpy's elementwise ones (bit-identical), without numpy's per-call cost on 4 numbers
-        cols = []
-        for ui, xi in zip(u.tolist(), self.x.tolist(), strict=True):
-            col = []
-            for _ in range(n):
-                xi = ui + (xi - ui) * a
-                col.append(xi)
-            cols.append(col)
-        # C order, as step()'s rows stacked: a caller's mean over rows must sum them in the
-        # same order (a transposed view summed pairwise and moved the last bit)
-        out = np.ascontiguousarray(np.array(cols, dtype=np.float64).T.reshape(n, len(u)))
-        if n:
-            self.x = out[-1].copy()
-        return out
+        return self.sequence(np.tile(np.asarray(targets, dtype=np.float64), (n, 1)), dt)
 
     def sequence(self, rows: Array, dt: float) -> Array:
         r = np.asarray(rows, dtype=np.float64).reshape(-1, 4)
@@ -467,13 +446,17 @@ class CommandLag(CommandEffect):
                 self.x = r[-1].copy()
             return r.copy()
         a = math.exp(-dt / tau)
-        cols = []  # block()'s recursion on Python floats, the target varying by row
+        # step()'s recursion on Python floats: the same IEEE operations as numpy's
+        # elementwise ones (bit-identical), without numpy's per-call cost on 4 numbers
+        cols = []
         for ucol, xi in zip(r.T.tolist(), self.x.tolist(), strict=True):
             col = []
             for ui in ucol:
                 xi = ui + (xi - ui) * a
                 col.append(xi)
             cols.append(col)
+        # C order, as step()'s rows stacked: a caller's mean over rows must sum them in the
+        # same order (a transposed view summed pairwise and moved the last bit)
         out = np.ascontiguousarray(np.array(cols, dtype=np.float64).T.reshape(n, 4))
         if n:
             self.x = out[-1].copy()
@@ -527,15 +510,7 @@ class CommandDelay(CommandEffect):
         return self._fill
 
     def block(self, targets: Array, dt: float, n: int) -> Array:
-        u = np.array(targets, dtype=np.float64)
-        lag = round(self["delay"] / dt)
-        if lag == 0:
-            return np.tile(u, (n, 1))
-        out = np.empty((n, len(u)))
-        for j in range(n):  # step()'s delay line; the held row is shared, never written
-            self._hist.append(u)
-            out[j] = self._hist.popleft() if len(self._hist) > lag else self._fill
-        return out
+        return self.sequence(np.tile(np.asarray(targets, dtype=np.float64), (n, 1)), dt)
 
     def sequence(self, rows: Array, dt: float) -> Array:
         r = np.asarray(rows, dtype=np.float64).reshape(-1, 4)
