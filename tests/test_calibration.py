@@ -422,9 +422,10 @@ def test_result_json_is_strict_json(rr_case: tuple[Path, dict]) -> None:
     "name, values", [("command_lag", {"tau": 0.05}), ("command_delay", {"delay": 0.007})]
 )
 def test_command_effect_block_is_n_steps(name: str, values: dict[str, float]) -> None:
-    """The replay's fast path (``CommandEffect.block``) gives exactly what ``step`` gives,
-    substep by substep, across commands that change between blocks."""
-    from rover_env.effects import CommandEffect, effect_class
+    """The replay's fast path for a held command (``command_rows``, the effect's
+    ``sequence``) gives exactly what ``step`` gives, substep by substep, across commands
+    that change between blocks; so does the generic ``CommandEffect.sequence``."""
+    from rover_env.effects import CommandEffect, command_rows, effect_class
 
     a, b = effect_class(name)(values), effect_class(name)(values)
     assert isinstance(a, CommandEffect) and isinstance(b, CommandEffect)
@@ -434,7 +435,10 @@ def test_command_effect_block_is_n_steps(name: str, values: dict[str, float]) ->
     for n in (1, 4, 10, 3, 20):
         u = rng.uniform(-3, 3, 4)
         stepped = np.array([np.array(a.step(u, 0.001)) for _ in range(n)])
-        blocked = CommandEffect.block(b, u, 0.001, n) if n == 3 else b.block(u, 0.001, n)
+        held = np.tile(u, (n, 1))
+        blocked = (
+            CommandEffect.sequence(b, held, 0.001) if n == 3 else command_rows([b], u, 0.001, n)
+        )
         np.testing.assert_array_equal(blocked, stepped, err_msg=f"{name}, block of {n}")
         # loop_commands averages a block's rows: summed in step()'s row order (C order)
         assert blocked.flags.c_contiguous, f"{name}, block of {n}"

@@ -187,17 +187,11 @@ class CommandEffect(Effect):
         """Advance one substep with ``targets`` commanded; return what the motors get."""
         raise NotImplementedError
 
-    def block(self, targets: Array, dt: float, n: int) -> Array:
-        """``n`` substeps with ``targets`` held: (n, 4), row j what :meth:`step` returns on
-        the j-th. The same numbers as n calls of ``step``; an effect may compute them at once
-        (a replay holds each logged command for a whole sample, 10-20 substeps)."""
-        u = np.asarray(targets, dtype=np.float64)
-        return np.array([self.step(u, dt) for _ in range(n)]).reshape(n, -1)
-
     def sequence(self, rows: Array, dt: float) -> Array:
         """(n, 4) what :meth:`step` returns on each of ``rows`` (one row of targets per
         substep), in order: the same numbers; an effect may compute them at once (a replay
-        drives a window's rows between two read-outs in one call)."""
+        holds each logged command for 10-20 substeps and drives a window's rows between two
+        read-outs in one call)."""
         r = np.asarray(rows, dtype=np.float64)
         return np.array([self.step(u, dt) for u in r]).reshape(len(r), -1)
 
@@ -212,11 +206,8 @@ class CommandEffect(Effect):
 def command_rows(effects: Sequence[CommandEffect], targets: Array, dt: float, n: int) -> Array:
     """(n, 4) what the motors get over ``n`` substeps with ``targets`` held, through command
     effects in the simulator's order (each takes the last one's output, substep by substep):
-    the first's :meth:`CommandEffect.block`, then the others' :meth:`CommandEffect.sequence`."""
-    rows = effects[0].block(targets, dt, n)
-    for e in effects[1:]:
-        rows = e.sequence(rows, dt)
-    return rows
+    :func:`command_sequence` over the held rows."""
+    return command_sequence(effects, np.tile(np.asarray(targets, dtype=np.float64), (n, 1)), dt)
 
 
 def command_sequence(effects: Sequence[CommandEffect], rows: Array, dt: float) -> Array:
@@ -434,9 +425,6 @@ class CommandLag(CommandEffect):
             self.x = targets + (self.x - targets) * math.exp(-dt / tau)
         return self.x
 
-    def block(self, targets: Array, dt: float, n: int) -> Array:
-        return self.sequence(np.tile(np.asarray(targets, dtype=np.float64), (n, 1)), dt)
-
     def sequence(self, rows: Array, dt: float) -> Array:
         r = np.asarray(rows, dtype=np.float64).reshape(-1, 4)
         n = len(r)
@@ -508,9 +496,6 @@ class CommandDelay(CommandEffect):
         if len(self._hist) > n:
             return self._hist.popleft()
         return self._fill
-
-    def block(self, targets: Array, dt: float, n: int) -> Array:
-        return self.sequence(np.tile(np.asarray(targets, dtype=np.float64), (n, 1)), dt)
 
     def sequence(self, rows: Array, dt: float) -> Array:
         r = np.asarray(rows, dtype=np.float64).reshape(-1, 4)
