@@ -437,7 +437,7 @@ class Replayer:
         mujoco.mj_forward(m, d)
 
     def run_window(self, p: PreparedLog, w: Window) -> WindowResult:
-        s, d = self.sim, self.sim.data
+        s = self.sim
         log = p.log
         st = self.settings
         t = log.t
@@ -450,19 +450,19 @@ class Replayer:
         stride = max(1, round(st.stride * log.meta.sample_rate_hz))
         scored = np.arange(kb, w.k1 + 1, stride)
         pose_k = [k for k in range(kb, w.k1 + 1) if np.isfinite(log.pose[k, 0])]
-        want = set(scored.tolist()) | set(pose_k)
-        rows: dict[int, Array] = {}
-        poses: dict[int, Array] = {}
-        pose_set = set(pose_k)
-        k = w.k0
-        for r in sorted(want):  # driven from read-out to read-out (all at or after k0)
-            s.drive(log.cmd[k:r], np.diff(step_of[k : r + 1]))
-            k = r
-            rows[r] = np.concatenate(
-                [d.qpos[s.index.wheel_qpos], d.qpos[s.index.joint_qpos] + self._zero]
-            )
-            if r in pose_set:
-                poses[r] = np.concatenate([d.xpos[self._seg3], d.xmat[self._seg3].reshape(9)])
+        want = sorted(set(scored.tolist()) | set(pose_k))  # all at or after k0
+        last = want[-1] if want else w.k0
+        q, xp, xr = s.drive_read(
+            log.cmd[w.k0 : last],
+            np.diff(step_of[w.k0 : last + 1]),
+            np.array(want, dtype=np.int64) - w.k0,
+            np.concatenate([s.index.wheel_qpos, s.index.joint_qpos]),
+            self._seg3,
+        )
+        q[:, 6:] += self._zero
+        at = {r: i for i, r in enumerate(want)}
+        rows = {r: q[i] for r, i in at.items()}
+        poses = {r: np.concatenate([xp[at[r]], xr[at[r]]]) for r in pose_k}
         simv = np.array([rows[int(k)] for k in scored])
         logv = np.hstack([log.phi[scored], log.theta[scored]])
         # Wheel angles as increments since the end of the burn-in.

@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import mujoco
@@ -447,6 +447,90 @@ class RoverSim:
             self.speed_targets[:] = d.ctrl[vel] = u
             mujoco.mj_step(m, d, int(n))
         self.check()
+
+    def drive_read(
+        self, targets: ArrayLike, steps: ArrayLike, after: ArrayLike, qpos: ArrayLike, body: int
+    ) -> tuple[Array, Array, Array]:
+        """:meth:`drive` over all rows, reading the state after ``after[j]`` rows (sorted,
+        0 = before any): ``d.qpos[qpos]``, ``d.xpos[body]`` and ``d.xmat[body]`` (flat) at
+        each read, as arrays (reads, ...). The same numbers to the bit as one :meth:`drive`
+        per stretch between reads (tested), checked once at the end: a replay reads after
+        every log row, and one call per row cost it a sixth of its time
+        (benchmarks/bench_replay.py). Hinge effects and the numpy backend drive stretch by
+        stretch."""
+        tt = np.asarray(targets, dtype=float).reshape(-1, 4)
+        nn = np.asarray(steps, dtype=np.int64).reshape(-1)
+        at = np.asarray(after, dtype=np.int64).reshape(-1)
+        qi = np.asarray(qpos, dtype=np.intp)
+        if at.size and (np.any(np.diff(at) < 0) or at[0] < 0 or at[-1] > len(tt)):
+            raise ValueError(f"reads must be sorted row counts in [0, {len(tt)}]")
+        d = self.data
+        out = (np.empty((len(at), len(qi))), np.empty((len(at), 3)), np.empty((len(at), 9)))
+        if not np.all(np.isfinite(tt)):
+            i, j = np.argwhere(~np.isfinite(tt))[0]
+            raise ValueError(f"speed targets not finite in row {i} for wheel {DRIVEN_WHEELS[j]}")
+        batched = self._plugin is not None and not self._hinge_effects
+        if not batched:  # hinge effects, the numpy backend: stretch by stretch
+            k = 0
+            for j, r in enumerate([*at.tolist(), len(tt)]):
+                if r > k or j == len(at):
+                    self.drive(tt[k:r], nn[k:r])
+                k = r
+                if j < len(at):
+                    out[0][j], out[1][j], out[2][j] = d.qpos[qi], d.xpos[body], d.xmat[body]
+            return out
+        lim = self.cfg.motor.max_wheel_speed
+        tt = np.clip(tt, -lim, lim)
+        stretches = np.split(np.arange(len(tt)), at)
+        run = self._stretch_commanded(tt, nn) if self._cmd_effects else self._stretch_plain(tt, nn)
+        for j, rows in enumerate(stretches):
+            run(rows)
+            if j < len(at):
+                out[0][j], out[1][j], out[2][j] = d.qpos[qi], d.xpos[body], d.xmat[body]
+        if len(tt):
+            self.speed_targets[:] = tt[-1]
+        self.check()
+        return out
+
+    def _stretch_plain(
+        self, tt: Array, nn: NDArray[np.int64]
+    ) -> Callable[[NDArray[np.int64]], None]:
+        """:meth:`drive_read`'s stepper without command effects: each row's targets to the
+        plugin's motors, its substeps in one ``mj_step`` call (as :meth:`drive`)."""
+        m, d, vel = self.model, self.data, self._ctrl_vel
+        rows, ns = tt.tolist(), nn.tolist()
+
+        def run(idx: NDArray[np.int64]) -> None:
+            ctrl = d.ctrl
+            for i in idx.tolist():
+                ctrl[vel] = rows[i]
+                mujoco.mj_step(m, d, ns[i])
+
+        return run
+
+    def _stretch_commanded(
+        self, tt: Array, nn: NDArray[np.int64]
+    ) -> Callable[[NDArray[np.int64]], None]:
+        """:meth:`drive_read`'s stepper with command effects: every substep's motor targets
+        at once (:func:`command_sequence`, one recursion over all rows), queued stretch by
+        stretch ``SCHEDULE_ROWS`` at a time (as :meth:`_drive_commanded`)."""
+        m, d = self.model, self.data
+        assert self._plugin is not None
+        plugin = self._plugin
+        sub = command_sequence(self._cmd_effects, np.repeat(tt, nn, axis=0), self.dt)
+        start = np.concatenate([[0], np.cumsum(nn)])
+
+        def run(idx: NDArray[np.int64]) -> None:
+            if not idx.size:
+                return
+            rows = sub[start[idx[0]] : start[idx[-1] + 1]]
+            for j in range(0, len(rows), SCHEDULE_ROWS):
+                chunk = rows[j : j + SCHEDULE_ROWS]
+                plugin.queue_commands(d.plugin_state, chunk)
+                mujoco.mj_step(m, d, len(chunk))
+            self._substep += len(rows)
+
+        return run
 
     def _drive_commanded(self, tt: Array, nn: NDArray[np.int64]) -> None:
         """:meth:`drive`'s rows through the command effects on the plugin: every substep's
