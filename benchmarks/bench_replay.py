@@ -15,10 +15,13 @@ replayed in interleaved rounds (the machine is shared: medians of the rounds) by
   plugin's state, which feeds them to the motors inside one ``mj_step`` call per
   ``SCHEDULE_ROWS`` substeps (until stop 45: one call per substep, 1.9 x a plain replay;
   until stop 97 rows computed and queued row by row: a lag 1.62 x, a delay 1.37 x).
+* ``per read``: the replay as it drove a window before stop 98, one :meth:`RoverSim.drive`
+  per stretch between two read-outs (every log row), against :meth:`RoverSim.drive_read`
+  (a window's rows in one call, the state read after each): plain and with a command lag;
+  the same numbers to the bit, checked here.
 * ``row by row``: the replay as it drove the log before stop 57, one
-  ``set_speed_targets`` and one checked ``step`` per log row, against
-  :meth:`RoverSim.drive` (the rows between two read-outs, checked once): plain, and with a
-  hinge effect (rolling resistance); the same numbers to the bit, checked here.
+  ``set_speed_targets`` and one checked ``step`` per log row: plain, and with a hinge
+  effect (rolling resistance); the same numbers to the bit, checked here.
 
 Prints seconds per replay and the ratios; nothing is timed in the tests.
 """
@@ -29,8 +32,10 @@ import argparse
 import statistics
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -46,7 +51,7 @@ from rover_env.generators.make_logs import make_logs
 from rover_env.logs import read_log
 from rover_env.sim.simulator import RoverSim
 
-DRIVE = RoverSim.drive
+DRIVE_READ = RoverSim.drive_read
 
 
 def row_by_row(sim: RoverSim, targets: np.ndarray, steps: np.ndarray) -> None:
@@ -54,6 +59,32 @@ def row_by_row(sim: RoverSim, targets: np.ndarray, steps: np.ndarray) -> None:
     for u, n in zip(np.asarray(targets).reshape(-1, 4), np.asarray(steps).reshape(-1), strict=True):
         sim.set_speed_targets(u)
         sim.step(int(n))
+
+
+def per_read(step: Callable[[RoverSim, np.ndarray, np.ndarray], None]) -> Any:
+    """A replay's read-outs as before stop 98: ``step`` (``RoverSim.drive``, or
+    :func:`row_by_row`) once per stretch between two read-outs, the state read after it."""
+
+    def drive_read(
+        sim: RoverSim, targets: Any, steps: Any, after: Any, qpos: Any, body: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        d, qi = sim.data, np.asarray(qpos)
+        out = [
+            np.empty((len(after), len(qi))),
+            np.empty((len(after), 3)),
+            np.empty((len(after), 9)),
+        ]
+        k = 0
+        for j, r in enumerate(after):
+            step(sim, targets[k:r], steps[k:r])
+            k = r
+            out[0][j], out[1][j], out[2][j] = d.qpos[qi], d.xpos[body], d.xmat[body]
+        return out[0], out[1], out[2]
+
+    return drive_read
+
+
+PATCH = {"per read": per_read(RoverSim.drive), "row by row": per_read(row_by_row)}
 
 
 def main() -> None:
@@ -77,6 +108,8 @@ def main() -> None:
         "contacts, sensors off (diagnose)": (base, False, False),
         "command_lag, diagnose's": (lag, False, False),
         "command_delay, diagnose's": (delay, False, False),
+        "command_lag, per read (before stop 98)": (lag, False, False),
+        "per read (before stop 98)": (base, False, False),
         "row by row (before stop 57)": (base, False, False),
         "rolling_resistance, diagnose's": (rr, False, False),
         "rolling_resistance, row by row": (rr, False, False),
@@ -85,12 +118,13 @@ def main() -> None:
     outputs: dict[str, dict[str, np.ndarray]] = {}
     for _ in range(args.rounds):
         for name, (cfg, contacts, sensors) in variants.items():
-            RoverSim.drive = row_by_row if "row by row" in name else DRIVE  # type: ignore[method-assign]
+            patch = next((f for k, f in PATCH.items() if k in name), DRIVE_READ)
+            RoverSim.drive_read = patch  # type: ignore[method-assign]
             t0 = time.perf_counter()
             res = Replayer(cfg, st, contacts=contacts, sensors=sensors).run([p], windows)
             times[name].append(time.perf_counter() - t0)
             outputs[name] = replay_arrays(res)
-    RoverSim.drive = DRIVE  # type: ignore[method-assign]
+    RoverSim.drive_read = DRIVE_READ  # type: ignore[method-assign]
     ref = outputs["contacts on (reference)"]
 
     def same(name: str, ref: dict[str, np.ndarray] = ref) -> bool:
@@ -118,6 +152,13 @@ def main() -> None:
     delay_s = med["command_delay, diagnose's"]
     print(f"command_lag / plain (diagnose's replay): {lag_s / dia:.2f}")
     print(f"command_delay / plain (diagnose's replay): {delay_s / dia:.2f}")
+    per = med["per read (before stop 98)"]
+    print(
+        f"diagnose's replay / a drive() per read-out: {dia / per:.2f} of the time (with a lag:"
+        f" {lag_s / med['command_lag, per read (before stop 98)']:.2f}); identical to the bit:"
+        f" {same('per read (before stop 98)', outputs['contacts, sensors off (diagnose)'])},"
+        f" {same('command_lag, per read (before stop 98)', outputs['command_lag, diagnose' + chr(39) + 's'])}"
+    )
     row = med["row by row (before stop 57)"]
     print(
         f"diagnose's replay / row by row: {dia / row:.2f} of the time; identical to the bit:"
