@@ -18,6 +18,8 @@ diagnostic of the model, not a method.
         --work out/bench_independent --workers 2
 
 Writes ``OUT/truth_ceiling.md``, ``.json`` and ``.png`` (OUT defaults to the block folder).
+``--make-logs`` drives a case's logs again where its work folder lacks them (the generator
+is deterministic in the case's seed).
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ import numpy as np
 import yaml
 from _independent_tables import truth_ratio
 from _motor import add_motor_argument, motors, with_motor
+from bench_independent import DRIVES, DURATION
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue
@@ -41,6 +44,7 @@ from rover_env.calibration.diagnosis import floor, form, split
 from rover_env.calibration.diagnosis.form_ladder import reprepare
 from rover_env.calibration.diagnosis.judge import gain, p_improved, training_criteria
 from rover_env.calibration.diagnosis.state import Diagnosis, Options
+from rover_env.independent.generate import make_independent_logs
 
 SKIPPED = ("loose_soil",)
 
@@ -109,10 +113,11 @@ def truth_ext(
 
 
 def single_cases(
-    blocks: list[str], works: list[str], only: str | None = None
+    blocks: list[str], works: list[str], only: str | None = None, make: bool = False
 ) -> list[tuple[dict[str, Any], str]]:
     """(case, work folder) of every non-soil single of the blocks (``only``: one effect's);
-    a case whose logs are missing stops the run with its name."""
+    a case whose logs are missing stops the run with its name, or with ``make`` is driven
+    again (:func:`make_case_logs`)."""
     jobs = []
     for block, work in zip(blocks, works, strict=True):
         for case in json.loads((Path(block) / "independent.json").read_text()):
@@ -120,17 +125,28 @@ def single_cases(
                 continue
             if only and only not in case["truth"]:
                 continue
-            if not (Path(work) / case["case"] / "logs").is_dir():
+            if not make and not (Path(work) / case["case"] / "logs").is_dir():
                 raise SystemExit(f"{work}: no logs for case {case['case']} (block {block})")
             jobs.append((case, work))
     print(f"{len(jobs)} single-effect cases", flush=True)
     return jobs
 
 
+def make_case_logs(case: dict[str, Any], work: str) -> None:
+    """The case's logs as ``bench_independent.py`` drove them (its seed, effects, drives and
+    duration: the generator is deterministic), where they are missing."""
+    logs = Path(work) / case["case"] / "logs"
+    if not logs.is_dir():
+        make_independent_logs(
+            logs, case["effects"], drives=DRIVES, seed=case["seed"], duration=DURATION
+        )
+
+
 def _one(args: tuple[dict[str, Any], str, dict[str, Any]]) -> dict[str, Any]:
     case, work, motor = args
     row = case_row(case)
     try:
+        make_case_logs(case, work)
         row.update(test_at_truth(Path(work) / case["case"] / "logs", truth_ext(case, motor), motor))
     except Exception as exc:  # a case that cannot be replayed is reported, not skipped
         row["error"] = f"{type(exc).__name__}: {exc}"
@@ -197,11 +213,14 @@ def main() -> int:
     ap.add_argument("--out", default=None, help="where to write (default: the first block)")
     add_motor_argument(ap)
     ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument(
+        "--make-logs", action="store_true", help="drive a case's logs again where missing"
+    )
     a = ap.parse_args()
     if len(a.block) != len(a.work):
         ap.error("give one --work per --block")
     motor = motors(a)
-    jobs = [(case, work, motor) for case, work in single_cases(a.block, a.work)]
+    jobs = [(case, w, motor) for case, w in single_cases(a.block, a.work, make=a.make_logs)]
     with ProcessPoolExecutor(max(1, a.workers)) as pool:
         rows = list(pool.map(_one, jobs))
     out = Path(a.out or a.block[0])
