@@ -135,7 +135,7 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
         f" {_share([not r['named'] and bool(r['unexplained']) for r in outside])} (nothing"
         f" named {_share([not r['named'] for r in outside])}, gap reported"
         f" {_share([bool(r['unexplained']) for r in outside])})",
-        "- Torque-limit cuts: named with a covering interval, or a drive proposed"
+        "- Torque-limit cuts: named with a covering interval, or an evidence drive driven"
         f" {_share(torque)}; reached (cut ≥ its threshold): named covering {_share(reached)};"
         f" not reached: a torque drive proposed {_share(unreached)}",
         f"- Loose soil: named with k_phi within a factor of 2 {_share(soil)}",
