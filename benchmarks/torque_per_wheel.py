@@ -33,7 +33,9 @@ SCALE: dict[str, float] = {}
 _ROBOT_XML = model_xml.robot_xml
 
 
-def _per_wheel_xml(cfg: RoverConfig) -> str:
+def per_wheel_xml(cfg: RoverConfig) -> str:
+    """The robot's MJCF with each driven wheel's motor limited at the configuration's limit
+    times its :data:`SCALE` (none: the configuration's model)."""
     xml = _ROBOT_XML(cfg)
     for wn, s in SCALE.items():
         tag = f'<dcmotor name="motor_{wn}" class="motor" joint="wheel_{wn}"'
@@ -49,7 +51,7 @@ def one(logs: str) -> dict[str, Any]:
     kt = truth["nuisance"]["k_t"]
     target = (1.0 + frac) * TORQUE_RATIO  # the limit over the configuration's, in N m
     common = max(target - 1.0, -0.8)  # the catalogue's range ends at -0.8
-    model_xml.robot_xml = _per_wheel_xml
+    model_xml.robot_xml = per_wheel_xml
     row: dict[str, Any] = {"logs": logs, "fraction": target - 1.0, "k_t": kt}
     for mode in ("one", "per wheel"):
         SCALE.clear()
