@@ -455,7 +455,7 @@ class RoverSim:
         0 = before any): ``d.qpos[qpos]``, ``d.xpos[body]`` and ``d.xmat[body]`` (flat) at
         each read, as arrays (reads, ...). The same numbers to the bit as one :meth:`drive`
         per stretch between reads (tested), checked once at the end: a replay reads after
-        every log row, and one call per row cost it a sixth of its time
+        every log row, and one call per row cost it about a seventh of its time
         (benchmarks/bench_replay.py). Hinge effects and the numpy backend drive stretch by
         stretch."""
         tt = np.asarray(targets, dtype=float).reshape(-1, 4)
