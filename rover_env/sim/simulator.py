@@ -433,20 +433,13 @@ class RoverSim:
                 self.speed_targets[:] = u
                 self.step(int(n))
             return
-        if self._cmd_effects and not self._hinge_effects:
-            self._drive_commanded(tt, nn)
-            return
         if self._hinge_effects:
             for u, n in zip(tt, nn, strict=True):
                 self.speed_targets[:] = u
                 self._step_commanded(int(n), check=False)
             self.check()
             return
-        m, d, vel = self.model, self.data, self._ctrl_vel
-        for u, n in zip(tt, nn, strict=True):
-            self.speed_targets[:] = d.ctrl[vel] = u
-            mujoco.mj_step(m, d, int(n))
-        self.check()
+        self.drive_read(tt, nn, (), (), 0)  # the plugin's batched paths, nothing read
 
     def drive_read(
         self, targets: ArrayLike, steps: ArrayLike, after: ArrayLike, qpos: ArrayLike, body: int
@@ -513,7 +506,7 @@ class RoverSim:
     ) -> Callable[[NDArray[np.int64]], None]:
         """:meth:`drive_read`'s stepper with command effects: every substep's motor targets
         at once (:func:`command_sequence`, one recursion over all rows), queued stretch by
-        stretch ``SCHEDULE_ROWS`` at a time (as :meth:`_drive_commanded`)."""
+        stretch ``SCHEDULE_ROWS`` at a time."""
         m, d = self.model, self.data
         assert self._plugin is not None
         plugin = self._plugin
@@ -531,24 +524,6 @@ class RoverSim:
             self._substep += len(rows)
 
         return run
-
-    def _drive_commanded(self, tt: Array, nn: NDArray[np.int64]) -> None:
-        """:meth:`drive`'s rows through the command effects on the plugin: every substep's
-        motor targets at once (:func:`command_sequence`), queued ``SCHEDULE_ROWS`` at a
-        time across rows. The same substeps and targets as row by row
-        (:meth:`_step_commanded`), so the same numbers to the bit; a lag's replay spent
-        a third of its time in the per-row calls (benchmarks/bench_replay.py)."""
-        m, d = self.model, self.data
-        assert self._plugin is not None
-        rows = command_sequence(self._cmd_effects, np.repeat(tt, nn, axis=0), self.dt)
-        for j in range(0, len(rows), SCHEDULE_ROWS):
-            chunk = rows[j : j + SCHEDULE_ROWS]
-            self._plugin.queue_commands(d.plugin_state, chunk)
-            mujoco.mj_step(m, d, len(chunk))
-        self._substep += len(rows)
-        if len(tt):
-            self.speed_targets[:] = tt[-1]
-        self.check()
 
     def _advance_setpoints(self, u: Array) -> None:
         """One substep of the speed loop's setpoints (:func:`advance_setpoints`)."""
