@@ -463,26 +463,27 @@ class RoverSim:
             i, j = np.argwhere(~np.isfinite(tt))[0]
             raise ValueError(f"speed targets not finite in row {i} for wheel {DRIVEN_WHEELS[j]}")
         batched = self._plugin is not None and not self._hinge_effects
-        if not batched:  # hinge effects, the numpy backend: stretch by stretch
-            k = 0
-            for j, r in enumerate([*at.tolist(), len(tt)]):
-                if r > k or j == len(at):
-                    self.drive(tt[k:r], nn[k:r])
-                k = r
-                if j < len(at):
-                    out[0][j], out[1][j], out[2][j] = d.qpos[qi], d.xpos[body], d.xmat[body]
-            return out
-        lim = self.cfg.motor.max_wheel_speed
-        tt = np.clip(tt, -lim, lim)
-        stretches = np.split(np.arange(len(tt)), at)
-        run = self._stretch_commanded(tt, nn) if self._cmd_effects else self._stretch_plain(tt, nn)
-        for j, rows in enumerate(stretches):
+        if batched:
+            lim = self.cfg.motor.max_wheel_speed
+            tt = np.clip(tt, -lim, lim)
+            run = (
+                self._stretch_commanded(tt, nn)
+                if self._cmd_effects
+                else self._stretch_plain(tt, nn)
+            )
+        else:  # hinge effects, the numpy backend: drive() stretch by stretch
+
+            def run(idx: NDArray[np.int64]) -> None:
+                self.drive(tt[idx], nn[idx])
+
+        for j, rows in enumerate(np.split(np.arange(len(tt)), at)):
             run(rows)
             if j < len(at):
                 out[0][j], out[1][j], out[2][j] = d.qpos[qi], d.xpos[body], d.xmat[body]
-        if len(tt):
-            self.speed_targets[:] = tt[-1]
-        self.check()
+        if batched:
+            if len(tt):
+                self.speed_targets[:] = tt[-1]
+            self.check()
         return out
 
     def _stretch_plain(
