@@ -31,6 +31,19 @@ fitted over true k_phi on the named soils of stored blocks (``--soil``, each blo
 
     python benchmarks/form_allowance.py --soil docs/calibration/block[0-9]* \\
         --write configs/calibration/form_allowance.yaml
+
+An effect that is there is sometimes fitted off the other way than clean drives push it (a
+lag fitted short by a few ms, where clean drives only add lag). ``--named`` measures, on
+the right names of stored singles (each block's ``independent.json``), how far the truth
+sat below and above the name's own interval before any widening (95 % quantiles; effects
+with at least ``--min-named`` such names); diagnose pads each side by the larger of that
+and the clean spread (:class:`rover_env.calibration.form_allowance.Bias`). Like ``--soil``,
+``--named`` alone updates an existing table. ``--evaluate`` with ``--named`` (and
+``--calibrate``) reports what the combined pad covers on other blocks' right singles, from
+their stored intervals before widening:
+
+    python benchmarks/form_allowance.py --calibrate B1 ... --named B1 ... \\
+        --evaluate B9 ... --out out/allowance
 """
 
 from __future__ import annotations
@@ -45,7 +58,13 @@ from typing import Any
 import numpy as np
 from _report import write_report
 
-from rover_env.calibration.form_allowance import FACTOR, Bias, FormAllowance, widen
+from rover_env.calibration.form_allowance import (
+    FACTOR,
+    Bias,
+    FormAllowance,
+    load_allowance,
+    widen,
+)
 
 SKIP = {"combined_slip", "loose_soil"}
 """A switch has no size; the soil's fit is a stiffness (its own acceptance line)."""
@@ -91,6 +110,57 @@ def soil_ratios(blocks: list[Path]) -> list[float]:
     return out
 
 
+def raw_interval(fit: dict[str, Any]) -> tuple[float, float] | None:
+    """A stored fit's 95 % interval before the allowance widened it (``lo_raw``, ``hi_raw``
+    stored since block 51600; the blocks before the allowance stored only that one, as ``lo``,
+    ``hi``)."""
+    lo, hi = (
+        (fit.get("lo_raw"), fit.get("hi_raw"))
+        if "lo_raw" in fit
+        else (fit.get("lo"), fit.get("hi"))
+    )
+    if lo is None or hi is None:
+        return None
+    return float(lo), float(hi)
+
+
+def misses(blocks: list[Path]) -> dict[str, list[tuple[float, float]]]:
+    """Per effect, (lo - truth, truth - hi) of each right single name of ``blocks``'
+    stored rows, its interval before widening (positive: the truth sat outside)."""
+    out: dict[str, list[tuple[float, float]]] = defaultdict(list)
+    for b in blocks:
+        for r in json.loads((b / "independent.json").read_text()):
+            truth = r["truth"] if isinstance(r["truth"], dict) else {}
+            if r["kind"] != "single" or len(truth) != 1:
+                continue
+            (name,) = truth
+            f = (r.get("fits") or {}).get(name) or {}
+            raw = raw_interval(f)
+            if name in SKIP or name not in (r.get("named") or []) or f.get("truth") is None:
+                continue
+            if raw is None:
+                continue
+            t = abs(f["truth"]) if name == "slope" else float(f["truth"])
+            out[name].append((raw[0] - t, t - raw[1]))
+    return dict(out)
+
+
+def beyond(
+    found: dict[str, list[tuple[float, float]]], least: int = 10
+) -> dict[str, tuple[float, float, int]]:
+    """Per effect with at least ``least`` right names, (below, above, n): the 95 % quantiles
+    of how far the truth sat below and above the name's interval (0 where it sat inside)."""
+    return {
+        k: (
+            max(0.0, float(np.quantile([m[0] for m in v], 0.95))),
+            max(0.0, float(np.quantile([m[1] for m in v], 0.95))),
+            len(v),
+        )
+        for k, v in sorted(found.items())
+        if len(v) >= least
+    }
+
+
 def factor(ratios: list[float]) -> tuple[float, float, int]:
     """(q05, q95, n) of ``ratios``, taken on their logarithms (a factor either way counts
     alike)."""
@@ -102,11 +172,18 @@ def factor(ratios: list[float]) -> tuple[float, float, int]:
     )
 
 
-def widened(name: str, lo: float, hi: float, q: tuple[float, float, int]) -> tuple[float, float]:
+def widened(
+    name: str,
+    lo: float,
+    hi: float,
+    q: tuple[float, float, int],
+    out: tuple[float, float, int] = (0.0, 0.0, 0),
+) -> tuple[float, float]:
     """The interval for the truth with the form bias's spread in it, as diagnose widens it
-    (:meth:`rover_env.calibration.form_allowance.FormAllowance.pad`: never narrower)."""
+    (:meth:`rover_env.calibration.form_allowance.FormAllowance.pad`: never narrower); ``out``
+    (below, above, n) from :func:`beyond`."""
     q05, q95, n = q
-    pad = FormAllowance({name: Bias(q05, q95, n)}).pad(name) or (0.0, 0.0)
+    pad = FormAllowance({name: Bias(q05, q95, n, *out)}).pad(name) or (0.0, 0.0)
     return widen(name, lo, hi, pad, (-math.inf, math.inf))
 
 
@@ -143,19 +220,29 @@ def named(rows: list[dict[str, Any]], allow: dict[str, tuple[float, float, int]]
 
 
 def write_table(
-    allow: dict[str, tuple[float, float, int]], blocks: list[Path], soils: list[Path], path: Path
+    allow: dict[str, tuple[float, float, int]],
+    blocks: list[Path],
+    soils: list[Path],
+    path: Path,
+    out: dict[str, tuple[float, float, int]] | None = None,
+    named_blocks: list[Path] | None = None,
 ) -> None:
     """The allowance as diagnose reads it (:func:`rover_env.calibration.form_allowance.load_allowance`).
-    Without ``blocks`` the clean entries and their source are kept from the table at ``path``."""
+    Without ``blocks`` the clean entries and their source are kept from the table at ``path``;
+    without ``out`` (from :func:`beyond`, measured on ``named_blocks``) its named-side
+    entries too."""
     import yaml
 
     source = (
         "benchmarks/form_allowance.py on the independent generator's clean cases of blocks"
         f" {', '.join(b.name for b in blocks)} (first diagnosis of each)"
     )
+    old = yaml.safe_load(path.read_text()) if path.exists() else {"effects": {}, "source": ""}
+    old_named = {
+        k: (v["below"], v["above"], v["named"]) for k, v in old["effects"].items() if v.get("named")
+    }
     if not blocks:
-        old = yaml.safe_load(path.read_text())
-        source = old["source"].split("; loose_soil:")[0]
+        source = old["source"].split("; ")[0]
         kept = {k: v for k, v in old["effects"].items() if k not in FACTOR}
         allow = {k: (v["low"], v["high"], v["cases"]) for k, v in kept.items()} | allow
     if soils:
@@ -163,16 +250,36 @@ def write_table(
             "; loose_soil: fitted over true k_phi of the named soils of blocks"
             f" {', '.join(b.name for b in soils)}"
         )
+    else:  # the soil's factor is measured apart (--soil): kept as it was
+        kept = {k: v for k, v in old["effects"].items() if k in FACTOR}
+        allow |= {k: (v["low"], v["high"], v["cases"]) for k, v in kept.items()}
+        source += "".join(
+            f"; {p}" for p in old["source"].split("; ") if p.startswith("loose_soil: ")
+        )
+    if out is None:
+        out = {k: v for k, v in old_named.items() if k in allow}
+        kept_source = [p for p in old["source"].split("; ") if p.startswith("below/above: ")]
+        source += "".join(f"; {p}" for p in kept_source)
+    elif out:
+        source += (
+            "; below/above: the truth beyond right single names' own intervals in blocks"
+            f" {', '.join(b.name for b in named_blocks or [])}"
+        )
+    effects: dict[str, dict[str, float | int]] = {}
+    for k, (q05, q95, n) in sorted(allow.items()):
+        effects[k] = {"low": round(q05, 6), "high": round(q95, 6), "cases": n}
+        if k in out and k not in FACTOR:
+            below, above, m = out[k]
+            effects[k] |= {"below": round(below, 6), "above": round(above, 6), "named": m}
     doc = {
         "description": "Clean-fit allowance: 5 % and 95 % quantiles of each effect's fit on"
         " clean drives (a slope's tilt in degrees); diagnose widens a named effect's interval"
-        " for the truth to [lo - high, hi - low]. loose_soil: quantiles of fitted over true"
-        " k_phi on named soils, the interval for the truth [lo / high, hi / low].",
+        " for the truth to [lo - high, hi - low]. below/above (where measured): 95 % quantiles"
+        " of how far the truth sat beyond right names' own intervals; each side is padded by"
+        " the larger. loose_soil: quantiles of fitted over true k_phi on named soils, the"
+        " interval for the truth [lo / high, hi / low].",
         "source": source,
-        "effects": {
-            k: {"low": round(q05, 6), "high": round(q95, 6), "cases": n}
-            for k, (q05, q95, n) in sorted(allow.items())
-        },
+        "effects": effects,
     }
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(
@@ -201,6 +308,88 @@ def table(allow: dict[str, tuple[float, float, int]], got: list[dict]) -> list[s
             f" {sum(g['refused'] for g in other)}/{len(other)} |"
         )
     return lines
+
+
+def clean_or_shipped(
+    allow: dict[str, tuple[float, float, int]],
+) -> dict[str, tuple[float, float, int]]:
+    """``allow``'s clean entries, or the shipped table's where none were calibrated here (the
+    blocks in git keep their rows, not their clean cases' diagnoses)."""
+    mine = {k: v for k, v in allow.items() if k not in FACTOR}
+    if mine:
+        return mine
+    shipped = load_allowance().effects
+    return {k: (b.low, b.high, b.cases) for k, b in shipped.items() if k not in FACTOR}
+
+
+def beyond_table(
+    allow: dict[str, tuple[float, float, int]],
+    out: dict[str, tuple[float, float, int]],
+    found: dict[str, list[tuple[float, float]]],
+    named_blocks: list[Path],
+) -> list[str]:
+    """Coverage of the evaluated blocks' right singles (their intervals before widening) by
+    the clean pad alone and by the clean pad joined with ``out``."""
+    lines = [
+        f"Right single names of the evaluated blocks, their intervals before widening; the"
+        f" truth beyond right names' intervals measured on {', '.join(b.name for b in named_blocks)}:",
+        "",
+        "| effect | named | measured on | below | above | covered: clean pad | clean pad and beyond |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, rows in sorted(found.items()):
+        q = allow.get(name)
+        if q is None:
+            continue
+        o = out.get(name, (0.0, 0.0, 0))
+        clean = FormAllowance({name: Bias(*q)}).pad(name) or (0.0, 0.0)
+        both = FormAllowance({name: Bias(*q, *o)}).pad(name) or (0.0, 0.0)
+        lines.append(
+            f"| {name} | {len(rows)} | {o[2]} | {o[0]:.3g} | {o[1]:.3g} |"
+            f" {sum(b <= clean[0] and a <= clean[1] for b, a in rows)}/{len(rows)} |"
+            f" {sum(b <= both[0] and a <= both[1] for b, a in rows)}/{len(rows)} |"
+        )
+    return [*lines, ""]
+
+
+def plot_beyond(
+    allow: dict[str, tuple[float, float, int]],
+    out: dict[str, tuple[float, float, int]],
+    found: dict[str, list[tuple[float, float]]],
+    path: Path,
+) -> None:
+    """Per effect: how far the evaluated right names' truths sat below and above their own
+    intervals (positive: outside), with the clean pad and the combined pad on each side."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = [n for n in sorted(found) if n in allow]
+    fig, axes = plt.subplots(1, max(1, len(names)), figsize=(2.4 * max(1, len(names)), 3.2))
+    for ax, name in zip(np.atleast_1d(axes), names, strict=False):
+        rows = np.array(found[name])
+        clean = FormAllowance({name: Bias(*allow[name])}).pad(name) or (0.0, 0.0)
+        both = FormAllowance({name: Bias(*allow[name], *out.get(name, (0, 0, 0)))}).pad(name)
+        for i, side in enumerate(("below", "above")):
+            ax.plot(np.full(len(rows), i), rows[:, i], "o", alpha=0.5, color="C3")
+            ax.hlines(clean[i], i - 0.3, i + 0.3, color="C0", label="clean pad" if i else None)
+            ax.hlines(
+                (both or clean)[i],
+                i - 0.3,
+                i + 0.3,
+                color="C2",
+                ls="--",
+                label="combined" if i else None,
+            )
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_xticks([0, 1], ["lo - truth", "truth - hi"])
+        ax.set_title(name.replace("_", " "), fontsize=8)
+    np.atleast_1d(axes)[0].legend(fontsize=6)
+    fig.suptitle("Right names: the truth outside their own interval, and the pads")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def plot(fits: dict[str, list[float]], ratios: list[float], got: list[dict], path: Path) -> None:
@@ -255,29 +444,43 @@ def main() -> None:
     ap.add_argument(
         "--soil", nargs="+", type=Path, default=[], help="block dirs (named soils' k_phi)"
     )
+    ap.add_argument(
+        "--named",
+        nargs="+",
+        type=Path,
+        default=[],
+        help="block dirs (the truth beyond right names' own intervals)",
+    )
+    ap.add_argument(
+        "--min-named", type=int, default=10, help="right names an effect needs (default 10)"
+    )
     ap.add_argument("--evaluate", nargs="+", type=Path, default=[], help="block dirs")
     ap.add_argument("--out", type=Path, help="folder for allowance.md and .png (with --evaluate)")
     ap.add_argument("--write", type=Path, help="write the allowance table diagnose reads")
     a = ap.parse_args()
     if not a.write and not (a.evaluate and a.out):
         ap.error("give --write PATH, or --evaluate BLOCK... with --out DIR")
-    if not a.calibrate and not a.soil:
-        ap.error("give --calibrate BLOCK..., --soil BLOCK..., or both")
+    if not (a.calibrate or a.soil or a.named):
+        ap.error("give --calibrate BLOCK..., --soil BLOCK..., --named BLOCK..., or several")
     if a.write and not a.calibrate and not a.write.exists():
-        ap.error(f"--write {a.write}: --soil alone updates an existing table; give --calibrate")
+        ap.error(
+            f"--write {a.write}: --soil or --named alone updates an existing table; give --calibrate"
+        )
     fits = clean_fits(a.calibrate)
     allow = allowance(fits)
     ratios: list[float] = []
-    if missing := [str(b) for b in a.soil if not (b / "independent.json").is_file()]:
-        ap.error(f"--soil: no independent.json in {', '.join(missing)}")
+    for flag, given in (("--soil", a.soil), ("--named", a.named), ("--evaluate", a.evaluate)):
+        if missing := [str(b) for b in given if not (b / "independent.json").is_file()]:
+            ap.error(f"{flag}: no independent.json in {', '.join(missing)}")
+    out = beyond(misses(a.named), a.min_named) if a.named else None
     if a.soil:
         ratios = soil_ratios(a.soil)
         if len(ratios) < 10:
             ap.error(f"--soil: {len(ratios)} named soils in those blocks, at least 10 needed")
         allow["loose_soil"] = factor(ratios)
     if a.write:
-        write_table(allow, a.calibrate, a.soil, a.write)
-        print(f"wrote {a.write}: {', '.join(allow)}")
+        write_table(allow, a.calibrate, a.soil, a.write, out, a.named)
+        print(f"wrote {a.write}; below/above measured for: {', '.join(out or {}) or 'none'}")
     if not a.evaluate:
         return
     rows = [r for b in a.evaluate for r in json.loads((b / "independent.json").read_text())]
@@ -286,17 +489,20 @@ def main() -> None:
     text = [
         "# Clean-fit allowance (benchmarks/form_allowance.py)",
         "",
-        f"Calibrated on the clean cases of {', '.join(b.name for b in a.calibrate)};"
+        f"Calibrated on the clean cases of {', '.join(b.name for b in a.calibrate) or 'none'};"
         f" evaluated on the named effects of {', '.join(b.name for b in a.evaluate)}."
         " Blocks diagnosed since stop 74 store intervals already widened by the shipped table.",
         "",
-        *table(allow, got),
-        "",
-        "![form bias](allowance.png)",
-        "",
+        *([*table(allow, got), ""] if allow else []),
+        *(beyond_table(clean_or_shipped(allow), out, misses(a.evaluate), a.named) if out else []),
+        *(["![beyond](beyond.png)", ""] if out else []),
+        *(["![form bias](allowance.png)", ""] if fits or ratios else []),
     ]
     write_report(a.out / "allowance.md", "\n".join(text))
-    plot(fits, ratios, got, a.out / "allowance.png")
+    if fits or ratios:
+        plot(fits, ratios, got, a.out / "allowance.png")
+    if out:
+        plot_beyond(clean_or_shipped(allow), out, misses(a.evaluate), a.out / "beyond.png")
     print("\n".join(text))
 
 

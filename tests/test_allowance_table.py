@@ -16,7 +16,7 @@ from rover_env.calibration.diagnose import add_cli
 from rover_env.calibration.diagnosis.select import allow_form
 from rover_env.calibration.diagnosis.state import Diagnosis, Options
 from rover_env.calibration.fit import Fit
-from rover_env.calibration.form_allowance import Bias, FormAllowance, load_allowance
+from rover_env.calibration.form_allowance import Bias, FormAllowance, load_allowance, widen
 from rover_env.config import ConfigError
 
 
@@ -88,6 +88,31 @@ def test_pad_turns_the_spread_into_how_far_the_truth_may_sit() -> None:
     assert a.pad("command_lag") is None
 
 
+def test_the_truth_beyond_right_names_pads_each_side_by_the_larger() -> None:
+    """Stop 99: a lag that is there is fitted a little short (spent case 52505: 0.4455 s
+    fitted 0.432 [0.380, 0.443]), where clean drives only add lag; each side takes the
+    larger of the clean spread and how far right names missed on that side."""
+    a = FormAllowance(
+        {
+            "command_lag": Bias(0.0, 0.042, 100, below=0.0, above=0.0022, named=57),
+            "command_delay": Bias(0.002, 0.032, 100, below=0.022, above=0.0, named=66),
+            "slope": Bias(0.27, 2.4, 100, below=0.45, above=3.0, named=32),
+            "friction": Bias(-0.23, 0.06, 50),
+        }
+    )
+    assert a.pad("command_lag") == (0.042, 0.0022)
+    assert a.pad("command_delay") == (0.032, 0.0)  # the clean spread is the larger below
+    assert a.pad("slope") == (2.4, 3.0)
+    assert a.pad("friction") == (0.06, 0.23)  # not measured: the clean spread alone
+    # the naming bar reads the side toward "off" (below a lag's fit): unchanged by ``above``
+    assert a.edge("command_lag", "+") == 0.042
+    lo, hi = widen("command_lag", 0.380, 0.443, a.pad("command_lag") or (0, 0), (0.0, 2.0))
+    # 52505's own truth stays 0.3 ms outside: a 95 % quantile leaves about 1 in 20 out
+    assert lo == pytest.approx(0.338) and hi == pytest.approx(0.4452) and hi < 0.4455
+    with pytest.raises(ConfigError, match="above must be"):
+        Bias(0.0, 0.04, 10, above=-0.001)
+
+
 def test_physical_interval_carries_the_allowance_within_the_range() -> None:
     f = _fit("command_delay", [0.05], 0.005)
     f.allowance = {"command_delay": (0.027, 0.0)}
@@ -132,6 +157,9 @@ def test_a_bad_table_fails_before_any_work_naming_file_and_key(tmp_path: Path) -
         load_allowance(bad)
     bad.write_text("effects:\n  loose_soil: {low: 0.0, high: 3.0, cases: 5}\n")
     with pytest.raises(ConfigError, match=r"a\.yaml: effects\.loose_soil\.low: a factor"):
+        load_allowance(bad)
+    bad.write_text("effects:\n  command_lag: {low: 0.0, high: 0.04, cases: 5, above: .nan}\n")
+    with pytest.raises(ConfigError, match=r"a\.yaml.*effects\.command_lag.*above"):
         load_allowance(bad)
     bad.write_text("effects:\n  command_delay: {low: 0.0, hgh: 0.01, cases: 5}\n")
     with pytest.raises(ConfigError, match=r"unknown key.*hgh"):

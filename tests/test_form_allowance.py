@@ -7,7 +7,9 @@ import json
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
+import yaml
 from _bench import load_bench
 
 
@@ -185,4 +187,87 @@ def test_the_command_line_evaluates_with_or_without_soils(
     )
     with pytest.raises(SystemExit):
         fa.main()  # --soil alone updates a table: none there
-    assert "--soil alone updates an existing table" in capsys.readouterr().err
+    assert "--soil or --named alone updates an existing table" in capsys.readouterr().err
+
+
+def _named_block(block: Path, cases: list[tuple[float, float, float, float]], raw: bool) -> None:
+    """Right single lags (truth, value, lo, hi); ``raw``: stored with the pre-widening
+    interval (``lo_raw``, ``hi_raw``; lo widened by 0.04 as the shipped table would)."""
+    rows = []
+    for i, (t, v, lo, hi) in enumerate(cases):
+        fit: dict[str, float] = {"truth": t, "value": v, "lo": lo, "hi": hi}
+        if raw:
+            fit |= {"lo": lo - 0.04, "lo_raw": lo, "hi_raw": hi}
+        rows.append(
+            {
+                "case": f"single_command_lag_{i}",
+                "kind": "single",
+                "truth": {"command_lag": {"tau": t}},
+                "named": ["command_lag"],
+                "fits": {"command_lag": fit},
+            }
+        )
+    rows.append(  # named but not the truth: not counted
+        {
+            "case": "single_command_delay_9",
+            "kind": "single",
+            "truth": {"command_delay": {"delay": 0.05}},
+            "named": ["command_lag"],
+            "fits": {"command_lag": {"truth": None, "value": 0.1, "lo": 0.0, "hi": 0.2}},
+        }
+    )
+    block.mkdir(parents=True, exist_ok=True)
+    (block / "independent.json").write_text(json.dumps(rows))
+
+
+def test_the_truth_beyond_right_names_is_read_from_their_unwidened_intervals(
+    fa: ModuleType, tmp_path: Path
+) -> None:
+    """Stop 99: how far the truth sat outside a right name's own interval, per side."""
+    # 20 lags fitted short: truth above hi by 0 .. 0.0019 s (every other one inside)
+    cases = [(0.1, 0.095, 0.09, 0.1 - 0.0001 * i * (i % 2)) for i in range(20)]
+    _named_block(tmp_path / "old", cases[:10], raw=False)
+    _named_block(tmp_path / "new", cases[10:], raw=True)
+    found = fa.misses([tmp_path / "old", tmp_path / "new"])
+    assert set(found) == {"command_lag"} and len(found["command_lag"]) == 20
+    below, above, n = fa.beyond(found)["command_lag"]
+    assert n == 20 and below == 0.0
+    assert above == pytest.approx(np.quantile([0.0001 * i * (i % 2) for i in range(20)], 0.95))
+    assert fa.beyond(found, least=21) == {}  # too few names: not measured
+    # the combined pad covers a truth 1.5 ms above that the clean one left out
+    q = (0.0, 0.042, 100)
+    assert fa.widened("command_lag", 0.09, 0.0985, q)[1] == 0.0985
+    assert fa.widened("command_lag", 0.09, 0.0985, q, (below, above, n))[1] >= 0.1
+
+
+def test_named_alone_updates_a_table_keeping_clean_and_soil_entries(
+    fa: ModuleType, tmp_path: Path
+) -> None:
+    from rover_env.calibration.form_allowance import load_allowance
+
+    for i in range(21):
+        _clean(tmp_path / "clean", i, 0.001 * i, 0.1 * i)
+    path = tmp_path / "table.yaml"
+    fa.write_table(
+        fa.allowance(fa.clean_fits([tmp_path / "clean"])), [tmp_path / "clean"], [], path
+    )
+    fa.write_table({"loose_soil": (0.6, 3.4, 12)}, [], [tmp_path / "b9"], path)
+    fa.write_table({}, [], [], path, {"command_delay": (0.01, 0.003, 30)}, [tmp_path / "b7"])
+    got = load_allowance(path)
+    assert set(got.effects) == {"command_delay", "loose_soil", "slope"}
+    d = got.effects["command_delay"]
+    assert (d.high, d.below, d.above, d.named) == (pytest.approx(0.019), 0.01, 0.003, 30)
+    assert got.pad("command_delay") == (pytest.approx(0.019), 0.003)
+    assert got.effects["slope"].named == 0  # not measured there
+    text = yaml.safe_load(path.read_text())["source"]
+    assert (
+        "named soils of blocks b9" in text
+        and "right single names' own intervals in blocks b7" in text
+    )
+    # clean entries calibrated again: the named-side entries and the soil stay
+    fa.write_table(
+        fa.allowance(fa.clean_fits([tmp_path / "clean"])), [tmp_path / "clean"], [], path
+    )
+    got = load_allowance(path)
+    assert got.effects["command_delay"].named == 30 and got.pad("loose_soil") == (3.4, 0.6)
+    assert path.read_text().count("b7") == 1

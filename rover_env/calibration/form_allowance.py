@@ -16,6 +16,12 @@ another implementation, a factor: the interval for the truth is [lo / high, hi /
 It never withdraws a name (:func:`rover_env.calibration.diagnosis.judge.allowance_reaches_off`):
 whether soil is there at all is the windows' question.
 
+An effect that is there can be fitted off the other way (``below``, ``above``): a command lag
+of 0.4455 s fitted 0.432 [0.380, 0.443] (spent case 52505), where clean drives only ever
+add lag. So each entry may also carry how far the truth sat beyond a right name's own
+interval on named singles of another implementation (95 % quantiles, ``benchmarks/
+form_allowance.py --named``), and the pad on each side is the larger of the two.
+
 The shipped table (``configs/calibration/form_allowance.yaml``) is measured by
 ``benchmarks/form_allowance.py --write`` on the independent generator's clean cases; it is
 that implementation's mismatch with this model, the only one measured, not a real rover's.
@@ -51,12 +57,23 @@ class Bias:
     """95 % quantile of the clean fits."""
     cases: int
     """Clean diagnoses it was measured on."""
+    below: float = 0.0
+    """95 % quantile of how far below a right name's own 95 % interval (before widening) the
+    truth sat, over the named singles it was measured on (0: never, or not measured)."""
+    above: float = 0.0
+    """The same above the interval."""
+    named: int = 0
+    """Named singles ``below`` and ``above`` were measured on (0: not measured)."""
 
     def __post_init__(self) -> None:
         if not self.low <= self.high:
             raise ConfigError(f"low {self.low!r} is above high {self.high!r}")
         if self.cases < 1:
             raise ConfigError(f"cases must be at least 1, got {self.cases!r}")
+        for k in ("below", "above", "named"):
+            v = getattr(self, k)
+            if not (math.isfinite(v) and v >= 0):
+                raise ConfigError(f"{k} must be a finite number >= 0, got {v!r}")
 
 
 @dataclass(frozen=True)
@@ -70,11 +87,13 @@ class FormAllowance:
         b = self.effects.get(effect)
         if b is None:
             return None
-        if effect == "slope":
-            return max(0.0, b.high), max(0.0, b.high)
         if effect in FACTOR:
             return b.high, b.low
-        return max(0.0, b.high), max(0.0, -b.low)
+        if effect == "slope":
+            clean = max(0.0, b.high), max(0.0, b.high)
+        else:
+            clean = max(0.0, b.high), max(0.0, -b.low)
+        return max(clean[0], b.below), max(clean[1], b.above)
 
     def edge(self, effect: str, side: str) -> float:
         """The magnitude on ``side`` of "off" ("+", "-"; a slope: "deg") below which a
