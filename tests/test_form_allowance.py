@@ -132,17 +132,23 @@ def test_the_soil_factor_is_the_spread_of_fitted_over_true_k_phi(
     assert (stored, wide, sum(x["refused"] for x in g)) == (1, 19, 0)  # never refuses a soil
 
 
-def test_soil_alone_updates_a_table_keeping_its_clean_entries(
-    fa: ModuleType, tmp_path: Path
-) -> None:
-    from rover_env.calibration.form_allowance import load_allowance
-
+def _clean_table(fa: ModuleType, tmp_path: Path) -> Path:
+    """A table written from 21 clean cases (delays 0-20 ms, tilts 0-2 deg) at tmp/table.yaml."""
     for i in range(21):
         _clean(tmp_path / "clean", i, 0.001 * i, 0.1 * i)
     path = tmp_path / "table.yaml"
     fa.write_table(
         fa.allowance(fa.clean_fits([tmp_path / "clean"])), [tmp_path / "clean"], [], path
     )
+    return path
+
+
+def test_soil_alone_updates_a_table_keeping_its_clean_entries(
+    fa: ModuleType, tmp_path: Path
+) -> None:
+    from rover_env.calibration.form_allowance import load_allowance
+
+    path = _clean_table(fa, tmp_path)
     before = path.read_text()
     fa.write_table({"loose_soil": (0.6, 3.4, 12)}, [], [tmp_path / "b9"], path)
     got = load_allowance(path)
@@ -245,12 +251,7 @@ def test_named_alone_updates_a_table_keeping_clean_and_soil_entries(
 ) -> None:
     from rover_env.calibration.form_allowance import load_allowance
 
-    for i in range(21):
-        _clean(tmp_path / "clean", i, 0.001 * i, 0.1 * i)
-    path = tmp_path / "table.yaml"
-    fa.write_table(
-        fa.allowance(fa.clean_fits([tmp_path / "clean"])), [tmp_path / "clean"], [], path
-    )
+    path = _clean_table(fa, tmp_path)
     fa.write_table({"loose_soil": (0.6, 3.4, 12)}, [], [tmp_path / "b9"], path)
     fa.write_table({}, [], [], path, {"command_delay": (0.01, 0.003, 30)}, [tmp_path / "b7"])
     got = load_allowance(path)
