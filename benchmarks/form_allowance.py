@@ -371,7 +371,7 @@ def plot_beyond(
         rows = np.array(found[name])
         clean = FormAllowance({name: Bias(*allow[name])}).pad(name) or (0.0, 0.0)
         both = FormAllowance({name: Bias(*allow[name], *out.get(name, (0, 0, 0)))}).pad(name)
-        for i, side in enumerate(("below", "above")):
+        for i in (0, 1):  # below, above
             ax.plot(np.full(len(rows), i), rows[:, i], "o", alpha=0.5, color="C3")
             ax.hlines(clean[i], i - 0.3, i + 0.3, color="C0", label="clean pad" if i else None)
             ax.hlines(
