@@ -219,6 +219,11 @@ def named(rows: list[dict[str, Any]], allow: dict[str, tuple[float, float, int]]
     return out
 
 
+def _label(block: Path) -> str:
+    """A block folder's name, with its study's where it sits in one (study71700/plan71700)."""
+    return block.name if block.parent.name == "calibration" else "/".join(block.parts[-2:])
+
+
 def write_table(
     allow: dict[str, tuple[float, float, int]],
     blocks: list[Path],
@@ -263,7 +268,7 @@ def write_table(
     elif out:
         source += (
             "; below/above: the truth beyond right single names' own intervals in blocks"
-            f" {', '.join(b.name for b in named_blocks or [])}"
+            f" {', '.join(_label(b) for b in named_blocks or [])}"
         )
     effects: dict[str, dict[str, float | int]] = {}
     for k, (q05, q95, n) in sorted(allow.items()):

@@ -253,7 +253,8 @@ def test_named_alone_updates_a_table_keeping_clean_and_soil_entries(
 
     path = _clean_table(fa, tmp_path)
     fa.write_table({"loose_soil": (0.6, 3.4, 12)}, [], [tmp_path / "b9"], path)
-    fa.write_table({}, [], [], path, {"command_delay": (0.01, 0.003, 30)}, [tmp_path / "b7"])
+    blocks = [tmp_path / "calibration" / "b7", tmp_path / "study1" / "p1"]
+    fa.write_table({}, [], [], path, {"command_delay": (0.01, 0.003, 30)}, blocks)
     got = load_allowance(path)
     assert set(got.effects) == {"command_delay", "loose_soil", "slope"}
     d = got.effects["command_delay"]
