@@ -242,10 +242,10 @@ def main(argv: list[str] | None = None) -> int:
         f"Independent generator, seed {a.seed}, {a.drives} drives of {a.duration:g} s,"
         f" effect: {a.effect or 'none (clean)'} (`benchmarks/log_variants.py`).\n\n"
     )
-    write_report(
-        a.out / "log_variants.md", head + table(rows, effects) + "\n![fits](log_variants.png)\n"
-    )
-    plot(rows, effects, a.out / "log_variants.png")
+    figure = "\n![fits](log_variants.png)\n" if effects else ""  # clean: nothing to draw
+    write_report(a.out / "log_variants.md", head + table(rows, effects) + figure)
+    if effects:
+        plot(rows, effects, a.out / "log_variants.png")
     return 0 if all("error" not in r for r in rows) else 1
 
 
