@@ -151,6 +151,16 @@ def run_variant(name: str, src: list[Path], work: Path, seed: int, workers: int)
     }
 
 
+def _fit_of(row: dict[str, Any], name: str) -> tuple[float, float, float] | None:
+    """``name``'s first parameter (value, 95 % interval) in a variant's row: as named, else
+    as fitted; None where it was not fitted."""
+    params = row["named_fits"].get(name) or row["fits"].get(name, {}).get(name) or {}
+    if not params:
+        return None
+    v, lo, hi = next(iter(params.values()))
+    return float(v), float(lo), float(hi)
+
+
 def table(rows: list[dict[str, Any]], effects: dict[str, dict[str, float]]) -> str:
     name = next(iter(effects), None)
     lines = [
@@ -162,13 +172,10 @@ def table(rows: list[dict[str, Any]], effects: dict[str, dict[str, float]]) -> s
             lines.append(f"| {r['variant']} | error: {r['error']} | | | |")
             continue
         fit = "-"
-        if name:
-            params = r["named_fits"].get(name) or r["fits"].get(name, {}).get(name) or {}
-            if params:
-                v, lo, hi = next(iter(params.values()))
-                fit = f"{v:.4g} [{lo:.4g}, {hi:.4g}]" + (
-                    "" if name in r["named"] else " (not named)"
-                )
+        got = _fit_of(r, name) if name else None
+        if got is not None:
+            v, lo, hi = got
+            fit = f"{v:.4g} [{lo:.4g}, {hi:.4g}]" + ("" if name in r["named"] else " (not named)")
         noise = ", ".join(f"{1e3 * n:.2f}" for n in r["wheel_noise"])
         lines.append(
             f"| {r['variant']} | {', '.join(r['named']) or '-'} | {fit} | {noise} |"
@@ -178,21 +185,20 @@ def table(rows: list[dict[str, Any]], effects: dict[str, dict[str, float]]) -> s
 
 
 def plot(rows: list[dict[str, Any]], effects: dict[str, dict[str, float]], path: Path) -> None:
-    """Each variant's fit of the effect and its interval, the truth as a line."""
+    """Each variant's fit of the one effect in ``effects`` and its interval, the drawn value
+    as a line."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    name = next(iter(effects), None)
+    (name,) = effects
     fig, ax = plt.subplots(figsize=(6.0, 3.5))
     for i, r in enumerate(rows):
-        params = (r.get("named_fits") or {}).get(name or "") or (
-            (r.get("fits") or {}).get(name or "", {}).get(name or "") or {}
-        )
-        if not params:
+        fit = _fit_of(r, name)
+        if fit is None:
             continue
-        v, lo, hi = next(iter(params.values()))
+        v, lo, hi = fit
         named = name in r.get("named", [])
         ax.errorbar(
             i,
@@ -202,12 +208,11 @@ def plot(rows: list[dict[str, Any]], effects: dict[str, dict[str, float]], path:
             color="C0" if named else "C3",
             capsize=4,
         )
-    if name:
-        drawn = next(iter(effects[name].values()))
-        ax.axhline(drawn, color="k", lw=0.8, ls="--", label="drawn (generator's parameter)")
-        ax.legend(fontsize=8)
+    drawn = next(iter(effects[name].values()))
+    ax.axhline(drawn, color="k", lw=0.8, ls="--", label="drawn (generator's parameter)")
+    ax.legend(fontsize=8)
     ax.set_xticks(range(len(rows)), [r["variant"] for r in rows], fontsize=8)
-    ax.set_ylabel(f"{name or 'nothing injected'}: fit (circle: named)")
+    ax.set_ylabel(f"{name}: fit (circle: named)")
     ax.set_title("diagnose on the same drives, logged otherwise")
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -79,3 +79,31 @@ def test_an_effect_is_given_in_the_generators_own_parameter(lv: ModuleType) -> N
     assert lv.parse_effect(None) == {}
     assert lv.parse_effect("rolling_resistance=0.04") == {"rolling_resistance": {"c_rr": 0.04}}
     assert lv.parse_effect("slope=4,heading_deg=60") == {"slope": {"deg": 4.0, "heading_deg": 60.0}}
+
+
+def test_the_table_gives_the_named_fit_else_the_fitted_one(lv: ModuleType) -> None:
+    base = {"wheel_noise": [0.00125] * 4, "seconds": 70.0}
+    rows = [
+        {
+            "variant": "as-logged",
+            "named": ["rolling_resistance"],
+            **base,
+            "named_fits": {"rolling_resistance": {"c_rr": [0.07, 0.004, 0.085]}},
+            "fits": {},
+        },
+        {
+            "variant": "drop5",
+            "named": [],
+            **base,
+            "named_fits": {},
+            "fits": {"rolling_resistance": {"rolling_resistance": {"c_rr": [0.086, 0.0, 0.097]}}},
+        },
+        {"variant": "jitter3", "error": "ValueError: bad"},
+    ]
+    text = lv.table(rows, {"rolling_resistance": {"c_rr": 0.04}})
+    assert (
+        "| as-logged | rolling_resistance | 0.07 [0.004, 0.085] | 1.25, 1.25, 1.25, 1.25 | 70 |"
+        in text
+    )
+    assert "| drop5 | - | 0.086 [0, 0.097] (not named) |" in text
+    assert "| jitter3 | error: ValueError: bad |" in text
