@@ -55,13 +55,6 @@ def resolution(x: Array) -> float:
     return 0.0
 
 
-def _mad(d: Array, order: int) -> Array:
-    """White-noise standard deviation from differences ``d`` of ``order`` (rows: samples)."""
-    norm = {2: np.sqrt(6.0), 3: np.sqrt(20.0)}[order]
-    med = np.median(d, axis=0)
-    return np.asarray(1.4826 * np.median(np.abs(d - med), axis=0) / norm, dtype=np.float64)
-
-
 def _spread(e: Array) -> Array:
     """Robust standard deviation (MAD) of each column of ``e``."""
     return np.asarray(
@@ -134,7 +127,12 @@ def noise_floor(logs: list[PreparedLog]) -> dict[str, float]:
         for p, m in zip(logs, fixes, strict=True)
     ]
     diffs = [d for d in diffs if len(d) >= 3]
-    s_p = np.median(np.array([_mad(d, 3) for d in diffs]), axis=0) if diffs else np.full(3, np.nan)
+    # a third difference of white noise has sqrt(20) times its standard deviation
+    s_p = (
+        np.median(np.array([_spread(d) / np.sqrt(20.0) for d in diffs]), axis=0)
+        if diffs
+        else np.full(3, np.nan)
+    )
     for i, name in enumerate(SIGNALS[11:]):
         out[name] = float(max(s_p[i] * np.sqrt(2), 1e-4)) if np.isfinite(s_p[i]) else 1e-2
     return out
