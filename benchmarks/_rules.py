@@ -201,6 +201,7 @@ def odometry(result: dict[str, Any]) -> dict[str, Any] | None:
         return None
     diff = dr.get("difference") or {}
     return {
+        "form": dr.get("form", "intervals"),
         "named": bool(dr.get("named")),
         "difference": diff.get("both"),
         "split": diff["3L"] - diff["3R"] if "3L" in diff and "3R" in diff else None,

@@ -83,6 +83,7 @@ from _rules import (
     window_test,
 )
 from bench_diagnose import INERT_ON_SOIL, RANGES, draw, finite
+from log_variants import variant
 
 from rover_env.calibration.diagnose import Options, diagnose
 from rover_env.calibration.drive_plan import (
@@ -99,6 +100,7 @@ from rover_env.independent.drive import Schedule
 from rover_env.independent.effects import Effects
 from rover_env.independent.generate import SAMPLE_HZ, make_independent_logs
 from rover_env.independent.model import G, RoverParams
+from rover_env.logs import read_log, write_log
 
 GEN = "independent"
 SEED0 = 47500
@@ -359,8 +361,21 @@ def _identity(case: dict[str, Any]) -> dict[str, Any]:
     return {"case": tag(case), "gen": GEN, **{k: case[k] for k in keys}}
 
 
+def as_logged(paths: list[Path], pose: str, seed: int) -> list[Path]:
+    """``paths`` rewritten in place with the pose as ``pose`` keeps it: every fix
+    (``as-logged``) or each drive's last only (``end``: the paper's log, SPEC §6)."""
+    if pose == "end":
+        for i, p in enumerate(paths):
+            write_log(variant("end-pose", read_log(p), seed + i), p, overwrite=True)
+    return paths
+
+
 def run_case(
-    case: dict[str, Any], root: Path, workers: int = 1, untested: bool = False
+    case: dict[str, Any],
+    root: Path,
+    workers: int = 1,
+    untested: bool = False,
+    pose: str = "as-logged",
 ) -> dict[str, Any]:
     d = root / tag(case)
     if d.exists():  # a fresh start: no logs or reports of an interrupted run mixed in
@@ -370,13 +385,14 @@ def run_case(
     paths = make_independent_logs(
         d / "logs", case["effects"], drives=DRIVES, seed=case["seed"], duration=DURATION
     )
+    as_logged(paths, pose, case["seed"])
     t1 = time.perf_counter()
     res = diagnose([str(p) for p in paths], d / "out", opts)
     t2 = time.perf_counter()
     props = proposals(d / "out", untested)
     extra: list[Path] = []
     for j, prop in enumerate(props):  # the same rover (seed), the noise of drive DRIVES + j
-        extra += make_independent_logs(
+        more = make_independent_logs(
             d / f"followup_{j}",
             case["effects"],
             drives=1,
@@ -384,6 +400,7 @@ def run_case(
             plan=schedule(prop),
             first_index=DRIVES + j,
         )
+        extra += as_logged(more, pose, case["seed"] + DRIVES + j)
     followed = (
         diagnose([str(p) for p in [*paths, *extra]], d / "out_followup", opts) if extra else None
     )
@@ -394,6 +411,7 @@ def run_case(
         **_identity(case),
         "equivalent": case.get("equivalent"),
         "untested_driven": untested,
+        "pose": pose,
         "named": final["named"],
         "first_named": res["named"],
         "tie": tie["effects"] if tie else None,
@@ -431,11 +449,11 @@ def run_case(
 
 
 def case_row(
-    case: dict[str, Any], root: Path, workers: int, untested: bool = False
+    case: dict[str, Any], root: Path, workers: int, untested: bool = False, pose: str = "as-logged"
 ) -> dict[str, Any]:
     """``run_case``, or a row recording its error: one broken case must not stop the matrix."""
     try:
-        return run_case(case, root, workers, untested)
+        return run_case(case, root, workers, untested, pose)
     except Exception as exc:  # recorded in the table, the matrix goes on
         return {
             **_identity(case),
@@ -493,6 +511,12 @@ def main() -> int:
         "--report", action="store_true", help="rewrite independent.md from independent.json"
     )
     ap.add_argument("--seed0", type=int, default=SEED0, help=f"first case seed ({SEED0})")
+    ap.add_argument(
+        "--pose",
+        choices=("as-logged", "end"),
+        default="as-logged",
+        help="the logs' pose: every fix, or each drive's last only (the paper's log, SPEC 6)",
+    )
     ap.add_argument("--workers", type=int, default=1, help="diagnose's worker processes per case")
     ap.add_argument(
         "--untested",
@@ -536,7 +560,7 @@ def main() -> int:
     print(f"{len(mine)} cases to run ({len(rows)} done before), work in {args.work}", flush=True)
     for k, c in enumerate(mine, 1):
         t0 = time.perf_counter()
-        row = case_row(c, Path(args.work), args.workers, args.untested)
+        row = case_row(c, Path(args.work), args.workers, args.untested, args.pose)
         rows.append(row)
         _order(rows, todo)
         path.write_text(json.dumps(rows, indent=1, default=finite))

@@ -151,7 +151,7 @@ def test_few_drives_reads_the_names_without_the_rule_from_the_same_run(tmp_path)
 def test_the_report_asks_for_a_straight_where_the_drives_cannot_read_a_radius() -> None:
     """Advice, not a decision: too few straight intervals, or a standard error of 1 % or more,
     and no radius named; nothing where the statistic is read to better than that."""
-    from rover_env.calibration.report import _reckoning_lines
+    from rover_env.calibration.report_reckoning import reckoning_lines as _reckoning_lines
 
     both = {"both": 0.035, "3L": 0.034, "3R": 0.036}
     r = {

@@ -150,7 +150,7 @@ def test_the_models_twins_read_its_rolling_radius_one_for_one(tmp_path) -> None:
 
 
 def test_the_report_line_gives_the_difference_and_the_verdict() -> None:
-    from rover_env.calibration.report import _reckoning_lines
+    from rover_env.calibration.report_reckoning import reckoning_lines as _reckoning_lines
 
     r = {
         "logs": _diff(-0.04, -0.045, -0.035),

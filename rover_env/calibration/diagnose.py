@@ -89,6 +89,7 @@ def _cli(args: argparse.Namespace) -> int:
         fit_windup=args.fit_windup,
         form_allowance=None if args.no_form_allowance else args.form_allowance,
         odometry=None if args.no_odometry else Options().odometry,
+        odometry_end=None if args.no_odometry else Options().odometry_end,
         **{name: getattr(args, name) for name, _ in SWITCHES},
     )
     try:

@@ -37,6 +37,7 @@ from rover_env.calibration.replay import PreparedLog
 from rover_env.config import RoverConfig
 from rover_env.estimation.dead_reckoning import (
     FREE,
+    end_fix_parts,
     path_and_travel,
     path_and_travel_of,
     scale_noise,
@@ -53,12 +54,36 @@ free wheels' straight, moving intervals)."""
 NAME = "rolling_radius"
 
 
-def scales(logs: list[DriveLog], r_e: float) -> dict[str, float]:
-    """The statistic on ``logs`` per :data:`WHEELS`."""
+INTERVALS, END = "intervals", "end"
+"""The statistic's two forms: over the straight, moving intervals between pose fixes (1 Hz),
+or from the start to each straight drive's last fix (the pose at the end only, SPEC §6)."""
+
+
+def scales(logs: list[DriveLog], r_e: float, form: str = INTERVALS) -> dict[str, float]:
+    """The statistic on ``logs`` per :data:`WHEELS`, in ``form``."""
+    if form == END:
+        return {
+            k: scale_of([end_fix_parts(g.pose, g.phi, g.cmd, r_e, w) for g in logs])
+            for k, w in WHEELS.items()
+        }
     return {k: scale_of([path_and_travel(g, r_e, w) for g in logs]) for k, w in WHEELS.items()}
 
 
-def twin_scales(cfg: RoverConfig, prepared: list[PreparedLog], r_e: float) -> dict[str, float]:
+def form_of(logs: list[DriveLog], r_e: float) -> str:
+    """:data:`INTERVALS` where the logs hold a straight, moving interval between fixes, else
+    :data:`END` (each drive's last fix against the start)."""
+    return INTERVALS if np.isfinite(scales(logs, r_e)["both"]) else END
+
+
+def band_of(opts: Any, form: str) -> OdometryBand | None:
+    """The clean band that judges ``form`` (:class:`~.state.Options`' ``odometry`` or
+    ``odometry_end``)."""
+    return opts.odometry if form == INTERVALS else opts.odometry_end
+
+
+def twin_scales(
+    cfg: RoverConfig, prepared: list[PreparedLog], r_e: float, form: str = INTERVALS
+) -> dict[str, float]:
     """The statistic on ``cfg``'s twin of each drive (true states at the log's pose samples:
     the along-track path is linear in the pose noise, so none is added)."""
     got: dict[str, list[tuple[float, float]]] = {k: [] for k in WHEELS}
@@ -66,24 +91,29 @@ def twin_scales(cfg: RoverConfig, prepared: list[PreparedLog], r_e: float) -> di
         phi, _, pose = rs.twin_states(p, cfg)
         pose = np.where(np.isfinite(p.log.pose), pose, np.nan)  # prepare's fixes
         for k, w in WHEELS.items():
-            got[k].append(path_and_travel_of(pose, phi, r_e, w))
+            if form == END:
+                got[k].append(end_fix_parts(pose, phi, p.log.cmd, r_e, w))
+            else:
+                got[k].append(path_and_travel_of(pose, phi, r_e, w))
     return {k: scale_of(v) for k, v in got.items()}
 
 
 def name_by_odometry(d: Diagnosis) -> None:
     """Sets :attr:`Diagnosis.odometry` (the statistic, the decision and why) and, when it
     names the rolling radius, appends its :class:`~.state.Scored` to the chosen effects."""
-    band = d.opts.odometry
     cand = next((c for c in d.cands if c.name == NAME), None)
     named = {c.name for s in d.chosen for c in s.fit.candidates}
+    r_e = static_rolling_radius(d.base)
+    form = form_of([p.log for p in d.prepared], r_e)
+    band = band_of(d.opts, form)
     if band is None or cand is None:
         d.odometry = None
         return
     t0 = time.perf_counter()
     ref_ext = merge(*(s.fit.ext for s in d.chosen))
-    r_e = static_rolling_radius(d.base)
-    on_logs = scales([p.log for p in d.prepared], r_e)
+    on_logs = scales([p.log for p in d.prepared], r_e, form)
     rec: dict[str, Any] = {
+        "form": form,
         "logs": on_logs,
         "band": [band.lo, band.hi],
         "centre": band.mid,
@@ -97,7 +127,7 @@ def name_by_odometry(d: Diagnosis) -> None:
     if why is not None:  # decided without the twins (a soil model's are slow)
         rec["why_not"] = why
         return
-    on_twins = twin_scales(d.ev.config(ref_ext), d.prepared, r_e)
+    on_twins = twin_scales(d.ev.config(ref_ext), d.prepared, r_e, form)
     diff = {k: on_logs[k] - on_twins[k] for k in WHEELS}
     rec.update(model=on_twins, difference=diff)
     se, samples = scale_noise([p.log for p in d.prepared], r_e)
@@ -111,7 +141,7 @@ def name_by_odometry(d: Diagnosis) -> None:
     why = why or refusal(diff, band, named)
     est = None
     if why is None or before is None:
-        est = estimate(d, cand, ref_ext, diff["both"], on_twins["both"], band, r_e)
+        est = estimate(d, cand, ref_ext, (diff["both"], on_twins["both"]), band, r_e, form)
         if not cand.lo[0] <= est[0] <= cand.hi[0]:
             beyond = f"{est[0]:+.3f} is beyond a rolling radius's range"
             why, before = why or beyond, before or beyond
@@ -140,7 +170,8 @@ def name_by_odometry(d: Diagnosis) -> None:
     s.significant = True
     s.test = (
         f"odometry: the logs travel {diff['both']:+.2%} per free-wheel turn against the"
-        f" model's twins, beyond clean drives' {band.lo:+.2%} to {band.hi:+.2%}"
+        f" model's twins{' (each straight drive to its last fix)' if form == END else ''},"
+        f" beyond clean drives' {band.lo:+.2%} to {band.hi:+.2%}"
         + (f" (with the pose's noise, {se:.2%} standard error)" if band.noise_z > 0 else "")
     )
     rec["named"] = True
@@ -210,7 +241,7 @@ def refusal(diff: dict[str, float] | None, band: OdometryBand, named: set[str]) 
         return None
     both, left, right, driven = diff["both"], diff["3L"], diff["3R"], diff["driven"]
     if not np.isfinite(both):
-        return "no straight, moving pose interval"
+        return "no straight, moving pose interval, and no straight drive's last fix 1 m away"
     if band.lo <= both <= band.hi:
         return "within what clean drives leave"
     if abs(left - right) > band.split:
@@ -227,19 +258,21 @@ def estimate(
     d: Diagnosis,
     cand: Candidate,
     ref_ext: Extensions,
-    diff: float,
-    ref: float,
+    diff_ref: tuple[float, float],
     band: OdometryBand,
     r_e: float,
+    form: str = INTERVALS,
 ) -> tuple[float, float, float, float]:
-    """(change, 95 % low, high, sensitivity): the change whose twins close ``diff``, from the
-    twins' sensitivity at a first guess (travel grows by the change times the wheel radius
-    over r_e), the interval from the clean band."""
+    """(change, 95 % low, high, sensitivity): the change whose twins close the difference
+    ``diff_ref[0]`` from the twins' ``diff_ref[1]``, from the twins' sensitivity at a first
+    guess (travel grows by the change times the wheel radius over r_e), the interval from the
+    clean band."""
+    diff, ref = diff_ref
     guess = float(np.clip(diff * r_e / d.base.geometry.wheel_radius, cand.lo[0], cand.hi[0]))
     if guess == 0.0:
         guess = 1e-3
     cfg = d.ev.config(merge(ref_ext, to_ext([cand], np.array([guess]))))
-    g = (twin_scales(cfg, d.prepared, r_e)["both"] - ref) / guess
+    g = (twin_scales(cfg, d.prepared, r_e, form)["both"] - ref) / guess
     x = (diff - band.mid) / g
     a, b = (diff - band.ci_hi) / g, (diff - band.ci_lo) / g
     return x, min(a, b), max(a, b), g

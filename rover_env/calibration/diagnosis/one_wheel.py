@@ -26,7 +26,13 @@ import numpy as np
 
 from rover_env.calibration.candidates import merge
 from rover_env.calibration.diagnosis.judge import fmt_phys
-from rover_env.calibration.diagnosis.odometry import scales, twin_scales
+from rover_env.calibration.diagnosis.odometry import (
+    INTERVALS,
+    band_of,
+    form_of,
+    scales,
+    twin_scales,
+)
 from rover_env.calibration.diagnosis.select import withdraw
 from rover_env.calibration.diagnosis.state import ODOMETRY_BAND, Diagnosis
 from rover_env.estimation.estimator import static_rolling_radius
@@ -35,16 +41,24 @@ SHARED = frozenset({"rolling_resistance"})
 """Effects that act on every wheel alike (the ground's), so both free wheels must feel them."""
 
 
+def statistic_form(d: Diagnosis) -> str:
+    """The dead-reckoning statistic's form on these logs (:func:`.odometry.form_of`)."""
+    if d.odometry is not None:
+        return str(d.odometry.get("form", INTERVALS))
+    return form_of([p.log for p in d.prepared], static_rolling_radius(d.base))
+
+
 def free_wheel_difference(d: Diagnosis) -> dict[str, float]:
     """Dead reckoning's difference, logs minus the named model's twins, per free wheel and
-    both (:func:`.odometry.scales`): the odometry stage's when it computed one, else here."""
+    both (:func:`.odometry.scales`, in :func:`statistic_form`): the odometry stage's when it
+    computed one, else here."""
     diff = (d.odometry or {}).get("difference")
     if diff is not None:
         return dict(diff)
-    r_e = static_rolling_radius(d.base)
-    on_logs = scales([p.log for p in d.prepared], r_e)
+    r_e, form = static_rolling_radius(d.base), statistic_form(d)
+    on_logs = scales([p.log for p in d.prepared], r_e, form)
     ref_ext = merge(*(s.fit.ext for s in d.chosen))
-    on_twins = twin_scales(d.ev.config(ref_ext), d.prepared, r_e)
+    on_twins = twin_scales(d.ev.config(ref_ext), d.prepared, r_e, form)
     return {k: on_logs[k] - on_twins[k] for k in on_logs}
 
 
@@ -57,7 +71,7 @@ def withdraw_one_wheel(d: Diagnosis) -> None:
     hit = [s for s in d.chosen if any(c.name in SHARED for c in s.fit.candidates)]
     if not hit:
         return
-    limit = (d.opts.odometry or ODOMETRY_BAND).split
+    limit = (band_of(d.opts, statistic_form(d)) or ODOMETRY_BAND).split
     diff = free_wheel_difference(d)
     split = diff["3L"] - diff["3R"]
     rec: dict[str, Any] = {
