@@ -18,6 +18,12 @@ with its unit and sign, and resamples everything onto one clock:
     stays sparse: only the sample nearest each of its messages gets a value (interpolated to
     the sample's time), the others are empty (SPEC §6: not measured), so 1 Hz fixes stay
     1 Hz fixes instead of a made-up path between them.
+  * ``clock="wheels"`` (``--clock wheels``): the log's rows are the wheel topic's own stamps
+    inside that span instead of an even grid, so each wheel angle is the message's own value,
+    an encoder's whole counts stay whole (linear interpolation between two messages off the
+    grid makes a count a fraction, and diagnose then reads the encoders as unquantised and
+    their noise from the smoothed angles); the other states are interpolated at those stamps.
+    SPEC §6 asks only that time increase; diagnose reads uneven rows.
   * commands: zero-order hold, the last command at or before t_k (0 once older than
     commands.timeout_s, if given, as a motor watchdog does); their rate and gaps are not
     checked, as many publishers send only on change.
@@ -286,6 +292,10 @@ def _series(bag: Path, tmap: TopicMap, data: dict[str, Any]) -> dict[str, _Serie
 # --------------------------------------------------------------------------- resampling
 
 
+CLOCKS = ("grid", "wheels")
+"""The log's rows: an even grid at the map's rate, or the wheel topic's own stamps."""
+
+
 def _median_rate(s: _Series) -> float:
     return 1e9 / float(np.median(np.diff(s.ns))) if s.ns.size > 1 else 0.0
 
@@ -401,15 +411,21 @@ def import_bag(
     topic_map: TopicMap | str | Path,
     *,
     rate_hz: float | None = None,
+    clock: str = "grid",
     summary: list[str] | None = None,
 ) -> DriveLog:
     """Read ``bag`` through ``topic_map`` into a SPEC §6 log (see the module docstring).
 
-    ``rate_hz`` overrides the map's clock; lines describing the import (sample count, each
+    ``rate_hz`` overrides the map's clock; ``clock`` ``"wheels"`` takes the rows at the wheel
+    topic's stamps instead of an even grid at that rate; lines describing the import (sample count, each
     topic's message count and rate, what was resampled how) are appended to ``summary``.
     """
     bag = Path(bag)
     tmap = topic_map if isinstance(topic_map, TopicMap) else load_topic_map(topic_map)
+    if clock not in CLOCKS:
+        raise BagError(f"clock must be one of {', '.join(CLOCKS)}, got {clock!r}")
+    if rate_hz is not None and clock == "wheels":
+        raise BagError("rate_hz and clock 'wheels' exclude each other: the wheels set the rate")
     if rate_hz is not None:
         if not (math.isfinite(rate_hz) and rate_hz > 0):
             raise BagError(f"rate_hz must be finite and > 0, got {rate_hz!r}")
@@ -431,7 +447,15 @@ def import_bag(
     start, end = _window(bag, tmap, series)
     for key, src in tmap.states().items():
         _check_state(bag, tmap, series[key], src, start, end)
-    grid = _grid(start, end, tmap.rate_hz)
+    if clock == "wheels":
+        ns = series["wheels"].ns
+        grid = ns[(ns >= start) & (ns <= end)]
+        if grid.size < 2:
+            raise BagError(f"topic {series['wheels'].topic!r}: under two messages in the span", bag)
+        start = int(grid[0])
+        tmap = replace(tmap, rate_hz=_median_rate(series["wheels"]))
+    else:
+        grid = _grid(start, end, tmap.rate_hz)
     phi = _interp(series["wheels"], grid, start)
     pose = np.full((grid.size, 3), np.nan)
     if "yaw" in series:
@@ -459,11 +483,11 @@ def import_bag(
         ),
     )
     if summary is not None:
-        summary.extend(_summary(log, series, start))
+        summary.extend(_summary(log, series, start, clock))
     return log
 
 
-def _summary(log: DriveLog, series: dict[str, _Series], start: int) -> list[str]:
+def _summary(log: DriveLog, series: dict[str, _Series], start: int, clock: str) -> list[str]:
     lines = [
         f"{len(log)} samples at {log.meta.sample_rate_hz:g} Hz, {log.t[-1]:.3f} s from {_when(start)}"
     ]
@@ -473,7 +497,10 @@ def _summary(log: DriveLog, series: dict[str, _Series], start: int) -> list[str]
             f"  {s.topic} -> {key}: {s.n_topic} messages{used}, median rate "
             f"{_median_rate(s):.4g} Hz, {s.stamp} stamps"
         )
-    states = ", ".join(k for k in series if k != "commands")
+    skip = {"commands"} | ({"wheels"} if clock == "wheels" else set())
+    states = ", ".join(k for k in series if k not in skip)
+    if clock == "wheels":
+        lines.append("  rows at the wheel topic's stamps: wheel angles as published")
     lines.append(f"  linear interpolation: {states}; zero-order hold: commands")
     return lines
 
@@ -489,7 +516,7 @@ def _cli(args: argparse.Namespace) -> int:
     try:
         if not name or Path(name).name != name:
             raise BagError(f"--name must be a plain file stem, got {args.name!r}")
-        log = import_bag(args.bag, args.map, rate_hz=args.rate, summary=lines)
+        log = import_bag(args.bag, args.map, rate_hz=args.rate, clock=args.clock, summary=lines)
         path = write_log(log, Path(args.out) / f"{name}.csv", overwrite=args.overwrite)
     except (LogError, FileExistsError) as exc:
         print(f"rover-env import-bag: {exc}", file=sys.stderr)
@@ -517,6 +544,13 @@ def add_cli(sub: Any) -> None:
     p.add_argument("--name", default="drive", help="file stem of the log (default: drive)")
     p.add_argument(
         "--rate", type=float, default=None, help="log rate in Hz (default: the map's rate_hz)"
+    )
+    p.add_argument(
+        "--clock",
+        choices=CLOCKS,
+        default="grid",
+        help="the log's rows: an even grid at --rate (default), or the wheel topic's own stamps"
+        " (encoder counts kept whole, no interpolation of the wheels)",
     )
     p.add_argument("--overwrite", action="store_true", help="replace a different log already there")
     p.set_defaults(func=_cli)

@@ -357,6 +357,48 @@ def test_off_grid_states_interpolated_commands_held(tmp_path: Path) -> None:
     assert "median rate 25 Hz, receive stamps" in text and "zero-order hold: commands" in text
 
 
+def test_the_wheel_clock_keeps_encoder_counts_whole(tmp_path: Path) -> None:
+    """Wheel messages at 50 Hz, stamped 0-6 ms off an even grid, carrying whole counts: on
+    the grid clock the interpolated angles are fractions of a count (diagnose would read the
+    encoders as unquantised); on the wheel clock the rows are the messages themselves."""
+    from rover_env.calibration.residuals import resolution
+
+    m = Msgs()
+    tmap = load_topic_map(EXAMPLE)
+    names = list(tmap.wheels.names) + list(tmap.joints.names)
+    rng = np.random.default_rng(5)
+    ns = BASE + np.arange(151) * 20 * MS + rng.integers(0, 6 * MS, 151)
+    true = 3.0 * (ns - BASE)[:, None] / 1e9 * np.ones(6)  # 3 rad/s: 6 counts a sample
+    counts = np.round(true / WHEEL_RES) * WHEEL_RES
+    js = [
+        (int(n), m.joint_state(int(n), names, np.r_[c, np.zeros(5)]))
+        for n, c in zip(ns, counts, strict=True)
+    ]
+    imu = [(int(n), m.imu(int(n), quat_z(0.0))) for n in BASE + np.arange(151) * 20 * MS]
+    cmd = [(BASE, m.twist(0.2, 0.0))]
+    topics = {
+        "/joint_states": ("sensor_msgs/msg/JointState", js),
+        "/imu/data": ("sensor_msgs/msg/Imu", imu),
+        "/cmd_vel": ("geometry_msgs/msg/Twist", cmd),
+    }
+    bag = write_bag(tmp_path / "bag", topics, m)
+    sign = np.array(tmap.wheels.sign)
+    on_grid = import_bag(bag, EXAMPLE)
+    assert resolution(on_grid.phi) < WHEEL_RES / 2  # smoothed: no whole count found
+    summary: list[str] = []
+    own = import_bag(bag, EXAMPLE, clock="wheels", summary=summary)
+    kept = ns <= BASE + 150 * 20 * MS  # the imu's last message ends the span
+    np.testing.assert_array_equal(own.t, (ns[kept] - ns[0]) / 1e9)
+    np.testing.assert_allclose(own.phi, sign * (counts[kept] - counts[0]), rtol=0, atol=1e-12)
+    assert resolution(own.phi) == pytest.approx(WHEEL_RES, rel=1e-6)
+    assert own.meta.sample_rate_hz == pytest.approx(50.0, rel=0.01)
+    assert "rows at the wheel topic's stamps" in "\n".join(summary)
+    with pytest.raises(BagError, match="exclude each other"):
+        import_bag(bag, EXAMPLE, clock="wheels", rate_hz=25.0)
+    with pytest.raises(BagError, match="clock must be one of"):
+        import_bag(bag, EXAMPLE, clock="nearest")
+
+
 def test_two_publishers_on_one_topic_and_command_timeout(tmp_path: Path) -> None:
     """Wheels and joints published as separate JointStates on /joint_states; a watchdog."""
     m = Msgs()
