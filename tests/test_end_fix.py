@@ -64,6 +64,8 @@ def test_the_heading_drift_the_end_fix_shows_is_read_as_an_arc() -> None:
     assert _ratio(d) == pytest.approx(0.02, abs=1e-6)
     chord = float(np.hypot(*d.pose[-1, :2]))
     assert chord / (d.phi[-1, 4] * R_E) - 1 < 0.02 - 0.006
+    d.pose[-1, 2] = np.nan  # a fix without a yaw: its chord
+    assert _ratio(d) == pytest.approx(chord / (d.phi[-1, 4] * R_E) - 1, abs=1e-12)
 
 
 def test_out_and_back_reads_the_net_travel() -> None:

@@ -134,15 +134,15 @@ def end_fix_parts(
     length is the chord times (yaw/2) / sin(yaw/2) (constant curvature). A drive of turns
     says nothing here: its path is not known from two points, and dead reckoning through
     turns reads each implementation's own scrub (exploratory seeds 70892-70951: clean drives
-    off by up to 6 % that way)."""
-    have = np.flatnonzero(np.all(np.isfinite(pose), axis=1))
+    off by up to 6 % that way). A fix without a yaw is read as its chord."""
+    have = np.flatnonzero(np.all(np.isfinite(pose[:, :2]), axis=1))
     if have.size == 0 or have[-1] == 0:
         return 0.0, 0.0
     k = int(have[-1])
     chord = float(np.hypot(*pose[k, :2]))
     if chord < MIN_CHORD or not commanded_straight(cmd[:k]):
         return 0.0, 0.0
-    half = 0.5 * float(pose[k, 2])
+    half = 0.5 * float(pose[k, 2]) if np.isfinite(pose[k, 2]) else 0.0
     arc = chord * (half / math.sin(half) if abs(half) > 1e-9 else 1.0)
     net = phi[k] - phi[0]
     return arc, abs(float(np.mean(net[list(wheels)]))) * r_e
