@@ -4,17 +4,20 @@ clean drives of the independent generator leave, and what a rolling radius moves
 Why (stop 100): diagnose's odometry stage names a rolling radius from the free wheels'
 travel against the pose over straight intervals between fixes (1 Hz); a log with the pose at
 each drive's end only has no such interval, and nothing read the pose at all (stop 99's log
-variants). :func:`rover_env.estimation.dead_reckoning.end_fix_parts` reads the last fix
-on drives commanded straight against the free wheels' net travel from the start (the start
-is a fix by definition). Judged against the model's twins of the same drives: this script measures the difference (the logs' minus the nominal model's twins') per
-case, on clean builds (the band a rolling radius must leave) and on singles of every
-catalogue effect (what else moves it), beside the 1 Hz statistic on the same drives.
+variants). :func:`rover_env.estimation.dead_reckoning.end_fix_parts` reads each drive
+commanded straight from its start (a fix by definition) to its last fix, against the free
+wheels' net travel. Judged against the model's twins of the same drives: this script
+measures the difference (the logs' minus the nominal model's twins') per case, on clean
+builds (the band a rolling radius must leave) and on singles of every catalogue effect
+(what else moves it), beside the 1 Hz statistic on the same drives.
 
-    python benchmarks/end_fix_band.py --seeds 70892-70921 --out docs/calibration/end_fix_band
+    python benchmarks/end_fix_band.py --seeds 70892-70951 --out out/end_fix_band
 
-Cases: ``--clean`` of every ``--singles``-th seed is clean, the others a single of the next
-effect in ``--effects``, its magnitude drawn from the seed as ``bench_independent.py``
-draws it. Writes ``OUT/end_fix_band.json``, ``.md`` and ``.png``.
+Cases: every ``--clean-every``-th seed is clean, the others singles of ``--effects`` in
+turn, each magnitude drawn from its seed as ``bench_independent.py`` draws it. Writes
+``OUT/end_fix_band.json``, ``.md`` and ``.png``; the shipped band's runs are in
+``docs/calibration/end_fix_band/`` (seeds 70892-70951 with ``--clean-every 2``, 70952-70999
+with ``--clean-every 1``).
 """
 
 from __future__ import annotations

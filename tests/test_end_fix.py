@@ -148,3 +148,18 @@ def test_the_matrix_can_keep_each_drive_s_last_fix_only(tmp_path) -> None:
     got = read_log(path).pose
     (k,) = np.flatnonzero(np.isfinite(got[:, 0]))
     assert k == 250 and np.allclose(got[k], drive.pose[250])
+
+
+def test_the_band_benchmark_plans_clean_and_singles_and_reads_both_forms(tmp_path) -> None:
+    from _bench import load_bench
+
+    band = load_bench("end_fix_band")
+    cases = band.plan(list(range(10)), 2, ("rolling_radius", "slope"), tmp_path)
+    assert [c["effect"] for c in cases[:4]] == ["clean", "rolling_radius", "clean", "slope"]
+    assert cases[0]["effects"] == {} and "fraction" in cases[1]["effects"]["rolling_radius"]
+    d = _drive(0.03, np.full(2000, 0.2), every=1.0)
+    got = band.statistics(d.pose, d.phi, d.cmd, R_E)
+    path, travel = got["end"]["both"]
+    assert path / travel - 1 == pytest.approx(0.03, abs=1e-9)
+    path, travel = got["hz"]["both"]
+    assert path / travel - 1 == pytest.approx(0.03, abs=1e-9)
