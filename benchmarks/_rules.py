@@ -204,7 +204,11 @@ def odometry(result: dict[str, Any]) -> dict[str, Any] | None:
         "form": dr.get("form", "intervals"),
         "named": bool(dr.get("named")),
         "difference": diff.get("both"),
-        "split": diff["3L"] - diff["3R"] if "3L" in diff and "3R" in diff else None,
+        "split": (
+            diff["3L"] - diff["3R"]
+            if diff.get("3L") is not None and diff.get("3R") is not None
+            else None  # NaN is written as null: nothing read
+        ),
         "driven": diff.get("driven"),
         "fraction": dr.get("fraction"),
         "why_not": dr.get("why_not"),
