@@ -163,3 +163,21 @@ def test_the_band_benchmark_plans_clean_and_singles_and_reads_both_forms(tmp_pat
     assert path / travel - 1 == pytest.approx(0.03, abs=1e-9)
     path, travel = got["hz"]["both"]
     assert path / travel - 1 == pytest.approx(0.03, abs=1e-9)
+
+
+def test_the_matrix_summary_reads_a_drive_set_the_end_form_could_not_read() -> None:
+    """result.json writes NaN as null: the matrix's summary of the stage keeps its form and
+    gives no split where nothing was read (a merge once failed on it, study 72000)."""
+    from _bench import load_bench
+
+    odometry = load_bench("_rules").odometry
+
+    nothing = {"both": None, "3L": None, "3R": None, "driven": None}
+    got = odometry(
+        {"dead_reckoning": {"form": "end", "band": [-0.02, 0.02], "difference": nothing}}
+    )
+    assert got is not None and got["form"] == "end" and got["split"] is None
+    read = {"both": 0.03, "3L": 0.035, "3R": 0.025, "driven": 0.03}
+    got = odometry({"dead_reckoning": {"band": [-0.02, 0.02], "difference": read}})
+    assert got is not None and got["form"] == "intervals"
+    assert got["split"] == pytest.approx(0.01)
