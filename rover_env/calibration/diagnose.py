@@ -237,8 +237,8 @@ def add_cli(sub: Any) -> None:
     p.add_argument(
         "--no-odometry",
         action="store_true",
-        help="never name a rolling radius from dead reckoning against the pose (see"
-        " Options.odometry)",
+        help="never name a rolling radius from dead reckoning against the pose, between fixes"
+        " or to each drive's last fix (see Options.odometry, Options.odometry_end)",
     )
     for name, what in SWITCHES:
         on = getattr(Options, name)
