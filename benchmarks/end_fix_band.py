@@ -70,15 +70,6 @@ def statistics(pose: np.ndarray, phi: np.ndarray, cmd: np.ndarray, r_e: float) -
     return {"end": end, "hz": hz}
 
 
-def last_fix_only(pose: np.ndarray) -> np.ndarray:
-    """``pose`` with every fix but the last blanked (the paper's log)."""
-    out = np.full_like(pose, np.nan)
-    k = np.flatnonzero(np.all(np.isfinite(pose), axis=1))
-    if k.size:
-        out[k[-1]] = pose[k[-1]]
-    return out
-
-
 def run_case(case: dict[str, Any]) -> dict[str, Any]:
     """Generate ``case``'s drives, read both statistics on the logs and on the nominal
     model's twins."""

@@ -106,7 +106,9 @@ its start (out and back) measures nothing."""
 STRAIGHT_COMMAND = 0.01
 """Largest difference between the left and the right wheels' mean speed targets, as a share
 of the largest target, of a drive commanded straight (a skid-steer turn is commanded by
-unequal sides; a logged straight drive sends equal numbers)."""
+unequal sides; a logged straight drive sends equal numbers). Stricter than the replay's
+turn regime (``replay.regimes``: 0.15 rad/s between the sides): a gentle turn that a 3 s
+window may call straight bends a whole drive's path."""
 
 
 def commanded_straight(cmd: NDArray[np.float64]) -> bool:

@@ -31,7 +31,7 @@ import numpy as np
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import Candidate, Extensions, merge
 from rover_env.calibration.diagnosis.judge import p_improved, score
-from rover_env.calibration.diagnosis.state import Diagnosis, OdometryBand
+from rover_env.calibration.diagnosis.state import Diagnosis, OdometryBand, Options
 from rover_env.calibration.fit import Fit, to_ext
 from rover_env.calibration.replay import PreparedLog
 from rover_env.config import RoverConfig
@@ -75,7 +75,7 @@ def form_of(logs: list[DriveLog], r_e: float) -> str:
     return INTERVALS if np.isfinite(scales(logs, r_e)["both"]) else END
 
 
-def band_of(opts: Any, form: str) -> OdometryBand | None:
+def band_of(opts: Options, form: str) -> OdometryBand | None:
     """The clean band that judges ``form`` (:class:`~.state.Options`' ``odometry`` or
     ``odometry_end``)."""
     return opts.odometry if form == INTERVALS else opts.odometry_end
