@@ -65,6 +65,7 @@ from rover_env.calibration.form_allowance import (
     load_allowance,
     widen,
 )
+from rover_env.effects import CATALOGUE
 
 SKIP = {"combined_slip", "loose_soil"}
 """A switch has no size; the soil's fit is a stiffness (its own acceptance line)."""
@@ -124,10 +125,12 @@ def raw_interval(fit: dict[str, Any]) -> tuple[float, float] | None:
     return float(lo), float(hi)
 
 
-def misses(blocks: list[Path]) -> dict[str, list[tuple[float, float]]]:
-    """Per effect, (lo - truth, truth - hi) of each right single name of ``blocks``'
-    stored rows, its interval before widening (positive: the truth sat outside)."""
-    out: dict[str, list[tuple[float, float]]] = defaultdict(list)
+def misses(blocks: list[Path]) -> dict[str, list[tuple[float, float, float, bool]]]:
+    """Per effect, (lo - truth, truth - hi, far, up) of each right single name of ``blocks``'
+    stored rows: its interval before widening (positive: the truth sat outside), how far
+    beyond the fitted value, away from "off", the truth sat (``far``; negative: towards
+    "off"), and whether the value sat above "off" (``up``: the far end is the upper one)."""
+    out: dict[str, list[tuple[float, float, float, bool]]] = defaultdict(list)
     for b in blocks:
         for r in json.loads((b / "independent.json").read_text()):
             truth = r["truth"] if isinstance(r["truth"], dict) else {}
@@ -141,20 +144,24 @@ def misses(blocks: list[Path]) -> dict[str, list[tuple[float, float]]]:
             if raw is None:
                 continue
             t = abs(f["truth"]) if name == "slope" else float(f["truth"])
-            out[name].append((raw[0] - t, t - raw[1]))
+            v, off = float(f["value"]), CATALOGUE[name].params[0].off
+            up = v >= off
+            out[name].append((raw[0] - t, t - raw[1], (t - v) if up else (v - t), up))
     return dict(out)
 
 
 def beyond(
-    found: dict[str, list[tuple[float, float]]], least: int = 10
-) -> dict[str, tuple[float, float, int]]:
-    """Per effect with at least ``least`` right names, (below, above, n): the 95 % quantiles
-    of how far the truth sat below and above the name's interval (0 where it sat inside)."""
+    found: dict[str, list[tuple[float, float, float, bool]]], least: int = 10
+) -> dict[str, tuple[float, float, int, float]]:
+    """Per effect with at least ``least`` right names, (below, above, n, reach): the 95 %
+    quantiles of how far the truth sat below and above the name's interval and beyond the
+    fitted value away from "off" (each 0 where it never did)."""
     return {
         k: (
             max(0.0, float(np.quantile([m[0] for m in v], 0.95))),
             max(0.0, float(np.quantile([m[1] for m in v], 0.95))),
             len(v),
+            max(0.0, float(np.quantile([m[2] for m in v], 0.95))),
         )
         for k, v in sorted(found.items())
         if len(v) >= least
@@ -177,11 +184,12 @@ def widened(
     lo: float,
     hi: float,
     q: tuple[float, float, int],
-    out: tuple[float, float, int] = (0.0, 0.0, 0),
+    out: tuple[float, float, int, float] = (0.0, 0.0, 0, 0.0),
 ) -> tuple[float, float]:
     """The interval for the truth with the form bias's spread in it, as diagnose widens it
     (:meth:`rover_env.calibration.form_allowance.FormAllowance.pad`: never narrower); ``out``
-    (below, above, n) from :func:`beyond`."""
+    (below, above, n, reach) from :func:`beyond` (its reach is not applied here: that needs
+    the fitted value)."""
     q05, q95, n = q
     pad = FormAllowance({name: Bias(q05, q95, n, *out)}).pad(name) or (0.0, 0.0)
     return widen(name, lo, hi, pad, (-math.inf, math.inf))
@@ -229,7 +237,7 @@ def write_table(
     blocks: list[Path],
     soils: list[Path],
     path: Path,
-    out: dict[str, tuple[float, float, int]] | None = None,
+    out: dict[str, tuple[float, float, int, float]] | None = None,
     named_blocks: list[Path] | None = None,
 ) -> None:
     """The allowance as diagnose reads it (:func:`rover_env.calibration.form_allowance.load_allowance`).
@@ -244,7 +252,9 @@ def write_table(
     )
     old = yaml.safe_load(path.read_text()) if path.exists() else {"effects": {}, "source": ""}
     old_named = {
-        k: (v["below"], v["above"], v["named"]) for k, v in old["effects"].items() if v.get("named")
+        k: (v["below"], v["above"], v["named"], v.get("reach", 0.0))
+        for k, v in old["effects"].items()
+        if v.get("named")
     }
     if not blocks:
         source = old["source"].split("; ")[0]
@@ -274,14 +284,17 @@ def write_table(
     for k, (q05, q95, n) in sorted(allow.items()):
         effects[k] = {"low": round(q05, 6), "high": round(q95, 6), "cases": n}
         if k in out and k not in FACTOR:
-            below, above, m = out[k]
+            below, above, m, reach = out[k]
             effects[k] |= {"below": round(below, 6), "above": round(above, 6), "named": m}
+            effects[k] |= {"reach": round(reach, 6)}
     doc = {
         "description": "Clean-fit allowance: 5 % and 95 % quantiles of each effect's fit on"
         " clean drives (a slope's tilt in degrees); diagnose widens a named effect's interval"
         " for the truth to [lo - high, hi - low]. below/above (where measured): 95 % quantiles"
         " of how far the truth sat beyond right names' own intervals; each side is padded by"
-        " the larger. loose_soil: quantiles of fitted over true k_phi on named soils, the"
+        " the larger. reach (where measured): 95 % quantile of how far beyond the fitted value,"
+        " away from off, the truth sat on those names; the far end is at least that far from"
+        " the value. loose_soil: quantiles of fitted over true k_phi on named soils, the"
         " interval for the truth [lo / high, hi / low].",
         "source": source,
         "effects": effects,
@@ -329,38 +342,53 @@ def clean_or_shipped(
 
 def beyond_table(
     allow: dict[str, tuple[float, float, int]],
-    out: dict[str, tuple[float, float, int]],
-    found: dict[str, list[tuple[float, float]]],
+    out: dict[str, tuple[float, float, int, float]],
+    found: dict[str, list[tuple[float, float, float, bool]]],
     named_blocks: list[Path],
 ) -> list[str]:
     """Coverage of the evaluated blocks' right singles (their intervals before widening) by
-    the clean pad alone and by the clean pad joined with ``out``."""
+    the clean pad alone, by the clean pad joined with ``out``'s below / above, and by that
+    with the far end's floor (``out``'s reach) too."""
     lines = [
         f"Right single names of the evaluated blocks, their intervals before widening; the"
         f" truth beyond right names' intervals measured on {', '.join(b.name for b in named_blocks)}:",
         "",
-        "| effect | named | measured on | below | above | covered: clean pad | clean pad and beyond |",
-        "|---|---|---|---|---|---|---|",
+        "| effect | named | measured on | below | above | reach | covered: clean pad |"
+        " clean pad and beyond | and the reach |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for name, rows in sorted(found.items()):
         q = allow.get(name)
         if q is None:
             continue
-        o = out.get(name, (0.0, 0.0, 0))
+        o = out.get(name, (0.0, 0.0, 0, 0.0))
         clean = FormAllowance({name: Bias(*q)}).pad(name) or (0.0, 0.0)
         both = FormAllowance({name: Bias(*q, *o)}).pad(name) or (0.0, 0.0)
         lines.append(
-            f"| {name} | {len(rows)} | {o[2]} | {o[0]:.3g} | {o[1]:.3g} |"
-            f" {sum(b <= clean[0] and a <= clean[1] for b, a in rows)}/{len(rows)} |"
-            f" {sum(b <= both[0] and a <= both[1] for b, a in rows)}/{len(rows)} |"
+            f"| {name} | {len(rows)} | {o[2]} | {o[0]:.3g} | {o[1]:.3g} | {o[3]:.3g} |"
+            f" {sum(covered(m, clean) for m in rows)}/{len(rows)} |"
+            f" {sum(covered(m, both) for m in rows)}/{len(rows)} |"
+            f" {sum(covered(m, both, o[3]) for m in rows)}/{len(rows)} |"
         )
     return [*lines, ""]
 
 
+def covered(
+    miss: tuple[float, float, float, bool], pad: tuple[float, float], reach: float = 0.0
+) -> bool:
+    """Whether the truth of a name (a :func:`misses` row) lies within its interval padded
+    by ``pad`` (below, above) with the far end at least ``reach`` beyond the value, as
+    :func:`rover_env.calibration.form_allowance.reach_floor` puts it."""
+    below, above, far, up = miss
+    low_ok = below <= pad[0] or (not up and far <= reach)
+    high_ok = above <= pad[1] or (up and far <= reach)
+    return low_ok and high_ok
+
+
 def plot_beyond(
     allow: dict[str, tuple[float, float, int]],
-    out: dict[str, tuple[float, float, int]],
-    found: dict[str, list[tuple[float, float]]],
+    out: dict[str, tuple[float, float, int, float]],
+    found: dict[str, list[tuple[float, float, float, bool]]],
     path: Path,
 ) -> None:
     """Per effect: how far the evaluated right names' truths sat below and above their own
@@ -373,9 +401,9 @@ def plot_beyond(
     names = [n for n in sorted(found) if n in allow]
     fig, axes = plt.subplots(1, max(1, len(names)), figsize=(2.4 * max(1, len(names)), 3.2))
     for ax, name in zip(np.atleast_1d(axes), names, strict=False):
-        rows = np.array(found[name])
+        rows = np.array([m[:2] for m in found[name]])
         clean = FormAllowance({name: Bias(*allow[name])}).pad(name) or (0.0, 0.0)
-        both = FormAllowance({name: Bias(*allow[name], *out.get(name, (0, 0, 0)))}).pad(name)
+        both = FormAllowance({name: Bias(*allow[name], *out.get(name, (0, 0, 0, 0.0)))}).pad(name)
         for i in (0, 1):  # below, above
             ax.plot(np.full(len(rows), i), rows[:, i], "o", alpha=0.5, color="C3")
             ax.hlines(clean[i], i - 0.3, i + 0.3, color="C0", label="clean pad" if i else None)

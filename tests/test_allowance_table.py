@@ -16,7 +16,13 @@ from rover_env.calibration.diagnose import add_cli
 from rover_env.calibration.diagnosis.select import allow_form
 from rover_env.calibration.diagnosis.state import Diagnosis, Options
 from rover_env.calibration.fit import Fit
-from rover_env.calibration.form_allowance import Bias, FormAllowance, load_allowance, widen
+from rover_env.calibration.form_allowance import (
+    Bias,
+    FormAllowance,
+    load_allowance,
+    reach_floor,
+    widen,
+)
 from rover_env.config import ConfigError
 
 
@@ -131,6 +137,42 @@ def test_physical_interval_carries_the_allowance_within_the_range() -> None:
     s.allowance = {"slope": (9.0, 9.0)}
     assert s.physical()["slope"]["deg"][1] == 0.0
     assert math.isnan(s.physical()["slope"]["heading_deg"][1])  # the heading is untouched
+
+
+def test_the_far_end_floor_moves_only_the_end_away_from_off() -> None:
+    """Stop 101: a lag fitted 0.1974 [0.1912, 0.2035] for a truth of 0.2084 (case 71923):
+    the upper end at least the reach beyond the fit; the end towards off never moves."""
+    assert reach_floor(0.1974, 0.1912, 0.2035, 0.0111, 0.0, (0.0, 1.0)) == pytest.approx(
+        (0.1912, 0.2085)
+    )
+    assert reach_floor(0.1974, 0.1912, 0.25, 0.0111, 0.0, (0.0, 1.0)) == (0.1912, 0.25)
+    assert reach_floor(0.99, 0.98, 0.995, 0.0111, 0.0, (0.0, 1.0))[1] == 1.0  # the range's end
+    # a radius below off reaches down
+    assert reach_floor(-0.05, -0.052, -0.048, 0.005, 0.0, (-0.2, 0.2)) == pytest.approx(
+        (-0.055, -0.048)
+    )
+    assert reach_floor(0.1, 0.09, 0.11, 0.0, 0.0, (0.0, 1.0)) == (0.09, 0.11)
+    f = _fit("command_lag", [0.1974], 0.0061)
+    f.allowance = {"command_lag": (0.0417, 0.0027)}
+    f.reach = {"command_lag": 0.0111}
+    _v, lo, hi = f.physical()["command_lag"]["tau"]
+    assert lo == pytest.approx(0.1974 - 0.0061 - 0.0417) and hi == pytest.approx(0.2085)
+    f.allowance = {}
+    assert f.physical()["command_lag"]["tau"][1] == pytest.approx(0.1974 - 0.0061)
+    s = _fit("slope", [3.0, 4.0], 0.1)
+    s.reach = {"slope": 1.74}
+    assert s.physical()["slope"]["deg"][2] == pytest.approx(6.74)
+
+
+def test_the_shipped_reach_is_read_and_carried_by_allow_form() -> None:
+    table = load_allowance()
+    assert table.reach("command_lag") > 0.0 and table.reach("loose_soil") == 0.0
+    lag = SimpleNamespace(fit=_fit("command_lag", [0.2], 0.005))
+    d = SimpleNamespace(chosen=[lag], allowance=table, say=[].append)
+    allow_form(d)  # type: ignore[arg-type]
+    assert lag.fit.reach == {"command_lag": table.reach("command_lag")}
+    with pytest.raises(ConfigError, match="reach"):
+        Bias(0.0, 0.04, 10, reach=-0.001)
 
 
 def test_allow_form_widens_named_effects_only_and_says_so() -> None:

@@ -236,14 +236,65 @@ def test_the_truth_beyond_right_names_is_read_from_their_unwidened_intervals(
     _named_block(tmp_path / "new", cases[10:], raw=True)
     found = fa.misses([tmp_path / "old", tmp_path / "new"])
     assert set(found) == {"command_lag"} and len(found["command_lag"]) == 20
-    below, above, n = fa.beyond(found)["command_lag"]
+    below, above, n, reach = fa.beyond(found)["command_lag"]
     assert n == 20 and below == 0.0
+    # the fits sat 5 ms under the truth every time: the far end's floor
+    assert reach == pytest.approx(0.005)
     assert above == pytest.approx(np.quantile([0.0001 * i * (i % 2) for i in range(20)], 0.95))
     assert fa.beyond(found, least=21) == {}  # too few names: not measured
     # the combined pad covers a truth 1.5 ms above that the clean one left out
     q = (0.0, 0.042, 100)
     assert fa.widened("command_lag", 0.09, 0.0985, q)[1] == 0.0985
-    assert fa.widened("command_lag", 0.09, 0.0985, q, (below, above, n))[1] >= 0.1
+    assert fa.widened("command_lag", 0.09, 0.0985, q, (below, above, n, reach))[1] >= 0.1
+
+
+def test_the_far_end_floor_counts_from_the_fit_away_from_off(
+    fa: ModuleType, tmp_path: Path
+) -> None:
+    """Stop 101: a name's truth beyond its fit, away from "off", whatever its interval; a
+    radius fitted below "off" reaches down, a lag above it reaches up."""
+    lags = [(0.2 + 0.001 * i, 0.2, 0.198, 0.202) for i in range(10)]  # 0..9 ms short
+    _named_block(tmp_path / "lags", lags, raw=True)
+    rows = [
+        {
+            "case": f"single_rolling_radius_{i}",
+            "kind": "single",
+            "truth": {"rolling_radius": {"delta": -0.05 - 0.001 * i}},
+            "named": ["rolling_radius"],
+            "fits": {
+                "rolling_radius": {
+                    "truth": -0.05 - 0.001 * i,
+                    "value": -0.05,
+                    "lo": -0.052,
+                    "hi": -0.048,
+                    "lo_raw": -0.052,
+                    "hi_raw": -0.048,
+                }
+            },
+        }
+        for i in range(10)
+    ]
+    (tmp_path / "radii").mkdir()
+    (tmp_path / "radii" / "independent.json").write_text(json.dumps(rows))
+    found = fa.misses([tmp_path / "lags", tmp_path / "radii"])
+    assert all(m[3] for m in found["command_lag"]) and not any(
+        m[3] for m in found["rolling_radius"]
+    )
+    out = fa.beyond(found)
+    q = np.quantile([0.001 * i for i in range(10)], 0.95)
+    assert out["command_lag"][3] == pytest.approx(q) and out["rolling_radius"][3] == pytest.approx(
+        q
+    )
+    # coverage: a 9 ms short lag is outside a 2 ms pad, inside the floor of its reach
+    miss = found["command_lag"][9]
+    assert not fa.covered(miss, (0.0, 0.002)) and fa.covered(miss, (0.0, 0.002), 0.0095)
+    # the floor never reaches across: a radius's floor does not cover a truth above its hi
+    assert not fa.covered((-0.01, 0.01, -0.011, False), (0.0, 0.0), 0.05)
+    path = tmp_path / "table.yaml"
+    fa.write_table({"command_lag": (0.0, 0.04, 50)}, [tmp_path], [], path, out, [tmp_path])
+    from rover_env.calibration.form_allowance import load_allowance
+
+    assert load_allowance(path).reach("command_lag") == pytest.approx(q, abs=1e-6)
 
 
 def test_named_alone_updates_a_table_keeping_clean_and_soil_entries(
@@ -254,7 +305,7 @@ def test_named_alone_updates_a_table_keeping_clean_and_soil_entries(
     path = _clean_table(fa, tmp_path)
     fa.write_table({"loose_soil": (0.6, 3.4, 12)}, [], [tmp_path / "b9"], path)
     blocks = [tmp_path / "calibration" / "b7", tmp_path / "study1" / "p1"]
-    fa.write_table({}, [], [], path, {"command_delay": (0.01, 0.003, 30)}, blocks)
+    fa.write_table({}, [], [], path, {"command_delay": (0.01, 0.003, 30, 0.0)}, blocks)
     got = load_allowance(path)
     assert set(got.effects) == {"command_delay", "loose_soil", "slope"}
     d = got.effects["command_delay"]

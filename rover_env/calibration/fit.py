@@ -46,7 +46,7 @@ from scipy import optimize, stats
 from rover_env.calibration.bootstrap import bootstrap_interval, bootstrap_over_forms, parabola_min
 from rover_env.calibration.candidates import Candidate, Extensions, merge
 from rover_env.calibration.evaluator import Evaluator
-from rover_env.calibration.form_allowance import widen
+from rover_env.calibration.form_allowance import reach_floor, widen
 from rover_env.calibration.replay import (
     JOINT_SIGNALS,
     POSE_SIGNALS,
@@ -55,7 +55,7 @@ from rover_env.calibration.replay import (
     WindowResult,
 )
 from rover_env.calibration.residuals import window_slices
-from rover_env.effects import EffectError
+from rover_env.effects import CATALOGUE, EffectError
 from rover_env.sim.simulator import SimulationError
 
 Array = NDArray[np.float64]
@@ -102,6 +102,10 @@ class Fit:
     """Effect -> how far below and above its reported interval (its first parameter) the
     truth may sit for the model's form, each effect of a pair by its own
     (:mod:`rover_env.calibration.form_allowance`; named effects only)."""
+    reach: dict[str, float] = field(default_factory=dict)
+    """Effect -> how far beyond its value, away from "off", the truth may sit: the floor of
+    the reported interval's far end (:func:`~rover_env.calibration.form_allowance.reach_floor`;
+    named effects only)."""
 
     @property
     def name(self) -> str:
@@ -141,9 +145,13 @@ class Fit:
             i += n
         for c in self.candidates if allow else []:
             pad = self.allowance.get(c.name, (0.0, 0.0))
-            if any(pad) and not c.discrete:
+            reach = self.reach.get(c.name, 0.0)
+            if (any(pad) or reach > 0.0) and not c.discrete:
                 k, (v, a, b) = next(iter(out[c.name].items()))
-                out[c.name][k] = (v, *widen(c.name, a, b, pad, (c.lo[0], c.hi[0])))
+                bounds = (0.0, math.inf) if c.name == "slope" else (c.lo[0], c.hi[0])
+                a, b = widen(c.name, a, b, pad, (c.lo[0], c.hi[0])) if any(pad) else (a, b)
+                off = CATALOGUE[c.name].params[0].off
+                out[c.name][k] = (v, *reach_floor(v, a, b, reach, off, bounds))
         return out
 
     def sides(self) -> dict[str, dict[str, str]]:

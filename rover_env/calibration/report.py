@@ -186,7 +186,9 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
             " what the effect's fit finds on clean drives of another implementation, the model's"
             " own form seen through it (an interval for the truth: fitted lo - high, hi - low;"
             " a soil's k_phi: lo / high, hi / low, the spread of fitted over true k_phi on"
-            " another implementation's named soils)."
+            " another implementation's named soils), each side at least as far as the truth sat"
+            " beyond right names' own intervals there, and the end away from off at least as far"
+            " from the fit as those truths sat beyond their fits (95 % quantiles)."
             if opts.form_allowance
             else "."
         ),

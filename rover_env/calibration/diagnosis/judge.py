@@ -503,6 +503,7 @@ def fit_dict(s: Scored) -> dict[str, Any]:
         "replay_bias": None if s.fit.bias is None else [float(b) for b in s.fit.bias],
         "noise_se": None if s.fit.noise_se is None else [float(v) for v in s.fit.noise_se],
         "form_allowance": {e: list(v) for e, v in s.fit.allowance.items()},
+        "form_reach": dict(s.fit.reach),
         "params_without_allowance": {
             e: {k: list(v) for k, v in p.items()} for e, p in s.fit.physical(allow=False).items()
         },

@@ -559,17 +559,21 @@ def allow_form(d: Diagnosis) -> None:
     """Each named effect's interval for the truth, widened by the clean-fit allowance
     (:attr:`.state.Options.form_allowance`): the spread of what its fit finds on clean
     drives of another implementation, the model's form seen through it (each effect of a
-    pair by its own)."""
+    pair by its own), and its far end at least the table's reach beyond the fit
+    (:func:`~rover_env.calibration.form_allowance.reach_floor`)."""
     table = d.allowance
     if table is None:
         return
     for s in d.chosen:
         pads = {c.name: table.pad(c.name) for c in s.fit.candidates if not c.discrete}
         mine = {k: v for k, v in pads.items() if v is not None and any(v)}
-        if not mine:
+        reach = {c.name: table.reach(c.name) for c in s.fit.candidates if not c.discrete}
+        reach = {k: v for k, v in reach.items() if v > 0.0}
+        if not mine and not reach:
             continue
         was = fmt_phys(s.fit)
         s.fit.allowance = mine
+        s.fit.reach = reach
         d.say(f"{s.fit.name}: the model's form (clean-fit allowance): {was} -> {fmt_phys(s.fit)}")
 
 
