@@ -7,8 +7,8 @@ to the wheel, where a datasheet's motor is not. The conversion is easy to get wr
 back-EMF adds to the proportional gain; the tracking time is a ratio of the wheel-referred
 integral time), and what it gets wrong reads as an effect: on the independent generator's
 clean logs the torque limit fitted alone is a cut of about -0.6 under the configuration's
-drive and about 0 under that generator's own drive written this way (docs/calibration,
-"Known limits", stop 91).
+drive and about 0 under that generator's own drive written this way (docs/calibration/limits.md,
+stop 91).
 
     from rover_env.drive_datasheet import VoltageDrive
     drive = VoltageDrive(supply=12, resistance=2, torque_constant=0.02, gear=100,

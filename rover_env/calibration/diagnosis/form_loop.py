@@ -180,8 +180,7 @@ def fit_motor_loop(
     drive's driven wheels from 17 to 8 x their replay floor. Why it is off by default: that
     whole did not pay the BIC (+7.6 in residual units), and the held-out drive (steps)
     replayed worse under it (its driven wheels from 1.5 to 3.0 x their floor): no loop this search reaches
-    answers both drives as the generator's voltage-mode one does (docs/calibration/README.md,
-    "Known limits")."""
+    answers both drives as the generator's voltage-mode one does (docs/calibration/limits.md)."""
     scale, l0, eps = baseline(cfg, prepared, windows, settings, sensor_noise)
     m = cfg.motor
     x0: Point = (ANTI_WINDUP_FORMS.index(m.anti_windup), m.speed_gain, m.integral_gain, m.armature)

@@ -75,7 +75,7 @@ each case's named model): all within -2.2 to +2.2 % but one (a slope named with 
 driven wheels' difference was 0.65 to 1.37 x the free wheels' on all 20 radius singles
 there, -0.64 to +0.18 x on all 37 loose soils, -0.67 x on the one rolling resistance; a
 payload's extra deflection (1 of 8 beyond the band) shortens every wheel's radius and reads
-0.99 x. Scored on fresh study 60000: docs/calibration/README.md."""
+0.99 x. Scored on fresh study 60000: docs/calibration/studies.md."""
 
 
 END_FIX_BAND = OdometryBand(
