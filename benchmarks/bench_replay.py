@@ -15,6 +15,10 @@ replayed in interleaved rounds (the machine is shared: medians of the rounds) by
   plugin's state, which feeds them to the motors inside one ``mj_step`` call per
   ``SCHEDULE_ROWS`` substeps (until stop 45: one call per substep, 1.9 x a plain replay;
   until stop 97 rows computed and queued row by row: a lag 1.62 x, a delay 1.37 x).
+* ``Python loops``: a replay with a command lag whose recursions (the substeps' targets, the
+  window's primed state) run on Python floats (``ROVER_ENV_NATIVE=0``, the code before stop
+  102) against the compiled ones (``rover_env/effects/recursions.c``); the same numbers to the
+  bit, checked here.
 * ``per read``: the replay's loop before stop 98, one ``drive`` per stretch between two
   read-outs (every log row), against :meth:`RoverSim.drive_read` (a window's rows in one
   call, the state read after each): plain and with a command lag; the same numbers to the
@@ -31,6 +35,7 @@ Prints seconds per replay and the ratios; nothing is timed in the tests.
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import tempfile
 import time
@@ -116,6 +121,7 @@ def main() -> None:
         "contacts, sensors off (diagnose)": (base, False, False),
         "command_lag, diagnose's": (lag, False, False),
         "command_delay, diagnose's": (delay, False, False),
+        "command_lag, Python loops (before stop 102)": (lag, False, False),
         "command_lag, per read (before stop 98)": (lag, False, False),
         "per read (before stop 98)": (base, False, False),
         "row by row (before stop 57)": (base, False, False),
@@ -128,11 +134,13 @@ def main() -> None:
         for name, (cfg, contacts, sensors) in variants.items():
             patch = next((f for k, f in PATCH.items() if k in name), DRIVE_READ)
             RoverSim.drive_read = patch  # type: ignore[method-assign]
+            os.environ["ROVER_ENV_NATIVE"] = "0" if "Python loops" in name else "1"
             t0 = time.perf_counter()
             res = Replayer(cfg, st, contacts=contacts, sensors=sensors).run([p], windows)
             times[name].append(time.perf_counter() - t0)
             outputs[name] = replay_arrays(res)
     RoverSim.drive_read = DRIVE_READ  # type: ignore[method-assign]
+    os.environ.pop("ROVER_ENV_NATIVE")
     ref = outputs["contacts on (reference)"]
 
     def same(name: str, ref: dict[str, np.ndarray] = ref) -> bool:
@@ -160,6 +168,11 @@ def main() -> None:
     delay_s = med["command_delay, diagnose's"]
     print(f"command_lag / plain (diagnose's replay): {lag_s / dia:.2f}")
     print(f"command_delay / plain (diagnose's replay): {delay_s / dia:.2f}")
+    loops = "command_lag, Python loops (before stop 102)"
+    print(
+        f"command_lag compiled / on Python loops: {lag_s / med[loops]:.2f} of the time;"
+        f" identical to the bit: {same(loops, outputs['command_lag, diagnose' + chr(39) + 's'])}"
+    )
     per = med["per read (before stop 98)"]
     print(
         f"diagnose's replay / a drive() per read-out: {dia / per:.2f} of the time (with a lag:"

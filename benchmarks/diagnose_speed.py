@@ -6,6 +6,7 @@ in its own process with the same ``--workers``; the reference tree is a ``git wo
 tolerances (:mod:`rover_env.independent`), seeds from ``--seed0``: clean and one effect each.
 
     python benchmarks/diagnose_speed.py --against 512b331 --cases 4 --workers 2
+    python benchmarks/diagnose_speed.py --effects command_lag,clean --cases 2
 
 Prints each case's seconds, what each tree named and whether the two ``result.json`` agree
 to the bit (timings aside), then the median ratio previous/current.
@@ -32,7 +33,24 @@ EFFECTS: list[dict[str, dict[str, float]]] = [
     {"slope": {"deg": 6.0, "heading_deg": 40.0}},
     {"rolling_resistance": {"c_rr": 0.05}},
     {"loose_soil": {"k_phi": 1.0}},
+    {"command_lag": {"tau": 0.2}},
 ]
+
+
+def chosen(names: str | None) -> list[dict[str, dict[str, float]]]:
+    """The cases of ``names`` (comma-separated effect names, ``clean`` for none), in that
+    order; all of :data:`EFFECTS` when None."""
+    if names is None:
+        return EFFECTS
+    by_name = {next(iter(e), "clean"): e for e in EFFECTS}
+    out = []
+    for n in names.split(","):
+        if n.strip() not in by_name:
+            raise SystemExit(f"--effects: unknown case {n.strip()!r}; known: {', '.join(by_name)}")
+        out.append(by_name[n.strip()])
+    return out
+
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -98,7 +116,13 @@ def summarise(against: str, workers: int, rows: list[dict[str, Any]]) -> dict[st
 
 
 def run(
-    against: str, cases: int, workers: int, work: Path, seed0: int, out: Path | None = None
+    against: str,
+    cases: int,
+    workers: int,
+    work: Path,
+    seed0: int,
+    out: Path | None = None,
+    effects: list[dict[str, dict[str, float]]] = EFFECTS,
 ) -> dict[str, Any]:
     """Every case diagnosed by both trees; the summary is written to ``out`` after each case
     (a run stopped early keeps the cases it finished)."""
@@ -107,7 +131,7 @@ def run(
     rows: list[dict[str, Any]] = []
     summary: dict[str, Any] = {}
     for i in range(cases):
-        eff = EFFECTS[i % len(EFFECTS)]
+        eff = effects[i % len(effects)]
         d = work / f"case_{seed0 + i}"
         logs = make_independent_logs(d / "logs", eff, drives=3, seed=seed0 + i)
         prev, prev_named = diagnose_seconds(ref, logs, d / "prev", workers)
@@ -149,6 +173,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed0", type=int, default=47900)
     ap.add_argument("--work", default="out/diagnose_speed")
     ap.add_argument("--json", default=None, help="write the summary here (after every case)")
+    ap.add_argument(
+        "--effects",
+        default=None,
+        help="cases to cycle through, comma-separated (e.g. command_lag,clean); default: all",
+    )
     a = ap.parse_args(argv)
     run(
         a.against,
@@ -157,6 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         Path(a.work).resolve(),
         a.seed0,
         Path(a.json) if a.json else None,
+        chosen(a.effects),
     )
     return 0
 

@@ -130,3 +130,58 @@ def test_lag_prime_is_sample_by_sample() -> None:
         lag.prime(t, cmd, t_now, 0.002)
         np.testing.assert_array_equal(lag.x, _prime_by_sample(0.3, t, cmd, t_now, 0.002))
     assert np.any(lag.x != 0.0)
+
+
+def test_the_compiled_lag_is_the_python_loop_to_the_bit(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``CommandLag.sequence`` and ``prime`` give the same numbers compiled (recursions.c)
+    and on Python floats (``ROVER_ENV_NATIVE=0``), and the compiled path is the one taken
+    where a compiler is found, so the tests above check it."""
+    from rover_env.effects import native
+
+    if native.library() is None:
+        pytest.skip("no C compiler: the Python loops are the only path")
+    rng = np.random.default_rng(9)
+    rows = np.repeat(rng.uniform(-3, 3, (60, 4)), rng.integers(1, 12, 60), axis=0)
+    t = np.cumsum(rng.choice([0.02, 0.021, 0.0195], 200)) - 0.02
+    cmd = rng.uniform(-2, 2, (200, 4))
+    out = {}
+    for flag in ("1", "0"):
+        monkeypatch.setenv("ROVER_ENV_NATIVE", flag)
+        assert (native.library() is None) == (flag == "0")
+        (lag,) = _effects({"command_lag": {"tau": 0.07}})
+        lag.x = rng.uniform(-1, 1, 4) if flag == "1" else out["x0"]
+        out.setdefault("x0", lag.x.copy())
+        seq = [lag.sequence(rows[:100], 0.002), lag.sequence(rows[100:], 0.002), lag.x.copy()]
+        lag.prime(t, cmd, float(t[150]) + 0.003, 0.002)
+        out[flag] = [*seq, lag.x.copy()]
+    for a, b in zip(out["1"], out["0"], strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert np.any(out["1"][0] != rows[:100])
+
+
+@pytest.mark.parametrize("ext", EXTS, ids=IDS)
+def test_command_effects_beside_a_hinge_effect_are_queued_as_fed(
+    ext: dict[str, dict[str, float]],
+) -> None:
+    """With a hinge effect (rolling resistance) the plugin runs to each hinge update in one
+    call, the command effects' targets queued: the same state to the bit as one substep per
+    call, across rows whose substeps straddle the updates."""
+    both = {**ext, "rolling_resistance": {"c_rr": 0.06}}
+    cfg = dataclasses.replace(RoverConfig(), extensions=both)
+    at_once, by_substep = RoverSim(cfg, backend="plugin"), RoverSim(cfg, backend="plugin")
+    no_hinge = RoverSim(dataclasses.replace(RoverConfig(), extensions=ext), backend="plugin")
+    hinge = {"rolling_resistance": {"c_rr": 0.06}}
+    no_command = RoverSim(dataclasses.replace(RoverConfig(), extensions=hinge), backend="plugin")
+    rng = np.random.default_rng(3)
+    targets = rng.uniform(-4, 4, (8, 4))
+    steps = np.array([7, 90, 1, 0, 23, 33, 4, 12])
+    for sim in (at_once, no_hinge, no_command):
+        sim.drive(targets, steps)
+    for u, n in zip(targets, steps, strict=True):
+        by_substep.set_speed_targets(u)
+        for _ in range(int(n)):
+            by_substep.step(1)
+    for a in ("qpos", "qvel", "ctrl"):
+        np.testing.assert_array_equal(getattr(at_once.data, a), getattr(by_substep.data, a), a)
+    for other, what in ((no_hinge, "hinge"), (no_command, "command effect")):
+        assert np.max(np.abs(other.data.qpos[:3] - at_once.data.qpos[:3])) > 1e-5, what

@@ -23,6 +23,7 @@ RANKS = {
     "rover_env.bags": 0,  # ROS bags <-> SPEC §6 logs (rosbags, numpy)
     "rover_env.bag_map": 0,  # import-bag's topic map
     "rover_env.effects": 0,
+    "rover_env.native": 0,  # C sources compiled on first use (ctypes; no mujoco)
     "rover_env.seeds": 0,
     "rover_env.executor": 0,
     "rover_env.sim": 1,
