@@ -64,7 +64,9 @@ def main() -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("logs", type=Path, help="a case's logs folder (drive_*.csv)")
-    ap.add_argument("a", help="effect:param=v1,v2,... (outer axis; a value of 0 leaves the effect out)")
+    ap.add_argument(
+        "a", help="effect:param=v1,v2,... (outer axis; a value of 0 leaves the effect out)"
+    )
     ap.add_argument("b", help="effect:param=v1,v2,... (inner axis)")
     args = ap.parse_args()
     grid(args.logs, parse_axis(args.a), parse_axis(args.b))
