@@ -582,8 +582,9 @@ class RoverSim:
     def _step_commanded(self, n: int, check: bool = True) -> None:
         """``step`` substep by substep where needed: command effects change the motors'
         targets on every substep; hinge effects set the wheel hinges' friction from the
-        tire loads every ``HINGE_EVERY`` substeps (identically on both backends; with hinge
-        effects only, the plugin runs the substeps in between in one call)."""
+        tire loads every ``HINGE_EVERY`` substeps (identically on both backends; the plugin
+        runs the substeps in between in one call, any command effects' targets for them
+        queued in its state)."""
         m, d = self.model, self.data
         if self._plugin is not None and not self._hinge_effects:
             # Command effects on the plugin: their n outputs at once (the targets are held
