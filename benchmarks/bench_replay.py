@@ -129,6 +129,7 @@ def main() -> None:
         "rolling_resistance, row by row": (rr, False, False),
     }
     times: dict[str, list[float]] = {k: [] for k in variants}
+    native_before = os.environ.get("ROVER_ENV_NATIVE")
     outputs: dict[str, dict[str, np.ndarray]] = {}
     for _ in range(args.rounds):
         for name, (cfg, contacts, sensors) in variants.items():
@@ -140,7 +141,10 @@ def main() -> None:
             times[name].append(time.perf_counter() - t0)
             outputs[name] = replay_arrays(res)
     RoverSim.drive_read = DRIVE_READ  # type: ignore[method-assign]
-    os.environ.pop("ROVER_ENV_NATIVE")
+    if native_before is None:  # the caller's setting back, as found
+        os.environ.pop("ROVER_ENV_NATIVE")
+    else:
+        os.environ["ROVER_ENV_NATIVE"] = native_before
     ref = outputs["contacts on (reference)"]
 
     def same(name: str, ref: dict[str, np.ndarray] = ref) -> bool:
