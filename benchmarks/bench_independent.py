@@ -57,6 +57,9 @@ a 0.1-0.5 N m dragging brake on a free wheel (3L or 3R, drawn), battery sag 30-6
     python benchmarks/bench_independent.py --only torque_limit --limit 1 --out out/check
     # pairs of effects each clearly over what the logs name (STRONG), seeds from 72800
     python benchmarks/bench_independent.py --strong-pairs 20 --seed0 72800 --out out/pairs
+    # a lag with a delay, then each alone (seeds from 72900)
+    python benchmarks/bench_independent.py --strong-pairs 10 --strong-from \
+        command_lag,command_delay --strong-singles 8 --seed0 72900 --out out/timing
 
 It writes ``OUT/independent.md`` (acceptance figures, every case per effect) and
 ``OUT/independent.json`` (rows); logs and diagnoses go to ``--work`` (out/, not in git).
@@ -237,18 +240,28 @@ def strong_params(effect: str, seed: int) -> dict[str, float]:
     return out
 
 
-def strong_pairs(seed0: int, n: int) -> list[dict[str, Any]]:
-    """``n`` pairs of :data:`STRONG` effects, seeds from ``seed0`` (never a tire-only
-    effect with loose soil)."""
+def strong_pairs(
+    seed0: int, n: int, effects: list[str] | None = None, singles: int = 0
+) -> list[dict[str, Any]]:
+    """``n`` pairs of :data:`STRONG` effects (of ``effects``, default all), seeds from
+    ``seed0`` (never a tire-only effect with loose soil), then ``singles`` single effects,
+    each of ``effects`` in turn, seeds from ``seed0 + n``."""
+    pool = list(STRONG) if effects is None else effects
+    unknown = [e for e in pool if e not in STRONG]
+    if unknown or len(pool) < 2:
+        raise ValueError(f"--strong-from: need two or more of {', '.join(STRONG)}; got {pool}")
     out = []
     for seed in range(seed0, seed0 + n):
         rng = np.random.default_rng([seed, 72800])
         while True:
-            a, b = (str(x) for x in rng.choice(list(STRONG), 2, replace=False))
+            a, b = (str(x) for x in rng.choice(pool, 2, replace=False))
             if not ("loose_soil" in (a, b) and {a, b} & INERT_ON_SOIL):
                 break
         eff = {a: strong_params(a, seed), b: strong_params(b, seed + 50_000)}
         out.append(_case("pair", eff, seed))
+    for i, seed in enumerate(range(seed0 + n, seed0 + n + singles)):
+        e = pool[i % len(pool)]
+        out.append(_case("single", {e: strong_params(e, seed)}, seed))
     return out
 
 
@@ -577,13 +590,33 @@ def main() -> int:
         default=0,
         help="run N pairs of clearly nameable effects (STRONG) from --seed0 instead of the matrix",
     )
+    ap.add_argument(
+        "--strong-from",
+        default=None,
+        metavar="EFFECTS",
+        help="with --strong-pairs: draw from these effects only (comma-separated, of STRONG)",
+    )
+    ap.add_argument(
+        "--strong-singles",
+        type=int,
+        default=0,
+        help="with --strong-pairs: then N single effects of --strong-from in turn",
+    )
     args = ap.parse_args()
     out = Path(args.out)
-    todo = (
-        strong_pairs(args.seed0, args.strong_pairs)
-        if args.strong_pairs
-        else planned(args.quick, args.seed0)
-    )
+    try:
+        todo = (
+            strong_pairs(
+                args.seed0,
+                args.strong_pairs,
+                args.strong_from.split(",") if args.strong_from else None,
+                args.strong_singles,
+            )
+            if args.strong_pairs
+            else planned(args.quick, args.seed0)
+        )
+    except ValueError as exc:
+        ap.error(str(exc))
     if args.merge:
         return merge(out, args.quick, todo, Path(args.work))
     shard_k, shard_n = 0, 1

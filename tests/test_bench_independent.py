@@ -68,6 +68,22 @@ def test_the_plan_has_every_kind_and_every_implemented_effect(b: ModuleType) -> 
             assert not ("loose_soil" in names and names & b.INERT_ON_SOIL), c
 
 
+def test_strong_pairs_draw_from_the_named_effects_then_singles_in_turn(b: ModuleType) -> None:
+    timing = ["command_lag", "command_delay"]
+    todo = b.strong_pairs(72900, 4, timing, 3)
+    assert [c["kind"] for c in todo] == ["pair"] * 4 + ["single"] * 3
+    assert all(set(c["effects"]) == set(timing) for c in todo[:4])
+    assert [next(iter(c["effects"])) for c in todo[4:]] == [*timing, timing[0]]
+    assert [c["seed"] for c in todo] == list(range(72900, 72907))
+    for c in todo:
+        for e, p in c["effects"].items():
+            param, lo, hi, _ = b.STRONG[e]
+            assert lo <= abs(p[param]) <= hi
+    assert todo[:4] == b.strong_pairs(72900, 4, timing)  # singles after, pairs unchanged
+    with pytest.raises(ValueError, match="friction"):
+        b.strong_pairs(72900, 1, ["command_lag", "friction"])
+
+
 def test_magnitudes_lie_in_their_ranges_in_both_parameterisations(b: ModuleType) -> None:
     for c in b.cases():
         ind_effects.resolve(c["effects"])  # the generator accepts them

@@ -293,6 +293,18 @@ SEPARATING_PLANS: dict[frozenset[str], tuple[str, str]] = {
 }
 
 
+SHARED_RESPONSE: tuple[frozenset[str], ...] = (frozenset({"command_lag", "command_delay"}),)
+"""Pairs of one-variable effects, in the same units, that move the same response by about the
+sum of their values (a lag of tau and a delay of d shift the wheels' response by about
+tau + d): the first fitted alone takes both shares, so the second is fitted with it, both
+free (:mod:`rover_env.calibration.diagnosis.shared`)."""
+
+
+def shares_response(a: str, b: str) -> bool:
+    """Whether effects ``a`` and ``b`` are a :data:`SHARED_RESPONSE` pair."""
+    return frozenset({a, b}) in SHARED_RESPONSE
+
+
 def separating_plan(a: str, b: str) -> tuple[str, str]:
     """(drive plan, why) for a drive that separates effects a and b (rover-env drive-plan)."""
     return SEPARATING_PLANS.get(

@@ -153,6 +153,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
     ),
     ("screen", "screen each candidate on half the training windows before its full fit"),
     (
+        "shared_refit",
+        "fit a command lag and a delay together, both free, when one of them is the winner",
+    ),
+    (
         "forms_beside_leader",
         "with nothing named, fit the model form again beside the leading candidate",
     ),

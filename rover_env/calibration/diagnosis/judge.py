@@ -516,6 +516,7 @@ def fit_dict(s: Scored) -> dict[str, Any]:
         "significant": s.significant,
         "test": s.test,
         "screened": s.screened,
+        "refit": s.refit,
         "threshold": s.threshold,
         "detectable": s.detectable,
         "nameable": s.nameable,

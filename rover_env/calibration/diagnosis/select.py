@@ -46,6 +46,7 @@ from rover_env.calibration.diagnosis.judge import (
 from rover_env.calibration.diagnosis.motion import from_motion
 from rover_env.calibration.diagnosis.parallel import map_parallel
 from rover_env.calibration.diagnosis.rotor import profile_rotor, rotor_test
+from rover_env.calibration.diagnosis.shared import shared_partners, shared_refits
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
 from rover_env.calibration.diagnosis.straight import from_straight
 from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
@@ -285,7 +286,7 @@ def forward_selection(d: Diagnosis) -> None:
     second = first_confident(
         pairs,
         lambda s: _bias_and_rotor(d, ev, s),
-        lambda s: {c.name for c in s.fit.candidates} - w_names,
+        lambda s: None if s.refit else {c.name for c in s.fit.candidates} - w_names,
         d.say,
         partner_limits(d, pairs),
     )
@@ -381,12 +382,18 @@ def blind_partners(d: Diagnosis) -> list[Scored]:
     # fitted beside the winner (stage by stage; a joint refinement from there moved
     # both away from the truth on 15080 and lost the held-out test, 19.6 % better
     # p 0.0004 -> 16.3 % p 0.06).
-    best = sorted([s for s in d.partners if s.gain > 0.0], key=lambda s: -s.gain)
+    # A partner that shares the winner's response is judged fitted with it instead
+    # (:mod:`.shared`: held at its fit, the winner has taken the partner's share).
+    shared = shared_partners(d, pool)
+    gone = {c.name for c in shared}
+    best = sorted(
+        [s for s in d.partners if s.gain > 0.0 and s.fit.name not in gone], key=lambda s: -s.gain
+    )
     others = [replace(s, fit=stack_fits(winner.fit, s.fit)) for s in best[: opts.second]]
     for s in others:
         s.significant = passes_window_test(s, opts) and not s.screened
         s.test = "windows" if s.significant else ""
-    return others
+    return others + shared_refits(d, shared)
 
 
 def fit_pair(d: Diagnosis, s: Scored) -> Scored:

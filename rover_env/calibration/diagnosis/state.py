@@ -150,6 +150,12 @@ class Options:
     """Forward selection: every other candidate's magnitude-blind search with the winner held
     at its fit chooses the partners (False: the candidates that improved held-out alone,
     from their single fits; the behaviour until stop 34)."""
+    shared_refit: bool = True
+    """Forward selection: a partner that moves the winner's response by the sum of their values
+    (:data:`~rover_env.calibration.candidates.SHARED_RESPONSE`, a command lag and a delay)
+    is judged as a pair fitted with the winner, both free, from the winner's value split in
+    half (:func:`.shared.shared_refits`); False: beside the winner held at its fit, as every
+    other partner (the behaviour until stop 102)."""
     candidates: list[str] | None = None
     progress: bool = True
     workers: int = 1
@@ -495,6 +501,9 @@ class Scored:
     fit_scale: dict[str, float] | None = None
     """The signal scale the fit was made with when it is not the stage's own (a reweighed
     refit, :attr:`Options.reweigh`): the replay's bias is measured with the same weights."""
+    refit: bool = False
+    """A pair fitted with the winner's value free too (:func:`.shared.shared_refits`): each
+    of its effects' intervals is judged, not only the partner's."""
     screened: bool = False
     """Fitted on the screening subset only (:attr:`Options.screen`): not promising there,
     so never fitted on every training window (and never named)."""

@@ -1,0 +1,57 @@
+"""Forward selection's pairs whose effects share a response, fitted together.
+
+A command lag of tau and a delay of d both shift the wheels' response, by about tau + d.
+The first named alone takes both shares, so beside it held at its fit the second fits near
+"off" and is never named. Why (stop 102, spent study 72800 cases 72818 and 72819): a lag
+of 0.380 s with a delay of 0.101 s was named a lag of 0.49 s, a delay of 0.22 s with a lag
+of 0.38 s a delay of 0.56 s; the pair replays far better than either (held out 98.1 %
+against 92.5 % better than nominal), and fitted together from the named value split three
+ways both cases landed in one place from every start (0.409 and 0.068 s; 0.426 and
+0.196 s).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rover_env.calibration.candidates import Candidate, shares_response
+from rover_env.calibration.diagnosis.judge import passes_window_test, plugin_capable, score
+from rover_env.calibration.diagnosis.state import Diagnosis, Scored
+from rover_env.calibration.fit import fit
+
+REFIT_NFEV = 8
+"""``least_squares`` evaluations for a shared pair's fit (each costs two more replays for
+the Jacobian): the spent cases' fits from three starts had settled within it."""
+
+
+def shared_partners(d: Diagnosis, pool: list[Candidate]) -> list[Candidate]:
+    """The candidates of ``pool`` that share the winner's response
+    (:func:`~rover_env.calibration.candidates.shares_response`), where
+    :attr:`~.state.Options.shared_refit` asks and the winner is one such effect."""
+    w = d.winner
+    if not d.opts.shared_refit or w is None or len(w.fit.candidates) != 1:
+        return []
+    name = w.fit.candidates[0].name
+    return [c for c in pool if shares_response(name, c.name)]
+
+
+def shared_refits(d: Diagnosis, partners: list[Candidate]) -> list[Scored]:
+    """Each of ``partners`` fitted with the winner, both free, from the winner's value split
+    half and half between them (the pair moves the response by about the sum), judged
+    against the winner alone by the held-out window test, as every pair is."""
+    winner = d.winner
+    assert winner is not None
+    w = winner.fit.candidates[0]
+    out = []
+    for c in partners:
+        both = [w, c]
+        which = "train" if all(plugin_capable(x) for x in both) else "train_sub"
+        half = np.asarray(winner.fit.x, dtype=float) / 2.0
+        x0 = np.clip(np.concatenate([half, half]), [*w.lo, *c.lo], [*w.hi, *c.hi])
+        f2 = fit(d.ev, both, which, x_start=x0, max_nfev=REFIT_NFEV, probe=False)
+        s2 = score(d, f2, winner.held_losses, winner.fit.ext, k=c.k)
+        s2.significant = passes_window_test(s2, d.opts)
+        s2.test = "windows" if s2.significant else ""
+        s2.refit = True
+        out.append(s2)
+    return out

@@ -1,0 +1,110 @@
+"""A command lag and a delay, which move the wheels' response by about their sum, are judged
+as a pair fitted together, both free (:mod:`rover_env.calibration.diagnosis.shared`).
+Built on stand-in replays whose answer is known in closed form, as
+tests/test_partner_limit.py."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from rover_env.calibration import residuals as rs
+from rover_env.calibration.candidates import catalogue, shares_response
+from rover_env.calibration.diagnosis.shared import shared_partners, shared_refits
+from rover_env.calibration.diagnosis.state import Options, Scored
+from rover_env.calibration.fit import Fit
+from rover_env.calibration.replay import SIGNALS
+
+N = 24  # windows per set
+T = 10  # scored rows per window
+
+
+class FakeEv:
+    """Replays of a rover with a lag ``tau`` and a delay ``d``: wheel_1L's residual is the
+    error in the sum (tau + d), wheel_2L's the error in the lag alone, half as strongly (a
+    step's shape, which tells a lag from a delay), wheel_3L a fixed per-window floor."""
+
+    def __init__(self, tau: float, delay: float) -> None:
+        self.truth = (tau, delay)
+        self.scale = dict.fromkeys(SIGNALS, 1.0)
+        floor = np.random.default_rng(7).uniform(0.01, 0.02, 2 * N)
+        self.floor = {"train": floor[:N], "held": floor[N:]}
+        self.runs = 0
+
+    def run(self, ext: dict, which: str, ref: str | None = None) -> list:
+        self.runs += 1
+        tau = ext.get("command_lag", {}).get("tau", 0.0)
+        d = ext.get("command_delay", {}).get("delay", 0.0)
+        out = []
+        for i, fl in enumerate(self.floor[which]):
+            resid = np.zeros((T, 11))
+            ramp = np.linspace(0.5, 1.5, T) * (1 + 0.1 * (i % 3))
+            resid[:, 0] = ramp * ((tau + d) - sum(self.truth))
+            resid[:, 1] = 0.5 * ramp * (tau - self.truth[0])
+            resid[:, 2] = fl
+            out.append(SimpleNamespace(resid=resid, pose_resid=np.zeros((1, 3))))
+        return out
+
+    def vector(self, ext: dict, which: str) -> np.ndarray:
+        return rs.residual_vector(self.run(ext, which), self.scale)
+
+    def reference(self, ext: dict, which: str) -> str:
+        return "train"
+
+    def log(self, msg: str) -> None:
+        pass
+
+
+def _diagnosis(tau: float, delay: float, named: float, **opts: bool) -> SimpleNamespace:
+    """A diagnosis whose winner is a lag alone fitted at ``named`` on drives of ``tau`` and
+    ``delay``."""
+    (lag,) = catalogue(["command_lag"])
+    ev = FakeEv(tau, delay)
+    ext = {"command_lag": {"tau": named}}
+    z = np.zeros(1)
+    f = Fit([lag], np.array([named]), z, z, z, 1.0, 1, ext, 0.0, "train")
+    held = rs.window_losses(ev.run(ext, "held"), ev.scale)
+    winner = Scored(f, float(held.sum()), held, 0.9, 1e-4, -50.0, -50.0, N, significant=True)
+    return SimpleNamespace(
+        winner=winner,
+        ev=ev,
+        noise=ev.scale,
+        sets={"train": list(range(N)), "held": list(range(N))},
+        opts=Options(**opts),
+    )
+
+
+def test_a_lag_and_a_delay_share_a_response_and_nothing_else_does() -> None:
+    assert shares_response("command_lag", "command_delay")
+    assert shares_response("command_delay", "command_lag")
+    assert not shares_response("command_lag", "torque_limit")
+    pool = catalogue(["command_delay", "torque_limit", "slope"])
+    d = _diagnosis(0.3, 0.1, 0.4)
+    assert [c.name for c in shared_partners(d, pool)] == ["command_delay"]  # type: ignore[arg-type]
+    d_off = _diagnosis(0.3, 0.1, 0.4, shared_refit=False)
+    assert shared_partners(d_off, pool) == []  # type: ignore[arg-type]
+    (tl,) = catalogue(["torque_limit"])
+    d.winner.fit.candidates = [tl]
+    assert shared_partners(d, pool) == []  # type: ignore[arg-type]
+
+
+def test_fitted_together_a_lag_and_a_delay_land_on_both_and_are_judged_as_a_pair() -> None:
+    # The lag alone took both shares (0.4 s for 0.3 + 0.1); beside it held there, the delay
+    # would fit at "off". Both free, from 0.2 + 0.2, the pair lands on the truth.
+    d = _diagnosis(0.3, 0.1, 0.4)
+    (delay,) = catalogue(["command_delay"])
+    (s,) = shared_refits(d, [delay])  # type: ignore[arg-type]
+    assert [c.name for c in s.fit.candidates] == ["command_lag", "command_delay"]
+    assert s.fit.x == pytest.approx([0.3, 0.1], abs=0.01)
+    assert s.refit and s.significant and s.test == "windows"
+    assert s.gain > 0.5  # against the lag alone, on the held-out windows
+
+
+def test_a_lag_alone_gains_no_delay_from_the_refit() -> None:
+    d = _diagnosis(0.3, 0.0, 0.3)
+    (delay,) = catalogue(["command_delay"])
+    (s,) = shared_refits(d, [delay])  # type: ignore[arg-type]
+    assert s.fit.x == pytest.approx([0.3, 0.0], abs=0.01)
+    assert not s.significant and s.test == ""
