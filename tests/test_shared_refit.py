@@ -5,7 +5,9 @@ tests/test_partner_limit.py."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -21,30 +23,43 @@ N = 24  # windows per set
 T = 10  # scored rows per window
 
 
+@dataclass
 class FakeEv:
     """Replays of a rover with a lag ``tau`` and a delay ``d``: wheel_1L's residual is the
-    error in the sum (tau + d), wheel_2L's the error in the lag alone, half as strongly (a
-    step's shape, which tells a lag from a delay), wheel_3L a fixed per-window floor."""
+    error in the sum (tau + d), wheel_2L's the error in the lag alone, ``weak`` times as
+    strong (a step's shape, which tells a lag from a delay), wheel_3L a fixed per-window
+    floor; wheel_1L also carries a mismatch the pair cannot explain, ``form`` in every
+    row, so the signals' scales before and after the pair differ."""
 
-    def __init__(self, tau: float, delay: float) -> None:
-        self.truth = (tau, delay)
-        self.scale = dict.fromkeys(SIGNALS, 1.0)
-        floor = np.random.default_rng(7).uniform(0.01, 0.02, 2 * N)
-        self.floor = {"train": floor[:N], "held": floor[N:]}
-        self.runs = 0
+    truth: tuple[float, float]
+    weak: float = 0.5
+    form: float = 0.0
+    scale: dict = field(default_factory=lambda: dict.fromkeys(SIGNALS, 1.0))
+    replays: int = 0
+    seconds: float = 0.0
 
     def run(self, ext: dict, which: str, ref: str | None = None) -> list:
-        self.runs += 1
+        self.replays += 1
         tau = ext.get("command_lag", {}).get("tau", 0.0)
         d = ext.get("command_delay", {}).get("delay", 0.0)
+        floor = np.random.default_rng(7).uniform(0.01, 0.02, 2 * N)
         out = []
-        for i, fl in enumerate(self.floor[which]):
+        for i, fl in enumerate(floor[:N] if which == "train" else floor[N:]):
             resid = np.zeros((T, 11))
             ramp = np.linspace(0.5, 1.5, T) * (1 + 0.1 * (i % 3))
-            resid[:, 0] = ramp * ((tau + d) - sum(self.truth))
-            resid[:, 1] = 0.5 * ramp * (tau - self.truth[0])
+            resid[:, 0] = ramp * ((tau + d) - sum(self.truth)) + self.form
+            resid[:, 1] = self.weak * ramp * (tau - self.truth[0])
             resid[:, 2] = fl
-            out.append(SimpleNamespace(resid=resid, pose_resid=np.zeros((1, 3))))
+            resid[:, 3] = ramp * ((tau + d) - sum(self.truth))
+            out.append(
+                SimpleNamespace(
+                    resid=resid,
+                    pose_resid=np.zeros((1, 3)),
+                    window=SimpleNamespace(log_index=0),
+                    idx=np.arange(T),
+                    pose_idx=np.arange(1),
+                )
+            )
         return out
 
     def vector(self, ext: dict, which: str) -> np.ndarray:
@@ -57,22 +72,32 @@ class FakeEv:
         pass
 
 
-def _diagnosis(tau: float, delay: float, named: float, **opts: bool) -> SimpleNamespace:
+def _diagnosis(
+    tau: float,
+    delay: float,
+    named: float,
+    ev: FakeEv | None = None,
+    floor: float = 1.0,
+    **opts: Any,
+) -> SimpleNamespace:
     """A diagnosis whose winner is a lag alone fitted at ``named`` on drives of ``tau`` and
     ``delay``."""
     (lag,) = catalogue(["command_lag"])
-    ev = FakeEv(tau, delay)
+    ev = ev or FakeEv((tau, delay))
     ext = {"command_lag": {"tau": named}}
     z = np.zeros(1)
     f = Fit([lag], np.array([named]), z, z, z, 1.0, 1, ext, 0.0, "train")
-    held = rs.window_losses(ev.run(ext, "held"), ev.scale)
+    noise = dict.fromkeys(SIGNALS, floor)
+    held = rs.window_losses(ev.run(ext, "held"), noise)
     winner = Scored(f, float(held.sum()), held, 0.9, 1e-4, -50.0, -50.0, N, significant=True)
     return SimpleNamespace(
         winner=winner,
         ev=ev,
-        noise=ev.scale,
+        noise=noise,
         sets={"train": list(range(N)), "held": list(range(N))},
         opts=Options(**opts),
+        prepared=[SimpleNamespace(regimes={r: np.ones(T, dtype=bool) for r in rs.REGIMES})],
+        say=lambda msg: None,
     )
 
 
@@ -108,3 +133,25 @@ def test_a_lag_alone_gains_no_delay_from_the_refit() -> None:
     (s,) = shared_refits(d, [delay])  # type: ignore[arg-type]
     assert s.fit.x == pytest.approx([0.3, 0.0], abs=0.01)
     assert not s.significant and s.test == ""
+
+
+def test_the_pair_is_fitted_again_with_the_signals_weighed_by_what_it_leaves() -> None:
+    # wheel_1L carries a mismatch no lag or delay explains, wheel_3R reads the sum exactly.
+    # Weighed by the residuals before any effect, the two weigh alike and the sum lands
+    # between them; weighed again by what the pair leaves, wheel_3R (left at its floor)
+    # outweighs wheel_1L (left at the mismatch) and the sum lands where it says.
+    (delay,) = catalogue(["command_delay"])
+
+    def refit(reweigh: int) -> Scored:
+        ev = FakeEv((0.3, 0.1), form=0.02)
+        d = _diagnosis(0.3, 0.1, 0.4, ev=ev, floor=1e-3, reweigh=reweigh)
+        (s,) = shared_refits(d, [delay])  # type: ignore[arg-type]
+        return s
+
+    once, again = refit(0), refit(2)
+    assert once.fit_scale is None
+    assert again.fit_scale is not None and again.fit_scale["wheel_1L"] > 0.01  # the mismatch
+    assert again.fit_scale["wheel_3R"] < 0.005
+    assert once.fit.x[1] < 0.095  # pulled off by the mismatch
+    assert again.fit.x[0] == pytest.approx(0.3, abs=0.003)
+    assert abs(again.fit.x[1] - 0.1) < 0.6 * abs(once.fit.x[1] - 0.1)  # two passes of IRLS
