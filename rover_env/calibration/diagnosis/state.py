@@ -154,7 +154,7 @@ class Options:
     """Forward selection: a partner that moves the winner's response by the sum of their values
     (:data:`~rover_env.calibration.candidates.SHARED_RESPONSE`, a command lag and a delay)
     is judged as a pair fitted with the winner, both free, from the winner's value split in
-    half (:func:`.shared.shared_refits`); False: beside the winner held at its fit, as every
+    half and reweighed by what it leaves (:func:`.shared.shared_refits`); False: beside the winner held at its fit, as every
     other partner (the behaviour until stop 102). Fresh studies 72900 and 73000 (registered):
     18/20 and 20/20 pair effects named, no single lag or delay gaining a partner (0/12)."""
     candidates: list[str] | None = None
