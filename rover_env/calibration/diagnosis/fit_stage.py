@@ -79,16 +79,23 @@ def fit_one(d: Diagnosis, c: Candidate) -> Scored:
     return s
 
 
+def weighed_by(d: Diagnosis, ext: Extensions, which: str) -> tuple[Evaluator, dict[str, float]]:
+    """An evaluator sharing ``d.ev``'s cache, each signal weighed by its residual on window
+    set ``which`` under ``ext`` (at least its floor), with its own replay count; and that
+    scale. What a refit weighed by what a model leaves fits with (:attr:`Options.reweigh`,
+    forward selection's partners, :mod:`.shared`)."""
+    sc = rs.signal_scale(rs.stack(d.ev.run(ext, which), d.prepared), d.noise)
+    return replace(d.ev, scale=sc, replays=0, seconds=0.0), sc
+
+
 def reweighed(d: Diagnosis, w: Scored, passes: int) -> Scored:
     """``w`` refitted (magnitude-blind, as before) with each training signal weighed by
     its residual under the last fit (:attr:`Options.reweigh`), then judged again by the
     same held-out tests. Stops once the value moves less than 5 % of its interval."""
-    ev = d.ev
     before = {e: {k: list(v) for k, v in p.items()} for e, p in w.fit.physical().items()}
     cur = w
     for _ in range(passes):
-        sc = rs.signal_scale(rs.stack(ev.run(cur.fit.ext, cur.fit.which), d.prepared), d.noise)
-        ev_r = replace(ev, scale=sc, replays=0, seconds=0.0)  # the cache is shared
+        ev_r, sc = weighed_by(d, cur.fit.ext, cur.fit.which)
         cands_r = cur.fit.candidates
         f = fit(ev_r, cands_r, cur.fit.which, max_nfev=fit_budget(cands_r, d.opts))
         ns = score(d, f, d.held0, {})

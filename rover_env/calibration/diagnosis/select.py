@@ -22,7 +22,12 @@ import numpy as np
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import merge, separating_plan
-from rover_env.calibration.diagnosis.fit_stage import bias_correct, detection_limit, polish
+from rover_env.calibration.diagnosis.fit_stage import (
+    bias_correct,
+    detection_limit,
+    polish,
+    weighed_by,
+)
 from rover_env.calibration.diagnosis.floor import model_floor
 from rover_env.calibration.diagnosis.judge import (
     allowance_reaches_off,
@@ -352,8 +357,7 @@ def blind_partners(d: Diagnosis) -> list[Scored]:
     # a partner's improvement where the winner leaves residual is diluted (15080:
     # wheel_3R scaled 0.124 against 0.015 left). Its BIC is in floor units, as every
     # BIC that names (:func:`.judge.training_criteria`).
-    scale_w = rs.signal_scale(rs.stack(ev.run(winner.fit.ext, "train"), d.prepared), d.noise)
-    ev_w = replace(ev, scale=scale_w, replays=0, seconds=0.0)  # the cache is shared
+    ev_w, _ = weighed_by(d, winner.fit.ext, "train")  # the cache is shared
 
     def fit_partner(i: int) -> Scored:
         c = pool[i]

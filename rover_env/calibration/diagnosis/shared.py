@@ -13,12 +13,10 @@ pair effects named, no single lag or delay gaining a partner.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
-from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import Candidate, shares_response
+from rover_env.calibration.diagnosis.fit_stage import weighed_by
 from rover_env.calibration.diagnosis.judge import passes_window_test, plugin_capable, score
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
 from rover_env.calibration.fit import Fit, fit
@@ -77,8 +75,7 @@ def reweighed(d: Diagnosis, f: Fit) -> tuple[Fit, dict[str, float] | None]:
     ev = d.ev
     scale = None
     for _ in range(d.opts.reweigh):
-        sc = rs.signal_scale(rs.stack(ev.run(f.ext, f.which), d.prepared), d.noise)
-        ev_r = replace(ev, scale=sc, replays=0, seconds=0.0)  # the cache is shared
+        ev_r, sc = weighed_by(d, f.ext, f.which)
         nf = fit(ev_r, f.candidates, f.which, x_start=f.x, max_nfev=REFIT_NFEV, probe=False)
         ev.replays += ev_r.replays
         ev.seconds += ev_r.seconds
