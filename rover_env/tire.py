@@ -357,6 +357,25 @@ def lateral_factor(v_x: npt.ArrayLike, v_w: npt.ArrayLike, params: Params) -> Fl
     return np.asarray(np.where(split & (s < 0.0), 1.0 - np.abs(s), 1.0), dtype=np.float64)
 
 
+def stable_step(params: TireParams, inertia: float, radius: float) -> float:
+    """Largest physics step (s) at which the patch does not ring a wheel of spin inertia
+    ``inertia`` (a free wheel: no rotor behind it).
+
+    At small slip the transient form holds the wheel's rim on a spring of stiffness
+    C_s / sigma_x and a damper D_x: the wheel's slip oscillates at omega_n = radius
+    sqrt(C_s / (sigma_x J)), damped at c = D_x radius^2 / J. The deflection's own update is
+    exact (:func:`transient_step`), the wheel's spin is stepped explicitly (semi-implicit
+    Euler), which is stable only while (dt omega_n)^2 + 2 dt c < 4; this returns the dt at
+    which that equals 4. Why: with the relaxation length of a steady-state tire (0.32 mm,
+    which ``diagnose`` fits as model form) at 2 ms, the left side is 9.4 and the free wheels
+    of a replay read 20 x what they read at 1 ms (2.9: 0.05 rad against 0.0026, stop 104);
+    at 0.64 mm and 2 ms (5.9) 3 x; with 2.5 mm (3.2) and 2 cm (2.4) as at 1 ms.
+    """
+    w2 = radius**2 * params.C_s / (params.sigma_x * inertia)
+    c = params.D_x * radius**2 / inertia
+    return float((math.sqrt(c * c + 4.0 * w2) - c) / w2)
+
+
 def transient_step(
     u_x: npt.ArrayLike,
     u_y: npt.ArrayLike,

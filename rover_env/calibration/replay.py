@@ -49,6 +49,7 @@ from rover_env.effects import CommandEffect, build_effects, command_sequence
 from rover_env.estimation.dead_reckoning import fixes
 from rover_env.executor import die_with_parent
 from rover_env.logs import DriveLog
+from rover_env.sim.model import stable_config, stable_step
 from rover_env.sim.simulator import RoverSim, physical_config
 from rover_env.sim.speed_loop import setpoint_recursion
 
@@ -359,8 +360,16 @@ class WindowResult:
 
 
 def replay_step(cfg: RoverConfig, timestep: float | None) -> RoverConfig:
-    """``cfg`` stepped at ``timestep`` when that is coarser than its own step."""
-    if timestep is None or timestep <= cfg.sim.timestep:
+    """``cfg`` stepped at ``timestep`` when that is coarser than its own step and within the
+    tire's stable step (:func:`rover_env.sim.model.stable_step`); else at its own step, or
+    finer where that rings (:func:`rover_env.sim.model.stable_config`, as the twins are made).
+
+    Why the bound: a model form with a short relaxation length (a steady-state tire, 0.32 mm)
+    rang the free wheels at 2 ms, and the replay floor of their encoders came out 20 x what
+    the same model leaves at the rover's 1 ms (stop 104): a floor that silenced the free
+    wheels for every candidate fitted under that form."""
+    cfg = stable_config(cfg)
+    if timestep is None or timestep <= cfg.sim.timestep or timestep >= stable_step(cfg):
         return cfg
     return dataclasses.replace(cfg, sim=dataclasses.replace(cfg.sim, timestep=timestep))
 

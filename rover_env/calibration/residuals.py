@@ -165,11 +165,12 @@ def twin_states(p: PreparedLog, cfg: RoverConfig) -> TwinStates:
     (:func:`rover_env.calibration.ground.log_ground`): its true angles and pose at
     the log's sample times (:func:`twin_log` reads them through sensors)."""
     from rover_env.calibration.ground import log_ground
+    from rover_env.sim.model import stable_config
     from rover_env.sim.recorder import relative_pose
     from rover_env.sim.simulator import RoverSim
 
     log = p.log
-    sim = RoverSim(cfg, log_ground(log), backend="auto")
+    sim = RoverSim(stable_config(cfg), log_ground(log), backend="auto")
     sim.reset()
     step_of = np.round(log.t / sim.dt).astype(np.int64)
     phi, theta, pos, quat = [], [], [], []

@@ -8,7 +8,7 @@ builds the same text from whatever configuration it is given.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +22,7 @@ from rover_env.config import (
     load_terrain,
 )
 from rover_env.terrain import Terrain
+from rover_env.tire import stable_step as tire_stable_step
 
 JOINT_AXES = {
     "theta_1": "1 0 0",
@@ -85,6 +86,29 @@ def wheel_load(cfg: RoverConfig) -> float:
     return cfg.masses.total * 9.81 / 6
 
 
+def wheel_spin_inertia(cfg: RoverConfig) -> float:
+    """A wheel's inertia about its axle (kg m^2): a uniform disc, no rotor behind it."""
+    return 0.5 * cfg.masses.wheel * cfg.geometry.wheel_radius**2
+
+
+def stable_step(cfg: RoverConfig) -> float:
+    """The largest physics step at which the tire's patch spring leaves the lightest wheel
+    (a free one) stable (:func:`rover_env.tire.stable_step`)."""
+    return tire_stable_step(cfg.tire, wheel_spin_inertia(cfg), cfg.geometry.wheel_radius)
+
+
+def stable_config(cfg: RoverConfig) -> RoverConfig:
+    """``cfg`` itself where its physics step is within :func:`stable_step`, else at that
+    step halved until it is: a model form with a short relaxation length (0.16 mm, the
+    bottom of ``diagnose``'s ladder) rings the free wheels even at the rover's 1 ms."""
+    step, bound = cfg.sim.timestep, stable_step(cfg)
+    if step < bound:
+        return cfg
+    while step >= bound:
+        step /= 2
+    return replace(cfg, sim=replace(cfg.sim, timestep=step))
+
+
 def static_deflection(cfg: RoverConfig) -> float:
     """Tire compression under :func:`wheel_load` (m)."""
     return wheel_load(cfg) / cfg.tire.C_z
@@ -143,7 +167,7 @@ def _segment_xml(cfg: RoverConfig, seg: int, indent: str, add: Callable[[str], N
     """Segment ``seg``'s inertia, chassis, IMU site and two wheels (bodies inside its body)."""
     g, m = cfg.geometry, cfg.masses
     d, w = g.wheel_radius, g.wheel_width
-    iw_axis = 0.5 * m.wheel * d**2
+    iw_axis = wheel_spin_inertia(cfg)
     iw_other = m.wheel * (3 * d**2 + w**2) / 12
     si = segment_inertia(cfg, seg)
     bz = g.chassis_lift + g.chassis_height / 2
