@@ -30,6 +30,7 @@ from rover_env.calibration.replay import SIGNALS, Replayer, ReplaySettings, make
 from rover_env.config import JOINTS, WHEELS, RoverConfig, TerrainConfig, to_dict
 from rover_env.generators.drives import drive_schedule
 from rover_env.logs import DriveLog
+from rover_env.sim.model import stable_config
 from rover_env.sim.recorder import run_drive
 from rover_env.sim.simulator import RoverSim
 
@@ -79,7 +80,7 @@ def simulate_plan(
 ) -> DriveLog:
     """The drive ``plan`` as ``cfg`` would log it (exact sensors, pose at 1 Hz), on the
     logs' declared ``ground`` (None: flat hard ground)."""
-    sim = RoverSim(cfg, "flat" if ground is None else ground, backend="auto")
+    sim = RoverSim(stable_config(cfg), "flat" if ground is None else ground, backend="auto")
     sim.reset(sunk=True)
     sched = drive_schedule(plan, np.random.default_rng(seed), duration, cfg.motor.max_wheel_speed)
     rec = run_drive(sim, sched, duration)
