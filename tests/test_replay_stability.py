@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from rover_env.calibration.diagnosis.floor import replay_floor
-from rover_env.calibration.diagnosis.form import with_sigma
+from rover_env.calibration.diagnosis.form import LADDER, carried_ladder, with_sigma
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare, replay_step
 from rover_env.calibration.residuals import noise_floor
 from rover_env.config import RoverConfig, load_rover
@@ -78,3 +78,11 @@ def test_a_short_relaxation_replays_its_own_twin_as_well_as_the_nominal(tmp_path
     # At 2 ms the short relaxation's free wheels read ~20 x the nominal's (stop 104).
     assert short < 1.5 * nominal, (short, nominal)
     assert np.isfinite(nominal) and nominal > 0
+
+
+def test_the_relaxation_form_tries_only_what_the_rovers_own_step_carries() -> None:
+    cfg = RoverConfig()
+    rungs = carried_ladder(cfg)
+    assert min(rungs) == pytest.approx(0.0003125) and max(rungs) == max(LADDER)
+    assert set(LADDER) - set(rungs) == {0.00015625}
+    assert all(stable_step(with_sigma(cfg, s)) > cfg.sim.timestep for s in rungs)
