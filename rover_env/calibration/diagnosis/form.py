@@ -116,7 +116,8 @@ Array = NDArray[np.float64]
 
 
 LADDER = tuple(float(0.02 * 2.0**k) for k in range(-7, 3))
-"""Relaxation lengths tried (m): 0.16 mm to 8 cm, a factor 2 apart. Down to 0.16 mm
+"""Relaxation lengths (m): 0.16 mm to 8 cm, a factor 2 apart; those tried are the
+:func:`carried_ladder` (from 0.31 mm for the shipped rover). Down to 0.16 mm
 since stop 38: an implementation whose tire has no relaxation (steady-state Gim, the second
 generator's) sat at the old bottom rung, 1.25 mm, where its torque limit was fitted 24 %
 strong (case 17093: driven wheels' minimum -0.165 against -0.133; at 0.1 mm -0.148, and
