@@ -86,3 +86,18 @@ def test_the_relaxation_form_tries_only_what_the_rovers_own_step_carries() -> No
     assert min(rungs) == pytest.approx(0.0003125) and max(rungs) == max(LADDER)
     assert set(LADDER) - set(rungs) == {0.00015625}
     assert all(stable_step(with_sigma(cfg, s)) > cfg.sim.timestep for s in rungs)
+
+
+def test_a_simulation_past_the_stable_step_warns_naming_the_step_and_the_tire() -> None:
+    import warnings
+
+    from rover_env.config import SimSpec
+    from rover_env.sim.simulator import RoverSim
+
+    ringing = replace(with_sigma(RoverConfig(), 0.00032), sim=SimSpec(timestep=0.002))
+    with pytest.warns(RuntimeWarning, match=r"sim\.timestep 0\.002 s .*\(tire\.sigma_x 0\.00032"):
+        RoverSim(ringing, backend="plugin")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        RoverSim(stable_config(ringing), backend="plugin")  # at its stable step: silent
+        RoverSim(RoverConfig(), backend="plugin")

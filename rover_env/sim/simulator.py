@@ -55,6 +55,7 @@ from rover_env.sim.model import (
     fill_hfield,
     hfield_data,
     scene_xml,
+    stable_step,
     static_deflection,
     wheel_load,
 )
@@ -174,6 +175,15 @@ class RoverSim:
         # --- model extensions (rover_env.effects) ---
         self.effects = [e for e in build_effects(self.cfg.extensions) if not e.is_off]
         self.phys_cfg = physical_config(self.cfg, self.effects)
+        bound = stable_step(self.phys_cfg)
+        if self.phys_cfg.sim.timestep >= bound:
+            warnings.warn(
+                f"sim.timestep {self.phys_cfg.sim.timestep:g} s is not below the tire's stable"
+                f" step {bound:.3g} s (tire.sigma_x {self.phys_cfg.tire.sigma_x:g} m): the"
+                " unpowered wheels ring on the tire's contact patch (docs/timestep.md)",
+                RuntimeWarning,
+                stacklevel=2,
+            )
         self._cmd_effects = [e for e in self.effects if isinstance(e, CommandEffect)]
         self._hinge_effects = [e for e in self.effects if isinstance(e, HingeEffect)]
         # --- end of model extensions ---
