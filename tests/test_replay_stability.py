@@ -23,6 +23,7 @@ from rover_env.config import RoverConfig, load_rover
 from rover_env.generators.make_logs import make_logs
 from rover_env.logs import read_log
 from rover_env.sim.model import stable_config, stable_step, wheel_spin_inertia
+from rover_env.sim.simulator import RoverSim
 from rover_env.tire import TireParams, transient_forces, transient_step
 from rover_env.tire import stable_step as tire_stable_step
 
@@ -31,9 +32,10 @@ def _slip_left(sigma: float, k: float) -> float:
     """A free wheel spinning 10 % fast on a hub at 0.1 m/s, stepped at ``k`` x the stable
     step for 0.5 s: the largest slip speed (m/s) over its second half."""
     p = replace(TireParams(), sigma_x=sigma, sigma_y=sigma)
-    r, j = 0.085, 0.5 * 0.35 * 0.085**2
+    cfg = RoverConfig()
+    r, j = cfg.geometry.wheel_radius, wheel_spin_inertia(cfg)
     dt = k * tire_stable_step(p, j, r)
-    v, w, ux, uy = 0.1, 1.1 * 0.1 / 0.085, 0.0, 0.0
+    v, w, ux, uy = 0.1, 1.1 * 0.1 / r, 0.0, 0.0
     slips = []
     for _ in range(int(0.5 / dt)):
         ux2, uy2, dux, duy = transient_step(ux, uy, v, 0.0, r * w, 27.0, dt, p)
@@ -53,7 +55,11 @@ def test_the_stable_step_is_where_a_free_wheel_stops_ringing(sigma: float) -> No
 def test_the_replay_steps_at_2_ms_only_where_the_tire_allows() -> None:
     cfg = RoverConfig()
     assert stable_config(cfg) is cfg
-    assert wheel_spin_inertia(cfg) == pytest.approx(0.5 * 0.35 * 0.085**2)
+    # the bound's inertia is the one the model's free wheels carry about their axles
+    sim = RoverSim(cfg, backend="plugin")
+    wheel = sim.model.body("wheel_3L")
+    # (the MJCF writes 6 significant digits)
+    assert wheel.inertia[1] == pytest.approx(wheel_spin_inertia(cfg), rel=1e-5)
     assert replay_step(with_sigma(cfg, 0.0025), 0.002).sim.timestep == pytest.approx(0.002)
     short = with_sigma(cfg, 0.00032)  # stable below 1.2 ms
     assert 0.001 < stable_step(short) < 0.002
@@ -92,7 +98,6 @@ def test_a_simulation_past_the_stable_step_warns_naming_the_step_and_the_tire() 
     import warnings
 
     from rover_env.config import SimSpec
-    from rover_env.sim.simulator import RoverSim
 
     ringing = replace(with_sigma(RoverConfig(), 0.00032), sim=SimSpec(timestep=0.002))
     with pytest.warns(RuntimeWarning, match=r"sim\.timestep 0\.002 s .*\(tire\.sigma_x 0\.00032"):
