@@ -135,6 +135,11 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         " disagree (one wheel's own drag)",
     ),
     (
+        "slip_beside_lead",
+        "where dead reckoning's driven wheels slip apart from the free wheels, read the radius"
+        " beside the leading unnamed fit (a drag the windows did not name)",
+    ),
+    (
         "partner_limit",
         "name a second effect only if it reaches its detection limit beside the winner"
         " (off: study 71000)",

@@ -101,5 +101,27 @@ def _reckoning_compared(r: dict[str, Any], diff: float) -> list[str]:
         f" minus 1); clean drives of another implementation leave {100 * lo:+.2f} to"
         f" {100 * hi:+.2f} %{noise}: {verdict}. A rolling radius change shows one for one; a rolling"
         " resistance drags the free wheels (about +1 %), loose soil makes them bulldoze (up to"
-        " +24 %), a dragging brake slows one of them." + held,
+        " +24 %), a dragging brake slows one of them." + held + _lead_text(r),
     ]
+
+
+def _lead_text(r: dict[str, Any]) -> str:
+    """The named model's reading beside which dead reckoning was read with the leading
+    unnamed fit (:func:`.diagnosis.odometry.beside_lead`), or nothing."""
+    lead = r.get("slip_lead")
+    if not lead:
+        return ""
+    nd = lead["named_difference"]
+    head = (
+        f" Against the named model's own twins the driven wheels read {100 * nd['driven']:+.2f} %"
+        f" against the free wheels' {100 * nd['both']:+.2f} %, apart as a drag makes them;"
+    )
+    if lead["read_beside"]:
+        return head + (
+            f" the figures above are read beside the unnamed {lead['effect']} fit"
+            f" ({lead['fit']}), whose drag makes that slip (it stays out of the configuration)."
+        )
+    return head + (
+        f" beside the unnamed {lead['effect']} fit ({lead['fit']}) dead reckoning names no"
+        f" radius either: {lead['why_not']}."
+    )

@@ -30,8 +30,9 @@ import numpy as np
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import Candidate, Extensions, merge
-from rover_env.calibration.diagnosis.judge import p_improved, score
-from rover_env.calibration.diagnosis.state import Diagnosis, OdometryBand, Options
+from rover_env.calibration.diagnosis.again import LEADER_GAIN
+from rover_env.calibration.diagnosis.judge import fmt_phys, p_improved, plugin_capable, score
+from rover_env.calibration.diagnosis.state import Diagnosis, OdometryBand, Options, Scored
 from rover_env.calibration.fit import Fit, to_ext
 from rover_env.calibration.replay import PreparedLog
 from rover_env.config import RoverConfig
@@ -129,6 +130,8 @@ def name_by_odometry(d: Diagnosis) -> None:
         return
     on_twins = twin_scales(d.ev.config(ref_ext), d.prepared, r_e, form)
     diff = {k: on_logs[k] - on_twins[k] for k in WHEELS}
+    if d.opts.slip_beside_lead:
+        ref_ext, on_twins, diff = beside_lead(d, rec, band, (ref_ext, on_twins, diff), r_e, form)
     rec.update(model=on_twins, difference=diff)
     se, samples = scale_noise([p.log for p in d.prepared], r_e)
     rec.update(noise_se=se, noise_samples=samples)
@@ -177,6 +180,71 @@ def name_by_odometry(d: Diagnosis) -> None:
     rec["named"] = True
     d.chosen.append(s)
     d.say(f"{NAME}: named by {s.test}: {x:+.4f} [{lo:+.4f}, {hi:+.4f}]")
+
+
+def slip_lead(d: Diagnosis, named: set[str]) -> Scored | None:
+    """The leading fit no name holds: beside the named winner its partners, else the single
+    fits; fully fitted (not screened), replayed by the plugin, lowering the training BIC or
+    bettering the held-out drive by the naming rule's 10 % (:data:`.again.LEADER_GAIN`); the
+    lowest training BIC among those. Not a rolling radius: that is what is read."""
+    pool = d.partners if d.chosen and d.winner is not None else d.ranked
+    leading = [
+        s
+        for s in pool
+        if not s.screened
+        and all(plugin_capable(c) for c in s.fit.candidates)
+        and not {c.name for c in s.fit.candidates} & (named | {NAME})
+        and (s.d_bic < 0 or s.gain >= LEADER_GAIN)
+    ]
+    return min(leading, key=lambda s: s.d_bic, default=None)
+
+
+Reading = tuple[Extensions, dict[str, float], dict[str, float]]
+"""Dead reckoning read against one model: its extensions, its twins' statistic, the logs'
+difference from them."""
+
+
+def beside_lead(
+    d: Diagnosis, rec: dict[str, Any], band: OdometryBand, named: Reading, r_e: float, form: str
+) -> Reading:
+    """The reading dead reckoning judges: against the named model's twins (``named``), or,
+    where only the driven wheels' agreement refuses it there, against the twins of that
+    model with :func:`slip_lead`'s fit beside it, if they pass every check
+    (:attr:`~.state.Options.slip_beside_lead`; recorded in ``rec["slip_lead"]``).
+
+    Why: a rolling resistance makes the driven wheels slip while the free wheels roll; fitted
+    by the windows but not named (its interval with the clean-fit allowance reaching "off",
+    a tie), the named model's twins do not slip so, and the radius beside it was refused as
+    a drag (study 73100: both missed radii)."""
+    ext, twins, diff = named
+    names = {c.name for s in d.chosen for c in s.fit.candidates}
+    if refusal(diff, band, names) is None or refusal(diff, band, names, ask_driven=False):
+        return named
+    lead = slip_lead(d, names)
+    if lead is None:
+        return named
+    lead_ext = merge(ext, lead.fit.ext)
+    lead_twins = twin_scales(d.ev.config(lead_ext), d.prepared, r_e, form)
+    lead_diff = {k: rec["logs"][k] - lead_twins[k] for k in WHEELS}
+    why = refusal(lead_diff, band, names)
+    kept = why is None
+    rec["slip_lead"] = {
+        "why_not": why,
+        "effect": lead.fit.name,
+        "fit": fmt_phys(lead.fit),
+        "model": lead_twins,
+        "difference": lead_diff,
+        "read_beside": kept,
+        "named_model": twins,
+        "named_difference": diff,
+    }
+    d.say(
+        f"dead reckoning: the driven wheels slip apart from the free wheels against the named"
+        f" model's twins; beside the unnamed {lead.fit.name} fit ({fmt_phys(lead.fit)}) they"
+        f" read {lead_diff['driven']:+.2%} against {lead_diff['both']:+.2%}:"
+        f" {'read beside it' if kept else 'not read beside it'}"
+    )
+    return (lead_ext, lead_twins, lead_diff) if kept else named
 
 
 def lower_bar(d: Diagnosis, band: OdometryBand, g: float) -> dict[str, float]:
@@ -228,9 +296,11 @@ def withdrawn(d: Diagnosis) -> list[str]:
     return out
 
 
-def refusal(diff: dict[str, float] | None, band: OdometryBand, named: set[str]) -> str | None:
+def refusal(
+    diff: dict[str, float] | None, band: OdometryBand, named: set[str], ask_driven: bool = True
+) -> str | None:
     """Why the statistic does not name a rolling radius, or None (``diff`` None: only what
-    is decided without it)."""
+    is decided without it; ``ask_driven`` False: the driven wheels' agreement not asked)."""
     if NAME in named:
         return "named already"
     if "loose_soil" in named:
@@ -246,7 +316,7 @@ def refusal(diff: dict[str, float] | None, band: OdometryBand, named: set[str]) 
         return "within what clean drives leave"
     if abs(left - right) > band.split:
         return f"the free wheels disagree (3L {left:+.2%}, 3R {right:+.2%}): one wheel's own drag or size"
-    if not abs(driven - both) <= band.driven * abs(both):
+    if ask_driven and not abs(driven - both) <= band.driven * abs(both):
         return (
             f"the driven wheels read {driven:+.2%} against the free wheels' {both:+.2%}: a radius"
             " moves both alike (slip that loose soil, a drag or a load adds moves them apart)"

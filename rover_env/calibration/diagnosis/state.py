@@ -232,6 +232,15 @@ class Options:
     fresh study 67200 (registered) it withdrew 8 of 12 such names (final rolling resistances
     on brake drags 4/28) and no rolling-resistance single or clean case of 120 parted the
     wheels that far (docs/calibration/README.md)."""
+    slip_beside_lead: bool = True
+    """Where dead reckoning's driven wheels slip apart from its free wheels against the
+    named model's twins, read the radius against the twins of the named model with the
+    leading unnamed fit beside it (:func:`.odometry.slip_lead`): a drag the windows fitted
+    but did not name makes that slip, and a radius beside it was refused. Why (stop 105):
+    study 73100's two missed radii (73100, 73103's follow-up) each had a significant
+    rolling-resistance fit left unnamed, their driven wheels 5 and 3.6 % apart from the
+    free wheels' -3.1 and -3.9 %; the rule was then registered and scored on fresh cases
+    (study 73200, docs/calibration/studies.md)."""
     partner_limit: bool = False
     """A second effect, as the winner, is named only if it reaches its detection limit,
     measured beside the winner (:func:`.select.partner_limits`; with
