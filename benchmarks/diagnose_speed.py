@@ -79,7 +79,7 @@ def diagnose_seconds(
     return dt, named
 
 
-TIMING = frozenset({"seconds", "replay_seconds", "replays"})
+TIMING = frozenset({"seconds", "replay_seconds", "replays", "stage_seconds"})
 """``result.json`` keys that hold a run's own cost (seconds, replays made), not what it
 found."""
 

@@ -418,6 +418,23 @@ def test_result_json_is_strict_json(rr_case: tuple[Path, dict]) -> None:
     assert data["final"]["rolling_resistance"]["interval_method"] == "bootstrap"
 
 
+def test_result_json_says_where_the_seconds_went(rr_case: tuple[Path, dict]) -> None:
+    """Each pass's wall seconds per stage, in pipeline order, within the case's own seconds
+    (which count every pass: a second pass carries on the first's clock)."""
+    root, result = rr_case
+    passes = result["stage_seconds"]
+    assert len(passes) >= 1
+    for p in passes[:-1]:
+        assert list(p)[-1] == "again"  # a pass that ran again stops at the re-judgement
+    last = list(passes[-1])
+    assert last[:5] == ["split", "form", "floor", "fit", "winner"]
+    assert last[-4:] == ["select", "odometry", "one_wheel", "evidence"]
+    spent = sum(v for p in passes for v in p.values())
+    assert all(v >= 0 for p in passes for v in p.values())
+    assert 0.5 * result["seconds"] < spent <= result["seconds"]
+    assert "by stage" in (root / "out" / "report.md").read_text()
+
+
 @pytest.mark.parametrize(
     "name, values", [("command_lag", {"tau": 0.05}), ("command_delay", {"delay": 0.007})]
 )

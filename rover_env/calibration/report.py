@@ -240,8 +240,19 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
             if opts.one_wheel
             else []
         ),
-        f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay, {result['seconds']:.0f} s in all.",
+        f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay,"
+        f" {result['seconds']:.0f} s in all{_stage_text(result.get('stage_seconds') or [])}.",
     ]
+
+
+def _stage_text(passes: list[dict[str, float]]) -> str:
+    """Where the seconds went, stage by stage and pass by pass (the write not counted)."""
+    if not passes:
+        return ""
+    parts = [", ".join(f"{k} {v:.0f} s" for k, v in p.items()) for p in passes]
+    if len(parts) == 1:
+        return f" (by stage: {parts[0]})"
+    return " (by stage, " + "; ".join(f"pass {i + 1}: {t}" for i, t in enumerate(parts)) + ")"
 
 
 def _noise_clause(z: float) -> str:

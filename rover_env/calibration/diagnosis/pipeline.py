@@ -9,6 +9,8 @@ diagnosis runs again from the start under the new options.
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -41,21 +43,49 @@ def diagnose(
         return run(paths, out, opts)
 
 
-def run(paths: list[str | Path], out: str | Path, opts: Options) -> dict[str, Any]:
-    """One pass of the stages; a second under the options the form's re-judgement sets."""
+def run(
+    paths: list[str | Path], out: str | Path, opts: Options, earlier: Diagnosis | None = None
+) -> dict[str, Any]:
+    """One pass of the stages; a second under the options the form's re-judgement sets
+    (``earlier``: the first pass, whose clock and stage times the second carries on)."""
     Path(out).mkdir(parents=True, exist_ok=True)
     d = Diagnosis(list(paths), Path(out), opts)
-    split.split(d)
-    form.fit_model_form(d)
-    floor.baseline(d)
-    fit_stage.fit_candidates(d)
-    select.name_winner(d)
-    rerun = again.judge_again(d)
+    if earlier is not None:
+        d.t_start = earlier.t_start
+        d.earlier_passes = [*earlier.earlier_passes, earlier.stage_seconds]
+    for name, stage in FIRST:
+        timed(d, name, stage)
+    rerun = timed(d, "again", again.judge_again)
     if rerun is not None:
-        return run(paths, out, rerun)
-    select.select(d)
-    odometry.name_by_odometry(d)
-    one_wheel.withdraw_one_wheel(d)
-    evidence_stage.seek_evidence(d)
+        return run(paths, out, rerun, d)
+    for name, stage in LAST:
+        timed(d, name, stage)
     write_stage.write(d)
     return d.result
+
+
+Stage = Callable[[Diagnosis], Any]
+FIRST: tuple[tuple[str, Stage], ...] = (
+    ("split", split.split),
+    ("form", form.fit_model_form),
+    ("floor", floor.baseline),
+    ("fit", fit_stage.fit_candidates),
+    ("winner", select.name_winner),
+)
+"""The stages before the form's re-judgement, each with the name its time is kept under."""
+LAST: tuple[tuple[str, Stage], ...] = (
+    ("select", select.select),
+    ("odometry", odometry.name_by_odometry),
+    ("one_wheel", one_wheel.withdraw_one_wheel),
+    ("evidence", evidence_stage.seek_evidence),
+)
+"""The stages after it, before the write."""
+
+
+def timed(d: Diagnosis, name: str, stage: Stage) -> Any:
+    """``stage(d)``, its wall seconds added to ``d.stage_seconds[name]``."""
+    t0 = time.perf_counter()
+    try:
+        return stage(d)
+    finally:
+        d.stage_seconds[name] = d.stage_seconds.get(name, 0.0) + time.perf_counter() - t0

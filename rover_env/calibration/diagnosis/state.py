@@ -528,6 +528,11 @@ class Diagnosis:
     out: Path
     opts: Options
     t_start: float = field(default_factory=time.perf_counter)
+    stage_seconds: dict[str, float] = field(default_factory=dict)
+    """Wall seconds per stage of this pass (:mod:`.pipeline`; the write stage not counted)."""
+    earlier_passes: list[dict[str, float]] = field(default_factory=list)
+    """:attr:`stage_seconds` of the passes before this one (a second pass under re-judged
+    forms, :mod:`.again`); their time is in ``result.json``'s ``seconds`` too."""
     allowance: FormAllowance | None = field(init=False)
     """The clean-fit allowance table, read before any work (a bad table fails first)."""
 

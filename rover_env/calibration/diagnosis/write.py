@@ -115,6 +115,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "seconds": elapsed,
         "replays": d.ev.replays,
         "replay_seconds": d.ev.seconds,
+        "stage_seconds": [*d.earlier_passes, d.stage_seconds],
         "config": cfg_path,
         "unexplained": gap(table_held_after, final_floor),
         "above_floor": unexplained(table_held_after, final_floor),
