@@ -124,3 +124,24 @@ def test_agreeing_wheels_ask_no_lead(twins: list[Any]) -> None:
     d = _diagnosis([_scored("rolling_resistance", 0.09, -20.0, 0.4)], [])
     (ext, on_twins, _), rec = _read(d, logs)
     assert ext == {} and on_twins is NOMINAL and "slip_lead" not in rec and not twins
+
+
+def test_a_read_radius_is_judged_beside_what_it_was_read_against(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The windows replay the radius with the named effects (and a lead) it was read beside,
+    while the configuration gets the radius alone."""
+    seen: list[Any] = []
+
+    def fake_score(d: Any, f: Fit, ref_held: Any, ref_ext: Any, k: int | None = None) -> Scored:
+        seen.append((f.ext, ref_ext))
+        return _scored("rolling_radius", -0.05, d_bic=-3.0, gain=-0.1)
+
+    monkeypatch.setattr(odometry, "score", fake_score)
+    radius = _scored("rolling_radius", -0.05, d_bic=0.0, gain=0.0).fit
+    beside = {"rolling_resistance": {"c_rr": 0.096}}
+    d = SimpleNamespace(ev=SimpleNamespace(run=lambda ext, which: []), noise={})
+    s, _ = odometry.scored_beside(d, radius, beside)
+    ((ext, ref),) = seen
+    assert ext == {**beside, **radius.ext} and ref == beside
+    assert s.fit is radius and s.fit.ext == {"rolling_radius": {"fraction": -0.05}}

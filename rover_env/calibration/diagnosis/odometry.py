@@ -27,6 +27,7 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import Candidate, Extensions, merge
@@ -46,6 +47,8 @@ from rover_env.estimation.dead_reckoning import (
 )
 from rover_env.estimation.estimator import static_rolling_radius
 from rover_env.logs import DriveLog
+
+Array = NDArray[np.float64]
 
 DRIVEN = (0, 1, 2, 3)
 """The driven wheels' columns in a log's wheel angles (1L 1R 2L 2R)."""
@@ -167,8 +170,7 @@ def name_by_odometry(d: Diagnosis) -> None:
         which="train",
         method="odometry",
     )
-    ref_held = rs.window_losses(d.ev.run(ref_ext, "held"), d.noise)
-    s = score(d, fit, ref_held, ref_ext, k=1)
+    s, ref_held = scored_beside(d, fit, ref_ext)
     rec.update(held_gain=s.gain, p_worse=p_improved(s.held_losses, ref_held))
     s.significant = True
     s.test = (
@@ -180,6 +182,18 @@ def name_by_odometry(d: Diagnosis) -> None:
     rec["named"] = True
     d.chosen.append(s)
     d.say(f"{NAME}: named by {s.test}: {x:+.4f} [{lo:+.4f}, {hi:+.4f}]")
+
+
+def scored_beside(d: Diagnosis, fit: Fit, ref_ext: Extensions) -> tuple[Scored, Array]:
+    """The radius read by dead reckoning (``fit``, its extension alone: what the
+    configuration gets) judged on the windows beside what it was read against (``ref_ext``:
+    the named effects, a lead), and that reference's held-out losses. Until stop 105 the
+    windows replayed the radius without the named effects, and reported a radius beside a
+    named drag as making the held-out drive worse by the drag's share."""
+    ref_held = rs.window_losses(d.ev.run(ref_ext, "held"), d.noise)
+    s = score(d, replace(fit, ext=merge(ref_ext, fit.ext)), ref_held, ref_ext, k=1)
+    s.fit = fit
+    return s, ref_held
 
 
 def slip_lead(d: Diagnosis, named: set[str]) -> Scored | None:
