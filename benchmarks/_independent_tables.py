@@ -143,6 +143,7 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
         f" logs {med('make_logs_s'):.0f} s, diagnose {med('diagnose_s'):.0f} s, follow-up"
         f" drives and diagnosis {med('followup_s'):.0f} s; a follow-up driven in"
         f" {sum(bool(r['followup']) for r in ok)} of {len(ok)} cases",
+        *stage_lines(ok),
         missed_line(single, truth_ratio),
         *rule_lines(ok),
         f"- Cases that failed to run: {len(rows) - len(ok)}",
@@ -261,3 +262,20 @@ def summarise(
 
 
 # --------------------------------------------------------------------------- command line
+
+
+def stage_lines(ok: list[dict[str, Any]]) -> list[str]:
+    """Where the first diagnosis's seconds went: per stage, summed over its passes, the
+    median over cases; and how many ran more than one pass (the forms re-judged beside the
+    winner). Rows since stop 105 (``stage_seconds``); none: no line."""
+    runs = [r["stage_seconds"] for r in ok if r.get("stage_seconds")]
+    if not runs:
+        return []
+    names = list(dict.fromkeys(k for passes in runs for p in passes for k in p))
+    per = {k: [sum(p.get(k, 0.0) for p in passes) for passes in runs] for k in names}
+    again = sum(len(passes) > 1 for passes in runs)
+    return [
+        "- First diagnosis by stage (median seconds over cases, each summed over its passes): "
+        + ", ".join(f"{k} {np.median(v):.0f}" for k, v in per.items())
+        + f"; run again under re-judged forms in {again} of {len(runs)} (rows since stop 105)"
+    ]

@@ -494,6 +494,7 @@ def run_case(
         "make_logs_s": t1 - t0,
         "diagnose_s": t2 - t1,
         "followup_s": t3 - t2,
+        "stage_seconds": res.get("stage_seconds"),
         "fits": fits(final, case["truth"]),
         "named_fits": named_fits(final),
         "rotor_alternative": final.get("rotor_alternative"),

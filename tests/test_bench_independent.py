@@ -614,3 +614,16 @@ def test_a_soil_row_says_where_its_k_phi_was_read(b: ModuleType) -> None:
         final = {"final": {"loose_soil": {**soil, "read_from": read}}, "fits": {}}
         row = b.fits(final, {"loose_soil": {"k_phi": 8.14e5}})["loose_soil"]
         assert row["read_from"] == want and row["value"] == 1e6
+
+
+def test_the_stage_line_sums_each_case_s_passes_and_counts_the_reruns() -> None:
+    """Stop 105's ``stage_seconds``: per stage the median over cases of the seconds summed
+    over a case's passes; rows without it (before stop 105) give no line."""
+    t = load_bench("_independent_tables")
+    one = [{"form": 10.0, "fit": 50.0, "select": 20.0}]
+    two = [{"form": 10.0, "fit": 60.0, "again": 5.0}, {"form": 0.0, "fit": 40.0, "select": 30.0}]
+    rows = [{"stage_seconds": one}, {"stage_seconds": two}, {"stage_seconds": one}, {}]
+    (line,) = t.stage_lines(rows)
+    assert "form 10, fit 50, select 20, again 0" in line  # two's fit: 100 s, the median 50
+    assert "run again under re-judged forms in 1 of 3" in line
+    assert t.stage_lines([{}, {"stage_seconds": None}]) == []
