@@ -318,3 +318,34 @@ def test_the_rival_is_a_fully_fitted_plugin_candidate_the_training_windows_favou
     assert riv(friction, scored(["command_lag"], -6.0)) is None  # not below the winner's
     assert riv(scored(["slope"], 3.0), scored(["command_lag"], 1.0)) is None  # nor nominal's
     assert riv(torque, friction) is None
+
+
+def test_a_weak_adoption_beside_the_effect_leaves_the_first_choice() -> None:
+    """Kept nominal before any effect and adopted beside it on weak evidence (|dBIC| < 2),
+    a form starts no second pass where ``weak_adoption_stands`` (stop 105: case 74013's yaw
+    springs, +3.5 before the lag and -1.0 beside it, ran the diagnosis three times). Adopted
+    decisively beside it, or dropped beside it, the forms still differ."""
+
+    def spring(k: float, d_bic: float) -> FormFit:
+        return FormFit(
+            "yaw_spring", "N m/rad", 10.0, k, {}, 0.05, 0.01, d_bic, d_bic < 0,
+            spacing=float(np.log(2.0) / 2), log_spacing=True,
+        )  # fmt: skip
+
+    before, weak, strong = [spring(10.0, 3.5)], [spring(13.5, -1.0)], [spring(13.5, -2.5)]
+    assert form_changes(before, weak) == [
+        "yaw_spring: 10 N m/rad (nominal, dBIC +3.5) -> 13.5 N m/rad (adopted, dBIC -1.0)"
+    ]  # as until stop 105
+    assert form_changes(before, weak, weak_adoption_stands=True) == []
+    assert form_changes(before, strong, weak_adoption_stands=True) != []
+    # dropped beside the effect, however weakly it was adopted before: a change
+    assert form_changes(weak, before, weak_adoption_stands=True) != []
+    assert Options().weak_adoption_stands
+
+
+def test_the_report_says_a_weak_adoption_kept_the_first_choice() -> None:
+    from rover_env.calibration.report import _weak_beside_line
+
+    assert _weak_beside_line(None) == []
+    (line,) = _weak_beside_line({"beside": "command_lag", "changes": ["yaw_spring: a -> b"]})
+    assert "Beside command_lag" in line and "yaw_spring: a -> b" in line and "did not run" in line

@@ -162,6 +162,11 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "fit a command lag and a delay together, both free, when one of them is the winner",
     ),
     (
+        "weak_adoption_stands",
+        "a form adopted beside the winner or leader on weak evidence only (|dBIC| < 2), kept"
+        " nominal before, starts no second pass",
+    ),
+    (
         "forms_beside_leader",
         "with nothing named, fit the model form again beside the leading candidate",
     ),

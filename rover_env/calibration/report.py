@@ -157,6 +157,7 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
             opts.forms_beside_winner,
             result.get("model_form_changed") or [],
         ),
+        *_weak_beside_line(result.get("model_form_weak_beside")),
         '- Fit, blind to magnitude: one parameter is searched over its whole physical range ("off" and a'
         " log-spaced ladder of 5 values per sign from 1.2 % to 100 % of the range, then a bounded Brent search"
         " between the best value's neighbours); several parameters start from the best ladder point or the"
@@ -242,6 +243,18 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
         ),
         f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay,"
         f" {result['seconds']:.0f} s in all{_stage_text(result.get('stage_seconds') or [])}.",
+    ]
+
+
+def _weak_beside_line(weak: dict[str, Any] | None) -> list[str]:
+    """The forms adopted beside an effect on weak evidence only, which kept the first
+    choice (:attr:`~.diagnosis.state.Options.weak_adoption_stands`)."""
+    if not weak:
+        return []
+    return [
+        f"- Beside {weak['beside']} the model form came out otherwise only by adoptions on weak"
+        f" evidence (|dBIC| < 2: {'; '.join(weak['changes'])}): the first choice stands, and the"
+        " diagnosis did not run again for it."
     ]
 
 

@@ -74,7 +74,15 @@ def forms_beside(d: Diagnosis, s: Scored, role: str) -> Options | None:
         d.opts,
         lambda f: d.say(form_text(f) + f" (beside {s.fit.name}{role})"),
     )
-    changes = form_changes(d.forms, again)  # none: the forms do not differ (forms_differ)
+    # none: the forms do not differ (forms_differ)
+    changes = form_changes(d.forms, again, d.opts.weak_adoption_stands)
+    weak = [c for c in form_changes(d.forms, again) if c not in changes]
+    if weak:
+        d.forms_weak = {"beside": s.fit.name + role, "changes": weak}
+        d.say(
+            f"model form fitted again beside {s.fit.name}{role}: adopted on weak evidence only"
+            f" ({'; '.join(weak)}); the first choice stands"
+        )
     if not changes:
         return None
     d.say(

@@ -529,16 +529,29 @@ def weakly_judged(a: FormFit, b: FormFit) -> bool:
     return a.adopted != b.adopted and max(abs(a.d_bic), abs(b.d_bic)) < WEAK_BIC
 
 
-def same_fit(a: FormFit, b: FormFit) -> bool:
+def weakly_adopted_beside(a: FormFit, b: FormFit) -> bool:
+    """Whether a form kept nominal on the first fit (``a``) is adopted on the refit beside
+    an effect (``b``) on weak evidence only (:data:`WEAK_BIC`): the effect makes no case for
+    it, and the first choice stands (:attr:`~.state.Options.weak_adoption_stands`). Stop 105:
+    of 85 stored diagnoses of spent studies 72800-73100, 28 ran again, 16 for such adoptions
+    alone (the yaw springs at dBIC -1.0 beside a lag after +3.5 before it, case 74013: a
+    second pass and, after the re-judgement reverted it, a third; 271 s in all, the first
+    pass 80 s)."""
+    return not a.adopted and b.adopted and abs(b.d_bic) < WEAK_BIC
+
+
+def same_fit(a: FormFit, b: FormFit, weak_adoption_stands: bool = False) -> bool:
     """Whether two fits of one form change the model alike: both kept nominal, both adopted
     at values within half the ladder's rung spacing (:attr:`FormFit.spacing`; a choice, or
     a form without a ladder, at the same value), or adopted by one and not the other on weak
-    evidence both times (:func:`weakly_judged`). The parabola that refines a ladder's best
-    rung moves with every refit; half a rung is the ladder's own resolution."""
+    evidence both times (:func:`weakly_judged`), or, with ``weak_adoption_stands``, kept
+    nominal by the first and adopted by the second on weak evidence
+    (:func:`weakly_adopted_beside`). The parabola that refines a ladder's best rung moves
+    with every refit; half a rung is the ladder's own resolution."""
     if a.name != b.name:
         return False
     if a.adopted != b.adopted:
-        return weakly_judged(a, b)
+        return weakly_judged(a, b) or (weak_adoption_stands and weakly_adopted_beside(a, b))
     if not a.adopted or a.value == b.value:
         return True
     step = min(a.spacing, b.spacing)
@@ -562,16 +575,19 @@ def forms_differ(a: list[FormFit], b: list[FormFit]) -> bool:
     return bool(form_changes(a, b))
 
 
-def form_changes(before: list[FormFit], after: list[FormFit]) -> list[str]:
-    """What differs between two fits of the forms (:func:`forms_differ`), one line a form:
-    why a second pass runs, for the report."""
+def form_changes(
+    before: list[FormFit], after: list[FormFit], weak_adoption_stands: bool = False
+) -> list[str]:
+    """What differs between two fits of the forms (:func:`forms_differ`; ``after`` the refit
+    beside an effect, ``weak_adoption_stands`` as :func:`same_fit`), one line a form: why a
+    second pass runs, for the report."""
     prev = {f.name: f for f in before if not f.name.startswith(ZERO_PREFIX)}
     out = []
     for f in after:
         if f.name.startswith(ZERO_PREFIX):
             continue
         b = prev.pop(f.name, None)
-        if b is None or not same_fit(b, f):
+        if b is None or not same_fit(b, f, weak_adoption_stands):
             was = "not fitted" if b is None else _state(b)
             out.append(f"{f.name}: {was} -> {_state(f)}")
     out.extend(f"{name}: {_state(b)} -> not fitted" for name, b in prev.items())

@@ -373,6 +373,14 @@ class Options:
     gains nothing and is kept at 2 cm, and the delay is then fitted 0.0949 [0.0908, 0.0983]
     with the free wheels at 32 mrad; beside the delay the short relaxation puts the free
     wheels at 3.7 mrad and the delay's minimum at 0.084)."""
+    weak_adoption_stands: bool = True
+    """A form kept nominal before any effect and adopted beside the winner or leader on weak
+    evidence only (|dBIC| < 2, :func:`.form.weakly_adopted_beside`) does not start a second
+    pass: the first choice stands, as for a coin flip both ways (:func:`.form.weakly_judged`).
+    A form adopted decisively beside it, or dropped beside it, still does. Why (stop 105): in
+    16 of 85 stored diagnoses such an adoption alone ran the whole diagnosis again, and a
+    re-judgement that reverted it ran it a third time (docs/calibration/limits.md); scored on
+    fresh study 73300 (docs/calibration/studies.md)."""
     forms_beside_leader: bool = True
     """When nothing is named: fit the model's forms again beside the leading candidate (fully
     fitted, one the plugin replays, lowering the training BIC or improving the held-out drive
@@ -528,6 +536,10 @@ class Diagnosis:
     out: Path
     opts: Options
     t_start: float = field(default_factory=time.perf_counter)
+    forms_weak: dict[str, Any] | None = None
+    """The forms adopted beside the winner or leader on weak evidence only, which started no
+    second pass (:attr:`Options.weak_adoption_stands`): what they were fitted beside and the
+    changes; None: none."""
     stage_seconds: dict[str, float] = field(default_factory=dict)
     """Wall seconds per stage of this pass (:mod:`.pipeline`; the write stage not counted)."""
     earlier_passes: list[dict[str, float]] = field(default_factory=list)

@@ -134,6 +134,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "model_form_reverted": opts.forms_reverted,
         "model_form_beside": opts.forms_beside,
         "model_form_changed": list(opts.forms_changed),
+        "model_form_weak_beside": d.forms_weak,
         "free_wheel_gain": free_g if d.ev.profile_free_gain else None,
         "free_wheel_common": free_c if d.ev.free_common_max > 0 else None,
         "dead_reckoning": d.odometry,
