@@ -71,7 +71,8 @@ def twins(monkeypatch: pytest.MonkeyPatch) -> list[Any]:
 def _read(d: Any, logs: dict[str, float] = LOGS) -> tuple[Any, dict[str, Any]]:
     rec: dict[str, Any] = {"logs": logs}
     named = ({}, NOMINAL, {k: logs[k] - NOMINAL[k] for k in logs})
-    return odometry.beside_lead(d, rec, ODOMETRY_BAND, named, 0.076, odometry.INTERVALS), rec
+    got = odometry.beside_lead(d, rec, ODOMETRY_BAND, named, set(), 0.076, odometry.INTERVALS)
+    return got, rec
 
 
 def test_the_named_model_refuses_the_radius_as_a_drag() -> None:

@@ -134,7 +134,8 @@ def name_by_odometry(d: Diagnosis) -> None:
     on_twins = twin_scales(d.ev.config(ref_ext), d.prepared, r_e, form)
     diff = {k: on_logs[k] - on_twins[k] for k in WHEELS}
     if d.opts.slip_beside_lead:
-        ref_ext, on_twins, diff = beside_lead(d, rec, band, (ref_ext, on_twins, diff), r_e, form)
+        reading = (ref_ext, on_twins, diff)
+        ref_ext, on_twins, diff = beside_lead(d, rec, band, reading, named, r_e, form)
     rec.update(model=on_twins, difference=diff)
     se, samples = scale_noise([p.log for p in d.prepared], r_e)
     rec.update(noise_se=se, noise_samples=samples)
@@ -219,9 +220,16 @@ difference from them."""
 
 
 def beside_lead(
-    d: Diagnosis, rec: dict[str, Any], band: OdometryBand, named: Reading, r_e: float, form: str
+    d: Diagnosis,
+    rec: dict[str, Any],
+    band: OdometryBand,
+    reading: Reading,
+    names: set[str],
+    r_e: float,
+    form: str,
 ) -> Reading:
-    """The reading dead reckoning judges: against the named model's twins (``named``), or,
+    """The reading dead reckoning judges: against the named model's twins (``reading``; the
+    effects named, ``names``), or,
     where only the driven wheels' agreement refuses it there, against the twins of that
     model with :func:`slip_lead`'s fit beside it, if they pass every check
     (:attr:`~.state.Options.slip_beside_lead`; recorded in ``rec["slip_lead"]``).
@@ -230,13 +238,12 @@ def beside_lead(
     by the windows but not named (its interval with the clean-fit allowance reaching "off",
     a tie), the named model's twins do not slip so, and the radius beside it was refused as
     a drag (study 73100: both missed radii)."""
-    ext, twins, diff = named
-    names = {c.name for s in d.chosen for c in s.fit.candidates}
+    ext, twins, diff = reading
     if refusal(diff, band, names) is None or refusal(diff, band, names, ask_driven=False):
-        return named
+        return reading
     lead = slip_lead(d, names)
     if lead is None:
-        return named
+        return reading
     lead_ext = merge(ext, lead.fit.ext)
     lead_twins = twin_scales(d.ev.config(lead_ext), d.prepared, r_e, form)
     lead_diff = {k: rec["logs"][k] - lead_twins[k] for k in WHEELS}
@@ -258,7 +265,7 @@ def beside_lead(
         f" read {lead_diff['driven']:+.2%} against {lead_diff['both']:+.2%}:"
         f" {'read beside it' if kept else 'not read beside it'}"
     )
-    return (lead_ext, lead_twins, lead_diff) if kept else named
+    return (lead_ext, lead_twins, lead_diff) if kept else reading
 
 
 def lower_bar(d: Diagnosis, band: OdometryBand, g: float) -> dict[str, float]:
