@@ -57,6 +57,8 @@ a 0.1-0.5 N m dragging brake on a free wheel (3L or 3R, drawn), battery sag 30-6
     python benchmarks/bench_independent.py --only torque_limit --limit 1 --out out/check
     # pairs of effects each clearly over what the logs name (STRONG), seeds from 72800
     python benchmarks/bench_independent.py --strong-pairs 20 --seed0 72800 --out out/pairs
+    # singles of every STRONG effect in turn, no pairs (seeds from 73400)
+    python benchmarks/bench_independent.py --strong-pairs 0 --strong-singles 24 --seed0 73400 --out out/singles
     # a lag with a delay, then each alone (seeds from 72900)
     python benchmarks/bench_independent.py --strong-pairs 10 --strong-from \
         command_lag,command_delay --strong-singles 8 --seed0 72900 --out out/timing
@@ -601,7 +603,8 @@ def main() -> int:
         "--strong-singles",
         type=int,
         default=0,
-        help="with --strong-pairs: then N single effects of --strong-from in turn",
+        help="after --strong-pairs' pairs (none with --strong-pairs 0): N single effects of"
+        " --strong-from (default: every STRONG effect) in turn",
     )
     args = ap.parse_args()
     out = Path(args.out)
@@ -613,7 +616,7 @@ def main() -> int:
                 args.strong_from.split(",") if args.strong_from else None,
                 args.strong_singles,
             )
-            if args.strong_pairs
+            if args.strong_pairs or args.strong_singles
             else planned(args.quick, args.seed0)
         )
     except ValueError as exc:
