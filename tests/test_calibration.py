@@ -290,6 +290,16 @@ def test_replays_split_over_processes_are_the_same_to_the_bit(
     with_sensors = replay_arrays(Replayer(cfg, st, sensors=True).run(prepared, windows))
     for k in serial:
         np.testing.assert_array_equal(with_sensors[k], serial[k], err_msg=k)
+    # The evaluator replays a set's windows that another set replayed under the same model
+    # from there: every other window first, then all of them, the same to the bit.
+    from rover_env.calibration.evaluator import Evaluator
+
+    ev = Evaluator(RoverConfig(), st, prepared, {"all": windows, "sub": windows[::2]})
+    ev.run(ext, "sub")
+    reused = replay_arrays(ev.run(ext, "all"))
+    assert ev.replays == 2
+    for k in serial:
+        np.testing.assert_array_equal(reused[k], serial[k], err_msg=k)
 
 
 def test_make_logs_writes_readable_logs_and_hidden_truth(rr_case: tuple[Path, dict]) -> None:

@@ -1,6 +1,7 @@
 """The evaluator's replay cache names a model by the simulator it builds: extension sets
 that differ only in spelled-out defaults, or in effects that are off, share one replay;
-any other difference, over the evaluator's own extensions too, replays again."""
+any other difference, over the evaluator's own extensions too, replays again. A window set
+replays only its windows that no other set has replayed under the same model."""
 
 from __future__ import annotations
 
@@ -18,20 +19,22 @@ SOIL_DEFAULTS = {"memory": 1.0, "sigma": 0.0, "preset": 0.0, "lam": 0.0}
 
 
 class _Replayer:
-    """Counts the simulators built, and what they were built from."""
+    """Counts the simulators built, what they were built from and the windows they replayed."""
 
     built: ClassVar[list[dict[str, Any]]] = []
+    replayed: ClassVar[list[list[str]]] = []
 
     def __init__(self, cfg: Any, settings: Any, backend: str = "auto") -> None:
         _Replayer.built.append(dict(cfg.extensions))
 
-    def run(self, logs: list[Any], windows: list[Any]) -> list[Any]:
-        return []
+    def run(self, logs: list[Any], windows: list[str]) -> list[Any]:
+        _Replayer.replayed.append(list(windows))
+        return [(w, len(_Replayer.built)) for w in windows]
 
 
 @pytest.fixture
 def built(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
-    _Replayer.built = []
+    _Replayer.built, _Replayer.replayed = [], []
     monkeypatch.setattr(evaluator_mod, "Replayer", _Replayer)
     return _Replayer.built
 
@@ -40,9 +43,10 @@ def _ev(extensions: dict[str, Any] | None = None) -> Evaluator:
     base = load_rover("proto_explorer")
     if extensions is not None:
         base = replace(base, extensions=extensions)
-    return Evaluator(
-        base, ReplaySettings(), [], {"train": [], "train_sub": [], "held": []}, log=lambda s: None
-    )
+    # Windows are only named here: the stand-in replayer returns (window, simulator number).
+    sets: dict[str, Any] = {"train": ["a", "b", "c", "d"], "held": ["e", "f"]}
+    sets["train_sub"] = sets["train"][::2]
+    return Evaluator(base, ReplaySettings(), [], sets, log=lambda s: None)
 
 
 def test_spelled_out_defaults_and_effects_that_are_off_share_a_replay(
@@ -87,11 +91,30 @@ def test_the_profiles_set_follows_the_spelling_replayed(built: list[dict[str, An
     off = {"loose_soil": {"k_phi": 0.0}}
     ev.run({}, "train")
     ev.run(off, "train_sub")
-    assert len(built) == 2  # another window set
+    assert len(built) == 1  # its windows are among those the nominal model replayed
     ev.run(off, "train")  # the nominal model on every window: no replay
-    assert len(built) == 2
+    assert len(built) == 1
     fresh = _ev()
     fresh.run({}, "train")
     fresh.run(off, "train_sub")
     assert fresh.reference(off, "held") == "train_sub" and fresh.reference({}, "held") == "train"
     assert ev.reference(off, "held") == "train"
+
+
+def test_a_set_replays_only_the_windows_no_other_set_replayed_under_the_model(
+    built: list[dict[str, Any]],
+) -> None:
+    """The screening subset, then every training window: the second replays the other half
+    only, and each set's results come in its own windows' order, the subset's reused."""
+    ev = _ev()
+    lag = {"command_lag": {"tau": 0.1}}
+    sub = ev.run(lag, "train_sub")
+    train = ev.run(lag, "train")
+    assert _Replayer.replayed == [["a", "c"], ["b", "d"]]
+    assert [r[0] for r in train] == ["a", "b", "c", "d"]
+    assert train[0] is sub[0] and train[2] is sub[1]
+    ev.run({"command_lag": {"tau": 0.2}}, "train")  # another model: every window
+    ev.run(lag, "held")  # no other set holds these
+    assert _Replayer.replayed[2:] == [["a", "b", "c", "d"], ["e", "f"]]
+    ev.run({"command_lag": {"tau": 0.2}}, "train_sub")  # all replayed already
+    assert len(built) == 4 and ev.replays == 4
