@@ -302,6 +302,28 @@ def test_replays_split_over_processes_are_the_same_to_the_bit(
         np.testing.assert_array_equal(reused[k], serial[k], err_msg=k)
 
 
+def test_twins_simulated_side_by_side_are_the_same_to_the_bit(
+    rr_case: tuple[Path, dict],
+) -> None:
+    """``residuals.twins_of``: each drive's twin is one simulation from rest, so run in the
+    replay pool's other process it gives what it gives here (the replay floor's twins)."""
+    from rover_env.calibration import residuals as rs
+    from rover_env.calibration.replay import parallel_replays, prepare
+
+    root, _ = rr_case
+    st = ReplaySettings()
+    logs = [read_log(p) for p in sorted((root / "logs").glob("drive_*.csv"))][:2]
+    prepared = [prepare(lg, RoverConfig(), f"d{i}", st) for i, lg in enumerate(logs)]
+    cfg = RoverConfig(extensions={"command_lag": {"tau": 0.1}})
+    serial = rs.twins_of(prepared, cfg, {0, 1})
+    with parallel_replays(2):
+        side = rs.twins_of(prepared, cfg, {0, 1})
+    assert sorted(side) == [0, 1]
+    for i in (0, 1):
+        for a, b in zip(side[i], serial[i], strict=True):
+            np.testing.assert_array_equal(a, b)
+
+
 def test_make_logs_writes_readable_logs_and_hidden_truth(rr_case: tuple[Path, dict]) -> None:
     root, _ = rr_case
     truth = yaml.safe_load((root / "logs" / "truth.yaml").read_text())

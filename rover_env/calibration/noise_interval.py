@@ -92,7 +92,7 @@ def noise_draws(
     used = sorted({w.log_index for w in ev.sets[f.which]})
     res = rs.resolutions(ev.logs)
     rng = np.random.default_rng(seed)
-    states = {i: rs.twin_states(ev.logs[i], cfg) for i in used}
+    states = rs.twins_of(ev.logs, cfg, set(used))
     out = []
     for _ in range(draws):
         logs = list(ev.logs)

@@ -34,11 +34,12 @@ import json
 import math
 import multiprocessing as mp
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, TypeVar
 
 import mujoco
 import numpy as np
@@ -54,6 +55,7 @@ from rover_env.sim.simulator import RoverSim, physical_config
 from rover_env.sim.speed_loop import setpoint_recursion
 
 Array = NDArray[np.float64]
+T = TypeVar("T")
 
 WHEEL_SIGNALS = tuple(f"wheel_{w}" for w in WHEELS)
 JOINT_SIGNALS = JOINTS
@@ -587,6 +589,18 @@ def parallel_replays(workers: int) -> Iterator[None]:
     finally:
         _PARALLEL = (None, 1)
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def pool_map(fn: Callable[..., T], args: list[tuple[Any, ...]]) -> list[T]:
+    """``fn(*a)`` for each ``a`` of ``args``, in order; inside :func:`parallel_replays` all
+    but the first in the pool's processes while this one runs the first. For whole-drive
+    simulations (a model's twin of each drive), which cannot be split into windows."""
+    pool, _ = _PARALLEL
+    if pool is None or len(args) < 2:
+        return [fn(*a) for a in args]
+    futures = [pool.submit(fn, *a) for a in args[1:]]
+    first = fn(*args[0])
+    return [first, *(f.result() for f in futures)]
 
 
 def serial_replays() -> None:

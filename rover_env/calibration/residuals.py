@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
+from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult, pool_map
 from rover_env.config import JOINTS, RoverConfig
 from rover_env.logs import DriveLog
 
@@ -185,6 +185,15 @@ def twin_states(p: PreparedLog, cfg: RoverConfig) -> TwinStates:
             sim.set_speed_targets(log.cmd[k])
             sim.step(int(step_of[k + 1] - step_of[k]))
     return np.array(phi), np.array(theta), relative_pose(np.array(pos), np.array(quat))
+
+
+def twins_of(logs: list[PreparedLog], cfg: RoverConfig, used: set[int]) -> dict[int, TwinStates]:
+    """:func:`twin_states` of the logs numbered in ``used``, side by side inside
+    :func:`~rover_env.calibration.replay.parallel_replays` (each drive is one simulation from
+    rest; the numbers do not depend on where it runs)."""
+    order = sorted(used)
+    states = pool_map(twin_states, [(logs[i], cfg) for i in order])
+    return dict(zip(order, states, strict=True))
 
 
 def twin_sensed(

@@ -163,8 +163,9 @@ def bias_correct(
     used = {w.log_index for w in ev.sets[which]}
     rng = np.random.default_rng(1)
     res = rs.resolutions(ev.logs)
+    states = rs.twins_of(ev.logs, cfg, used)
     twins = [
-        prepare(rs.twin_log(p, cfg, sensor_noise, res, rng), ev.base, p.name + " twin", st)
+        prepare(rs.twin_sensed(p, states[i], sensor_noise, res, rng), ev.base, p.name + " twin", st)
         if i in used
         else p
         for i, p in enumerate(ev.logs)

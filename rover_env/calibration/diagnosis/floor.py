@@ -73,12 +73,13 @@ def replay_floor(
     rng = np.random.default_rng(0)
     res = rs.resolutions(prepared)
     used = {w.log_index for w in windows}
+    states = rs.twins_of(prepared, cfg, used)
     twins = []
     for i, p in enumerate(prepared):
         if i not in used:
             twins.append(p)
             continue
-        log = rs.twin_log(p, cfg, sensor_noise, res, rng)
+        log = rs.twin_sensed(p, states[i], sensor_noise, res, rng)
         twins.append(prepare(log, cfg, p.name + " twin", st))
     return rs.signal_scale(rs.stack(Replayer(cfg, st).run(twins, windows), twins), sensor_noise)
 
