@@ -261,9 +261,6 @@ def summarise(
     return "\n".join(head) + "\n"
 
 
-# --------------------------------------------------------------------------- command line
-
-
 def stage_lines(ok: list[dict[str, Any]]) -> list[str]:
     """Where the first diagnosis's seconds went: per stage, summed over its passes, the
     median over cases; and how many ran more than one pass (the forms re-judged beside the
@@ -279,3 +276,6 @@ def stage_lines(ok: list[dict[str, Any]]) -> list[str]:
         + ", ".join(f"{k} {np.median(v):.0f}" for k, v in per.items())
         + f"; run again under re-judged forms in {again} of {len(runs)} (rows since stop 105)"
     ]
+
+
+# --------------------------------------------------------------------------- command line

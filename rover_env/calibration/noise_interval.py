@@ -9,7 +9,7 @@ error at the event, ±half a count) moves the estimate by more. On this project'
 (issue 16, stop 38) a torque limit of -0.09 was fitted -0.0968 [-0.150, -0.0932]: one window
 of 32 carried it, its minimum at -0.096.
 
-So the model's own twins of the fitted drives (:func:`rover_env.calibration.residuals.twin_log`)
+So the model's own twins of the fitted drives (:func:`rover_env.calibration.residuals.twin_sensed`)
 are read through the logs' sensors several times, each time with a fresh encoder phase and
 fresh joint and pose noise, and replayed under the fitted model: each replay's residual is
 one draw ``n`` of what the sensors alone leave. With ``J`` the residuals' Jacobian in the

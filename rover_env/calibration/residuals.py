@@ -138,24 +138,6 @@ def noise_floor(logs: list[PreparedLog]) -> dict[str, float]:
     return out
 
 
-def twin_log(
-    p: PreparedLog,
-    cfg: RoverConfig,
-    noise: dict[str, float],
-    res: tuple[float, float],
-    rng: np.random.Generator,
-) -> DriveLog:
-    """The drive as the model itself would have logged it through the same sensors.
-
-    The model is driven from rest by the logged commands; its angles are read through the
-    resolution and noise found in the real logs, its pose through the estimated pose noise
-    at the times the real log has pose. Replaying this twin gives the residual a perfect
-    model would leave (the "replay floor": sensor noise seen through the window
-    initialisation), against which the real residual is tested.
-    """
-    return twin_sensed(p, twin_states(p, cfg), noise, res, rng)
-
-
 TwinStates = tuple[Array, Array, Array]
 """A twin drive's true wheel angles (N, 6), joint angles (N, 5) and pose (N, 3)."""
 
@@ -163,7 +145,7 @@ TwinStates = tuple[Array, Array, Array]
 def twin_states(p: PreparedLog, cfg: RoverConfig) -> TwinStates:
     """The model driven from rest by ``p``'s logged commands on the log's declared ground
     (:func:`rover_env.calibration.ground.log_ground`): its true angles and pose at
-    the log's sample times (:func:`twin_log` reads them through sensors)."""
+    the log's sample times (:func:`twin_sensed` reads them through sensors)."""
     from rover_env.calibration.ground import log_ground
     from rover_env.sim.model import stable_config
     from rover_env.sim.recorder import relative_pose
@@ -204,7 +186,12 @@ def twin_sensed(
     rng: np.random.Generator,
     encoder_phase: Array | None = None,
 ) -> DriveLog:
-    """A twin's states read through the log's sensors (:func:`twin_log`).
+    """The drive as the model itself would have logged it through the same sensors: its
+    twin's states (:func:`twin_states`) read through the resolution and noise found in the
+    real logs, its pose through the estimated pose noise at the times the real log has pose.
+    Replaying this twin gives the residual a perfect model would leave (the "replay floor":
+    sensor noise seen through the window initialisation), against which the real residual is
+    tested.
 
     ``encoder_phase`` (6,): where each wheel's travel starts on its encoder's grid, as a
     fraction of a count; None starts every wheel on a count. An encoder's quantisation error

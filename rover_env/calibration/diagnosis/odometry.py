@@ -229,9 +229,8 @@ def beside_lead(
     form: str,
 ) -> Reading:
     """The reading dead reckoning judges: against the named model's twins (``reading``; the
-    effects named, ``names``), or,
-    where only the driven wheels' agreement refuses it there, against the twins of that
-    model with :func:`slip_lead`'s fit beside it, if they pass every check
+    effects named, ``names``), or, where only the driven wheels' agreement refuses it there,
+    against the twins of that model with :func:`slip_lead`'s fit beside it, if they pass every check
     (:attr:`~.state.Options.slip_beside_lead`; recorded in ``rec["slip_lead"]``).
 
     Why: a rolling resistance makes the driven wheels slip while the free wheels roll; fitted
