@@ -37,12 +37,19 @@ EFFECTS: list[dict[str, dict[str, float]]] = [
 ]
 
 
+PAIRS: list[dict[str, dict[str, float]]] = [
+    {"command_lag": {"tau": 0.3}, "command_delay": {"delay": 0.1}},
+]
+"""Cases run only when named (``--effects command_lag+command_delay``): a lag with a delay,
+the pair :mod:`rover_env.calibration.diagnosis.shared` fits together."""
+
+
 def chosen(names: str | None) -> list[dict[str, dict[str, float]]]:
-    """The cases of ``names`` (comma-separated effect names, ``clean`` for none), in that
-    order; all of :data:`EFFECTS` when None."""
+    """The cases of ``names`` (comma-separated: effect names, ``clean`` for none, or a pair
+    of :data:`PAIRS` joined by ``+``), in that order; all of :data:`EFFECTS` when None."""
     if names is None:
         return EFFECTS
-    by_name = {next(iter(e), "clean"): e for e in EFFECTS}
+    by_name = {"+".join(e) or "clean": e for e in [*EFFECTS, *PAIRS]}
     out = []
     for n in names.split(","):
         if n.strip() not in by_name:
@@ -77,6 +84,12 @@ def diagnose_seconds(
     dt = time.perf_counter() - t0
     named = json.loads((out / "result.json").read_text())["named"]
     return dt, named
+
+
+def named_params(out: Path) -> dict[str, Any]:
+    """The named effects' parameters, each [value, 95 % low, 95 % high], from ``out``."""
+    final = json.loads((out / "result.json").read_text()).get("final") or {}
+    return {k: v.get("params") for k, v in final.items()}
 
 
 TIMING = frozenset({"seconds", "replay_seconds", "replays", "stage_seconds"})
@@ -145,6 +158,8 @@ def run(
                 "previous_named": prev_named,
                 "current_named": cur_named,
                 "same_result": findings(d / "prev") == findings(d / "cur"),
+                "previous_params": named_params(d / "prev"),
+                "current_params": named_params(d / "cur"),
             }
         )
         print(

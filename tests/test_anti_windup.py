@@ -174,6 +174,35 @@ def test_replayer_reprepares_for_another_loop() -> None:
     assert isinstance(q, PreparedLog)
 
 
+def test_setpoints_for_another_loop_are_computed_once_per_log_and_loop(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Replays under one loop ask for a log's setpoints again and again: the recursion runs
+    once per log and loop, and the kept numbers are the recursion's own."""
+    from rover_env.calibration import replay
+
+    log, _ = _own_log(_cfg("conditional"), seconds=4.0)
+    p = prepare(log, _cfg("conditional", {}), "own", ReplaySettings())
+    calls: list[object] = []
+    real = replay.setpoint_errors
+
+    def counted(lg: DriveLog, cfg: RoverConfig) -> np.ndarray:
+        calls.append(loop_key(cfg))
+        return real(lg, cfg)
+
+    monkeypatch.setattr(replay, "setpoint_errors", counted)
+    monkeypatch.setattr(replay, "_SETPOINTS", type(replay._SETPOINTS)())
+    q1, q2 = for_config(p, _cfg("conditional")), for_config(p, _cfg("conditional"))
+    assert len(calls) == 1 and q2.setpoint_err is q1.setpoint_err
+    assert np.array_equal(q1.setpoint_err, real(log, _cfg("conditional")))
+    assert not q1.setpoint_err.flags.writeable
+    other, _ = _own_log(_cfg("conditional"), seconds=4.0)  # equal numbers, another log
+    po = prepare(other, _cfg("conditional", {}), "own", ReplaySettings())
+    calls.clear()
+    for_config(po, _cfg("conditional"))
+    assert len(calls) == 1
+
+
 def test_config_rejects_an_unknown_form() -> None:
     with pytest.raises(ConfigError, match=r"motor\.anti_windup.*'clamp', 'conditional'.*'pid'"):
         from_dict(RoverConfig, {"motor": {"anti_windup": "pid"}})

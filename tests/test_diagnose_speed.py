@@ -128,3 +128,22 @@ def test_findings_ignore_costs_and_the_folder_but_nothing_else(tmp_path: Path) -
     _write(c, result(c, 55.0, 2.5000001))
     assert ds.findings(a) == ds.findings(b)
     assert ds.findings(a) != ds.findings(c)  # a fitted value one part in 10^7 apart
+
+
+def test_cases_are_chosen_by_name_pairs_only_when_named() -> None:
+    ds = load_bench("diagnose_speed")
+    assert ds.chosen(None) == ds.EFFECTS  # the default cycle holds no pair
+    pair = ds.chosen("command_lag+command_delay,clean")
+    assert pair == [{"command_lag": {"tau": 0.3}, "command_delay": {"delay": 0.1}}, {}]
+    with pytest.raises(SystemExit, match="unknown case"):
+        ds.chosen("command_delay+command_lag")
+
+
+def test_named_params_are_read_from_the_final_fit(tmp_path: Path) -> None:
+    ds = load_bench("diagnose_speed")
+    out = _write(
+        tmp_path / "o",
+        {"final": {"slope": {"params": {"slope": {"deg": [2.0, 1.5, 2.5]}}, "sides": {}}}},
+    )
+    assert ds.named_params(out) == {"slope": {"slope": {"deg": [2.0, 1.5, 2.5]}}}
+    assert ds.named_params(_write(tmp_path / "n", {"final": None})) == {}

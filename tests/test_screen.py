@@ -23,9 +23,11 @@ def _scored(which: str, d_bic: float, gain: float, n: int = 16) -> Scored:
     return Scored(f, 1.0, np.ones(3), gain, 0.5, d_bic, d_bic, n)
 
 
-def _fit_at(results: dict[str, Scored], calls: list[str]):  # type: ignore[no-untyped-def]
-    def fit_at(which: str) -> Scored:
+def _fit_at(results: dict[str, Scored], calls: list[str], coarse: list[bool] | None = None):  # type: ignore[no-untyped-def]
+    def fit_at(which: str, is_coarse: bool) -> Scored:
         calls.append(which)
+        if coarse is not None:
+            coarse.append(is_coarse)
         return results[which]
 
     return fit_at
@@ -51,6 +53,23 @@ def test_screen_fits_in_full_only_what_it_finds_promising(good: bool) -> None:
         assert s.fit.nfev == 22  # the screen's replays are counted with the full fit's
     else:
         assert calls == ["train_sub"] and s is sub and s.screened
+
+
+@pytest.mark.parametrize("on", [True, False])
+def test_only_the_screen_searches_coarsely(on: bool) -> None:
+    """The screen's own search is coarse (where asked); the full fit it earns never is, nor
+    a fit that is not screened."""
+    sub = _scored("train_sub", -8.0, 0.2)
+    full = _scored("train", -20.0, 0.3, n=32)
+    calls: list[str] = []
+    coarse: list[bool] = []
+    fa = _fit_at({"train_sub": sub, "train": full}, calls, coarse)
+    screened(fa, "train", False, Options(screen_coarse=on))
+    assert calls == ["train_sub", "train"] and coarse == [on, False]
+    calls.clear()
+    coarse.clear()
+    screened(fa, "train_sub", False, Options(screen_coarse=on))
+    assert calls == ["train_sub"] and coarse == [False]
 
 
 def test_no_screen_where_it_saves_nothing() -> None:
@@ -114,3 +133,52 @@ def test_held_out_losses_compare_under_one_profile(monkeypatch: pytest.MonkeyPat
     ev.calls.clear()
     assert judge.comparable_held(ev, {}, {}, ref_held, {}) is ref_held  # type: ignore[arg-type]
     assert ev.calls == []
+
+
+class _QuadraticEv:
+    """Four windows whose loss is a parabola in c_rr, least at 0.05 (a stand-in for replays)."""
+
+    def __init__(self) -> None:
+        self.scale: dict[str, float] = {}
+        self.sets = {"train": [0, 1, 2, 3]}
+        self.replayed: list[float] = []
+
+    def run(self, ext: dict[str, dict[str, float]], which: str) -> list[float]:
+        v = ext.get("rolling_resistance", {}).get("c_rr", 0.0)
+        self.replayed.append(v)
+        return [v] * 4
+
+    def vector(self, ext: dict[str, dict[str, float]], which: str) -> np.ndarray:
+        v = ext.get("rolling_resistance", {}).get("c_rr", 0.0)
+        return np.array([1.0 + 400.0 * (v - 0.05) ** 2])
+
+    def log(self, msg: str) -> None:
+        pass
+
+
+@pytest.mark.parametrize("coarse", [True, False])
+def test_a_coarse_search_replays_the_ladder_alone(
+    monkeypatch: pytest.MonkeyPatch, coarse: bool
+) -> None:
+    """A coarse one-parameter search replays "off" and the ladder, nothing between; its
+    estimate is still the parabola's through the best rungs, inside their bracket. The full
+    search replays more points (the Brent search and the stencil)."""
+    from rover_env.calibration import fit as fit_mod
+
+    def losses(res: list[float], scale: dict[str, float]) -> np.ndarray:
+        v, w = res[0], np.array([0.8, 1.0, 1.1, 1.3])
+        per_window = 1.0 + 400.0 * w * (v - 0.05) ** 2
+        return np.repeat(per_window[:, None], len(fit_mod.SIGNAL_GROUPS), axis=1)
+
+    monkeypatch.setattr(fit_mod, "group_losses", losses)
+    (c,) = catalogue(["rolling_resistance"])
+    ev = _QuadraticEv()
+    f = fit_mod.fit(ev, [c], "train", max_nfev=4, coarse=coarse)  # type: ignore[arg-type]
+    rungs = {float(c.off[0]), *(float(p[0]) for p in c.ladder or ())}
+    if coarse:
+        assert set(ev.replayed) == rungs
+    else:
+        assert set(ev.replayed) > rungs
+    below = max(r for r in rungs if r <= 0.05)
+    above = min(r for r in rungs if r >= 0.05)
+    assert below <= float(f.x[0]) <= above

@@ -43,8 +43,9 @@ class FakeEv:
         tau = ext.get("command_lag", {}).get("tau", 0.0)
         d = ext.get("command_delay", {}).get("delay", 0.0)
         floor = np.random.default_rng(7).uniform(0.01, 0.02, 2 * N)
+        rows = {"train": floor[:N], "train_sub": floor[:N:2], "held": floor[N:]}[which]
         out = []
-        for i, fl in enumerate(floor[:N] if which == "train" else floor[N:]):
+        for i, fl in enumerate(rows):
             resid = np.zeros((T, 11))
             ramp = np.linspace(0.5, 1.5, T) * (1 + 0.1 * (i % 3))
             resid[:, 0] = ramp * ((tau + d) - sum(self.truth)) + self.form
@@ -94,7 +95,7 @@ def _diagnosis(
         winner=winner,
         ev=ev,
         noise=noise,
-        sets={"train": list(range(N)), "held": list(range(N))},
+        sets={"train": list(range(N)), "train_sub": list(range(0, N, 2)), "held": list(range(N))},
         opts=Options(**opts),
         prepared=[SimpleNamespace(regimes={r: np.ones(T, dtype=bool) for r in rs.REGIMES})],
         say=lambda msg: None,
@@ -128,11 +129,29 @@ def test_fitted_together_a_lag_and_a_delay_land_on_both_and_are_judged_as_a_pair
 
 
 def test_a_lag_alone_gains_no_delay_from_the_refit() -> None:
-    d = _diagnosis(0.3, 0.0, 0.3)
+    d = _diagnosis(0.3, 0.0, 0.3, screen=False)
     (delay,) = catalogue(["command_delay"])
     (s,) = shared_refits(d, [delay])  # type: ignore[arg-type]
     assert s.fit.x == pytest.approx([0.3, 0.0], abs=0.01)
     assert not s.significant and s.test == ""
+
+
+def test_the_screen_fits_in_full_only_a_promising_pair() -> None:
+    """A lag and a delay both there: the screen on the subset is promising and the pair is
+    fitted as without a screen (the same values); a lag alone: the screen is the answer,
+    never named, for fewer replays than the full refit."""
+    (delay,) = catalogue(["command_delay"])
+    both = _diagnosis(0.3, 0.1, 0.4)
+    (s,) = shared_refits(both, [delay])  # type: ignore[arg-type]
+    (full,) = shared_refits(_diagnosis(0.3, 0.1, 0.4, screen=False), [delay])  # type: ignore[arg-type]
+    assert not s.screened and s.significant
+    assert np.array_equal(s.fit.x, full.fit.x)
+    alone, alone_full = _diagnosis(0.3, 0.0, 0.3), _diagnosis(0.3, 0.0, 0.3, screen=False)
+    (s1,) = shared_refits(alone, [delay])  # type: ignore[arg-type]
+    shared_refits(alone_full, [delay])  # type: ignore[arg-type]
+    assert s1.screened and s1.refit and not s1.significant
+    assert s1.fit.which == "train_sub"
+    assert alone.ev.replays < alone_full.ev.replays
 
 
 def test_the_pair_is_fitted_again_with_the_signals_weighed_by_what_it_leaves() -> None:

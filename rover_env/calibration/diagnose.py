@@ -158,6 +158,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
     ),
     ("screen", "screen each candidate on half the training windows before its full fit"),
     (
+        "screen_coarse",
+        "a screen searches the ladder alone (several parameters: half the local budget)",
+    ),
+    (
         "shared_refit",
         "fit a command lag and a delay together, both free, when one of them is the winner",
     ),

@@ -551,6 +551,7 @@ def fit(
     probe: bool = True,
     hold: Extensions | None = None,
     central: bool = False,
+    coarse: bool = False,
 ) -> Fit:
     """Bounded least squares of the candidates' variables on window set ``which``.
 
@@ -558,7 +559,10 @@ def fit(
     fit's ``ext`` includes them, its variables do not. ``central``: the Jacobian by central
     differences 2 % of the value wide (twice the replays), for finishing a fit: the search's
     forward differences, 10 % of the value, put the fixed point of the iteration half a
-    step off where the residuals' curvature is large (a slope's tilt: 0.3 deg low at 7 deg)."""
+    step off where the residuals' curvature is large (a slope's tilt: 0.3 deg low at 7 deg).
+    ``coarse``: a screen's search (:attr:`~.diagnosis.state.Options.screen_coarse`): one
+    parameter is searched on its ladder alone, its estimate the parabola through the best
+    rungs (no Brent search, no stencil); several parameters take half ``max_nfev``."""
     t0 = time.perf_counter()
     held = hold or {}
     if all(c.discrete for c in cands):
@@ -587,7 +591,7 @@ def fit(
         return r
 
     if probe and x_start is None and len(free) == 1 and len(free[0].labels) == 1:
-        refine = max(2, max_nfev + 1)
+        refine = 0 if coarse else max(2, max_nfev + 1)
         if free[0].forms:
             return _fit_forms(ev, free[0], which, fixed, refine, t0)
         return _fit_1d(ev, free[0], which, fixed, refine=refine, t0=t0)
@@ -618,7 +622,7 @@ def fit(
         jac="3-point" if central else "2-point",
         diff_step=diff / np.maximum(1.0, np.abs(x0)),
         x_scale=diff * (50 if central else 10),
-        max_nfev=max_nfev,
+        max_nfev=max(1, max_nfev // 2) if coarse else max_nfev,
         method="trf",
     )
     x = res.x

@@ -165,7 +165,13 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
         + (
             f" Each candidate is screened first on one training window in {opts.numpy_every}, fitted"
             " on all of them only if it lowers that subset's BIC by half its parameters' cost or"
-            f' improves the held-out drive by {50 * opts.min_gain:.0f} % ("no (screened)" below).'
+            f' improves the held-out drive by {50 * opts.min_gain:.0f} % ("no (screened)" below)'
+            + (
+                "; the screen searches the ladder alone (its estimate the parabola through the"
+                " best rungs; several parameters half the local budget)."
+                if opts.screen_coarse
+                else "."
+            )
             if opts.screen
             else ""
         )

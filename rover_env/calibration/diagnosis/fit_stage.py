@@ -64,8 +64,9 @@ def fit_one(d: Diagnosis, c: Candidate) -> Scored:
     # others are screened on that subset first (Options.screen).
     which = "train" if plugin_capable(c) or c.discrete else "train_sub"
 
-    def fit_at(w: str) -> Scored:
-        s = score(d, fit(d.ev, [c], w, max_nfev=fit_budget([c], opts)), d.held0, {})
+    def fit_at(w: str, coarse: bool) -> Scored:
+        f = fit(d.ev, [c], w, max_nfev=fit_budget([c], opts), coarse=coarse)
+        s = score(d, f, d.held0, {})
         s.threshold = noise_threshold(d.ev, c, w, d.noise)
         s.detectable = detection_limit(d.ev, c, w, d.noise)
         s.nameable = naming_bar(c.name, s.detectable, d.allowance)

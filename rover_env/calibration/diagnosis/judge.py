@@ -47,16 +47,19 @@ def promising(s: Scored, opts: Options) -> bool:
     return s.d_bic < half_cost or s.gain >= 0.5 * opts.min_gain
 
 
-def screened(fit_at: Callable[[str], Scored], which: str, discrete: bool, opts: Options) -> Scored:
-    """A candidate's scored fit on ``which`` (``fit_at(window set)``), screened first on
-    ``train_sub`` where :attr:`Options.screen` asks and the fit would use every training
-    window: the full fit only when the screen is :func:`promising`. A switch (one replay)
-    is never screened."""
+def screened(
+    fit_at: Callable[[str, bool], Scored], which: str, discrete: bool, opts: Options
+) -> Scored:
+    """A candidate's scored fit on ``which`` (``fit_at(window set, coarse)``), screened
+    first on ``train_sub`` where :attr:`Options.screen` asks and the fit would use every
+    training window: the full fit only when the screen is :func:`promising`. A switch (one
+    replay) is never screened. The screen's own search is coarse where
+    :attr:`Options.screen_coarse` asks."""
     if not opts.screen or which != "train" or discrete:
-        return fit_at(which)
-    s = fit_at("train_sub")
+        return fit_at(which, False)
+    s = fit_at("train_sub", opts.screen_coarse)
     if promising(s, opts):
-        full = fit_at("train")
+        full = fit_at("train", False)
         full.fit.nfev += s.fit.nfev  # the screen's cost is the fit's
         full.fit.seconds += s.fit.seconds
         return full

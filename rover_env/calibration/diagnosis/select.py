@@ -364,8 +364,10 @@ def blind_partners(d: Diagnosis) -> list[Scored]:
         plug = plugin_capable(c) and all(plugin_capable(w) for w in w_cands)
         which = "train" if plug or c.discrete else "train_sub"
 
-        def fit_at(w: str) -> Scored:
-            f = fit(ev_w, [c], w, max_nfev=fit_budget([c], opts), hold=winner.fit.ext)
+        def fit_at(w: str, coarse: bool) -> Scored:
+            f = fit(
+                ev_w, [c], w, max_nfev=fit_budget([c], opts), hold=winner.fit.ext, coarse=coarse
+            )
             return score(d, f, winner.held_losses, winner.fit.ext)
 
         return screened(fit_at, which, c.discrete, opts)

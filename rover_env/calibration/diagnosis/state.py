@@ -118,6 +118,15 @@ class Options:
     them. Why (issue 47, item 4): on a clean case every candidate's full fit was spent
     (stop 55: 77 of 96 s, 10 fits of 12-25 replays), and a fit that cannot reach half of the
     naming rule on half the windows cannot be named on all of them."""
+    screen_coarse: bool = True
+    """A screen searches coarsely (:func:`rover_env.calibration.fit.fit`'s ``coarse``): one
+    parameter on its ladder alone, the estimate the parabola through the best rungs (no
+    Brent search, no stencil); several parameters with half the local budget. The full
+    fit a promising screen earns searches as before. Why (stop 107): a screen only asks
+    whether the full fit is worth it, yet spent the full fit's refinement on half the
+    windows: 5 Brent evaluations and 2 stencil points on 6-11 ladder rungs, in each of
+    about 15 screens of a named case (a lag case's profile: the Brent search 21 of 100
+    replay seconds)."""
     max_nfev: int = 4
     second: int = 4
     """Partners judged as pairs with the winner in forward selection: those that improve the
