@@ -152,6 +152,8 @@ def test_the_screen_fits_in_full_only_a_promising_pair() -> None:
     assert s1.screened and s1.refit and not s1.significant
     assert s1.fit.which == "train_sub"
     assert alone.ev.replays < alone_full.ev.replays
+    (s2,) = shared_refits(_diagnosis(0.3, 0.0, 0.3, screen_shared=False), [delay])  # type: ignore[arg-type]
+    assert not s2.screened and s2.fit.which == "train"
 
 
 def test_the_pair_is_fitted_again_with_the_signals_weighed_by_what_it_leaves() -> None:

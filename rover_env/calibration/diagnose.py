@@ -162,6 +162,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "a screen searches the ladder alone (several parameters: half the local budget)",
     ),
     (
+        "screen_shared",
+        "a lag and a delay fitted together are screened on half the training windows first",
+    ),
+    (
         "shared_refit",
         "fit a command lag and a delay together, both free, when one of them is the winner",
     ),

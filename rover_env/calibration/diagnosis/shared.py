@@ -85,7 +85,7 @@ def shared_screen(d: Diagnosis, both: list[Candidate], which: str, x0: np.ndarra
     fresh cases (studies 72900, 73000): beside a lone lag of 0.2 s (exploratory case
     74014) the pair settled 3.4 % worse than the lag alone on the held-out drive."""
     opts = d.opts
-    if not opts.screen or which != "train" or d.winner is None:
+    if not (opts.screen and opts.screen_shared) or which != "train" or d.winner is None:
         return None
     f = fit(d.ev, both, "train_sub", x_start=x0, max_nfev=REFIT_NFEV // 2, probe=False)
     s = score(d, f, d.winner.held_losses, d.winner.fit.ext, k=both[1].k)

@@ -127,6 +127,10 @@ class Options:
     windows: 5 Brent evaluations and 2 stencil points on 6-11 ladder rungs, in each of
     about 15 screens of a named case (a lag case's profile: the Brent search 21 of 100
     replay seconds)."""
+    screen_shared: bool = True
+    """A lag and a delay fitted together (:attr:`shared_refit`) are first fitted once on the
+    screening subset with half the evaluations, not reweighed, and fitted in full only where
+    that is promising (:func:`.shared.shared_screen`; with :attr:`screen`)."""
     max_nfev: int = 4
     second: int = 4
     """Partners judged as pairs with the winner in forward selection: those that improve the
