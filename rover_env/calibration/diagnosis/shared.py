@@ -47,9 +47,9 @@ def shared_refits(d: Diagnosis, partners: list[Candidate]) -> list[Scored]:
     half and half between them (the pair moves the response by about the sum), then
     refitted with the signals weighed by what it leaves (:func:`reweighed`), judged against
     the winner alone by the held-out window test, as every pair is. Where
-    :attr:`~.state.Options.screen` asks, the pair is first fitted once on the screening
-    subset with half the evaluations, and fitted as above only if that is
-    :func:`~.judge.promising`, as a partner is (:func:`shared_screen`)."""
+    :attr:`~.state.Options.screen` and :attr:`~.state.Options.screen_shared` ask, the pair
+    is first fitted once on the screening subset with half the evaluations, and fitted as
+    above only if that is :func:`~.judge.promising`, as a partner is (:func:`shared_screen`)."""
     winner = d.winner
     assert winner is not None
     w = winner.fit.candidates[0]
