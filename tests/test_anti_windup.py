@@ -20,6 +20,7 @@ from rover_env.calibration.replay import (
     ReplaySettings,
     for_config,
     loop_key,
+    make_windows,
     prepare,
 )
 from rover_env.config import AntiWindup, ConfigError, RoverConfig, from_dict, load_rover
@@ -201,6 +202,42 @@ def test_setpoints_for_another_loop_are_computed_once_per_log_and_loop(
     calls.clear()
     for_config(po, _cfg("conditional"))
     assert len(calls) == 1
+
+
+def test_a_repeated_replay_is_answered_from_the_memo(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The same configuration, settings, log objects and windows replay once: the second
+    run (another Replayer) returns the first's numbers, read-only, without simulating; a
+    log object of equal content or other windows replay again."""
+    from rover_env.calibration import replay
+
+    cfg = _cfg("conditional")
+    log, _ = _own_log(cfg, seconds=8.0)
+    st = ReplaySettings()
+    p = prepare(log, cfg, "own", st)
+    wins = make_windows([p], st)
+    monkeypatch.setattr(replay, "_RUNS", type(replay._RUNS)())
+    calls: list[int] = []
+    real = replay.Replayer.run_window
+
+    def counted(self: replay.Replayer, pl: PreparedLog, w: replay.Window) -> replay.WindowResult:
+        calls.append(w.k0)
+        return real(self, pl, w)
+
+    monkeypatch.setattr(replay.Replayer, "run_window", counted)
+    first = replay.Replayer(cfg, st).run([p], wins)
+    assert len(calls) == len(wins) >= 2
+    again = replay.Replayer(cfg, st).run([p], wins)
+    assert len(calls) == len(wins)
+    for a, b in zip(first, again, strict=True):
+        assert a is b and not a.resid.flags.writeable
+    fresh = replay.Replayer(cfg, st)._run([p], wins)
+    for a, b in zip(first, fresh, strict=True):
+        assert np.array_equal(a.resid, b.resid) and np.array_equal(a.pose_sim, b.pose_sim)
+    calls.clear()
+    replay.Replayer(cfg, st).run([prepare(log, cfg, "own", st)], wins)  # equal, not the same
+    replay.Replayer(cfg, st).run([p], wins[:1])
+    replay.Replayer(_cfg("clamp"), st).run([p], wins[:1])
+    assert len(calls) == len(wins) + 2
 
 
 def test_config_rejects_an_unknown_form() -> None:

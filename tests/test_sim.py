@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import filecmp
+from dataclasses import replace
 from pathlib import Path
 
 import mujoco
@@ -118,6 +119,37 @@ def test_state_is_the_same_without_the_sensor_stage(backend: str) -> None:
     np.testing.assert_array_equal(runs[0], runs[1])
     with pytest.raises(RuntimeError, match="sensors=False"):
         sim.sensors()
+
+
+@pytest.mark.parametrize(
+    ("backend", "terrain", "extensions"),
+    [
+        ("numpy", "flat", {}),
+        ("plugin", "flat", {}),
+        ("plugin", "sand", {}),
+        ("plugin", "flat", {"rolling_resistance": {"c_rr": 0.05}}),
+    ],
+)
+def test_motion_is_the_same_without_the_visual_model(
+    backend: str, terrain: str, extensions: dict
+) -> None:
+    """The calibration replays build their models with ``visuals=False``: without the visual
+    geoms (massless, colliding with nothing), camera, light and texture the rover must move
+    and sense the same to the bit, on hard ground, on soil and with a hinge effect. A visual
+    geom that carried mass or collided would move it differently."""
+    cfg = replace(load_rover("proto_explorer"), extensions=extensions)
+    runs = []
+    for visuals in (True, False):
+        sim = RoverSim(cfg, terrain, backend=backend, visuals=visuals)
+        for targets in ([3.0, 3.0, 3.0, 3.0], [-2.0, 4.0, -2.0, 4.0]):
+            sim.set_speed_targets(targets)
+            sim.step(600)
+        runs.append(np.concatenate([sim.data.qpos, sim.data.qvel, sim.data.sensordata]))
+    np.testing.assert_array_equal(runs[0], runs[1])
+    full = RoverSim(cfg, terrain, backend=backend).model
+    lean = sim.model  # the last run's, built with visuals=False
+    assert np.sum(full.geom_group == 2) > 0 and full.ncam and full.nlight and full.ntex
+    assert not np.any(lean.geom_group == 2)
 
 
 def test_turn_outer_wheels_spin_inner_wheels_skid() -> None:

@@ -80,7 +80,8 @@ def simulate_plan(
 ) -> DriveLog:
     """The drive ``plan`` as ``cfg`` would log it (exact sensors, pose at 1 Hz), on the
     logs' declared ``ground`` (None: flat hard ground)."""
-    sim = RoverSim(stable_config(cfg), "flat" if ground is None else ground, backend="auto")
+    where = "flat" if ground is None else ground
+    sim = RoverSim(stable_config(cfg), where, backend="auto", visuals=False)
     sim.reset(sunk=True)
     sched = drive_schedule(plan, np.random.default_rng(seed), duration, cfg.motor.max_wheel_speed)
     rec = run_drive(sim, sched, duration)

@@ -152,7 +152,7 @@ def twin_states(p: PreparedLog, cfg: RoverConfig) -> TwinStates:
     from rover_env.sim.simulator import RoverSim
 
     log = p.log
-    sim = RoverSim(stable_config(cfg), log_ground(log), backend="auto")
+    sim = RoverSim(stable_config(cfg), log_ground(log), backend="auto", visuals=False)
     sim.reset()
     step_of = np.round(log.t / sim.dt).astype(np.int64)
     phi, theta, pos, quat = [], [], [], []
