@@ -13,7 +13,7 @@ import pytest
 from rover_env.config import assets_dir, configs_dir, load_rover
 from rover_env.sim.model import static_deflection, write_assets
 from rover_env.sim.rig import measure_fx
-from rover_env.sim.simulator import RoverSim
+from rover_env.sim.simulator import FRICTION_DOF, RoverSim
 from rover_env.tire import TireParams, tire_forces
 
 G = 9.81
@@ -150,6 +150,41 @@ def test_motion_is_the_same_without_the_visual_model(
     lean = sim.model  # the last run's, built with visuals=False
     assert np.sum(full.geom_group == 2) > 0 and full.ncam and full.nlight and full.ntex
     assert not np.any(lean.geom_group == 2)
+
+
+def _react_from_rows(self: RoverSim, share: np.ndarray) -> None:
+    """The ground's reaction on the carriers computed from the dry-friction rows themselves
+    (what :meth:`RoverSim._react_on_ground` reads off the dofs' constraint forces)."""
+    d = self.data
+    rows = d.efc_type[: d.nefc] == FRICTION_DOF
+    per_dof = np.zeros(self.model.nv)
+    per_dof[d.efc_id[: d.nefc][rows]] = d.efc_force[: d.nefc][rows]
+    wheel_dof = self.index.wheel_dof
+    torque = (per_dof[wheel_dof] * share)[:, None] * d.xaxis[self.index.wheel_jnt]
+    carriers = np.unique(self.model.body_parentid[self.index.wheel_body])
+    incidence = carriers[:, None] == self.model.body_parentid[self.index.wheel_body][None, :]
+    d.xfrc_applied[carriers, 3:] = incidence.astype(float) @ torque
+
+
+@pytest.mark.parametrize("backend", ["numpy", "plugin"])
+def test_the_ground_reaction_reads_the_friction_rows_to_the_bit(
+    backend: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A hinge effect's reaction on the carriers reads each wheel's dry-friction force off
+    its dof's constraint force where no contact or equality row is present: the same drive
+    to the bit as picking the friction rows out, through starts, stops and reversals."""
+    cfg = replace(load_rover("proto_explorer"), extensions={"rolling_resistance": {"c_rr": 0.05}})
+    runs = []
+    for from_rows in (False, True):
+        if from_rows:
+            monkeypatch.setattr(RoverSim, "_react_on_ground", _react_from_rows)
+        sim = RoverSim(cfg, backend=backend, contacts=False, visuals=False)
+        for targets in ([3.0, 3.0, 3.0, 3.0], [0.0, 0.0, 0.0, 0.0], [-2.0, 4.0, -2.0, 4.0]):
+            sim.set_speed_targets(targets)
+            sim.step(400)
+        runs.append(np.concatenate([sim.data.qpos, sim.data.qvel, sim.data.xfrc_applied.ravel()]))
+    assert np.any(runs[0][-60:] != 0.0)  # the reaction acted
+    np.testing.assert_array_equal(runs[0], runs[1])
 
 
 def test_turn_outer_wheels_spin_inner_wheels_skid() -> None:
