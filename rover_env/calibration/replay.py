@@ -36,12 +36,12 @@ import multiprocessing as mp
 import operator
 import os
 from collections import OrderedDict
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Hashable, Iterator, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, Generic, TypeVar
 
 import mujoco
 import numpy as np
@@ -306,9 +306,32 @@ def for_config(p: PreparedLog, cfg: RoverConfig) -> PreparedLog:
     return dataclasses.replace(p, setpoint_err=_setpoints_for(p.log, cfg, key), loop=key)
 
 
-_SETPOINTS: OrderedDict[tuple[int, tuple[object, ...]], tuple[DriveLog, Array]] = OrderedDict()
-_SETPOINTS_KEPT = 64
-"""Recent :func:`setpoint_errors` by log and loop (:func:`loop_key`), least recent dropped."""
+class Kept(Generic[T]):
+    """The last ``size`` answers of a pure function of objects (logs), least recent dropped.
+    An entry holds the objects it was keyed on, so their ids are never reused while it
+    stands, and it is answered only for those very objects (not equal ones)."""
+
+    def __init__(self, size: int = 16) -> None:
+        self.size = size
+        self._kept: OrderedDict[Hashable, tuple[tuple[object, ...], T]] = OrderedDict()
+
+    def get(self, key: Hashable, holders: Sequence[object]) -> T | None:
+        hit = self._kept.get(key)
+        if hit is None or len(hit[0]) != len(holders):
+            return None
+        if not all(map(operator.is_, hit[0], holders)):
+            return None
+        self._kept.move_to_end(key)
+        return hit[1]
+
+    def put(self, key: Hashable, holders: Sequence[object], value: T) -> None:
+        self._kept[key] = (tuple(holders), value)
+        if len(self._kept) > self.size:
+            self._kept.popitem(last=False)
+
+
+_SETPOINTS: Kept[Array] = Kept(64)
+"""Recent :func:`setpoint_errors` by log and loop (:func:`loop_key`)."""
 
 
 def _setpoints_for(log: DriveLog, cfg: RoverConfig, key: tuple[object, ...]) -> Array:
@@ -318,15 +341,12 @@ def _setpoints_for(log: DriveLog, cfg: RoverConfig, key: tuple[object, ...]) -> 
     case's time (stop 107's profile). The entry holds the log, so an id is never reused
     while it stands; the arrays are the same numbers (a pure function of log and key)."""
     k = (id(log), key)
-    hit = _SETPOINTS.get(k)
-    if hit is not None and hit[0] is log:
-        _SETPOINTS.move_to_end(k)
-        return hit[1]
+    hit = _SETPOINTS.get(k, [log])
+    if hit is not None:
+        return hit
     errs = setpoint_errors(log, cfg)
     errs.setflags(write=False)
-    _SETPOINTS[k] = (log, errs)
-    if len(_SETPOINTS) > _SETPOINTS_KEPT:
-        _SETPOINTS.popitem(last=False)
+    _SETPOINTS.put(k, [log], errs)
     return errs
 
 
@@ -558,17 +578,14 @@ class Replayer:
             sort_keys=True,
             default=str,
         )
-        hit = _RUNS.get(key)
-        if hit is not None and len(hit[0]) == len(logs) and all(map(operator.is_, hit[0], logs)):
-            _RUNS.move_to_end(key)
-            return list(hit[1])
+        hit = _RUNS.get(key, logs)
+        if hit is not None:
+            return list(hit)
         out = self._run(logs, windows)
         for r in out:
             for a in (r.idx, r.resid, r.sim, r.pose_idx, r.pose_resid, r.pose_sim):
                 a.setflags(write=False)
-        _RUNS[key] = (list(logs), out)
-        if len(_RUNS) > _RUNS_KEPT:
-            _RUNS.popitem(last=False)
+        _RUNS.put(key, logs, out)
         return list(out)
 
     def _run(self, logs: list[PreparedLog], windows: list[Window]) -> list[WindowResult]:
@@ -606,10 +623,8 @@ class Replayer:
         return out
 
 
-_RUNS: OrderedDict[str, tuple[list[PreparedLog], list[WindowResult]]] = OrderedDict()
-_RUNS_KEPT = 16
-"""Recent :meth:`Replayer.run` answers, least recent dropped; an entry holds its logs, so an
-id is never reused while it stands."""
+_RUNS: Kept[list[WindowResult]] = Kept(16)
+"""Recent :meth:`Replayer.run` answers, by configuration, settings, logs and windows."""
 
 _PARALLEL: tuple[Executor | None, int] = (None, 1)
 _WORKER_REPLAYERS: dict[str, Replayer] = {}
