@@ -10,14 +10,15 @@ window contributes one degree of freedom, its mean square divided by the noise v
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult, pool_map
-from rover_env.config import JOINTS, RoverConfig
+from rover_env.calibration.replay import SIGNALS, Kept, PreparedLog, WindowResult, pool_map
+from rover_env.config import JOINTS, RoverConfig, to_dict
 from rover_env.logs import DriveLog
 
 Array = NDArray[np.float64]
@@ -145,37 +146,74 @@ TwinStates = tuple[Array, Array, Array]
 def twin_states(p: PreparedLog, cfg: RoverConfig) -> TwinStates:
     """The model driven from rest by ``p``'s logged commands on the log's declared ground
     (:func:`rover_env.calibration.ground.log_ground`): its true angles and pose at
-    the log's sample times (:func:`twin_sensed` reads them through sensors)."""
+    the log's sample times (:func:`twin_sensed` reads them through sensors), as MuJoCo's
+    sensors read them: at the start of each row's last substep (a step computes its sensors
+    and body poses before it integrates).
+
+    Built as a replay is (no collisions, sensor stage or visual parts: the ground the log
+    declares is the tire layer's alone) and driven in one :meth:`~RoverSim.drive_read`, each
+    row's last substep apart: the same states to the bit as the sensed drive one checked
+    step per row (tests/test_twin.py), for less (stop 109: twins took 13 s of a delay case's
+    156 s with one worker)."""
     from rover_env.calibration.ground import log_ground
     from rover_env.sim.model import stable_config
     from rover_env.sim.recorder import relative_pose
     from rover_env.sim.simulator import RoverSim
 
     log = p.log
-    sim = RoverSim(stable_config(cfg), log_ground(log), backend="auto", visuals=False)
+    sim = RoverSim(
+        stable_config(cfg),
+        log_ground(log),
+        backend="auto",
+        contacts=False,
+        sensors=False,
+        visuals=False,
+    )
     sim.reset()
-    step_of = np.round(log.t / sim.dt).astype(np.int64)
-    phi, theta, pos, quat = [], [], [], []
-    for k in range(len(log)):
-        s = sim.sensors()
-        seg = sim.segment_truth()
-        phi.append(s.phi)
-        theta.append(s.theta)
-        pos.append(seg.pos[2])
-        quat.append(seg.quat[2])
-        if k + 1 < len(log):
-            sim.set_speed_targets(log.cmd[k])
-            sim.step(int(step_of[k + 1] - step_of[k]))
-    return np.array(phi), np.array(theta), relative_pose(np.array(pos), np.array(quat))
+    n = np.diff(np.round(log.t / sim.dt).astype(np.int64))
+    # Each row as its substeps but the last, then the last: the joints' coordinates read
+    # after the first part are what the sensors read, the body's pose after the second (its
+    # kinematics are computed at the start of the substep).
+    ix = sim.index
+    qi = np.concatenate([ix.wheel_qpos, ix.joint_qpos])
+    q, pos, quat = sim.drive_read(
+        np.repeat(log.cmd[: len(n)], 2, axis=0),
+        np.column_stack([np.maximum(n - 1, 0), np.minimum(n, 1)]).ravel(),
+        np.arange(2 * len(n) + 1),
+        qi,
+        int(ix.seg_body[2]),
+        quat=True,
+    )
+    q, pos, quat = q[np.r_[0, 1 : len(q) : 2]], pos[0::2], quat[0::2]
+    for k in np.flatnonzero(n == 0) + 1:  # no substep: the sensors hold what they held
+        q[k], pos[k], quat[k] = q[k - 1], pos[k - 1], quat[k - 1]
+    nw = len(ix.wheel_qpos)
+    return q[:, :nw], q[:, nw:] + sim.joint_zero, relative_pose(pos, quat)
 
 
 def twins_of(logs: list[PreparedLog], cfg: RoverConfig, used: set[int]) -> dict[int, TwinStates]:
     """:func:`twin_states` of the logs numbered in ``used``, side by side inside
     :func:`~rover_env.calibration.replay.parallel_replays` (each drive is one simulation from
-    rest; the numbers do not depend on where it runs)."""
+    rest; the numbers do not depend on where it runs).
+
+    A twin made before of the same log object under the same configuration is taken from
+    :data:`_TWINS` (read-only arrays; a twin is a pure function of the two). Why: the
+    odometry stage twins the named model's drives, whose held-out one the winner's replay
+    floor twinned already (stop 109)."""
     order = sorted(used)
-    states = pool_map(twin_states, [(logs[i], cfg) for i in order])
-    return dict(zip(order, states, strict=True))
+    model = json.dumps(to_dict(cfg), sort_keys=True, default=str)
+    got = {i: _TWINS.get((model, id(logs[i])), [logs[i]]) for i in order}
+    todo = [i for i in order if got[i] is None]
+    for i, states in zip(todo, pool_map(twin_states, [(logs[i], cfg) for i in todo]), strict=True):
+        for a in states:
+            a.setflags(write=False)
+        _TWINS.put((model, id(logs[i])), [logs[i]], states)
+        got[i] = states
+    return {i: v for i, v in got.items() if v is not None}
+
+
+_TWINS: Kept[TwinStates] = Kept(32)
+"""Recent twins by configuration and log (:func:`twins_of`)."""
 
 
 def twin_sensed(

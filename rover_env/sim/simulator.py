@@ -465,11 +465,17 @@ class RoverSim:
         self.drive_read(tt, nn, (), (), 0)  # the plugin's batched paths, nothing read
 
     def drive_read(
-        self, targets: ArrayLike, steps: ArrayLike, after: ArrayLike, qpos: ArrayLike, body: int
+        self,
+        targets: ArrayLike,
+        steps: ArrayLike,
+        after: ArrayLike,
+        qpos: ArrayLike,
+        body: int,
+        quat: bool = False,
     ) -> tuple[Array, Array, Array]:
         """:meth:`drive` over all rows, reading the state after ``after[j]`` rows (sorted,
-        0 = before any): ``d.qpos[qpos]``, ``d.xpos[body]`` and ``d.xmat[body]`` (flat) at
-        each read, as arrays (reads, ...). The same numbers to the bit as one :meth:`drive`
+        0 = before any): ``d.qpos[qpos]``, ``d.xpos[body]`` and ``d.xmat[body]`` (flat; with
+        ``quat``, ``d.xquat[body]``) at each read, as arrays (reads, ...). The same numbers to the bit as one :meth:`drive`
         per stretch between reads (tested), checked once at the end: a replay reads after
         every log row, and one call per row cost it about a seventh of its time
         (benchmarks/bench_replay.py). Hinge effects and the numpy backend drive stretch by
@@ -481,7 +487,12 @@ class RoverSim:
         if at.size and (np.any(np.diff(at) < 0) or at[0] < 0 or at[-1] > len(tt)):
             raise ValueError(f"reads must be sorted row counts in [0, {len(tt)}]")
         d = self.data
-        out = (np.empty((len(at), len(qi))), np.empty((len(at), 3)), np.empty((len(at), 9)))
+        frame = d.xquat if quat else d.xmat
+        out = (
+            np.empty((len(at), len(qi))),
+            np.empty((len(at), 3)),
+            np.empty((len(at), frame.shape[1])),
+        )
         if not np.all(np.isfinite(tt)):
             i, j = np.argwhere(~np.isfinite(tt))[0]
             raise ValueError(f"speed targets not finite in row {i} for wheel {DRIVEN_WHEELS[j]}")
@@ -502,7 +513,7 @@ class RoverSim:
         for j, rows in enumerate(np.split(np.arange(len(tt)), at)):
             run(rows)
             if j < len(at):
-                out[0][j], out[1][j], out[2][j] = d.qpos[qi], d.xpos[body], d.xmat[body]
+                out[0][j], out[1][j], out[2][j] = d.qpos[qi], d.xpos[body], frame[body]
         if batched:
             if len(tt):
                 self.speed_targets[:] = tt[-1]

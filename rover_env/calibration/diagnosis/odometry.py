@@ -91,8 +91,9 @@ def twin_scales(
     """The statistic on ``cfg``'s twin of each drive (true states at the log's pose samples:
     the along-track path is linear in the pose noise, so none is added)."""
     got: dict[str, list[tuple[float, float]]] = {k: [] for k in WHEELS}
-    for p in prepared:
-        phi, _, pose = rs.twin_states(p, cfg)
+    twins = rs.twins_of(prepared, cfg, set(range(len(prepared))))
+    for i, p in enumerate(prepared):
+        phi, _, pose = twins[i]
         pose = np.where(np.isfinite(p.log.pose), pose, np.nan)  # prepare's fixes
         for k, w in WHEELS.items():
             if form == END:
