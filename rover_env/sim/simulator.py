@@ -597,16 +597,9 @@ class RoverSim:
         return self._share
 
     def _react_on_ground(self, share: Array) -> None:
-        """Take the ground's share of each hinge's friction torque off the wheel's carrier.
-
-        A hinge's dry friction is a torque pair: -f on the wheel, +f on its carrier (a
-        bearing's friction). Rolling resistance is the ground's moment on the wheel (the
-        normal force's forward offset, Wong 1.2): the carrier feels only the hub forces.
-        So the carrier gets that share of the last substep's friction torque back, through
-        ``xfrc_applied``, held until the next hinge update. Without it a pitch joint reads
-        rolling resistance through the carrier's torque, which another implementation of
-        the same definition does not have (issue 16: theta_4 moved 1.3 x as much).
-        """
+        """Take the ground's share of each hinge's friction torque off the wheel's carrier:
+        rolling resistance is the ground's moment (Wong 1.2), not a bearing's, so the carrier
+        gets that share back through ``xfrc_applied`` (issue 16: else theta_4 moved 1.3 x)."""
         d = self.data
         if d.ncon == 0 and d.ne == 0:
             # No contact or equality rows, and the wheel hinges have no limits: a wheel's
