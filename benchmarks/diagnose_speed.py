@@ -61,6 +61,16 @@ def chosen(names: str | None) -> list[dict[str, dict[str, float]]]:
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def case_effect(effects: list[dict[str, dict[str, float]]], i: int) -> dict[str, dict[str, float]]:
+    """Case ``i``'s effects: ``effects`` in turn, the cycle shifted by one each time round.
+    Why (stop 110): the generator's drive kinds follow the seed with period 7
+    (:func:`rover_env.independent.drive.drive_kind`), so cycling seven effects over
+    consecutive seeds gave every case of an effect the same three drives (study 73800's
+    torque cuts: steps, turns, stop-and-go each time)."""
+    n = len(effects)
+    return effects[(i + i // n) % n]
+
+
 def reference_tree(ref: str, work: Path) -> Path:
     """A worktree of ``ref`` under ``work`` (reused when it is already at ``ref``)."""
     sha = subprocess.check_output(["git", "rev-parse", ref], cwd=ROOT, text=True).strip()
@@ -144,7 +154,7 @@ def run(
     rows: list[dict[str, Any]] = []
     summary: dict[str, Any] = {}
     for i in range(cases):
-        eff = effects[i % len(effects)]
+        eff = case_effect(effects, i)
         d = work / f"case_{seed0 + i}"
         logs = make_independent_logs(d / "logs", eff, drives=3, seed=seed0 + i)
         prev, prev_named = diagnose_seconds(ref, logs, d / "prev", workers)

@@ -304,8 +304,10 @@ def test_every_switch_defaults_to_its_option_and_turns_off() -> None:
     # fits named last, which study 64000 did not bear out (stop 85); the next candidate after
     # a withdrawn name, by block 52400's registered decision (stop 88); a partner's limit
     # beside the winner, by study 71000's (stop 90); the forms beside a rival, by study
-    # 71600's (stop 97)
+    # 71600's (stop 97); the interleaved split and the torque limit's forms, new in stop 110
     off = {
+        "interleave",
+        "torque_forms",
         "next_after_withdrawn",
         "partner_limit",
         "pegged_last",

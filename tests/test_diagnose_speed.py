@@ -147,3 +147,19 @@ def test_named_params_are_read_from_the_final_fit(tmp_path: Path) -> None:
     )
     assert ds.named_params(out) == {"slope": {"slope": {"deg": [2.0, 1.5, 2.5]}}}
     assert ds.named_params(_write(tmp_path / "n", {"final": None})) == {}
+
+
+def test_each_effect_meets_more_than_one_set_of_drive_kinds() -> None:
+    """The speed benchmark's cases: every effect still comes round, and its cases are not
+    all driven by the same drive kinds (the generator's kinds repeat every 7 seeds)."""
+    from rover_env.independent.drive import drive_kind
+
+    ds = load_bench("diagnose_speed")
+    n = len(ds.EFFECTS)
+    seed0 = 73800
+    kinds: dict[str, set[tuple[str, ...]]] = {}
+    for i in range(3 * n):
+        name = "+".join(ds.case_effect(ds.EFFECTS, i)) or "clean"
+        kinds.setdefault(name, set()).add(tuple(drive_kind(k, seed0 + i) for k in range(3)))
+    assert len(kinds) == n
+    assert all(len(k) == 3 for k in kinds.values()), kinds

@@ -27,3 +27,20 @@ def test_the_last_drive_by_name_is_held_out_whatever_its_folder(tmp_path: Path) 
     held = {w.log_index for w in d.held_w}
     assert [d.files[i].name for i in held] == [made[2].name]
     assert {d.files[w.log_index].name for w in d.train_w} == {made[0].name, made[1].name}
+
+
+def test_interleave_holds_out_every_other_window_of_every_drive(tmp_path: Path) -> None:
+    """``Options.interleave``: each drive lends its odd windows to the held-out set, so a
+    manoeuvre only one drive makes is in both sets (the last-drive split holds it out)."""
+    made = make_logs(tmp_path / "made", {}, drives=3, seed=2, duration=12.0, progress=False)
+    d = Diagnosis(
+        [str(p) for p in made], tmp_path / "out", Options(progress=False, interleave=True)
+    )
+    split.split(d)
+    for i in range(len(made)):
+        mine = sorted((w for w in d.all_w if w.log_index == i), key=lambda w: w.k0)
+        assert len(mine) >= 2
+        assert [w.k0 for w in d.train_w if w.log_index == i] == [w.k0 for w in mine[0::2]]
+        assert [w.k0 for w in d.held_w if w.log_index == i] == [w.k0 for w in mine[1::2]]
+    assert len(d.train_w) + len(d.held_w) == len(d.all_w)
+    assert "odd windows held out" in d.split

@@ -45,6 +45,9 @@ class Candidate:
     soil's memory of passes, which SOIL.md leaves to the implementation."""
     form: str = ""
     """The form this candidate was fixed to (:meth:`with_form`); "" when it has none."""
+    form_at_off: bool = False
+    """The form changes the model at "off" too (a torque limit's anti-windup form): each
+    form's search then has its own "off", the form alone."""
 
     @property
     def k(self) -> int:
@@ -60,7 +63,7 @@ class Candidate:
 
         def to_ext(x: Array) -> Extensions:
             # "Off" is the same model in every form (hard ground has no memory): one replay.
-            if np.array_equal(np.asarray(x, dtype=float), off):
+            if not self.form_at_off and np.array_equal(np.asarray(x, dtype=float), off):
                 return base(x)
             return merge(base(x), extra)
 
@@ -224,6 +227,25 @@ def _loose_soil() -> Candidate:
         shown=shown,
         forms=SOIL_FORMS,
     )
+
+
+TORQUE_FORMS: tuple[tuple[str, Extensions], ...] = (
+    ("the configured anti-windup", {"torque_limit": {"conditional": 0.0}}),
+    ("conditional anti-windup", {"torque_limit": {"conditional": 1.0}}),
+)
+"""A torque limit's forms (``diagnose --torque-forms``): the speed loop's anti-windup as
+configured, or integrating conditionally. Why (stop 110, exploratory seeds 74038-74043 of
+the independent generator, whose loop bleeds its integral by back-calculation): under the
+configured clamp the replays of a 51-70 % cut fitted the limit at -0.18 or at off, and the
+loss over the cut was flat to -0.7 (74040: 1.00-0.98 of nominal); under the conditional
+form it fell to 0.59 at -0.7 (truth about -0.70), the form alone 0.91."""
+
+
+def with_torque_forms(c: Candidate) -> Candidate:
+    """``c`` searched in each of :data:`TORQUE_FORMS` when it is the torque limit."""
+    if c.name != "torque_limit":
+        return c
+    return replace(c, forms=TORQUE_FORMS, form_at_off=True)
 
 
 def catalogue(names: list[str] | None = None) -> list[Candidate]:

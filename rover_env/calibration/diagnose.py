@@ -129,6 +129,8 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "when the clean-fit allowance withdraws every name, try the next candidate alone"
         " (off: block 52400)",
     ),
+    ("interleave", "hold out every other window of each drive instead of the last drive"),
+    ("torque_forms", "search the torque limit under each anti-windup form of the speed loop"),
     (
         "one_wheel",
         "withdraw a named rolling resistance where the two free wheels' dead reckoning"

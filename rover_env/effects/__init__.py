@@ -368,19 +368,25 @@ class RollingRadius(Effect):
 
 @register
 class TorqueLimit(Effect):
-    """Motor torque limit (driver current limit) changed by ``fraction``."""
+    """Motor torque limit (driver current limit) changed by ``fraction``; ``conditional`` 1:
+    the speed loop integrates conditionally (``motor.anti_windup``), the form under which
+    ``diagnose --torque-forms`` may fit the limit (a clamped integral catches up after the
+    limit lets go, which hides it: exploratory seeds 74038 and 74040, stop 110)."""
 
     name = "torque_limit"
     params = (
         Param("fraction", "-", -0.8, 1.0, 0.0, "change of motor.torque_limit", moderate=-0.5),
+        Param("conditional", "-", 0.0, 1.0, 0.0, "1: conditional anti-windup", discrete=True),
     )
 
     def apply_config(self, cfg: Cfg) -> Cfg:
         f = self["fraction"]
-        if f == 0.0:
-            return cfg
-        motor = dataclasses.replace(cfg.motor, torque_limit=cfg.motor.torque_limit * (1 + f))
-        return dataclasses.replace(cfg, motor=motor)
+        motor = cfg.motor
+        if self["conditional"] >= 0.5:
+            motor = dataclasses.replace(motor, anti_windup="conditional")
+        if f != 0.0:
+            motor = dataclasses.replace(motor, torque_limit=motor.torque_limit * (1 + f))
+        return cfg if motor is cfg.motor else dataclasses.replace(cfg, motor=motor)
 
 
 @register

@@ -18,7 +18,13 @@ import numpy as np
 from scipy import optimize
 
 from rover_env.calibration import residuals as rs
-from rover_env.calibration.candidates import Candidate, Extensions, catalogue, merge
+from rover_env.calibration.candidates import (
+    Candidate,
+    Extensions,
+    catalogue,
+    merge,
+    with_torque_forms,
+)
 from rover_env.calibration.diagnosis.judge import (
     better_worse,
     fit_budget,
@@ -44,6 +50,8 @@ from rover_env.sim.simulator import SimulationError
 def fit_candidates(d: Diagnosis) -> None:
     """Sets the candidates, the baseline's held-out losses and the ranked scored fits."""
     d.cands = [c for c in catalogue(d.opts.candidates) if c.name not in d.base.extensions]
+    if d.opts.torque_forms:
+        d.cands = [with_torque_forms(c) for c in d.cands]
     d.held0 = rs.window_losses(d.base_held, d.noise)  # held-out: in units of the replay floor
     scored = map_candidates(lambda c: fit_one(d, c), lambda s: report(d, s), d.cands, d.ev, d.opts)
     d.ranked = sorted(scored, key=lambda s: -s.gain)

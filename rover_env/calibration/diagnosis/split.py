@@ -3,7 +3,10 @@ ground, cut them into windows and split those into training and held-out sets.
 
 Owns the split rule: the last log (by file name) is held out, the others train; a single
 log alternates its windows. Why a whole held-out drive: windows of one drive share its
-conditions, so a candidate must explain a drive it was not fitted on.
+conditions, so a candidate must explain a drive it was not fitted on. With
+``Options.interleave`` (``--interleave``) every drive alternates its windows instead: an
+effect that only one drive excites (a torque limit only its reversals reach) is then in
+both sets, where the default split either cannot fit it (held out) or cannot confirm it.
 """
 
 from __future__ import annotations
@@ -40,7 +43,12 @@ def split(d: Diagnosis) -> None:
     st = replace(d.opts.settings, terrain=common_ground(logs))
     prepared = [prepare(lg, base, f.name, st) for lg, f in zip(logs, files, strict=True)]
     all_w = make_windows(prepared, st)
-    if len(logs) >= 2:
+    if len(logs) >= 2 and d.opts.interleave:
+        by_log = [[w for w in all_w if w.log_index == i] for i in range(len(logs))]
+        train_w = [w for ws in by_log for w in ws[0::2]]
+        held_w = [w for ws in by_log for w in ws[1::2]]
+        text = "every log: even windows training, odd windows held out"
+    elif len(logs) >= 2:
         held_logs = [len(logs) - 1]
         train_w = [w for w in all_w if w.log_index not in held_logs]
         held_w = [w for w in all_w if w.log_index in held_logs]

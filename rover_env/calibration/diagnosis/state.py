@@ -245,6 +245,16 @@ class Options:
     fresh study 67200 (registered) it withdrew 8 of 12 such names (final rolling resistances
     on brake drags 4/28) and no rolling-resistance single or clean case of 120 parted the
     wheels that far (docs/calibration/README.md)."""
+    interleave: bool = False
+    """Hold out every other window of each drive instead of the last drive (off: the
+    held-out drive is one the fit never saw). Why (stop 110): an effect that only one drive
+    excites cannot be fitted when that drive is held out, nor confirmed when it trains
+    (exploratory 74037: a torque cut of 60 % that only the reversals drive reaches)."""
+    torque_forms: bool = False
+    """Search the torque limit in each anti-windup form (:data:`~rover_env.calibration.
+    candidates.TORQUE_FORMS`), each form's own "off" the form alone: the limit is then
+    judged against the form that hides or shows it, not against the configured loop only.
+    Off: scored on fresh study 73900 first (stop 110)."""
     slip_beside_lead: bool = True
     """Where dead reckoning's driven wheels slip apart from its free wheels against the
     named model's twins, read the radius against the twins of the named model with the
