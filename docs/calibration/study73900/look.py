@@ -11,7 +11,12 @@ def named_right(arm: dict, effect: str, truth: dict) -> bool:
     if effect not in arm["named"]:
         return False
     params = arm["final"].get(effect, {}).get(effect, {})
-    return all(p in params and params[p][1] <= v <= params[p][2] for p, v in truth.items())
+    # Mended after the look crashed here (the registered script compared a slope's heading,
+    # which has no interval: null bounds): a parameter without an interval is not judged.
+    return all(
+        p in params and (None in params[p][1:] or params[p][1] <= v <= params[p][2])
+        for p, v in truth.items()
+    )
 
 
 def fit_alone(arm: dict) -> float:
