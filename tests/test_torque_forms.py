@@ -3,19 +3,18 @@ speed loop, each form's "off" the form alone (stop 110)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from rover_env.calibration.candidates import TORQUE_FORMS, catalogue, with_torque_forms
-from rover_env.config import load_rover
-from rover_env.effects import build_effects
+from rover_env.config import RoverConfig, load_rover
+from rover_env.sim.simulator import physical_config
 
 
-def _cfg(ext: dict[str, dict[str, float]]):  # type: ignore[no-untyped-def]
-    cfg = load_rover("proto_explorer")
-    for e in build_effects(ext):
-        if not e.is_off:
-            cfg = e.apply_config(cfg)
-    return cfg
+def _cfg(ext: dict[str, dict[str, float]]) -> RoverConfig:
+    """The configuration the simulator builds from the rover with extensions ``ext``."""
+    return physical_config(replace(load_rover("proto_explorer"), extensions=ext))
 
 
 def test_the_conditional_form_sets_the_loop_and_the_cut_the_limit() -> None:
