@@ -44,3 +44,12 @@ def test_interleave_holds_out_every_other_window_of_every_drive(tmp_path: Path) 
         assert [w.k0 for w in d.held_w if w.log_index == i] == [w.k0 for w in mine[1::2]]
     assert len(d.train_w) + len(d.held_w) == len(d.all_w)
     assert "odd windows held out" in d.split
+
+
+def test_a_single_log_alternates_its_windows(tmp_path: Path) -> None:
+    made = make_logs(tmp_path / "made", {}, drives=1, seed=3, duration=30.0, progress=False)
+    d = Diagnosis([str(made[0])], tmp_path / "out", Options(progress=False))
+    split.split(d)
+    assert [w.k0 for w in d.train_w] == [w.k0 for w in d.all_w[0::2]]
+    assert [w.k0 for w in d.held_w] == [w.k0 for w in d.all_w[1::2]]
+    assert d.split.startswith(f"one log ({made[0].name})")

@@ -43,19 +43,17 @@ def split(d: Diagnosis) -> None:
     st = replace(d.opts.settings, terrain=common_ground(logs))
     prepared = [prepare(lg, base, f.name, st) for lg, f in zip(logs, files, strict=True)]
     all_w = make_windows(prepared, st)
-    if len(logs) >= 2 and d.opts.interleave:
-        by_log = [[w for w in all_w if w.log_index == i] for i in range(len(logs))]
-        train_w = [w for ws in by_log for w in ws[0::2]]
-        held_w = [w for ws in by_log for w in ws[1::2]]
-        text = "every log: even windows training, odd windows held out"
-    elif len(logs) >= 2:
+    if len(logs) >= 2 and not d.opts.interleave:
         held_logs = [len(logs) - 1]
         train_w = [w for w in all_w if w.log_index not in held_logs]
         held_w = [w for w in all_w if w.log_index in held_logs]
         text = f"training: {', '.join(f.name for f in files[:-1])}; held out: {files[-1].name}"
-    else:
-        train_w, held_w = all_w[0::2], all_w[1::2]
-        text = f"one log ({files[0].name}): even windows training, odd windows held out"
+    else:  # one log, or --interleave: each log's even windows train, its odd ones are held out
+        by_log = [[w for w in all_w if w.log_index == i] for i in range(len(logs))]
+        train_w = [w for ws in by_log for w in ws[0::2]]
+        held_w = [w for ws in by_log for w in ws[1::2]]
+        where = "every log" if len(logs) >= 2 else f"one log ({files[0].name})"
+        text = f"{where}: even windows training, odd windows held out"
     if len(train_w) < 3 or len(held_w) < 3:
         raise LogError("too little data: need at least 3 training and 3 held-out windows", files[0])
     sub_w = train_w[:: max(1, d.opts.numpy_every)]
