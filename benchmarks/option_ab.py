@@ -2,13 +2,17 @@
 
 Each case is a single effect on the independent generator (its build tolerances drawn from
 the seed): torque-limit cuts the drives reach (``--torque N``: the generator's fraction
-uniform in [-0.8, -0.5]) and then the other catalogue effects in turn at magnitudes drawn
-log-uniform as ``bench_independent.py`` draws them. Each case's logs are diagnosed twice,
-side by side, one worker each: as ``diagnose`` runs by default and with ``--OPTION``. A row
-per case (what each named, the truth's fit, seconds) goes to ``--json`` after each case.
+uniform in [-0.8, -0.5]), then the other catalogue effects in turn at magnitudes drawn
+log-uniform as ``bench_independent.py`` draws them, then clean builds (``--clean N``,
+nothing injected). Each case's logs are diagnosed twice, side by side, one worker each: as
+``diagnose`` runs by default and with ``--OPTION`` (both with ``--candidates`` where given).
+A row per case (what each named, the fits, seconds) goes to ``--json`` after each case.
 
     python benchmarks/option_ab.py --option forms-beside-rival --seed0 71600 --torque 8 \\
         --others 8 --work out/option_ab --json out/option_ab/rows.json
+    # what one candidate fits on clean builds, with the option and without
+    python benchmarks/option_ab.py --option torque-forms --seed0 74044 --torque 0 \\
+        --others 0 --clean 20 --candidates torque_limit --work out/clean_torque
 
 A study's hypotheses and its look script are registered before it runs
 (docs/calibration/studyNNNNN/).
@@ -43,15 +47,24 @@ OTHERS = (
 """The other effects, in the order their cases are drawn."""
 
 
-def plan(seed0: int, torque: int, others: int) -> list[tuple[int, str, dict[str, float]]]:
+CLEAN = "clean"
+"""A clean build's "effect": nothing injected."""
+
+
+def plan(
+    seed0: int, torque: int, others: int, clean: int = 0
+) -> list[tuple[int, str, dict[str, float]]]:
     """(seed, effect, the generator's parameters) of every case, from the seeds alone: a
-    torque cut and another effect in turn (a run stopped early keeps both kinds)."""
+    torque cut and another effect in turn (a run stopped early keeps both kinds), then the
+    clean builds, whose seeds follow theirs."""
     kinds = ["torque"] * torque + ["other"] * others
     order = sorted(range(len(kinds)), key=lambda k: (k if k < torque else k - torque, k))
     out = []
-    for k in order:
+    for k in [*order, *range(len(kinds), len(kinds) + clean)]:
         seed = seed0 + k
-        if kinds[k] == "torque":
+        if k >= len(kinds):
+            out.append((seed, CLEAN, {}))
+        elif kinds[k] == "torque":
             rng = np.random.default_rng([seed, 97])
             out.append((seed, "torque_limit", {"fraction": float(rng.uniform(-0.8, -0.5))}))
         else:
@@ -80,17 +93,26 @@ def diagnose(logs: list[Path], out: Path, extra: list[str]) -> dict[str, Any]:
 
 
 def run_case(
-    work: Path, option: str, seed: int, effect: str, params: dict[str, float]
+    work: Path,
+    option: str,
+    seed: int,
+    effect: str,
+    params: dict[str, float],
+    common: list[str] | None = None,
 ) -> dict[str, Any]:
+    """One case's logs (made once) diagnosed in both arms, side by side; ``common``: the
+    arguments both arms get."""
     d = work / f"case_{seed}"
     logs = sorted((d / "logs").glob("drive_*.csv"))
+    injected = {} if effect == CLEAN else {effect: params}
     if len(logs) < 3:
-        logs = make_independent_logs(d / "logs", {effect: params}, drives=3, seed=seed)
+        logs = make_independent_logs(d / "logs", injected, drives=3, seed=seed)
+    both = common or []
     with ThreadPoolExecutor(2) as ex:
-        off = ex.submit(diagnose, logs, d / "off", [])
-        on = ex.submit(diagnose, logs, d / "on", [f"--{option}"])
+        off = ex.submit(diagnose, logs, d / "off", both)
+        on = ex.submit(diagnose, logs, d / "on", [*both, f"--{option}"])
         arms = {"off": off.result(), "on": on.result()}
-    truth = catalogue_truth(effect, params)
+    truth = {} if effect == CLEAN else catalogue_truth(effect, params)
     return {"seed": seed, "effect": effect, "params": params, "truth": truth, **arms}
 
 
@@ -100,13 +122,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed0", type=int, required=True)
     ap.add_argument("--torque", type=int, default=8)
     ap.add_argument("--others", type=int, default=8)
+    ap.add_argument("--clean", type=int, default=0, help="clean builds after the others")
+    ap.add_argument("--candidates", default=None, help="diagnose's --candidates, both arms")
     ap.add_argument("--work", type=Path, default=Path("out/option_ab"))
     ap.add_argument("--json", type=Path, default=None)
     a = ap.parse_args(argv)
     rows = []
-    cases = plan(a.seed0, a.torque, a.others)
+    cases = plan(a.seed0, a.torque, a.others, a.clean)
+    common = [] if a.candidates is None else ["--candidates", a.candidates]
     for k, (seed, effect, params) in enumerate(cases, 1):
-        row = run_case(a.work, a.option, seed, effect, params)
+        row = run_case(a.work, a.option, seed, effect, params, common)
         rows.append(row)
         print(
             f"[{k}/{len(cases)}] {seed} {effect} {params}: off {row['off']['named']}"
