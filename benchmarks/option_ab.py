@@ -12,7 +12,8 @@ A row per case (what each named, the fits, seconds) goes to ``--json`` after eac
         --others 8 --work out/option_ab --json out/option_ab/rows.json
     # what one candidate fits on clean builds, with the option and without
     python benchmarks/option_ab.py --option torque-forms --seed0 74044 --torque 0 \\
-        --others 0 --clean 20 --candidates torque_limit --work out/clean_torque
+        --others 0 --clean 20 --candidates torque_limit --work out/clean_torque \\
+        --json out/clean_torque/rows.json
 
 A study's hypotheses and its look script are registered before it runs
 (docs/calibration/studyNNNNN/).
