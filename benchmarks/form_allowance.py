@@ -297,6 +297,10 @@ def write_table(
         " the value. loose_soil: quantiles of fitted over true k_phi on named soils, the"
         " interval for the truth [lo / high, hi / low].",
         "source": source,
+        # bench_independent.py diagnoses with the default options, on logs naming the
+        # configuration the independent generator's rover is built to
+        "options": {},
+        "rover": "proto_explorer",
         "effects": effects,
     }
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -6,11 +6,15 @@ uniform in [-0.8, -0.5]), then the other catalogue effects in turn at magnitudes
 log-uniform as ``bench_independent.py`` draws them, then clean builds (``--clean N``,
 nothing injected). Each case's logs are diagnosed twice, side by side, one worker each: as
 ``diagnose`` runs by default and with ``--OPTION`` (both with ``--candidates`` where given).
+With ``--untested`` the logs first get every drive a default diagnosis of them proposes, the
+drives for a limit they never tested too, driven by the same build as ``bench_independent.py
+--untested`` drives them (the procedure the report advises for an unreached torque limit).
 A row per case (what each named, the fits, seconds) goes to ``--json`` after each case.
 
     python benchmarks/option_ab.py --option forms-beside-rival --seed0 71600 --torque 8 \\
         --others 8 --work out/option_ab --json out/option_ab/rows.json
     # what one candidate fits on clean builds, with the option and without
+    # (--untested: after the drives a first diagnosis proposes)
     python benchmarks/option_ab.py --option torque-forms --seed0 74044 --torque 0 \\
         --others 0 --clean 20 --candidates torque_limit --work out/clean_torque \\
         --json out/clean_torque/rows.json
@@ -31,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from bench_independent import catalogue_truth, generator_params
+from bench_independent import DRIVES, catalogue_truth, generator_params, proposals, schedule
 
 from rover_env.independent import make_independent_logs
 
@@ -93,6 +97,30 @@ def diagnose(logs: list[Path], out: Path, extra: list[str]) -> dict[str, Any]:
     }
 
 
+def followed(
+    d: Path, injected: dict[str, dict[str, float]], seed: int, logs: list[Path], common: list[str]
+) -> tuple[list[Path], list[str]]:
+    """``logs`` and every drive a default diagnosis of them (``d/first``, with ``common``)
+    proposes, the untested limit's too, each driven by the same build (``seed``) with the
+    noise of drive ``DRIVES + j``; and the proposed plans' names."""
+    diagnose(logs, d / "first", common)
+    extra: list[Path] = []
+    props = proposals(d / "first", untested=True)
+    for j, prop in enumerate(props):
+        more = sorted((d / f"followup_{j}").glob("drive_*.csv"))
+        if not more:
+            more = make_independent_logs(
+                d / f"followup_{j}",
+                injected,
+                drives=1,
+                seed=seed,
+                plan=schedule(prop),
+                first_index=DRIVES + j,
+            )
+        extra += more
+    return [*logs, *extra], [p.plan for p in props]
+
+
 def run_case(
     work: Path,
     option: str,
@@ -100,21 +128,33 @@ def run_case(
     effect: str,
     params: dict[str, float],
     common: list[str] | None = None,
+    untested: bool = False,
 ) -> dict[str, Any]:
     """One case's logs (made once) diagnosed in both arms, side by side; ``common``: the
-    arguments both arms get."""
+    arguments both arms get; ``untested``: after the drives a first diagnosis proposes
+    (:func:`followed`)."""
     d = work / f"case_{seed}"
     logs = sorted((d / "logs").glob("drive_*.csv"))
     injected = {} if effect == CLEAN else {effect: params}
-    if len(logs) < 3:
-        logs = make_independent_logs(d / "logs", injected, drives=3, seed=seed)
+    if len(logs) < DRIVES:
+        logs = make_independent_logs(d / "logs", injected, drives=DRIVES, seed=seed)
     both = common or []
+    plans: list[str] = []
+    if untested:
+        logs, plans = followed(d, injected, seed, logs, both)
     with ThreadPoolExecutor(2) as ex:
         off = ex.submit(diagnose, logs, d / "off", both)
         on = ex.submit(diagnose, logs, d / "on", [*both, f"--{option}"])
         arms = {"off": off.result(), "on": on.result()}
     truth = {} if effect == CLEAN else catalogue_truth(effect, params)
-    return {"seed": seed, "effect": effect, "params": params, "truth": truth, **arms}
+    return {
+        "seed": seed,
+        "effect": effect,
+        "params": params,
+        "truth": truth,
+        "followup": plans,
+        **arms,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -125,6 +165,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--others", type=int, default=8)
     ap.add_argument("--clean", type=int, default=0, help="clean builds after the others")
     ap.add_argument("--candidates", default=None, help="diagnose's --candidates, both arms")
+    ap.add_argument(
+        "--untested", action="store_true", help="first add the drives a diagnosis proposes"
+    )
     ap.add_argument("--work", type=Path, default=Path("out/option_ab"))
     ap.add_argument("--json", type=Path, default=None)
     a = ap.parse_args(argv)
@@ -132,7 +175,7 @@ def main(argv: list[str] | None = None) -> int:
     cases = plan(a.seed0, a.torque, a.others, a.clean)
     common = [] if a.candidates is None else ["--candidates", a.candidates]
     for k, (seed, effect, params) in enumerate(cases, 1):
-        row = run_case(a.work, a.option, seed, effect, params, common)
+        row = run_case(a.work, a.option, seed, effect, params, common, a.untested)
         rows.append(row)
         print(
             f"[{k}/{len(cases)}] {seed} {effect} {params}: off {row['off']['named']}"

@@ -86,6 +86,8 @@ def test_the_written_table_is_what_diagnose_reads(fa: ModuleType, tmp_path: Path
     fa.write_table(allow, [tmp_path], [], path)
     got = load_allowance(path)
     assert set(got.effects) == {"command_delay", "slope"}
+    # measured as bench_independent.py diagnoses: default options, the configured rover
+    assert (got.options, got.rover) == ({}, "proto_explorer")
     b = got.effects["command_delay"]
     assert (b.low, b.high, b.cases) == (pytest.approx(0.001), pytest.approx(0.019), 21)
     # diagnose's interval for the truth is the benchmark's widened one

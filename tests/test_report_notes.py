@@ -186,6 +186,11 @@ def test_the_headline_says_each_withdrawal_beside_what_stays_named() -> None:
     assert "**Nothing named" not in both and "Fitted and significant but not named" in both
     none = "\n".join(_headline({**base, "named": []}, [], [], None))
     assert none.startswith("**No candidate explains the gap significantly.**")
+    # A table measured otherwise is said after the verdict, which it does not change.
+    differs = ["torque_forms: measured with off, here on"]
+    other = "\n".join(_headline({**base, "named": [], "allowance_differs": differs}, [], [], None))
+    assert other.startswith("**No candidate explains the gap significantly.**")
+    assert "measured otherwise (torque_forms: measured with off, here on)" in other
 
 
 def test_the_allowance_note_says_what_became_of_the_pairs_other_effect() -> None:

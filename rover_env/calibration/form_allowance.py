@@ -30,8 +30,9 @@ that implementation's mismatch with this model, the only one measured, not a rea
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from rover_env.config import ConfigError, load_config, resolve_path
 from rover_env.effects import CATALOGUE
@@ -85,6 +86,12 @@ class FormAllowance:
     """Per effect, the :class:`Bias` its fit carries on clean drives."""
 
     effects: dict[str, Bias]
+    options: dict[str, Any] = field(default_factory=dict)
+    """The diagnosis options the clean fits were made with, where they differed from the
+    defaults (:data:`rover_env.calibration.diagnosis.procedure.PROCEDURE`): a diagnosis run
+    otherwise is judged by another procedure's spread, and its report says so."""
+    rover: str | None = None
+    """The rover configuration the measured logs named (None: not recorded)."""
 
     def pad(self, effect: str) -> tuple[float, float] | None:
         """How far below and above a fitted interval the truth may sit, or None."""

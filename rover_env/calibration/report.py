@@ -24,6 +24,7 @@ from rover_env.calibration.report_notes import (
     one_wheel_note,
     p_text,
     phys_text,
+    procedure_note,
     rotor_kept_note,
     rotor_note,
     trade_note,
@@ -353,6 +354,8 @@ def _headline(
         L.append(("\n" if L else "") + one_wheel_note(one, bool(L)))
     if not L:
         L.append("**No candidate explains the gap significantly.**")
+    if result.get("allowance_differs"):
+        L.append("\n" + procedure_note(result["allowance_differs"]))
     if tie:
         L.append("\n" + tie_text(tie))
     un = result["unexplained"]

@@ -85,6 +85,20 @@ def allowance_note(withdrawn: dict[str, Any], beside: bool) -> str:
     )
 
 
+def procedure_note(differs: list[str]) -> str:
+    """The clean-fit allowance table was measured under another procedure than this
+    diagnosis ran (:func:`.diagnosis.procedure.differences`): its widenings and withdrawals
+    are that procedure's spread, not this one's."""
+    return (
+        "The clean-fit allowance this report's intervals and withdrawals use was measured"
+        f" otherwise ({'; '.join(differs)}): what a clean drive fits moves with the procedure"
+        " and the rover (a heavier configured rotor, another anti-windup search), so its"
+        " spread may be too wide or too narrow here. Measure a table the way this diagnosis"
+        " runs (clean drives of the rover, ``benchmarks/form_allowance.py --write``) and give"
+        " it with ``--form-allowance``."
+    )
+
+
 def one_wheel_note(rec: dict[str, Any], beside: bool) -> str:
     """Why a fitted rolling resistance is not named: the free wheels' dead reckoning says one
     wheel drags, not the ground (:func:`.diagnosis.one_wheel.withdraw_one_wheel`)."""

@@ -53,6 +53,7 @@ def run(
     if earlier is not None:
         d.t_start = earlier.t_start
         d.earlier_passes = [*earlier.earlier_passes, earlier.stage_seconds]
+        d.allowance_differs = earlier.allowance_differs
     for name, stage in FIRST:
         timed(d, name, stage)
     rerun = timed(d, "again", again.judge_again)

@@ -14,10 +14,11 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
+from rover_env.calibration.diagnosis.procedure import check_options, differences
 from rover_env.calibration.diagnosis.state import STRAIGHT, Diagnosis
 from rover_env.calibration.ground import common_ground
 from rover_env.calibration.replay import Window, make_windows, prepare, straight_windows
-from rover_env.config import RoverConfig, load_rover
+from rover_env.config import RoverConfig, load_rover, resolve_path
 from rover_env.logs import DriveLog, LogError, read_log
 
 
@@ -63,3 +64,9 @@ def split(d: Diagnosis) -> None:
     d.files, d.logs, d.base, d.st, d.prepared, d.split = files, logs, base, st, prepared, text
     d.all_w, d.train_w, d.held_w, d.sets = all_w, train_w, held_w, sets
     d.say(f"{len(logs)} log(s), {text}; windows {len(train_w)} training, {len(held_w)} held out")
+    if d.allowance is not None and d.allowance_differs is None:
+        assert d.opts.form_allowance is not None
+        check_options(d.allowance, resolve_path(d.opts.form_allowance, "calibration"))
+        d.allowance_differs = differences(d.opts, d.allowance, base)
+        for line in d.allowance_differs:
+            d.say(f"the clean-fit allowance was measured otherwise: {line}")

@@ -575,6 +575,11 @@ class Diagnosis:
     allowance: FormAllowance | None = field(init=False)
     """The clean-fit allowance table, read before any work (a bad table fails first)."""
 
+    allowance_differs: list[str] | None = field(default=None, init=False)
+    """How this diagnosis differs from the procedure the allowance table was measured with
+    (:func:`.procedure.differences`), judged on the options the user gave (the first pass's:
+    a second pass's options are the pipeline's own); None until the split stage."""
+
     def __post_init__(self) -> None:
         a = self.opts.form_allowance
         self.allowance = None if a is None else load_allowance(a)
