@@ -19,6 +19,16 @@ results only (no replay). ``--write`` writes the table diagnose widens its inter
     python benchmarks/form_allowance.py --calibrate /tmp/b50800 ... /tmp/b51500 \\
         --write configs/calibration/form_allowance.yaml
 
+A table for another procedure (diagnose run with other options, or on another rover) is
+measured on clean drives diagnosed that way: ``--runs`` takes their output folders, and
+``--options`` and ``--rover`` record how they were made, which diagnose compares with its own
+run (:mod:`rover_env.calibration.diagnosis.procedure`):
+
+    python benchmarks/option_ab.py --option torque-forms --seed0 74064 --torque 0 \\
+        --others 0 --clean 20 --work out/clean_forms
+    python benchmarks/form_allowance.py --runs out/clean_forms/case_*/on \\
+        --options torque_forms=true --write out/clean_forms/allowance.yaml
+
 A block directory is ``bench_independent.py``'s ``--out`` with its ``--work`` under
 ``work/`` (regenerable: ``bench_independent.py --seed0 SEED``). Writes ``allowance.md`` and
 ``allowance.png`` to ``--out``.
@@ -51,6 +61,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
@@ -65,6 +76,7 @@ from rover_env.calibration.form_allowance import (
     load_allowance,
     widen,
 )
+from rover_env.config import ConfigError
 from rover_env.effects import CATALOGUE
 
 SKIP = {"combined_slip", "loose_soil"}
@@ -74,17 +86,47 @@ SKIP = {"combined_slip", "loose_soil"}
 def clean_fits(blocks: list[Path]) -> dict[str, list[float]]:
     """Every candidate's fitted size on the clean cases of ``blocks`` (effect -> values;
     a slope's tilt in degrees)."""
+    return run_fits(
+        [p.parent for b in blocks for p in sorted((b / "work").glob("clean_*/out/result.json"))]
+    )
+
+
+def run_fits(runs: list[Path]) -> dict[str, list[float]]:
+    """Every candidate's fitted size in the diagnoses written to ``runs`` (``diagnose``'s
+    output folders, each with its ``result.json``): effect -> values."""
     out: dict[str, list[float]] = defaultdict(list)
-    for b in blocks:
-        for p in sorted((b / "work").glob("clean_*/out/result.json")):
-            for name, f in (json.loads(p.read_text()).get("fits") or {}).items():
-                params = (f.get("params") or {}).get(name) or {}
-                if name in SKIP or not params:
-                    continue
-                v = params["deg" if name == "slope" else next(iter(params))][0]
-                if v is not None:
-                    out[name].append(float(v))
+    for run in runs:
+        p = run / "result.json"
+        if not p.is_file():
+            raise SystemExit(f"{run}: no result.json (not a diagnose output folder)")
+        for name, f in (json.loads(p.read_text()).get("fits") or {}).items():
+            params = (f.get("params") or {}).get(name) or {}
+            if name in SKIP or not params:
+                continue
+            v = params["deg" if name == "slope" else next(iter(params))][0]
+            if v is not None:
+                out[name].append(float(v))
     return dict(out)
+
+
+def parse_options(items: list[str]) -> dict[str, Any]:
+    """``KEY=VALUE`` pairs (values read as YAML scalars: ``true``, ``4``, ``0.01``) as the
+    table's ``options``, checked as diagnose checks a table's."""
+    import yaml
+
+    from rover_env.calibration.diagnosis.procedure import check_options
+
+    out: dict[str, Any] = {}
+    for item in items:
+        key, eq, value = item.partition("=")
+        if not eq or not key:
+            raise SystemExit(f"--options: expected KEY=VALUE, got {item!r}")
+        out[key.replace("-", "_")] = yaml.safe_load(value)
+    try:
+        check_options(FormAllowance(effects={}, options=out), Path("--options"))
+    except ConfigError as e:
+        raise SystemExit(str(e)) from None
+    return out
 
 
 def allowance(fits: dict[str, list[float]]) -> dict[str, tuple[float, float, int]]:
@@ -239,11 +281,15 @@ def write_table(
     path: Path,
     out: dict[str, tuple[float, float, int, float]] | None = None,
     named_blocks: list[Path] | None = None,
+    runs: list[Path] | None = None,
+    options: dict[str, Any] | None = None,
+    rover: str = "proto_explorer",
 ) -> None:
     """The allowance as diagnose reads it (:func:`rover_env.calibration.form_allowance.load_allowance`).
     Without ``blocks`` the clean entries and their source are kept from the table at ``path``;
     without ``out`` (from :func:`beyond`, measured on ``named_blocks``) its named-side
-    entries too."""
+    entries too. ``runs``: the clean diagnoses measured instead of blocks' (``--runs``),
+    made with ``options`` (those that differ from the defaults) on logs naming ``rover``."""
     import yaml
 
     source = (
@@ -256,6 +302,9 @@ def write_table(
         for k, v in old["effects"].items()
         if v.get("named")
     }
+    if runs:
+        blocks = runs
+        source = f"benchmarks/form_allowance.py on {len(runs)} clean diagnoses ({_span(runs)})"
     if not blocks:
         source = old["source"].split("; ")[0]
         kept = {k: v for k, v in old["effects"].items() if k not in FACTOR}
@@ -299,8 +348,8 @@ def write_table(
         "source": source,
         # bench_independent.py diagnoses with the default options, on logs naming the
         # configuration the independent generator's rover is built to
-        "options": {},
-        "rover": "proto_explorer",
+        "options": options or {},
+        "rover": rover,
         "effects": effects,
     }
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -308,6 +357,12 @@ def write_table(
         "# Written by benchmarks/form_allowance.py --write; regenerate, do not edit.\n"
         + yaml.safe_dump(doc, sort_keys=False, width=100)
     )
+
+
+def _span(runs: list[Path]) -> str:
+    """The runs' folders, shortly: their common folder and how many."""
+    common = os.path.commonpath([str(r) for r in runs])
+    return f"under {common}" if common not in ("", ".", "/") else ", ".join(map(str, runs))
 
 
 def table(allow: dict[str, tuple[float, float, int]], got: list[dict]) -> list[str]:
@@ -479,6 +534,21 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--calibrate", nargs="+", type=Path, default=[], help="block dirs (clean fits)")
     ap.add_argument(
+        "--runs",
+        nargs="+",
+        type=Path,
+        default=[],
+        help="diagnose output folders of clean drives, in place of --calibrate's blocks",
+    )
+    ap.add_argument(
+        "--options",
+        nargs="+",
+        default=[],
+        metavar="KEY=VALUE",
+        help="the diagnose options --runs were made with, where not the defaults",
+    )
+    ap.add_argument("--rover", default="proto_explorer", help="the rover --runs' logs name")
+    ap.add_argument(
         "--soil", nargs="+", type=Path, default=[], help="block dirs (named soils' k_phi)"
     )
     ap.add_argument(
@@ -497,13 +567,18 @@ def main() -> None:
     a = ap.parse_args()
     if not a.write and not (a.evaluate and a.out):
         ap.error("give --write PATH, or --evaluate BLOCK... with --out DIR")
-    if not (a.calibrate or a.soil or a.named):
-        ap.error("give --calibrate BLOCK..., --soil BLOCK..., --named BLOCK..., or several")
-    if a.write and not a.calibrate and not a.write.exists():
+    if a.runs and a.calibrate:
+        ap.error("give --calibrate BLOCK... or --runs DIR..., not both")
+    if (a.options or a.rover != "proto_explorer") and not a.runs:
+        ap.error("--options and --rover describe --runs")
+    if not (a.calibrate or a.runs or a.soil or a.named):
+        ap.error("give --calibrate BLOCK..., --runs DIR..., --soil BLOCK..., --named BLOCK...")
+    if a.write and not (a.calibrate or a.runs) and not a.write.exists():
         ap.error(
             f"--write {a.write}: --soil or --named alone updates an existing table; give --calibrate"
         )
-    fits = clean_fits(a.calibrate)
+    options = parse_options(a.options)
+    fits = run_fits(a.runs) if a.runs else clean_fits(a.calibrate)
     allow = allowance(fits)
     ratios: list[float] = []
     for flag, given in (("--soil", a.soil), ("--named", a.named), ("--evaluate", a.evaluate)):
@@ -516,7 +591,7 @@ def main() -> None:
             ap.error(f"--soil: {len(ratios)} named soils in those blocks, at least 10 needed")
         allow["loose_soil"] = factor(ratios)
     if a.write:
-        write_table(allow, a.calibrate, a.soil, a.write, out, a.named)
+        write_table(allow, a.calibrate, a.soil, a.write, out, a.named, a.runs, options, a.rover)
         print(f"wrote {a.write}; below/above measured for: {', '.join(out or {}) or 'none'}")
     if not a.evaluate:
         return

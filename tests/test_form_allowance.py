@@ -96,6 +96,36 @@ def test_the_written_table_is_what_diagnose_reads(fa: ModuleType, tmp_path: Path
     assert (0.100 - below, 0.120 + above) == (pytest.approx(lo), pytest.approx(hi))
 
 
+def test_a_table_from_clean_runs_records_their_procedure(fa: ModuleType, tmp_path: Path) -> None:
+    """``--runs`` (stop 112): any diagnoses of clean drives, made with other options, make a
+    table that says so; diagnose run the same way finds no difference, run by default one."""
+    from rover_env.calibration.diagnosis.procedure import differences
+    from rover_env.calibration.diagnosis.state import Options
+    from rover_env.calibration.form_allowance import load_allowance
+    from rover_env.config import load_rover
+
+    for i in range(20):
+        _clean(tmp_path, i, 0.002 * i, 0.1 * i)
+    runs = sorted((tmp_path / "work").glob("clean_*/out"))
+    options = fa.parse_options(["torque-forms=true", "max_nfev=6"])
+    assert options == {"torque_forms": True, "max_nfev": 6}
+    path = tmp_path / "mine.yaml"
+    fa.write_table(fa.allowance(fa.run_fits(runs)), [], [], path, {}, [], runs, options)
+    got = load_allowance(path)
+    assert got.effects["command_delay"].cases == 20
+    assert got.options == options and got.rover == "proto_explorer"
+    assert "20 clean diagnoses" in yaml.safe_load(path.read_text())["source"]
+    same = Options(torque_forms=True, max_nfev=6)
+    assert differences(same, got, load_rover()) == []
+    assert len(differences(Options(), got, load_rover())) == 2
+    with pytest.raises(SystemExit, match="expected KEY=VALUE"):
+        fa.parse_options(["torque_forms"])
+    with pytest.raises(SystemExit, match=r"options\.workers: not an option"):
+        fa.parse_options(["workers=2"])
+    with pytest.raises(SystemExit, match=r"no result\.json"):
+        fa.run_fits([tmp_path])
+
+
 def _soil_block(block: Path, ratios: list[float], named: bool = True) -> None:
     rows = [
         {
