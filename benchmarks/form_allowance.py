@@ -289,14 +289,19 @@ def write_table(
     Without ``blocks`` the clean entries and their source are kept from the table at ``path``;
     without ``out`` (from :func:`beyond`, measured on ``named_blocks``) its named-side
     entries too. ``runs``: the clean diagnoses measured instead of blocks' (``--runs``),
-    made with ``options`` (those that differ from the defaults) on logs naming ``rover``."""
+    made with ``options`` (those that differ from the defaults) on logs naming ``rover``; the
+    table then holds their entries only (and ``soils``' and ``out``'s where given), nothing
+    kept from the one at ``path``."""
     import yaml
 
     source = (
         "benchmarks/form_allowance.py on the independent generator's clean cases of blocks"
         f" {', '.join(b.name for b in blocks)} (first diagnosis of each)"
     )
-    old = yaml.safe_load(path.read_text()) if path.exists() else {"effects": {}, "source": ""}
+    # A table of --runs holds what they measured: another procedure's named-side and soil
+    # entries are not this one's.
+    fresh = runs or not path.exists()
+    old = {"effects": {}, "source": ""} if fresh else yaml.safe_load(path.read_text())
     old_named = {
         k: (v["below"], v["above"], v["named"], v.get("reach", 0.0))
         for k, v in old["effects"].items()
@@ -346,8 +351,8 @@ def write_table(
         " the value. loose_soil: quantiles of fitted over true k_phi on named soils, the"
         " interval for the truth [lo / high, hi / low].",
         "source": source,
-        # bench_independent.py diagnoses with the default options, on logs naming the
-        # configuration the independent generator's rover is built to
+        # how the clean fits were made: bench_independent.py's blocks with the default
+        # options, on logs naming the configuration the independent rover is built to
         "options": options or {},
         "rover": rover,
         "effects": effects,

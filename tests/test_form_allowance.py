@@ -102,7 +102,7 @@ def test_a_table_from_clean_runs_records_their_procedure(fa: ModuleType, tmp_pat
     from rover_env.calibration.diagnosis.procedure import differences
     from rover_env.calibration.diagnosis.state import Options
     from rover_env.calibration.form_allowance import load_allowance
-    from rover_env.config import load_rover
+    from rover_env.config import load_rover, resolve_path
 
     for i in range(20):
         _clean(tmp_path, i, 0.002 * i, 0.1 * i)
@@ -118,6 +118,13 @@ def test_a_table_from_clean_runs_records_their_procedure(fa: ModuleType, tmp_pat
     same = Options(torque_forms=True, max_nfev=6)
     assert differences(same, got, load_rover()) == []
     assert len(differences(Options(), got, load_rover())) == 2
+    # Written over another procedure's table, it keeps none of that one's entries.
+    shipped = yaml.safe_load(resolve_path("form_allowance", "calibration").read_text())
+    path.write_text(yaml.safe_dump(shipped))
+    fa.write_table(fa.allowance(fa.run_fits(runs)), [], [], path, None, [], runs, options)
+    again = load_allowance(path)
+    assert set(again.effects) == {"command_delay", "slope"}
+    assert again.effects["command_delay"].named == 0
     with pytest.raises(SystemExit, match="expected KEY=VALUE"):
         fa.parse_options(["torque_forms"])
     with pytest.raises(SystemExit, match=r"options\.workers: not an option"):

@@ -94,8 +94,8 @@ def procedure_note(differs: list[str]) -> str:
         f" otherwise ({'; '.join(differs)}): what a clean drive fits moves with the procedure"
         " and the rover (a heavier configured rotor, another anti-windup search), so its"
         " spread may be too wide or too narrow here. Measure a table the way this diagnosis"
-        " runs (clean drives of the rover, ``benchmarks/form_allowance.py --write``) and give"
-        " it with ``--form-allowance``."
+        " runs (clean drives of the rover diagnosed so, then `benchmarks/form_allowance.py"
+        " --runs`) and give it with `--form-allowance`."
     )
 
 

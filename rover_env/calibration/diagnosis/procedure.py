@@ -6,7 +6,7 @@ the fit's budget, the split) and of the configured rover, not of the effect alon
 entry measured under one procedure judges another's fits by the wrong spread: on clean
 builds of the independent generator, the torque limit's fit went from a median cut of 18 %
 to 45 % under ``--torque-forms`` (stop 111), and with the drives the report proposes for an
-untested limit from 18 % to 53 % (stop 112, one build). So a table records the options it
+untested limit from 18 % to 53-55 % (stop 112, two builds). So a table records the options it
 was measured with (``options``: those that differed from the defaults) and the rover its
 logs named (``rover``), and a diagnosis that differs in either says so in its report.
 """

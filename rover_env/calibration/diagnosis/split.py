@@ -64,9 +64,9 @@ def split(d: Diagnosis) -> None:
     d.files, d.logs, d.base, d.st, d.prepared, d.split = files, logs, base, st, prepared, text
     d.all_w, d.train_w, d.held_w, d.sets = all_w, train_w, held_w, sets
     d.say(f"{len(logs)} log(s), {text}; windows {len(train_w)} training, {len(held_w)} held out")
-    if d.allowance is not None and d.allowance_differs is None:
-        assert d.opts.form_allowance is not None
-        check_options(d.allowance, resolve_path(d.opts.form_allowance, "calibration"))
+    table = d.opts.form_allowance
+    if d.allowance is not None and table is not None and d.allowance_differs is None:
+        check_options(d.allowance, resolve_path(table, "calibration"))
         d.allowance_differs = differences(d.opts, d.allowance, base)
         for line in d.allowance_differs:
             d.say(f"the clean-fit allowance was measured otherwise: {line}")
