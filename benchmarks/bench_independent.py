@@ -432,6 +432,33 @@ def as_logged(paths: list[Path], pose: str, seed: int) -> list[Path]:
     return paths
 
 
+def drive_proposals(
+    d: Path,
+    effects: dict[str, dict[str, float]],
+    seed: int,
+    props: list[Proposal],
+    pose: str = "as-logged",
+) -> list[Path]:
+    """Each proposed drive driven by the case's rover (the same ``seed``: the same build)
+    with the noise of drive ``DRIVES + j``, into ``d/followup_j`` (kept where it is
+    already there); the logs' paths."""
+    extra: list[Path] = []
+    for j, prop in enumerate(props):
+        more = sorted((d / f"followup_{j}").glob("drive_*.csv"))
+        if not more:
+            more = make_independent_logs(
+                d / f"followup_{j}",
+                effects,
+                drives=1,
+                seed=seed,
+                plan=schedule(prop),
+                first_index=DRIVES + j,
+            )
+            as_logged(more, pose, seed + DRIVES + j)
+        extra += more
+    return extra
+
+
 def run_case(
     case: dict[str, Any],
     root: Path,
@@ -452,17 +479,7 @@ def run_case(
     res = diagnose([str(p) for p in paths], d / "out", opts)
     t2 = time.perf_counter()
     props = proposals(d / "out", untested)
-    extra: list[Path] = []
-    for j, prop in enumerate(props):  # the same rover (seed), the noise of drive DRIVES + j
-        more = make_independent_logs(
-            d / f"followup_{j}",
-            case["effects"],
-            drives=1,
-            seed=case["seed"],
-            plan=schedule(prop),
-            first_index=DRIVES + j,
-        )
-        extra += as_logged(more, pose, case["seed"] + DRIVES + j)
+    extra = drive_proposals(d, case["effects"], case["seed"], props, pose)
     followed = (
         diagnose([str(p) for p in [*paths, *extra]], d / "out_followup", opts) if extra else None
     )

@@ -35,7 +35,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from bench_independent import DRIVES, catalogue_truth, generator_params, proposals, schedule
+from bench_independent import (
+    DRIVES,
+    catalogue_truth,
+    drive_proposals,
+    generator_params,
+    proposals,
+)
 
 from rover_env.independent import make_independent_logs
 
@@ -101,24 +107,11 @@ def followed(
     d: Path, injected: dict[str, dict[str, float]], seed: int, logs: list[Path], common: list[str]
 ) -> tuple[list[Path], list[str]]:
     """``logs`` and every drive a default diagnosis of them (``d/first``, with ``common``)
-    proposes, the untested limit's too, each driven by the same build (``seed``) with the
-    noise of drive ``DRIVES + j``; and the proposed plans' names."""
+    proposes, the untested limit's too, driven as ``bench_independent.py`` drives them
+    (:func:`bench_independent.drive_proposals`); and the proposed plans' names."""
     diagnose(logs, d / "first", common)
-    extra: list[Path] = []
     props = proposals(d / "first", untested=True)
-    for j, prop in enumerate(props):
-        more = sorted((d / f"followup_{j}").glob("drive_*.csv"))
-        if not more:
-            more = make_independent_logs(
-                d / f"followup_{j}",
-                injected,
-                drives=1,
-                seed=seed,
-                plan=schedule(prop),
-                first_index=DRIVES + j,
-            )
-        extra += more
-    return [*logs, *extra], [p.plan for p in props]
+    return [*logs, *drive_proposals(d, injected, seed, props)], [p.plan for p in props]
 
 
 def run_case(
