@@ -1,8 +1,9 @@
 """The topic map of ``rover-env import-bag``: which topic and field feeds each log column.
 
-A YAML names, per log section (wheels, joints, commands, and optionally yaw or pose), the
-topic, the joint names or array order, the unit and the sign; it is read and checked here,
-one error per bad key naming the map file and the key (configs/bags/ ships an example).
+A YAML names, per log section (wheels, joints, commands, and optionally yaw or pose, and
+effort), the topic, the joint names or array order, the unit and the sign; it is read and
+checked here, one error per bad key naming the map file and the key (configs/bags/ ships an
+example).
 Kept apart from the bag reading (:mod:`rover_env.bags`) so each stays a file one can read.
 """
 
@@ -21,6 +22,7 @@ __all__ = [
     "AngleSource",
     "BagError",
     "CommandSource",
+    "EffortSource",
     "Source",
     "StateSource",
     "TopicMap",
@@ -38,6 +40,7 @@ JOINT_STATE = "sensor_msgs/msg/JointState"
 MSG_TYPES: dict[str, tuple[str, ...]] = {
     "wheels": (JOINT_STATE,),
     "joints": (JOINT_STATE,),
+    "effort": (JOINT_STATE,),
     "yaw": ("sensor_msgs/msg/Imu",),
     "pose": (
         "nav_msgs/msg/Odometry",
@@ -85,6 +88,16 @@ class AngleSource(StateSource):
 
 
 @dataclass(frozen=True, kw_only=True)
+class EffortSource(StateSource):
+    """JointState efforts of 1L 1R 2L 2R: N m at the wheel shaft = sign * scale * effort."""
+
+    names: tuple[str, ...]
+    scale: float = 1.0
+    """N m at the wheel per unit of the message."""
+    sign: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0)
+
+
+@dataclass(frozen=True, kw_only=True)
 class CommandSource(Source):
     """Wheel speed targets of 1L 1R 2L 2R (rad/s), held from one message to the next."""
 
@@ -112,13 +125,14 @@ class TopicMap:
     min_rate_hz: float = 10.0
     yaw: StateSource | None = None
     pose: StateSource | None = None
+    effort: EffortSource | None = None
     terrain: str | dict[str, Any] | None = None
     notes: str | None = None
     path: Path | None = None
 
     def states(self) -> dict[str, StateSource]:
         """The state sections the map uses, by map key."""
-        keys = ("wheels", "joints", "yaw", "pose")
+        keys = ("wheels", "joints", "yaw", "pose", "effort")
         return {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
 
 
@@ -202,8 +216,14 @@ def _common(k: _Keys, section: str) -> dict[str, Any]:
     return out
 
 
-def _signs(k: _Keys, columns: tuple[str, ...]) -> tuple[float, ...]:
-    signs = k.per("sign", columns, 1)
+def _signs(
+    k: _Keys, columns: tuple[str, ...], default: tuple[float, ...] | None = None
+) -> tuple[float, ...]:
+    """Per-column signs; an absent column takes ``default``'s entry (else +1)."""
+    signs = k.per("sign", columns, None)
+    signs = [
+        d if s is None else s for s, d in zip(signs, default or (1,) * len(columns), strict=True)
+    ]
     for col, s in zip(columns, signs, strict=True):
         if isinstance(s, bool) or s not in (1, -1):
             raise k.error(f"sign.{col}", f"must be 1 or -1, got {s!r}")
@@ -247,6 +267,21 @@ def _angles(k: _Keys, section: str, columns: tuple[str, ...]) -> AngleSource:
         sign=_signs(k, columns),
         offset=offset,
         wrapped=wrapped,
+    )
+
+
+def _effort(k: _Keys, wheels: AngleSource) -> EffortSource:
+    """The ``effort`` section; on the wheels' topic, names and signs default to theirs."""
+    common = _common(k, "effort")
+    same = common["topic"] == wheels.topic
+    at = [WHEELS.index(w) for w in DRIVEN_WHEELS]
+    if same and k.get("names", None) is None:
+        names = tuple(wheels.names[i] for i in at)
+    else:
+        names = _names(k, DRIVEN_WHEELS)
+    signs = tuple(wheels.sign[i] for i in at) if same else None
+    return EffortSource(
+        **common, names=names, scale=k.number("scale", 1.0), sign=_signs(k, DRIVEN_WHEELS, signs)
     )
 
 
@@ -304,14 +339,16 @@ def load_topic_map(path: str | Path) -> TopicMap:
     if terrain is not None and not isinstance(terrain, str | dict):
         raise k.error("terrain", f"must be a name or a mapping, got {terrain!r}")
     sections: dict[str, Any] = {}
-    for key in ("wheels", "joints", "commands", "yaw", "pose"):
-        sub = k.sub(key, None if key in ("yaw", "pose") else _MISSING)
+    for key in ("wheels", "joints", "commands", "yaw", "pose", "effort"):
+        sub = k.sub(key, None if key in ("yaw", "pose", "effort") else _MISSING)
         if sub is None:
             continue
         if key == "commands":
             sections[key] = _commands(sub)
         elif key in ("wheels", "joints"):
             sections[key] = _angles(sub, key, WHEELS if key == "wheels" else JOINTS)
+        elif key == "effort":
+            sections[key] = _effort(sub, sections["wheels"])
         else:
             sections[key] = StateSource(**_common(sub, key))
         sub.done()

@@ -8,8 +8,8 @@ with its unit and sign, and resamples everything onto one clock:
   * stamps: a message's header.stamp where its type has a header, else the bag's receive
     time (per topic, map key stamp: header | receive); integer nanoseconds throughout.
   * the log's clock: t_k = k / rate_hz, from the start = the latest of the first stamps of
-    the state topics (wheels, joints, yaw, pose) and the first command, to the end = the
-    earliest last stamp of the state topics. Grid stamps are start + round(k * 1e9 / rate_hz)
+    the state topics (wheels, joints, yaw, pose, effort) and the first command, to the end =
+    the earliest last stamp of the state topics. Grid stamps are start + round(k * 1e9 / rate_hz)
     ns, so data stamped exactly on the grid is imported bit for bit.
   * states (wheel and joint angles, yaw, pose): linear interpolation between the messages
     either side of t_k; angles are unwrapped first where the map says wrapped, wheel angles
@@ -24,6 +24,9 @@ with its unit and sign, and resamples everything onto one clock:
     grid makes a count a fraction, and diagnose then reads the encoders as unquantised and
     their noise from the smoothed angles); the other states are interpolated at those stamps.
     SPEC §6 asks only that time increase; diagnose reads uneven rows.
+  * effort (optional map section): JointState.effort of the driven wheels (1L 1R 2L 2R),
+    times sign and scale (N m at the wheel shaft), interpolated as the other states are and
+    not shifted to zero; a state topic like them (its span, gaps and rate are checked).
   * commands: zero-order hold, the last command at or before t_k (0 once older than
     commands.timeout_s, if given, as a motor watchdog does); their rate and gaps are not
     checked, as many publishers send only on change.
@@ -52,6 +55,7 @@ from rover_env.bag_map import (
     AngleSource,
     BagError,
     CommandSource,
+    EffortSource,
     Source,
     StateSource,
     TopicMap,
@@ -67,6 +71,7 @@ __all__ = [
     "AngleSource",
     "BagError",
     "CommandSource",
+    "EffortSource",
     "Source",
     "StateSource",
     "TopicMap",
@@ -148,7 +153,12 @@ def _stamps(bag: Path, key: str, src: Source, msgs: list[Any], mtype: str) -> tu
 
 
 def _joint_rows(
-    bag: Path, topic: str, key: str, msgs: list[Any], src: AngleSource | CommandSource, field: str
+    bag: Path,
+    topic: str,
+    key: str,
+    msgs: list[Any],
+    src: AngleSource | CommandSource | EffortSource,
+    field: str,
 ) -> tuple[list[list[float]], list[int]]:
     """``field`` of the named joints per message; messages naming none of them are another publisher's."""
     names, rows, used = src.names, [], []
@@ -173,7 +183,9 @@ def _joint_rows(
             )
         if arr.shape != (len(have),):
             raise BagError(
-                f"{where}: field {field!r} has {arr.size} entries for {len(have)} names", bag
+                f"{where}: field {field!r} has {arr.size} entries for {len(have)} names; "
+                f"map key {key!r} reads it",
+                bag,
             )
         rows.append([float(arr[have.index(n)]) for n in names])
         used.append(i)
@@ -191,13 +203,16 @@ def _quat(q: Any) -> list[float]:
 def _values(
     bag: Path, key: str, topic: str, src: Source, msgs: list[Any], mtype: str, tmap: TopicMap
 ) -> tuple[Array, list[int]]:
-    """Raw values per message in log units (rad, rad/s; yaw/pose: quaternion w x y z, + x y z)."""
+    """Raw values per message in log units (rad, rad/s, N m; yaw/pose: quaternion w x y z, + x y z)."""
     if isinstance(src, AngleSource):
         rows, used = _joint_rows(bag, topic, key, msgs, src, "position")
         v = np.array(rows) * src.scale * np.array(src.sign)
         if src.wrapped:
             v = np.unwrap(v, axis=0)
         return v - np.array(src.offset), used
+    if isinstance(src, EffortSource):
+        rows, used = _joint_rows(bag, topic, key, msgs, src, "effort")
+        return np.array(rows) * src.scale * np.array(src.sign), used
     if isinstance(src, CommandSource):
         return _command_values(bag, topic, src, msgs, mtype, tmap)
     rows = []
@@ -469,12 +484,14 @@ def import_bag(
             cols = [2] if key == "yaw" else [0, 1, 2]
             pose[np.ix_(~_nearest_samples(series[key], grid), np.array(cols))] = np.nan
     notes = f"imported from bag {bag.name} with topic map {tmap.path.name if tmap.path else '(in code)'}; start {_when(start)}"
+    effort = _interp(series["effort"], grid, start) if "effort" in series else None
     log = DriveLog(
         t=(grid - start) / 1e9,
         cmd=_hold(series["commands"], grid, tmap.commands.timeout_s),
         phi=phi - phi[0],
         theta=_interp(series["joints"], grid, start),
         pose=pose,
+        effort=np.zeros((0, 4)) if effort is None else effort,
         meta=LogMeta(
             rover=tmap.rover,
             sample_rate_hz=tmap.rate_hz,

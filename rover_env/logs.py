@@ -32,6 +32,9 @@ CMD_COLUMNS: tuple[str, ...] = tuple(f"cmd_{w}" for w in DRIVEN_WHEELS)
 PHI_COLUMNS: tuple[str, ...] = tuple(f"phi_{w}" for w in WHEELS)
 THETA_COLUMNS: tuple[str, ...] = JOINTS
 POSE_COLUMNS: tuple[str, ...] = ("x", "y", "yaw")
+EFFORT_COLUMNS: tuple[str, ...] = tuple(f"effort_{w}" for w in DRIVEN_WHEELS)
+"""Optional: the driven wheels' motor torque as the drivers report it (N m at the wheel shaft,
+after the gearhead, as ``motor.torque_limit`` is given), e.g. ROS 2 ``JointState.effort``."""
 REQUIRED_COLUMNS: tuple[str, ...] = (T_COLUMN, *CMD_COLUMNS, *PHI_COLUMNS, *THETA_COLUMNS)
 META_KEYS: tuple[str, ...] = ("rover", "sample_rate_hz", "terrain", "notes")
 
@@ -98,6 +101,9 @@ class DriveLog:
     """(N, 3) x, y, yaw of segment 3 in its frame at t = 0; NaN where not measured."""
     meta: LogMeta
     path: Path | None = None
+    effort: Array = field(default_factory=lambda: np.zeros((0, 4)))
+    """(N, 4) motor torque of 1L 1R 2L 2R (N m at the wheel, :data:`EFFORT_COLUMNS`); NaN
+    where not measured. Left out (or given with no rows): not measured at all."""
 
     def __post_init__(self) -> None:
         self.t = np.array(self.t, dtype=np.float64)
@@ -105,6 +111,10 @@ class DriveLog:
         self.phi = np.array(self.phi, dtype=np.float64)
         self.theta = np.array(self.theta, dtype=np.float64)
         self.pose = np.array(self.pose, dtype=np.float64)
+        eff = np.array(self.effort, dtype=np.float64)
+        if eff.size == 0 and self.t.ndim == 1:
+            eff = np.full((self.t.shape[0], 4), np.nan)
+        self.effort = eff
         _check_arrays(self)
 
     def __len__(self) -> int:
@@ -114,6 +124,11 @@ class DriveLog:
     def has_pose(self) -> bool:
         """Whether any pose sample was measured."""
         return bool(np.any(np.isfinite(self.pose)))
+
+    @property
+    def has_effort(self) -> bool:
+        """Whether any motor torque sample was measured."""
+        return bool(np.any(np.isfinite(self.effort)))
 
     def beside(self, ref: str) -> str | Path:
         """``ref`` (a configuration the YAML names) as a file beside the log if one is there,
@@ -153,7 +168,7 @@ def _check_arrays(log: DriveLog) -> None:
     n = log.t.shape[0] if log.t.ndim == 1 else -1
     if n < 0:
         raise LogError(f"t must have shape (N,), got {log.t.shape}", src)
-    for name, width in (("cmd", 4), ("phi", 6), ("theta", 5), ("pose", 3)):
+    for name, width in (("cmd", 4), ("phi", 6), ("theta", 5), ("pose", 3), ("effort", 4)):
         arr = getattr(log, name)
         if arr.shape != (n, width):
             raise LogError(f"{name} must have shape ({n}, {width}), got {arr.shape}", src)
@@ -163,8 +178,9 @@ def _check_arrays(log: DriveLog) -> None:
         bad = np.argwhere(~np.isfinite(getattr(log, name)))
         if bad.size:
             raise LogError(f"{name} is not finite at sample {bad[0][0]}", src)
-    if np.any(np.isinf(log.pose)):
-        raise LogError("pose is infinite (use NaN for not measured)", src)
+    for name in ("pose", "effort"):
+        if np.any(np.isinf(getattr(log, name))):
+            raise LogError(f"{name} is infinite (use NaN for not measured)", src)
     dec = np.flatnonzero(np.diff(log.t) <= 0)
     if dec.size:
         k = int(dec[0])
@@ -281,12 +297,25 @@ def read_log(path: str | Path) -> DriveLog:
             csv_path,
             line=1,
         )
-    wanted = REQUIRED_COLUMNS + (POSE_COLUMNS if pose_present else ())
+    effort_present = [c for c in EFFORT_COLUMNS if c in seen]
+    if effort_present and len(effort_present) < len(EFFORT_COLUMNS):
+        absent = [c for c in EFFORT_COLUMNS if c not in seen]
+        raise LogError(
+            f"effort columns go together (leave cells empty where not measured): have "
+            f"{', '.join(effort_present)}, missing {', '.join(absent)}",
+            csv_path,
+            line=1,
+        )
+    wanted = (
+        REQUIRED_COLUMNS
+        + (POSE_COLUMNS if pose_present else ())
+        + (EFFORT_COLUMNS if effort_present else ())
+    )
     unknown = [n for n in names if n not in wanted]
     if unknown:
         warnings.warn(f"{csv_path}: unknown column(s) {', '.join(unknown)} ignored", stacklevel=2)
     index = [names.index(c) for c in wanted]
-    optional = [c in POSE_COLUMNS for c in wanted]
+    optional = [c in POSE_COLUMNS or c in EFFORT_COLUMNS for c in wanted]
     rows: list[list[float]] = []
     lines: list[int] = []
     while True:
@@ -328,8 +357,13 @@ def read_log(path: str | Path) -> DriveLog:
     cmd = data[:, c0 : c0 + n_cmd]
     phi = data[:, c0 + n_cmd : c0 + n_cmd + n_phi]
     theta = data[:, c0 + n_cmd + n_phi : c0 + n_cmd + n_phi + n_theta]
-    pose = data[:, -3:] if pose_present else np.full((len(rows), 3), np.nan)
-    return DriveLog(t=t, cmd=cmd, phi=phi, theta=theta, pose=pose, meta=meta, path=csv_path)
+    c1 = c0 + n_cmd + n_phi + n_theta
+    pose = data[:, c1 : c1 + 3] if pose_present else np.full((len(rows), 3), np.nan)
+    c1 += 3 if pose_present else 0
+    effort = data[:, c1 : c1 + 4] if effort_present else np.full((len(rows), 4), np.nan)
+    return DriveLog(
+        t=t, cmd=cmd, phi=phi, theta=theta, pose=pose, meta=meta, path=csv_path, effort=effort
+    )
 
 
 # --------------------------------------------------------------------------- writing
@@ -341,11 +375,17 @@ def _fmt(v: float) -> str:
 
 
 def _csv_text(log: DriveLog) -> str:
-    with_pose = log.has_pose
-    cols = REQUIRED_COLUMNS + (POSE_COLUMNS if with_pose else ())
+    with_pose, with_effort = log.has_pose, log.has_effort
+    cols = (
+        REQUIRED_COLUMNS
+        + (POSE_COLUMNS if with_pose else ())
+        + (EFFORT_COLUMNS if with_effort else ())
+    )
     parts = [log.t[:, None], log.cmd, log.phi, log.theta]
     if with_pose:
         parts.append(log.pose)
+    if with_effort:
+        parts.append(log.effort)
     data = np.hstack(parts)
     buf = io.StringIO(newline="")
     w = csv.writer(buf, lineterminator="\n")

@@ -23,7 +23,7 @@ from rosbags.typesys import Stores, get_typestore
 from rover_env.bags import BagError, import_bag, load_topic_map
 from rover_env.cli import main
 from rover_env.config import DRIVEN_WHEELS, JOINTS, WHEELS, configs_dir, load_rover
-from rover_env.logs import LogError, read_log
+from rover_env.logs import LogError, read_log, write_log
 
 EXAMPLE = configs_dir() / "bags" / "jointstate_imu_twist.yaml"
 BASE = 1_700_000_000_123_000_000  # ns: a wall-clock epoch with a fractional second
@@ -46,14 +46,14 @@ class Msgs:
         extra = {"seq": 0} if self.ros1 else {}
         return self.T["std_msgs/msg/Header"](stamp=stamp, frame_id="base_link", **extra)
 
-    def joint_state(self, ns: int, names: list[str], pos: Any, vel: Any = ()) -> Any:
+    def joint_state(self, ns: int, names: list[str], pos: Any, vel: Any = (), eff: Any = ()) -> Any:
         f = np.asarray
         return self.T["sensor_msgs/msg/JointState"](
             header=self.header(ns),
             name=list(names),
             position=f(pos, dtype=np.float64),
             velocity=f(vel, dtype=np.float64),
-            effort=np.zeros(0),
+            effort=f(eff, dtype=np.float64),
         )
 
     def quat(self, q: Any) -> Any:
@@ -424,6 +424,39 @@ def test_two_publishers_on_one_topic_and_command_timeout(tmp_path: Path) -> None
     )
 
 
+def _with_effort(m: Msgs, tp: Topics, n: int | None = None) -> None:
+    """Joint states carrying effort: joint j at t s reads (j + 1) / 10 + 0.5 t (the first
+    ``n`` entries only, if given: an effort array of the wrong length)."""
+    out = []
+    for ns, msg in tp["/joint_states"][1]:
+        stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        eff = (np.arange(len(msg.name)) + 1) / 10 + 0.5 * (stamp - BASE) / 1e9
+        out.append((ns, m.joint_state(stamp, msg.name, msg.position, (), eff[:n])))
+    tp["/joint_states"] = (tp["/joint_states"][0], out)
+
+
+def test_effort_on_the_wheel_topic(tmp_path: Path) -> None:
+    """An effort section on the wheels' topic: names and signs default to the wheels' (1R 2R
+    mirrored), a sign given overrides one wheel, scale applies; the log keeps it to CSV."""
+    m = Msgs()
+    tp = _synthetic(m)
+    _with_effort(m, tp)
+    bag = write_bag(tmp_path / "bag", tp, m)
+    effort = {"topic": "/joint_states", "scale": 2.5, "sign": {"2L": -1}}
+    mp = write_map(tmp_path / "map.yaml", _set("effort", effort))
+    summary: list[str] = []
+    log = import_bag(bag, mp, summary=summary)
+    # The driven wheels are the message's first four joints; the stamps lie on the grid.
+    raw = np.arange(1, 5) / 10 + 0.5 * log.t[:, None]
+    expect = raw * 2.5 * np.array([1.0, -1.0, -1.0, -1.0])
+    np.testing.assert_allclose(log.effort, expect, rtol=1e-12, atol=1e-12)
+    assert "/joint_states -> effort: 101 messages" in "\n".join(summary)
+    back = read_log(write_log(log, tmp_path / "logs" / "d.csv"))
+    np.testing.assert_array_equal(back.effort, log.effort)
+    # The same bag without an effort section: no effort in the log.
+    assert log.has_effort and not import_bag(bag, EXAMPLE).has_effort
+
+
 # --------------------------------------------------------------------------- 3. bad bags
 
 
@@ -603,6 +636,16 @@ BAD_BAGS = {
         None,
         ["'/imu/data'", "message 4", "orientation_covariance[0] = -1"],
     ),
+    "empty effort": (
+        lambda m, tp: None,
+        lambda d: d.update(effort={"topic": "/joint_states"}),
+        ["'/joint_states'", "message 0", "field 'effort' is missing (empty); map key 'effort'"],
+    ),
+    "effort of the wrong length": (
+        lambda m, tp: _with_effort(m, tp, 3),
+        lambda d: d.update(effort={"topic": "/joint_states"}),
+        ["'/joint_states'", "message 0", "'effort' has 3 entries for 11 names; map key 'effort'"],
+    ),
     "bad map key": (
         lambda m, tp: None,
         lambda d: d["wheels"].update(unit="radians"),
@@ -660,6 +703,22 @@ BAD_MAPS = {
     "negative rate": (_set("rate_hz", -5), "key 'rate_hz': must be > 0"),
     "bad stamp": (_set("yaw.stamp", "bag"), "key 'yaw.stamp': must be one of header, receive"),
     "yaw and pose": (_set("pose", {"topic": "/odom"}), "key 'yaw': give yaw or pose, not both"),
+    "effort scale a string": (
+        _set("effort", {"topic": "/joint_states", "scale": "2 Nm/A"}),
+        "key 'effort.scale': must be a finite number, got '2 Nm/A'",
+    ),
+    "negative effort scale": (
+        _set("effort", {"topic": "/joint_states", "scale": -0.5}),
+        "key 'effort.scale': must be > 0",
+    ),
+    "effort names off the wheel topic": (
+        _set("effort", {"topic": "/motor_states"}),
+        "key 'effort.names': missing",
+    ),
+    "unknown effort key": (
+        _set("effort", {"topic": "/joint_states", "unit": "Nm"}),
+        "key 'effort.unit': unknown key",
+    ),
     "duplicate joint": (
         _set("joints.names.theta_2", "roll_12_joint"),
         "key 'joints.names': joint name 'roll_12_joint' given for two",

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
-from rover_env.independent import effects, model, nuisance
+from rover_env.independent import effects, model, motor, nuisance
 from rover_env.independent.generate import make_independent_logs
 from rover_env.independent.simulate import Truth, simulate
 from rover_env.logs import read_log
@@ -372,3 +372,21 @@ def test_effect_parsing_and_ranges() -> None:
         effects.resolve({"brake_drag": {"torque": 0.2, "wheel": 2.5}})
     e = effects.resolve({"battery_sag": {"fraction": 0.3}, "brake_drag": {"torque": 0.2}})
     assert e.supply_scale == pytest.approx(0.7) and (e.brake_wheel, e.brake_torque) == (4, 0.2)
+
+
+def test_effort_is_the_drivers_current_on_its_own_stream(tmp_path: Path) -> None:
+    """``effort``: the drivers' reported torque, held at the cut current limit when a step
+    asks for more; every other column the same as without it (its noise has its own stream)."""
+    plan = [(0.5, 0.0, 0.0, 0.0), (1.0, 3.0, 3.0, 0.0), (0.5, 3.0, 3.0, 0.0)]
+    kw = {"drives": 1, "seed": 7, "plan": plan}
+    cut = {"torque_limit": {"fraction": -0.4}}
+    (p,) = make_independent_logs(tmp_path / "e", cut, effort=True, **kw)  # type: ignore[arg-type]
+    (q,) = make_independent_logs(tmp_path / "n", cut, **kw)  # type: ignore[arg-type]
+    with_e, without = read_log(p), read_log(q)
+    assert with_e.has_effort and not without.has_effort
+    for name in ("cmd", "phi", "theta"):
+        assert np.array_equal(getattr(with_e, name), getattr(without, name))
+    ceiling = 0.6 * motor.I_MAX * motor.K_T_DATASHEET * motor.GEAR * motor.EFF
+    top = np.abs(with_e.effort).max()
+    assert abs(top - ceiling) < 0.05  # the 3 rad/s step saturates every motor
+    assert (np.abs(with_e.effort) > ceiling - 0.05).sum() >= 4

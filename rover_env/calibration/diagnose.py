@@ -72,6 +72,13 @@ def _share(text: str) -> float:
     return v
 
 
+def _tolerance(text: str) -> float:
+    """``--effort-tolerance``: a fraction, 0 or more and under 1."""
+    if not 0.0 <= (v := _number(text)) < 1.0:  # also NaN
+        raise argparse.ArgumentTypeError(f"must be 0 or more and under 1, got {text}")
+    return v
+
+
 def _cli(args: argparse.Namespace) -> int:
     st = ReplaySettings(window=args.window, burn_in=args.burn_in)
     opts = Options(
@@ -90,6 +97,7 @@ def _cli(args: argparse.Namespace) -> int:
         form_allowance=None if args.no_form_allowance else args.form_allowance,
         odometry=None if args.no_odometry else Options().odometry,
         odometry_end=None if args.no_odometry else Options().odometry_end,
+        effort_tolerance=None if args.no_effort else args.effort_tolerance,
         **{name: getattr(args, name) for name, _ in SWITCHES},
     )
     try:
@@ -263,6 +271,20 @@ def add_cli(sub: Any) -> None:
         action="store_true",
         help="never name a rolling radius from dead reckoning against the pose, between fixes"
         " or to each drive's last fix (see Options.odometry, Options.odometry_end)",
+    )
+    p.add_argument(
+        "--effort-tolerance",
+        type=_tolerance,
+        default=Options.effort_tolerance,
+        metavar="FRACTION",
+        help="where the logs report the motors' torque (effort_* columns), read the torque"
+        " limit from it and name a cut beyond this tolerance of the reported torque's scale"
+        f" (default {Options.effort_tolerance}; see Options.effort_tolerance)",
+    )
+    p.add_argument(
+        "--no-effort",
+        action="store_true",
+        help="never read the torque limit from the reported motor torque",
     )
     for name, what in SWITCHES:
         on = getattr(Options, name)

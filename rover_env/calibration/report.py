@@ -21,6 +21,8 @@ from rover_env.calibration.diagnosis.state import (
 from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
 from rover_env.calibration.report_notes import (
     allowance_note,
+    effort_lines,
+    effort_method,
     one_wheel_note,
     p_text,
     phys_text,
@@ -248,6 +250,7 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
             if opts.one_wheel
             else []
         ),
+        *effort_method(opts.effort_tolerance, result.get("effort") is not None),
         f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay,"
         f" {result['seconds']:.0f} s in all{_stage_text(result.get('stage_seconds') or [])}.",
     ]
@@ -429,7 +432,8 @@ def write_report(d: Diagnosis) -> Path:
     named = result["named"]
     L += _headline(result, d.chosen, d.demoted, d.tie)
     withdrawn = (result.get("rotor_withdrawn") or {}).get("effects", [])
-    L += _torque_note(named or withdrawn, base.motor.armature, d.rotor, d.rotor_profile)
+    if not (result.get("effort") or {}).get("named"):  # else read from the torque itself
+        L += _torque_note(named or withdrawn, base.motor.armature, d.rotor, d.rotor_profile)
     L += [
         "",
         f"Main residual ({result['main_signal']}, largest held-out ratio to noise): RMS "
@@ -443,6 +447,7 @@ def write_report(d: Diagnosis) -> Path:
         f"Updated configuration: `{Path(result['config']).name}` (loads in `RoverSim` and the environments as is).",
         *_free_gain_lines(result.get("free_wheel_gain"), result.get("free_wheel_common")),
         *reckoning_lines(result.get("dead_reckoning")),
+        *effort_lines(result.get("effort")),
         "",
         *_method_lines(result, opts, prepared[0].log.meta.rover),
         "",

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from rover_env.calibration.diagnosis.state import Scored
+from rover_env.calibration.effort import EVENTS, LAG, SPREAD
 
 
 def p_text(p: float) -> str:
@@ -146,3 +147,56 @@ def rotor_kept_note(withdrawn: dict[str, Any]) -> str:
         f" as well on the held-out windows (p {p_text(withdrawn['p_torque_better'])} that the limit is"
         f" better). {withdrawn.get('kept', 'It')} is named from its own fit, without the limit."
     )
+
+
+def effort_lines(r: dict[str, Any] | None) -> list[str]:
+    """The torque limit as the reported motor torque reads it (:mod:`.diagnosis.effort_stage`)."""
+    if r is None:
+        return []
+    conf, tol = r["configured"], 100 * r["tolerance"]
+    head = (
+        f"Motor torque (the logs' `effort_*`, {r['samples']} samples, noise"
+        f" {r['noise']:.3f} N m): asked for more than they gave in {r['asked']} samples"
+    )
+    if r.get("level") is None:
+        ruled = r.get("deepest_ruled_out")
+        tail = "; never held at a ceiling, so the limit is not read" + (
+            f": the largest torque given, {r['largest']:.3f} N m, rules out cuts deeper than"
+            f" {-100 * ruled:.0f} % of the configured {conf:.3f} N m (with the {tol:.0f} %"
+            " scale tolerance)."
+            if ruled is not None and ruled < 0
+            else "."
+        )
+        return ["", head + tail]
+    x, lo, hi = r["cut"]
+    verdict = (
+        "named `torque_limit` from it"
+        if r.get("named")
+        else f"not named: {r.get('why_not', 'within the tolerance')}"
+    )
+    moved = "".join(
+        f" It {k} the windows' {w['effects']} {w['value']:+.3f}."
+        for k in ("withdrew", "replaced")
+        for w in r.get(k) or []
+    )
+    return [
+        "",
+        head
+        + f"; they held at {r['level']:.3f} N m ({r['events']} events, {r['held']} samples, demands {r['spread']:.1f} x apart)"
+        f" against the configured {conf:.3f} N m: a change of {100 * x:+.1f} %"
+        f" [{100 * lo:+.1f}, {100 * hi:+.1f}] with the reported torque's {tol:.0f} % scale"
+        f" tolerance; {verdict}." + moved,
+    ]
+
+
+def effort_method(tolerance: float | None, read: bool) -> list[str]:
+    """The method's bullet on the torque limit read from the reported torque."""
+    if tolerance is None or not read:
+        return []
+    return [
+        "- Effort: where the logs report the motors' torque, the torque limit is where it held"
+        f" while a wheel lagged its loop's target by {LAG} rad/s or more and the motor pushed"
+        f" toward it: the same torque in {EVENTS} events or more at demands {SPREAD:g} x apart,"
+        f" never exceeded; a change beyond the reported torque's {100 * tolerance:.0f} % scale"
+        " tolerance is named."
+    ]

@@ -148,4 +148,5 @@ def apply_sensors(log: DriveLog, cfg: SensorConfig, rng: np.random.Generator) ->
         theta=theta,
         pose=log.pose[idx],
         meta=meta,
+        effort=log.effort[idx],
     )

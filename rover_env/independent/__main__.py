@@ -43,6 +43,11 @@ def main(argv: list[str] | None = None) -> int:
         help="number the drives (and draw their sensor noise) from here: a follow-up drive of"
         " the same rover (same --seed) is --first-index 3 after three drives",
     )
+    ap.add_argument(
+        "--effort",
+        action="store_true",
+        help="also log the drivers' reported motor torque (effort_1L ... effort_2R, N m)",
+    )
     a = ap.parse_args(argv)
     try:
         effects = dict(parse_cli(s) for s in a.effect)
@@ -55,6 +60,7 @@ def main(argv: list[str] | None = None) -> int:
             nuisance=not a.no_nuisance,
             plan=Schedule.from_csv(a.plan_csv) if a.plan_csv else None,
             first_index=a.first_index,
+            effort=a.effort,
         )
     except (EffectError, ValueError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)

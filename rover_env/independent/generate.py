@@ -45,10 +45,12 @@ def make_independent_logs(
     nuisance: bool | Sequence[str] = True,
     plan: list[drive.Manoeuvre] | drive.Schedule | None = None,
     first_index: int = 0,
+    effort: bool = False,
 ) -> list[Path]:
     """Write ``drives`` logs of ``duration`` seconds (or ``plan``'s) into ``out``; returns the
     CSV paths. ``nuisance``: the build drawn from ``seed`` (True), built to drawing (False),
-    or drawn in the named part or parts only (:data:`~rover_env.independent.nuisance.GROUPS`)."""
+    or drawn in the named part or parts only (:data:`~rover_env.independent.nuisance.GROUPS`).
+    ``effort``: the logs also carry the drivers' reported motor torque (``effort_*`` columns)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     eff = resolve(effects)
@@ -87,7 +89,11 @@ def make_independent_logs(
             terrain="flat",
             notes=f"independent generator (issue 47), seed {seed}, drive {i} ({kind})",
         )
-        log = DriveLog(t=t, cmd=cmd, phi=phi, theta=theta, pose=pose, meta=meta)
+        tau = np.zeros((0, 4))
+        if effort:  # its own stream: the other columns are the same with or without it
+            per_amp = motor.K_T_DATASHEET * motor.GEAR * motor.EFF
+            tau = sensors.effort(truth.current, per_amp, np.random.default_rng([47, 4, seed, i]))
+        log = DriveLog(t=t, cmd=cmd, phi=phi, theta=theta, pose=pose, meta=meta, effort=tau)
         paths.append(write_log(log, out / f"drive_{i:02d}.csv", overwrite=True))
         plans.append({"file": paths[-1].name, "kind": kind, **record})
     truth_doc = {

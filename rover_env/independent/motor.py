@@ -92,8 +92,12 @@ class Drives:
         self.voltage = np.clip(unclipped, -self.v_max, self.v_max)
         self.integ = self.integ + dt * (self.ki * err + (self.voltage - unclipped) / T_TRACK)
 
+    def current(self, omega: Array) -> Array:
+        """Armature current (A) for the held voltage and the wheel speed ``omega`` (rad/s)."""
+        current = (self.voltage - self.k_t * GEAR * omega) / R_ARM
+        return np.clip(current, -self.current_limit, self.current_limit)
+
     def wheel_torque(self, omega: Array) -> Array:
         """Torque at the wheel for the held voltage and the wheel speed ``omega`` (rad/s)."""
-        current = (self.voltage - self.k_t * GEAR * omega) / R_ARM
-        current = np.clip(current, -self.current_limit, self.current_limit)
+        current = self.current(omega)
         return EFF * GEAR * self.k_t * current - DRAG * np.tanh(omega / DRAG_W)

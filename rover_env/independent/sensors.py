@@ -6,6 +6,9 @@
 - Joint angles: potentiometers read by a 12-bit ADC over a 340 degree electrical span, each with
   its own gain error (nuisance), a fixed offset of up to +-0.2 degrees after a zeroing
   calibration, and white noise 0.05 degrees RMS; the quantisation is applied after the noise.
+- Motor effort (only when asked): each driver's current sense, 10 mA RMS noise and a 12-bit ADC
+  over +-5 A, reported as the torque at the wheel its datasheet constants give
+  (``current x k_t x gear x efficiency``, the datasheet's k_t, not the motor's own).
 - Pose: an external reference fix of segment 3's centre once a second (x, y with 5 mm RMS noise,
   yaw with 0.3 degrees RMS), in segment 3's frame at t = 0; empty between fixes.
 """
@@ -26,6 +29,9 @@ POT_OFFSET = math.radians(0.2)
 POSE_XY_NOISE = 0.005
 POSE_YAW_NOISE = math.radians(0.3)
 POSE_RATE_HZ = 1.0
+CURRENT_NOISE = 0.010
+CURRENT_SPAN = 10.0
+CURRENT_BITS = 12
 
 
 def encoder_angles(phi: Array, cpr: int, phase: Array) -> Array:
@@ -57,3 +63,10 @@ def pose_fixes(t: Array, pose: Array, rng: np.random.Generator) -> Array:
     )
     out[k] = pose[k] + noise
     return out
+
+
+def effort(current: Array, torque_per_amp: float, rng: np.random.Generator) -> Array:
+    """(N, 4) true armature currents (A) -> the drivers' reported wheel torque (N m)."""
+    lsb = CURRENT_SPAN / 2**CURRENT_BITS
+    sensed = np.round((current + rng.normal(0.0, CURRENT_NOISE, current.shape)) / lsb) * lsb
+    return sensed * torque_per_amp

@@ -67,6 +67,7 @@ class Truth:
     omega: Array  # (N, 6) wheel rates
     sink: Array  # (N, 6) tire compression (flat) or sinkage below the undisturbed surface (soil)
     tan_alpha: Array  # (N, 6) tangent of each wheel's slip angle (tire state)
+    current: Array  # (N, 4) the driven motors' armature current (A)
 
 
 def built(p: RoverParams, eff: Effects) -> RoverParams:
@@ -290,6 +291,7 @@ class _Log:
         self.omega = np.zeros((n, 6))
         self.sink = np.zeros((n, 6))
         self.tan_alpha = np.zeros((n, 6))
+        self.current = np.zeros((n, 4))
         self.phi0 = np.zeros(6)
         self.p30 = np.zeros(3)
         self.r30 = np.eye(3)
@@ -303,8 +305,9 @@ class _Log:
         self.p30 = d.xpos[a.seg3].copy()
         self.r30 = d.xmat[a.seg3].reshape(3, 3).copy()
 
-    def record(self, k: int, d: mujoco.MjData, ground: _Ground) -> None:
+    def record(self, k: int, d: mujoco.MjData, ground: _Ground, current: Array) -> None:
         a = self.addr
+        self.current[k] = current
         self.phi[k] = d.qpos[a.w_qadr] - self.phi0
         self.theta[k] = d.qpos[a.j_qadr]
         rel = self.r30.T @ (d.xpos[a.seg3] - self.p30)
@@ -331,6 +334,7 @@ class _Log:
             omega=self.omega,
             sink=self.sink,
             tan_alpha=self.tan_alpha,
+            current=self.current,
         )
 
 
@@ -362,7 +366,7 @@ def simulate(
             log.start(d)
         if step >= n_settle and (step - n_settle) % sample_every == 0:
             k_log = (step - n_settle) // sample_every
-            log.record(k_log, d, ground)
+            log.record(k_log, d, ground, drives.current(d.qvel[addr.drv_dadr]))
             if k_log == n - 1:
                 break
         if step % CONTROL_EVERY == 0:

@@ -163,13 +163,15 @@ class DriveRecorder:
         notes: str | None = None,
         pose_rate_hz: float | None = 1.0,
         pose_end_only: bool = False,
+        effort: bool = False,
     ) -> DriveLog:
         """The drive as a real rover would have logged it.
 
         Wheel angles start at zero (SPEC §6). The external pose reference is kept only at
         ``pose_rate_hz`` (the first sample at or after each multiple of its period; None keeps
         every sample), or with ``pose_end_only`` only at the last sample, as in the paper;
-        NaN elsewhere.
+        NaN elsewhere. With ``effort`` the motors' torque is logged as the drivers would report
+        it (:data:`rover_env.logs.EFFORT_COLUMNS`).
         """
         if len(self._t) < 2:
             raise ValueError(f"a log needs at least 2 samples, recorded {len(self._t)}")
@@ -200,6 +202,7 @@ class DriveRecorder:
             theta=self._stack("theta"),
             pose=pose,
             meta=meta,
+            effort=self._stack("motor_torque") if effort else np.zeros((0, 4)),
         )
 
 

@@ -117,6 +117,8 @@ def untested_limit(d: Diagnosis) -> list[dict[str, Any]]:
     tl = next((s for s in d.ranked if s.fit.name == "torque_limit"), None)
     if res <= 0 or tl is None or "torque_limit" in named | asked:
         return []
+    if d.effort is not None and d.effort.get("level") is not None:
+        return []  # the reported torque held at the limit: read (:mod:`.effort_stage`)
     thr = (tl.threshold or {}).get("-")
     if thr is not None and thr <= res:
         return []

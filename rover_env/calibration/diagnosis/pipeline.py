@@ -1,8 +1,8 @@
 """``diagnose()``: the stages in order over one :class:`~.state.Diagnosis`.
 
 split (:mod:`.split`) → form (:mod:`.form`) → floor (:mod:`.floor`) → fit
-(:mod:`.fit_stage`) → select (:mod:`.select`) → odometry (:mod:`.odometry`) → one wheel
-(:mod:`.one_wheel`) → evidence (:mod:`.evidence_stage`) → write (:mod:`.write`). After selection the model form is judged again (:mod:`.again`) beside the
+(:mod:`.fit_stage`) → select (:mod:`.select`) → odometry (:mod:`.odometry`) → effort
+(:mod:`.effort_stage`) → one wheel (:mod:`.one_wheel`) → evidence (:mod:`.evidence_stage`) → write (:mod:`.write`). After selection the model form is judged again (:mod:`.again`) beside the
 winner or, with none named, the leading candidate; when that changes the forms, the
 diagnosis runs again from the start under the new options.
 """
@@ -16,6 +16,7 @@ from typing import Any
 
 from rover_env.calibration.diagnosis import (
     again,
+    effort_stage,
     evidence_stage,
     fit_stage,
     floor,
@@ -77,6 +78,7 @@ FIRST: tuple[tuple[str, Stage], ...] = (
 LAST: tuple[tuple[str, Stage], ...] = (
     ("select", select.select),
     ("odometry", odometry.name_by_odometry),
+    ("effort", effort_stage.name_by_effort),
     ("one_wheel", one_wheel.withdraw_one_wheel),
     ("evidence", evidence_stage.seek_evidence),
 )

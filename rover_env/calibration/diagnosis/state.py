@@ -314,6 +314,12 @@ class Options:
     """The band that judges dead reckoning against each straight drive's last fix, where the
     logs hold no straight interval between fixes (the pose at the end only: SPEC §6, the
     paper's case; :func:`.odometry.form_of`); None: such logs name no radius."""
+    effort_tolerance: float | None = 0.10
+    """Where the logs report the motors' torque (``effort_*``), read the torque limit from it
+    (:mod:`rover_env.calibration.effort`) and name a cut beyond this scale tolerance of the
+    reported torque (the driver's torque constant and the gearhead's efficiency, as a
+    datasheet gives them; None: not read). Why: the wheel angles show a cut under about 60 %
+    only as the rotor does (``docs/calibration/limits.md``); the torque itself shows it."""
     model_form: bool = True
     """Fit the model's own form first, in this order: the joint sensors' zeros, the speed
     loop's anti-windup form, the tire's relaxation length, the yaw joints' springs and the
@@ -639,6 +645,9 @@ class Diagnosis:
     partner_limits: dict[str, dict[str, float]] | None = None
     """Each significant pair's partner's detection limit beside the winner (effect -> side
     -> magnitude; :func:`.select.partner_limits`; None: none measured)."""
+    effort: dict[str, Any] | None = None
+    """The torque limit read from the reported motor torque and what it named
+    (:func:`.effort_stage.name_by_effort`; None: no log reports torque, or off)."""
     one_wheel: dict[str, Any] | None = None
     """Beside a named rolling resistance: the free wheels' dead-reckoning split and whether
     it withdrew the name (:func:`.one_wheel.withdraw_one_wheel`)."""

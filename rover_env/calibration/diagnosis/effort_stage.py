@@ -1,0 +1,116 @@
+"""Stage 5c, effort: the torque limit read from the torque the motors report.
+
+Where the logs carry ``effort_*`` columns (a driver's reported torque, e.g. ROS 2
+``JointState.effort``), :func:`rover_env.calibration.effort.read_limit` reads the limit from
+where the torque held while the motors were asked for more. A plateau beyond the reported
+torque's scale tolerance (:attr:`.state.Options.effort_tolerance`) names ``torque_limit`` with
+the plateau's change and an interval from its spread and that tolerance; a plateau within it
+withdraws a torque limit the windows named alone (the motors were seen giving the configured
+torque). Without a plateau the largest torque given is reported as the deepest cut ruled out,
+and nothing changes. Why a stage of its own: on hard ground the wheel angles show a cut under
+about 60 % only while a wheel spins up, where it acts as the rotor inertia does (block 52600:
+torque cuts 0/4 named); the torque itself is read there directly.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from rover_env.calibration.candidates import merge
+from rover_env.calibration.diagnosis.odometry import scored_beside
+from rover_env.calibration.diagnosis.state import Diagnosis, Scored
+from rover_env.calibration.effort import EffortReading, read_limit
+from rover_env.calibration.fit import Fit, to_ext
+from rover_env.calibration.replay import loop_commands
+
+NAME = "torque_limit"
+
+
+def name_by_effort(d: Diagnosis) -> None:
+    """Sets :attr:`Diagnosis.effort`; names, replaces or withdraws a torque limit as the
+    reading says (see the module docstring)."""
+    tol = d.opts.effort_tolerance
+    cand = next((c for c in d.cands if c.name == NAME), None)
+    d.effort = None
+    if tol is None or cand is None:
+        return
+    # The targets the motors' loops see under what is named (a command lag or delay).
+    cfg = d.ev.config(merge(*(s.fit.ext for s in d.chosen)))
+    logs = [p.log for p in d.prepared]
+    targets = [loop_commands(log, cfg) for log in logs]
+    reading = read_limit(logs, d.base.motor.torque_limit, tol, targets)
+    if reading is None:
+        d.effort = None
+        return
+    rec: dict[str, Any] = {**reading.as_json(), "named": False}
+    d.effort = rec
+    cut = reading.cut()
+    alone = [s for s in d.chosen if [c.name for c in s.fit.candidates] == [NAME]]
+    inside = any(NAME in [c.name for c in s.fit.candidates] for s in d.chosen) and not alone
+    if cut is None:
+        rec["why_not"] = "the reported torque never held at a ceiling while asked for more"
+        return
+    x, lo, hi = cut
+    if lo <= 0.0 <= hi:
+        rec["why_not"] = (
+            f"the plateau is within the reported torque's {100 * reading.tolerance:.0f} %"
+        )
+        if alone:
+            d.chosen = [s for s in d.chosen if s not in alone]
+            rec["withdrew"] = [fmt_fit(s) for s in alone]
+            d.say(f"{NAME}: withdrawn, the motors held at {reading.level:.3f} N m ({x:+.1%})")
+        return
+    if inside:
+        rec["why_not"] = "a torque limit is named with another effect; the reading is reported"
+        return
+    if alone:
+        s0 = alone[0]
+        if s0.fit.ci_lo[0] <= hi and lo <= s0.fit.ci_hi[0]:
+            rec["why_not"] = "the windows named a torque limit the reading agrees with"
+            return
+        d.chosen = [s for s in d.chosen if s not in alone]
+        rec["replaced"] = [fmt_fit(s) for s in alone]
+    t0 = time.perf_counter()
+    lo, hi = max(lo, cand.lo[0]), min(hi, cand.hi[0])
+    x = min(max(x, cand.lo[0]), cand.hi[0])
+    fit = Fit(
+        candidates=[cand],
+        x=np.array([x]),
+        ci_lo=np.array([lo]),
+        ci_hi=np.array([hi]),
+        se=np.array([(hi - lo) / 3.92]),
+        cost=float("nan"),
+        nfev=1,
+        ext=to_ext([cand], np.array([x])),
+        seconds=time.perf_counter() - t0,
+        which="train",
+        method="effort",
+    )
+    ref_ext = merge(*(s.fit.ext for s in d.chosen))
+    s, _ = scored_beside(d, fit, ref_ext)
+    s.significant = True
+    s.test = test_text(reading)
+    rec.update(named=True, fraction=[x, lo, hi], held_gain=s.gain)
+    d.chosen.append(s)
+    d.say(f"{NAME}: named by {s.test}: {x:+.4f} [{lo:+.4f}, {hi:+.4f}]")
+
+
+def test_text(r: EffortReading) -> str:
+    """The naming's reason, in the report's words."""
+    return (
+        f"effort: the motors held at {r.level:.3f} N m while asked for more ({r.events} events"
+        f" at demands {r.spread:.1f} x apart) against the configured {r.configured:.3f} N m, beyond the"
+        f" reported torque's {100 * r.tolerance:.0f} % scale tolerance"
+    )
+
+
+def fmt_fit(s: Scored) -> dict[str, Any]:
+    """A withdrawn or replaced fit, for the record."""
+    return {
+        "effects": [c.name for c in s.fit.candidates],
+        "value": float(s.fit.x[0]),
+        "interval": [float(s.fit.ci_lo[0]), float(s.fit.ci_hi[0])],
+    }

@@ -1,0 +1,151 @@
+"""The torque limit read from the reported motor torque (rover_env.calibration.effort).
+
+The logs here come from a small wheel model of this file's own (a PI speed loop into a
+current-limited motor, a load torque, 1 ms steps, 50 Hz samples), not from the simulator.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rover_env.calibration.effort import read_limit
+from rover_env.calibration.report_notes import effort_lines
+from rover_env.logs import EFFORT_COLUMNS, DriveLog, LogError, LogMeta, read_log, write_log
+
+CONFIGURED = 3.0
+
+
+def wheel_log(
+    targets: list[float],
+    limit: float,
+    *,
+    load: float = 0.2,
+    seed: int = 0,
+    kp: float = 4.0,
+    ki: float = 20.0,
+    hold_s: float = 2.0,
+    noise: float = 0.015,
+) -> DriveLog:
+    """Four wheels stepping through ``targets`` (rad/s), each held ``hold_s``."""
+    rng = np.random.default_rng(seed)
+    dt, every, inertia = 0.001, 20, 0.06
+    n_steps = round(len(targets) * hold_s / dt)
+    omega, integ, phi = np.zeros(4), np.zeros(4), np.zeros(4)
+    ts, cmds, phis, taus = [], [], [], []
+    for k in range(n_steps + 1):
+        target = targets[min(int(k * dt / hold_s), len(targets) - 1)] * np.ones(4)
+        err = target - omega
+        raw = kp * err + integ
+        tau = np.clip(raw, -limit, limit)
+        integ += dt * ki * err * (raw == tau)  # conditional integration
+        if k % every == 0:
+            ts.append(k * dt)
+            cmds.append(target.copy())
+            phis.append(np.concatenate([phi, phi[:2]]))
+            taus.append(tau.copy())
+        drag = load * np.tanh(omega / 0.05)
+        omega = omega + dt * (tau - drag) / inertia
+        phi = phi + dt * omega
+    phi_arr = np.round(np.array(phis) / 2e-4) * 2e-4  # an encoder's count
+    return DriveLog(
+        t=np.array(ts),
+        cmd=np.array(cmds),
+        phi=phi_arr,
+        theta=np.zeros((len(ts), 5)),
+        pose=np.full((len(ts), 3), np.nan),
+        meta=LogMeta(rover="proto_explorer", sample_rate_hz=50.0),
+        effort=np.array(taus) + rng.normal(0.0, noise, (len(ts), 4)),
+    )
+
+
+STEPS = [0.0, 1.0, 2.5, 0.5, -1.5, 3.0, 0.0, 2.0, -0.5, 1.2]
+"""Steps of many sizes: the motors saturate on the large ones, each at its own demand."""
+
+
+@pytest.mark.parametrize("limit", [2.1, 2.9, 1.0])
+def test_a_ceiling_is_read_within_its_noise(limit: float) -> None:
+    r = read_limit([wheel_log(STEPS, limit)], CONFIGURED, 0.10)
+    assert r is not None and r.plateau
+    assert r.level == pytest.approx(limit, abs=0.02)
+    cut = r.cut()
+    assert cut is not None
+    x, lo, hi = cut
+    truth = limit / CONFIGURED - 1.0
+    assert lo <= truth <= hi
+    assert x == pytest.approx(truth, abs=0.01)
+    named = not lo <= 0.0 <= hi
+    assert named == (limit < 2.6)  # a 30 % cut is named, 3 % is within the tolerance
+
+
+def test_a_repeated_manoeuvres_own_peak_is_not_a_ceiling() -> None:
+    """The same step again and again peaks at the same torque at the same demand."""
+    same = [0.0, 1.0] * 5
+    r = read_limit([wheel_log(same, 10.0)], CONFIGURED, 0.10)
+    assert r is not None and not r.plateau
+    assert r.largest > 1.0  # the motor was asked, and gave, a real torque
+    ruled = r.deepest_ruled_out()
+    assert ruled is not None and ruled == pytest.approx(r.largest / (CONFIGURED * 1.1) - 1)
+
+
+def test_a_steady_load_while_tracking_is_not_a_ceiling() -> None:
+    """A climb's level torque (the loop tracks, no lag) is not taken for the limit."""
+    r = read_limit([wheel_log([1.0] * 6, CONFIGURED, load=1.5)], CONFIGURED, 0.10)
+    assert r is not None and not r.plateau
+
+
+def test_a_level_the_torque_exceeds_elsewhere_is_no_ceiling() -> None:
+    log = wheel_log(STEPS, 2.0)
+    log.effort[40:44, 2] = 2.6  # at rest, not asked: the motor gave more for 80 ms
+    r = read_limit([log], CONFIGURED, 0.10)
+    assert r is not None and not r.plateau
+
+
+def test_the_loops_targets_decide_what_was_asked() -> None:
+    """Behind a command lag the logged target runs ahead; given the loop's own (here: the
+    wheel's rate itself, nothing asked), no plateau is read."""
+    log = wheel_log(STEPS, 2.0)
+    assert read_limit([log], CONFIGURED, 0.10).plateau  # type: ignore[union-attr]
+    rates = np.gradient(log.phi[:, :4], log.t, axis=0)
+    r = read_limit([log], CONFIGURED, 0.10, [rates])
+    assert r is not None and not r.plateau and r.asked == 0
+
+
+def test_logs_without_effort_give_no_reading() -> None:
+    log = wheel_log([0.0, 1.0], 2.0)
+    bare = DriveLog(log.t, log.cmd, log.phi, log.theta, log.pose, log.meta)
+    assert not bare.has_effort
+    assert read_limit([bare], CONFIGURED, 0.10) is None
+
+
+def test_the_report_says_what_was_read() -> None:
+    r = read_limit([wheel_log(STEPS, 2.1)], CONFIGURED, 0.10)
+    assert r is not None
+    text = " ".join(effort_lines({**r.as_json(), "named": True}))
+    assert "held at 2.1" in text and "named `torque_limit`" in text
+    never = read_limit([wheel_log([0.0, 0.5] * 3, 10.0)], CONFIGURED, 0.10)
+    assert never is not None
+    text = " ".join(effort_lines({**never.as_json(), "named": False}))
+    assert "never held at a ceiling" in text and "rules out cuts deeper than" in text
+
+
+def test_effort_columns_round_trip_and_bad_ones_are_named(tmp_path: Path) -> None:
+    log = wheel_log([0.0, 1.0], 2.0)
+    log.effort[3, 1] = math.nan  # not measured there
+    back = read_log(write_log(log, tmp_path / "d.csv"))
+    assert np.array_equal(back.effort, log.effort, equal_nan=True)
+    header = (tmp_path / "d.csv").read_text().splitlines()[0].split(",")
+    assert header[-4:] == list(EFFORT_COLUMNS)
+    # Three of the four columns: refused, naming what is missing.
+    text = (tmp_path / "d.csv").read_text().replace(",effort_2R", ",other")
+    (tmp_path / "e.csv").write_text(text)
+    (tmp_path / "e.yaml").write_text((tmp_path / "d.yaml").read_text())
+    with pytest.raises(LogError, match="effort_2R"):
+        read_log(tmp_path / "e.csv")
+    bad = wheel_log([0.0, 1.0], 2.0)
+    bad.effort[5, 0] = math.inf
+    with pytest.raises(LogError, match="effort is infinite"):
+        write_log(bad, tmp_path / "f.csv")
