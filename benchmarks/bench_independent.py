@@ -323,6 +323,28 @@ def cases(quick: bool = False, seed0: int = SEED0) -> list[dict[str, Any]]:
     return out
 
 
+EFFORT_OTHERS = ("command_lag", "command_delay", "slope", "rolling_resistance", "loose_soil")
+"""``--effort-cases``: the other effects beside the torque cuts and clean builds, in turn (the
+timing effects move what the motors are asked for; a slope and a drag load them; soil both)."""
+
+
+def effort_cases(seed0: int, n: int) -> list[dict[str, Any]]:
+    """``n`` cases from ``seed0``, in fours: two torque cuts (the matrix's range, 5-78 %), a
+    clean build, one :data:`EFFORT_OTHERS` effect (:data:`STRONG`'s range) in turn."""
+    out = []
+    for i, seed in enumerate(range(seed0, seed0 + n)):
+        if i % 4 in (0, 1):
+            out.append(
+                _case("single", {"torque_limit": generator_params("torque_limit", seed)}, seed)
+            )
+        elif i % 4 == 2:
+            out.append(_case("clean", {}, seed))
+        else:
+            e = EFFORT_OTHERS[(i // 4) % len(EFFORT_OTHERS)]
+            out.append(_case("single", {e: strong_params(e, seed)}, seed))
+    return out
+
+
 def tag(case: dict[str, Any]) -> str:
     return f"{case['kind']}_{'+'.join(case['effects']) or 'none'}_{case['seed']}"
 
@@ -438,6 +460,7 @@ def drive_proposals(
     seed: int,
     props: list[Proposal],
     pose: str = "as-logged",
+    effort: bool = False,
 ) -> list[Path]:
     """Each proposed drive driven by the case's rover (the same ``seed``: the same build)
     with the noise of drive ``DRIVES + j``, into ``d/followup_j`` (kept where it is
@@ -453,6 +476,7 @@ def drive_proposals(
                 seed=seed,
                 plan=schedule(prop),
                 first_index=DRIVES + j,
+                effort=effort,
             )
             as_logged(more, pose, seed + DRIVES + j)
         extra += more
@@ -465,6 +489,7 @@ def run_case(
     workers: int = 1,
     untested: bool = False,
     pose: str = "as-logged",
+    effort: bool = False,
 ) -> dict[str, Any]:
     d = root / tag(case)
     if d.exists():  # a fresh start: no logs or reports of an interrupted run mixed in
@@ -472,14 +497,19 @@ def run_case(
     opts = Options(progress=False, workers=workers)
     t0 = time.perf_counter()
     paths = make_independent_logs(
-        d / "logs", case["effects"], drives=DRIVES, seed=case["seed"], duration=DURATION
+        d / "logs",
+        case["effects"],
+        drives=DRIVES,
+        seed=case["seed"],
+        duration=DURATION,
+        effort=effort,
     )
     as_logged(paths, pose, case["seed"])
     t1 = time.perf_counter()
     res = diagnose([str(p) for p in paths], d / "out", opts)
     t2 = time.perf_counter()
     props = proposals(d / "out", untested)
-    extra = drive_proposals(d, case["effects"], case["seed"], props, pose)
+    extra = drive_proposals(d, case["effects"], case["seed"], props, pose, effort)
     followed = (
         diagnose([str(p) for p in [*paths, *extra]], d / "out_followup", opts) if extra else None
     )
@@ -525,15 +555,22 @@ def run_case(
         "allowance_withdrawn": [x.get("allowance_withdrawn") for x in (res, final)],
         "one_wheel": [x.get("one_wheel") for x in (res, final)],
         "odometry": odometry(final),
+        "effort_logged": effort,
+        "effort": [x.get("effort") for x in (res, final)],
     }
 
 
 def case_row(
-    case: dict[str, Any], root: Path, workers: int, untested: bool = False, pose: str = "as-logged"
+    case: dict[str, Any],
+    root: Path,
+    workers: int,
+    untested: bool = False,
+    pose: str = "as-logged",
+    effort: bool = False,
 ) -> dict[str, Any]:
     """``run_case``, or a row recording its error: one broken case must not stop the matrix."""
     try:
-        return run_case(case, root, workers, untested, pose)
+        return run_case(case, root, workers, untested, pose, effort)
     except Exception as exc:  # recorded in the table, the matrix goes on
         return {
             **_identity(case),
@@ -623,11 +660,25 @@ def main() -> int:
         help="after --strong-pairs' pairs (none with --strong-pairs 0): N single effects of"
         " --strong-from (default: every STRONG effect) in turn",
     )
+    ap.add_argument(
+        "--effort",
+        action="store_true",
+        help="the logs also carry the drivers' reported motor torque (effort_* columns)",
+    )
+    ap.add_argument(
+        "--effort-cases",
+        type=int,
+        default=0,
+        help="run N cases of torque cuts, clean builds and other effects in turn from --seed0"
+        " (effort_cases) instead of the matrix; with --effort, what the torque reading meets",
+    )
     args = ap.parse_args()
     out = Path(args.out)
     try:
         todo = (
-            strong_pairs(
+            effort_cases(args.seed0, args.effort_cases)
+            if args.effort_cases
+            else strong_pairs(
                 args.seed0,
                 args.strong_pairs,
                 args.strong_from.split(",") if args.strong_from else None,
@@ -671,7 +722,7 @@ def main() -> int:
     print(f"{len(mine)} cases to run ({len(rows)} done before), work in {args.work}", flush=True)
     for k, c in enumerate(mine, 1):
         t0 = time.perf_counter()
-        row = case_row(c, Path(args.work), args.workers, args.untested, args.pose)
+        row = case_row(c, Path(args.work), args.workers, args.untested, args.pose, args.effort)
         rows.append(row)
         _order(rows, todo)
         path.write_text(json.dumps(rows, indent=1, default=finite))

@@ -75,6 +75,7 @@ def _rows(log: DriveLog, keep: np.ndarray) -> DriveLog:
         phi=log.phi[keep],
         theta=log.theta[keep],
         pose=log.pose[keep],
+        effort=log.effort[keep],
     )
 
 
@@ -95,6 +96,7 @@ def _jitter(log: DriveLog, rng: np.random.Generator, ms: float = 3.0) -> DriveLo
         t=t,
         phi=_requantised(t, log.t, log.phi),
         theta=_requantised(t, log.t, log.theta),
+        effort=np.column_stack([np.interp(t, log.t, e) for e in log.effort.T]),
     )
 
 

@@ -84,6 +84,20 @@ def test_strong_pairs_draw_from_the_named_effects_then_singles_in_turn(b: Module
         b.strong_pairs(72900, 1, ["command_lag", "friction"])
 
 
+def test_effort_cases_are_cuts_clean_builds_and_others_in_turn(b: ModuleType) -> None:
+    todo = b.effort_cases(52700, 12)
+    kinds = [("clean" if c["kind"] == "clean" else next(iter(c["effects"]))) for c in todo]
+    others = [k for i, k in enumerate(kinds) if i % 4 == 3]
+    assert kinds[::4] == kinds[1::4] == ["torque_limit"] * 3
+    assert kinds[2::4] == ["clean"] * 3
+    assert others == list(b.EFFORT_OTHERS[:3])
+    assert [c["seed"] for c in todo] == list(range(52700, 52712))
+    for c in todo:
+        ind_effects.resolve(c["effects"])  # the generator accepts them
+        if "torque_limit" in c["effects"]:
+            assert -0.78 <= c["effects"]["torque_limit"]["fraction"] <= -0.05
+
+
 def test_magnitudes_lie_in_their_ranges_in_both_parameterisations(b: ModuleType) -> None:
     for c in b.cases():
         ind_effects.resolve(c["effects"])  # the generator accepts them

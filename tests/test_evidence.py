@@ -170,7 +170,7 @@ def test_a_limit_the_drives_never_reach_gets_the_drive_that_asks_for_it(monkeypa
         return SimpleNamespace(
             opts=opts, chosen=list(chosen),
             evidence=list(ev_list), ranked=[tl], base=RoverConfig(), noise={},
-            ev=SimpleNamespace(settings=ReplaySettings()), say=lambda m: None,
+            ev=SimpleNamespace(settings=ReplaySettings()), say=lambda m: None, effort=None,
         )  # fmt: skip
 
     (p,) = untested_limit(d({"-": 0.30, "+": 2.0}))  # type: ignore[arg-type]
@@ -188,6 +188,12 @@ def test_a_limit_the_drives_never_reach_gets_the_drive_that_asks_for_it(monkeypa
     assert untested_limit(d({"-": 0.3}, chosen=[tl])) == []  # type: ignore[arg-type]
     assert untested_limit(d({"-": 0.3}, ev_list=[{"effect": "torque_limit"}])) == []  # type: ignore[arg-type]
     assert untested_limit(d({"-": 0.3}, res=0.0)) == []  # type: ignore[arg-type]
+    # The reported torque held at a ceiling: the limit was read, no drive is asked for it.
+    read = d({"-": 0.3})
+    read.effort = {"level": 2.2}
+    assert untested_limit(read) == []  # type: ignore[arg-type]
+    read.effort = {"level": None}  # asked and never held: still proposed
+    assert len(untested_limit(read)) == 1  # type: ignore[arg-type]
 
 
 def test_the_rotor_floor_is_the_cut_a_heavier_rotor_mimics_where_the_limit_binds() -> None:

@@ -131,7 +131,7 @@ def make_logs(
         m[0] = False  # the origin is exact by definition
         pose[m, :2] += rng_pose.normal(0.0, POSE_NOISE_M, (int(m.sum()), 2))
         pose[m, 2] += rng_pose.normal(0.0, POSE_NOISE_YAW, int(m.sum()))
-        log = DriveLog(log.t, log.cmd, log.phi, log.theta, pose, log.meta)
+        log = DriveLog(log.t, log.cmd, log.phi, log.theta, pose, log.meta, effort=log.effort)
         paths.append(write_log(log, out / f"drive_{k:02d}.csv", overwrite=True))
     truth: dict[str, Any] = {
         "effects": effects,
