@@ -193,7 +193,9 @@ def test_a_limit_the_drives_never_reach_gets_the_drive_that_asks_for_it(monkeypa
     read.effort = {"level": 2.2}
     assert untested_limit(read) == []  # type: ignore[arg-type]
     read.effort = {"level": None}  # asked and never held: still proposed
-    assert len(untested_limit(read)) == 1  # type: ignore[arg-type]
+    (r,) = untested_limit(read)  # type: ignore[arg-type]
+    assert "log the motors' torque" not in r["reason"]  # they were logged
+    assert "log the motors' torque (effort_* columns" in p["reason"]  # not logged: say so
 
 
 def test_the_rotor_floor_is_the_cut_a_heavier_rotor_mimics_where_the_limit_binds() -> None:

@@ -43,7 +43,6 @@ def name_by_effort(d: Diagnosis) -> None:
     targets = [loop_commands(log, cfg) for log in logs]
     reading = read_limit(logs, d.base.motor.torque_limit, tol, targets)
     if reading is None:
-        d.effort = None
         return
     rec: dict[str, Any] = {**reading.as_json(), "named": False}
     d.effort = rec

@@ -151,6 +151,11 @@ def untested_limit(d: Diagnosis) -> list[dict[str, Any]]:
             " smaller cuts give motor.armature from the drive's datasheet and a smaller"
             " --rotor-range"
         )
+    if d.effort is None:
+        p["reason"] += (
+            "; or log the motors' torque (effort_* columns, a bag's JointState.effort): where"
+            " it holds at the limit, the limit is read from it directly"
+        )
     d.say(
         f"torque limit untested ({p['reason']}): propose a drive of plan {p['plan']!r}; in"
         f" simulation a cut of {100 * res:.0f} % moves {p['best_signal']} by"
