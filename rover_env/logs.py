@@ -260,6 +260,19 @@ def _cell(text: str, path: Path, column: str, line: int, optional: bool) -> floa
     return v
 
 
+def _together(group: tuple[str, ...], seen: set[str], what: str, path: Path) -> bool:
+    """Whether the header has ``group``'s columns; some but not all is refused."""
+    present = [c for c in group if c in seen]
+    if present and len(present) < len(group):
+        absent = [c for c in group if c not in seen]
+        raise LogError(
+            f"{what} go together: have {', '.join(present)}, missing {', '.join(absent)}",
+            path,
+            line=1,
+        )
+    return bool(present)
+
+
 def read_log(path: str | Path) -> DriveLog:
     """Read and check a drive log; ``path`` is the CSV, the YAML has the same stem."""
     csv_path = Path(path)
@@ -288,24 +301,10 @@ def read_log(path: str | Path) -> DriveLog:
     missing = [c for c in REQUIRED_COLUMNS if c not in seen]
     if missing:
         raise LogError(f"missing required column(s) {', '.join(missing)}", csv_path, line=1)
-    pose_present = [c for c in POSE_COLUMNS if c in seen]
-    if pose_present and len(pose_present) < len(POSE_COLUMNS):
-        absent = [c for c in POSE_COLUMNS if c not in seen]
-        raise LogError(
-            f"pose columns x, y, yaw go together: have {', '.join(pose_present)}, "
-            f"missing {', '.join(absent)}",
-            csv_path,
-            line=1,
-        )
-    effort_present = [c for c in EFFORT_COLUMNS if c in seen]
-    if effort_present and len(effort_present) < len(EFFORT_COLUMNS):
-        absent = [c for c in EFFORT_COLUMNS if c not in seen]
-        raise LogError(
-            f"effort columns go together (leave cells empty where not measured): have "
-            f"{', '.join(effort_present)}, missing {', '.join(absent)}",
-            csv_path,
-            line=1,
-        )
+    pose_present = _together(POSE_COLUMNS, seen, "pose columns x, y, yaw", csv_path)
+    effort_present = _together(
+        EFFORT_COLUMNS, seen, "effort columns (leave cells empty where not measured)", csv_path
+    )
     wanted = (
         REQUIRED_COLUMNS
         + (POSE_COLUMNS if pose_present else ())

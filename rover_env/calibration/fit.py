@@ -175,6 +175,32 @@ class Fit:
         return out
 
 
+def read_fit(
+    c: Candidate,
+    value: tuple[float, float, float],
+    seconds: float,
+    method: str,
+    nfev: int = 1,
+) -> Fit:
+    """A one-parameter fit of ``c`` read from a direct measurement (value, interval low,
+    high), not optimised over windows: dead reckoning's radius, the reported torque's limit;
+    ``nfev`` the evaluations it took."""
+    x, lo, hi = value
+    return Fit(
+        candidates=[c],
+        x=np.array([x]),
+        ci_lo=np.array([lo]),
+        ci_hi=np.array([hi]),
+        se=np.array([(hi - lo) / 3.92]),
+        cost=float("nan"),
+        nfev=nfev,
+        ext=to_ext([c], np.array([x])),
+        seconds=seconds,
+        which="train",
+        method=method,
+    )
+
+
 def to_ext(cands: list[Candidate], x: Array) -> Extensions:
     """The extensions of candidates ``cands`` at their variables ``x`` (concatenated)."""
     parts, i = [], 0

@@ -17,13 +17,11 @@ from __future__ import annotations
 import time
 from typing import Any
 
-import numpy as np
-
 from rover_env.calibration.candidates import merge
 from rover_env.calibration.diagnosis.odometry import scored_beside
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
 from rover_env.calibration.effort import EffortReading, read_limit
-from rover_env.calibration.fit import Fit, to_ext
+from rover_env.calibration.fit import read_fit
 from rover_env.calibration.replay import loop_commands
 
 NAME = "torque_limit"
@@ -75,19 +73,7 @@ def name_by_effort(d: Diagnosis) -> None:
     t0 = time.perf_counter()
     lo, hi = max(lo, cand.lo[0]), min(hi, cand.hi[0])
     x = min(max(x, cand.lo[0]), cand.hi[0])
-    fit = Fit(
-        candidates=[cand],
-        x=np.array([x]),
-        ci_lo=np.array([lo]),
-        ci_hi=np.array([hi]),
-        se=np.array([(hi - lo) / 3.92]),
-        cost=float("nan"),
-        nfev=1,
-        ext=to_ext([cand], np.array([x])),
-        seconds=time.perf_counter() - t0,
-        which="train",
-        method="effort",
-    )
+    fit = read_fit(cand, (x, lo, hi), time.perf_counter() - t0, "effort")
     ref_ext = merge(*(s.fit.ext for s in d.chosen))
     s, _ = scored_beside(d, fit, ref_ext)
     s.significant = True

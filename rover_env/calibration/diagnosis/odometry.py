@@ -34,7 +34,7 @@ from rover_env.calibration.candidates import Candidate, Extensions, merge
 from rover_env.calibration.diagnosis.again import LEADER_GAIN
 from rover_env.calibration.diagnosis.judge import fmt_phys, p_improved, plugin_capable, score
 from rover_env.calibration.diagnosis.state import Diagnosis, OdometryBand, Options, Scored
-from rover_env.calibration.fit import Fit, to_ext
+from rover_env.calibration.fit import Fit, read_fit, to_ext
 from rover_env.calibration.replay import PreparedLog
 from rover_env.config import RoverConfig
 from rover_env.estimation.dead_reckoning import (
@@ -159,19 +159,14 @@ def name_by_odometry(d: Diagnosis) -> None:
         return
     x, lo, hi, g = est
     rec.update(sensitivity=g, fraction=[x, lo, hi])
-    fit = Fit(
-        candidates=[cand],
-        x=np.array([x]),
-        ci_lo=np.array([max(lo, cand.lo[0])]),
-        ci_hi=np.array([min(hi, cand.hi[0])]),
-        se=np.array([(hi - lo) / 3.92]),
-        cost=float("nan"),
+    fit = read_fit(
+        cand,
+        (x, max(lo, cand.lo[0]), min(hi, cand.hi[0])),
+        time.perf_counter() - t0,
+        "odometry",
         nfev=2,
-        ext=to_ext([cand], np.array([x])),
-        seconds=time.perf_counter() - t0,
-        which="train",
-        method="odometry",
     )
+    fit.se = np.array([(hi - lo) / 3.92])  # the unclipped interval's, as before
     s, ref_held = scored_beside(d, fit, ref_ext)
     rec.update(held_gain=s.gain, p_worse=p_improved(s.held_losses, ref_held))
     s.significant = True
