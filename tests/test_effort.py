@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rover_env.calibration.diagnosis.effort_stage import action
 from rover_env.calibration.effort import read_limit
 from rover_env.calibration.report_notes import effort_lines
 from rover_env.logs import EFFORT_COLUMNS, DriveLog, LogError, LogMeta, read_log, write_log
@@ -149,3 +150,26 @@ def test_effort_columns_round_trip_and_bad_ones_are_named(tmp_path: Path) -> Non
     bad.effort[5, 0] = math.inf
     with pytest.raises(LogError, match="effort is infinite"):
         write_log(bad, tmp_path / "f.csv")
+
+
+@pytest.mark.parametrize(
+    "cut, windows, inside, expected",
+    [
+        (None, None, False, "no ceiling"),
+        (None, (-0.3, -0.1), False, "no ceiling"),  # no ceiling: the windows' name stands
+        ((-0.07, -0.15, 0.04), None, False, "within"),
+        ((-0.07, -0.15, 0.04), (-0.5, -0.3), False, "withdraw"),  # the motors gave it
+        ((-0.07, -0.15, 0.04), None, True, "within"),
+        ((-0.3, -0.37, -0.22), None, True, "inside"),
+        ((-0.3, -0.37, -0.22), None, False, "name"),
+        ((-0.3, -0.37, -0.22), (-0.25, -0.18), False, "agree"),
+        ((-0.3, -0.37, -0.22), (-0.6, -0.45), False, "replace"),
+    ],
+)
+def test_what_a_reading_does_beside_the_windows(
+    cut: tuple[float, float, float] | None,
+    windows: tuple[float, float] | None,
+    inside: bool,
+    expected: str,
+) -> None:
+    assert action(cut, windows, inside) == expected

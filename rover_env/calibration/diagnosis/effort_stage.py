@@ -47,29 +47,18 @@ def name_by_effort(d: Diagnosis) -> None:
     cut = reading.cut()
     alone = [s for s in d.chosen if [c.name for c in s.fit.candidates] == [NAME]]
     inside = any(NAME in [c.name for c in s.fit.candidates] for s in d.chosen) and not alone
-    if cut is None:
-        rec["why_not"] = "the reported torque never held at a ceiling while asked for more"
+    windows = (float(alone[0].fit.ci_lo[0]), float(alone[0].fit.ci_hi[0])) if alone else None
+    act = action(cut, windows, inside)
+    if act in WHY_NOT:
+        rec["why_not"] = WHY_NOT[act].format(tol=100 * reading.tolerance)
+    if act in ("withdraw", "replace"):
+        d.chosen = [s for s in d.chosen if s not in alone]
+        rec["withdrew" if act == "withdraw" else "replaced"] = [fmt_fit(s) for s in alone]
+    if act == "withdraw":
+        d.say(f"{NAME}: withdrawn, the motors held at {reading.level:.3f} N m")
+    if act not in ("name", "replace") or cut is None:
         return
     x, lo, hi = cut
-    if lo <= 0.0 <= hi:
-        rec["why_not"] = (
-            f"the plateau is within the reported torque's {100 * reading.tolerance:.0f} %"
-        )
-        if alone:
-            d.chosen = [s for s in d.chosen if s not in alone]
-            rec["withdrew"] = [fmt_fit(s) for s in alone]
-            d.say(f"{NAME}: withdrawn, the motors held at {reading.level:.3f} N m ({x:+.1%})")
-        return
-    if inside:
-        rec["why_not"] = "a torque limit is named with another effect; the reading is reported"
-        return
-    if alone:
-        s0 = alone[0]
-        if s0.fit.ci_lo[0] <= hi and lo <= s0.fit.ci_hi[0]:
-            rec["why_not"] = "the windows named a torque limit the reading agrees with"
-            return
-        d.chosen = [s for s in d.chosen if s not in alone]
-        rec["replaced"] = [fmt_fit(s) for s in alone]
     t0 = time.perf_counter()
     lo, hi = max(lo, cand.lo[0]), min(hi, cand.hi[0])
     x = min(max(x, cand.lo[0]), cand.hi[0])
@@ -81,6 +70,36 @@ def name_by_effort(d: Diagnosis) -> None:
     rec.update(named=True, fraction=[x, lo, hi], held_gain=s.gain)
     d.chosen.append(s)
     d.say(f"{NAME}: named by {s.test}: {x:+.4f} [{lo:+.4f}, {hi:+.4f}]")
+
+
+WHY_NOT = {
+    "no ceiling": "the reported torque never held at a ceiling while asked for more",
+    "within": "the plateau is within the reported torque's {tol:.0f} %",
+    "withdraw": "the plateau is within the reported torque's {tol:.0f} %",
+    "inside": "a torque limit is named with another effect; the reading is reported",
+    "agree": "the windows named a torque limit the reading agrees with",
+}
+"""Why a reading names nothing, by :func:`action`."""
+
+
+def action(
+    cut: tuple[float, float, float] | None, windows: tuple[float, float] | None, inside: bool
+) -> str:
+    """What a reading's ``cut`` (value, low, high) does beside the windows' torque limit
+    (``windows``: its interval where they named it alone; ``inside``: named with another
+    effect): "no ceiling" or "within" (nothing), "withdraw" (a ceiling within the tolerance
+    of the configured limit: the motors gave it), "inside" (reported only), "agree" (the
+    windows' interval meets the reading's: theirs stands), "replace" or "name"."""
+    if cut is None:
+        return "no ceiling"
+    _, lo, hi = cut
+    if lo <= 0.0 <= hi:
+        return "withdraw" if windows is not None else "within"
+    if inside:
+        return "inside"
+    if windows is None:
+        return "name"
+    return "agree" if windows[0] <= hi and lo <= windows[1] else "replace"
 
 
 def test_text(r: EffortReading) -> str:
