@@ -15,6 +15,7 @@ import pytest
 from rover_env.calibration.diagnosis.effort_stage import action
 from rover_env.calibration.effort import read_limit
 from rover_env.calibration.report_notes import effort_lines
+from rover_env.generators.make_logs import EFFORT_NOISE, make_logs
 from rover_env.logs import EFFORT_COLUMNS, DriveLog, LogError, LogMeta, read_log, write_log
 
 CONFIGURED = 3.0
@@ -173,3 +174,18 @@ def test_what_a_reading_does_beside_the_windows(
     expected: str,
 ) -> None:
     assert action(cut, windows, inside) == expected
+
+
+def test_make_logs_effort_is_the_motor_torque_on_its_own_stream(tmp_path: Path) -> None:
+    """``make-logs --effort``: the simulator's motor torque with noise of its own stream,
+    clipped at the cut limit; every other column the same as without it."""
+    kw: dict = {"drives": 1, "seed": 3, "duration": 8.0, "progress": False}
+    cut = {"torque_limit": {"fraction": -0.3}}
+    (p,) = make_logs(tmp_path / "e", cut, effort=True, **kw)
+    (q,) = make_logs(tmp_path / "n", cut, **kw)
+    a, b = read_log(p), read_log(q)
+    assert a.has_effort and not b.has_effort
+    for name in ("cmd", "phi", "theta", "pose"):
+        assert np.array_equal(getattr(a, name), getattr(b, name), equal_nan=True)
+    top = np.abs(a.effort).max()
+    assert 2.1 - 0.1 < top < 2.1 + 5 * EFFORT_NOISE  # the steps ask for more than the limit

@@ -52,6 +52,9 @@ POSE_NOISE_M = 0.005
 """External pose reference noise (m rms), e.g. a total station or motion capture."""
 POSE_NOISE_YAW = 0.005
 """Its heading noise (rad rms)."""
+EFFORT_NOISE = 0.02
+"""The motors' reported torque's noise (N m rms, white): a driver's current sense, 1/150 of
+the limit (a choice; SPEC logs no torque)."""
 
 
 def parse_effects(items: list[str]) -> dict[str, dict[str, float]]:
@@ -94,11 +97,14 @@ def make_logs(
     sample_rate_hz: float = 50.0,
     progress: bool = True,
     first_index: int = 0,
+    effort: bool = False,
 ) -> list[Path]:
     """Write ``drives`` logs and ``truth.yaml`` to ``out``; return the CSV paths.
 
     ``truth_rover`` replaces the nominal rover as the truth (for effects outside the
-    catalogue, e.g. a heavier rover); the logs still name ``rover``.
+    catalogue, e.g. a heavier rover); the logs still name ``rover``. ``effort``: the logs
+    also carry the motors' torque (``effort_*``), with :data:`EFFORT_NOISE` drawn from a
+    stream of its own (the other columns are the same with or without it).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -111,7 +117,8 @@ def make_logs(
     kids = ss.spawn(first_index + drives)[first_index:]
     for i, kid in enumerate(kids):
         k = first_index + i
-        rng_plan, rng_sens, rng_pose = (np.random.default_rng(s) for s in kid.spawn(3))
+        # spawn(4)'s first three children are spawn(3)'s: effort's noise has the fourth.
+        rng_plan, rng_sens, rng_pose, rng_eff = (np.random.default_rng(s) for s in kid.spawn(4))
         sim = RoverSim(truth_cfg, "flat", backend="auto")
         sim.reset(sunk=True)
         sched = drive_schedule(plan, rng_plan, duration, nominal.motor.max_wheel_speed)
@@ -124,6 +131,7 @@ def make_logs(
             notes=f"make-logs plan {plan}, seed {seed}, drive {k}",
             pose_rate_hz=pose_rate_hz,
             pose_end_only=pose_end_only,
+            effort=effort,
         )
         log = apply_sensors(log, sensors, rng_sens)
         pose = log.pose.copy()
@@ -131,7 +139,8 @@ def make_logs(
         m[0] = False  # the origin is exact by definition
         pose[m, :2] += rng_pose.normal(0.0, POSE_NOISE_M, (int(m.sum()), 2))
         pose[m, 2] += rng_pose.normal(0.0, POSE_NOISE_YAW, int(m.sum()))
-        log = DriveLog(log.t, log.cmd, log.phi, log.theta, pose, log.meta, effort=log.effort)
+        tau = log.effort + rng_eff.normal(0.0, EFFORT_NOISE, log.effort.shape)  # NaN stays
+        log = DriveLog(log.t, log.cmd, log.phi, log.theta, pose, log.meta, effort=tau)
         paths.append(write_log(log, out / f"drive_{k:02d}.csv", overwrite=True))
     truth: dict[str, Any] = {
         "effects": effects,
@@ -143,6 +152,7 @@ def make_logs(
         "pose_rate_hz": None if pose_end_only else pose_rate_hz,
         "pose_end_only": pose_end_only,
         "pose_noise": {"xy_m": POSE_NOISE_M, "yaw_rad": POSE_NOISE_YAW},
+        "effort_noise_nm": EFFORT_NOISE if effort else None,
         "sensors": asdict(sensors),
         "rover": str(rover),
     }
@@ -176,6 +186,8 @@ def _cli(args: argparse.Namespace) -> int:
 
         if args.pose_end_only or args.pose_rate != 1.0:
             raise ConfigError("--generator foreign: the pose reference is fixed at 1 Hz")
+        if args.effort:
+            raise ConfigError("--generator foreign logs no motor torque (--effort)")
         paths = make_foreign_logs(args.out, effects, **common)
     else:
         paths = make_logs(
@@ -183,6 +195,7 @@ def _cli(args: argparse.Namespace) -> int:
             effects,
             pose_rate_hz=args.pose_rate,
             pose_end_only=args.pose_end_only,
+            effort=args.effort,
             **common,
         )
     for p in paths:
@@ -215,6 +228,11 @@ def add_cli(sub: Any) -> None:
         default="rover_env",
         help="rover_env: this project's simulator; foreign: a deliberately different"
         " implementation of the same rover (rover_env.generators.foreign_logs)",
+    )
+    p.add_argument(
+        "--effort",
+        action="store_true",
+        help="also log the motors' torque (effort_1L .. effort_2R, N m; this simulator only)",
     )
     p.add_argument("--out", required=True)
     p.add_argument("--quiet", action="store_true")
