@@ -15,6 +15,7 @@ import pytest
 from rover_env.calibration.diagnosis.effort_stage import action
 from rover_env.calibration.effort import read_limit
 from rover_env.calibration.report_notes import effort_lines
+from rover_env.cli import main
 from rover_env.generators.make_logs import EFFORT_NOISE, make_logs
 from rover_env.logs import EFFORT_COLUMNS, DriveLog, LogError, LogMeta, read_log, write_log
 
@@ -189,3 +190,25 @@ def test_make_logs_effort_is_the_motor_torque_on_its_own_stream(tmp_path: Path) 
         assert np.array_equal(getattr(a, name), getattr(b, name), equal_nan=True)
     top = np.abs(a.effort).max()
     assert 2.1 - 0.1 < top < 2.1 + 5 * EFFORT_NOISE  # the steps ask for more than the limit
+
+
+@pytest.mark.parametrize("bad", ["1", "1.5", "-0.1", "nan", "ten"])
+def test_a_bad_effort_tolerance_is_refused_naming_the_flag(
+    bad: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        main(
+            ["diagnose", str(tmp_path / "x.csv"), "--out", str(tmp_path), "--effort-tolerance", bad]
+        )
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert "--effort-tolerance" in err and bad in err, err
+
+
+def test_the_foreign_generator_refuses_effort(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["make-logs", "--generator", "foreign", "--effort", "--out", str(tmp_path), "--quiet"]
+    assert main(argv) == 2
+    assert "logs no motor torque (--effort)" in capsys.readouterr().err
+    assert not list(tmp_path.glob("*.csv"))
