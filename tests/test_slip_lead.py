@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from rover_env.calibration.candidates import catalogue
-from rover_env.calibration.diagnosis import odometry
+from rover_env.calibration.diagnosis import judge, odometry
 from rover_env.calibration.diagnosis.state import ODOMETRY_BAND, Scored
 from rover_env.calibration.fit import Fit, to_ext
 
@@ -138,11 +138,11 @@ def test_a_read_radius_is_judged_beside_what_it_was_read_against(
         seen.append((f.ext, ref_ext))
         return _scored("rolling_radius", -0.05, d_bic=-3.0, gain=-0.1)
 
-    monkeypatch.setattr(odometry, "score", fake_score)
+    monkeypatch.setattr(judge, "score", fake_score)
     radius = _scored("rolling_radius", -0.05, d_bic=0.0, gain=0.0).fit
     beside = {"rolling_resistance": {"c_rr": 0.096}}
     d = SimpleNamespace(ev=SimpleNamespace(run=lambda ext, which: []), noise={})
-    s, _ = odometry.scored_beside(d, radius, beside)
+    s, _ = judge.scored_beside(d, radius, beside)
     ((ext, ref),) = seen
     assert ext == {**beside, **radius.ext} and ref == beside
     assert s.fit is radius and s.fit.ext == {"rolling_radius": {"fraction": -0.05}}

@@ -18,7 +18,7 @@ import time
 from typing import Any
 
 from rover_env.calibration.candidates import merge
-from rover_env.calibration.diagnosis.odometry import scored_beside
+from rover_env.calibration.diagnosis.judge import scored_beside
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
 from rover_env.calibration.effort import EffortReading, read_limit
 from rover_env.calibration.fit import read_fit

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -17,7 +18,7 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from rover_env.calibration import residuals as rs
-from rover_env.calibration.candidates import Candidate, Extensions
+from rover_env.calibration.candidates import Candidate, Extensions, merge
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.fit import Evaluator, Fit, information_criteria
 from rover_env.calibration.form_allowance import FACTOR
@@ -545,3 +546,16 @@ def strict_json(obj: Any) -> Any:
     if isinstance(obj, float | np.floating):
         return float(obj) if np.isfinite(obj) else None
     return obj
+
+
+def scored_beside(d: Diagnosis, fit: Fit, ref_ext: Extensions) -> tuple[Scored, Array]:
+    """A fit read directly (dead reckoning's radius, the reported torque's limit; ``fit``,
+    its extension alone: what the configuration gets) judged on the windows beside what it
+    was read against (``ref_ext``: the named effects, a lead), and that reference's held-out
+    losses. Until stop 105 the windows replayed the radius without the named effects, and
+    reported a radius beside a named drag as making the held-out drive worse by the drag's
+    share."""
+    ref_held = rs.window_losses(d.ev.run(ref_ext, "held"), d.noise)
+    s = score(d, replace(fit, ext=merge(ref_ext, fit.ext)), ref_held, ref_ext, k=1)
+    s.fit = fit
+    return s, ref_held

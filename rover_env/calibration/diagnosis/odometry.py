@@ -32,9 +32,14 @@ from numpy.typing import NDArray
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import Candidate, Extensions, merge
 from rover_env.calibration.diagnosis.again import LEADER_GAIN
-from rover_env.calibration.diagnosis.judge import fmt_phys, p_improved, plugin_capable, score
+from rover_env.calibration.diagnosis.judge import (
+    fmt_phys,
+    p_improved,
+    plugin_capable,
+    scored_beside,
+)
 from rover_env.calibration.diagnosis.state import Diagnosis, OdometryBand, Options, Scored
-from rover_env.calibration.fit import Fit, read_fit, to_ext
+from rover_env.calibration.fit import read_fit, to_ext
 from rover_env.calibration.replay import PreparedLog
 from rover_env.config import RoverConfig
 from rover_env.estimation.dead_reckoning import (
@@ -179,18 +184,6 @@ def name_by_odometry(d: Diagnosis) -> None:
     rec["named"] = True
     d.chosen.append(s)
     d.say(f"{NAME}: named by {s.test}: {x:+.4f} [{lo:+.4f}, {hi:+.4f}]")
-
-
-def scored_beside(d: Diagnosis, fit: Fit, ref_ext: Extensions) -> tuple[Scored, Array]:
-    """The radius read by dead reckoning (``fit``, its extension alone: what the
-    configuration gets) judged on the windows beside what it was read against (``ref_ext``:
-    the named effects, a lead), and that reference's held-out losses. Until stop 105 the
-    windows replayed the radius without the named effects, and reported a radius beside a
-    named drag as making the held-out drive worse by the drag's share."""
-    ref_held = rs.window_losses(d.ev.run(ref_ext, "held"), d.noise)
-    s = score(d, replace(fit, ext=merge(ref_ext, fit.ext)), ref_held, ref_ext, k=1)
-    s.fit = fit
-    return s, ref_held
 
 
 def slip_lead(d: Diagnosis, named: set[str]) -> Scored | None:
