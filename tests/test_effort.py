@@ -32,16 +32,25 @@ def wheel_log(
     ki: float = 20.0,
     hold_s: float = 2.0,
     noise: float = 0.015,
+    inertia: float = 0.06,
+    lag_s: float = 0.0,
+    scale: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0),
+    stagger_s: float = 0.0,
 ) -> DriveLog:
-    """Four wheels stepping through ``targets`` (rad/s), each held ``hold_s``."""
+    """Four wheels stepping through ``targets`` (rad/s, times ``scale`` per wheel), each held
+    ``hold_s``, wheel j's steps ``j * stagger_s`` late; the loops see the logged targets
+    through a first-order lag of ``lag_s`` (0: none)."""
     rng = np.random.default_rng(seed)
-    dt, every, inertia = 0.001, 20, 0.06
+    dt, every = 0.001, 20
     n_steps = round(len(targets) * hold_s / dt)
-    omega, integ, phi = np.zeros(4), np.zeros(4), np.zeros(4)
+    omega, integ, phi, seen = np.zeros(4), np.zeros(4), np.zeros(4), np.zeros(4)
     ts, cmds, phis, taus = [], [], [], []
+    late = stagger_s * np.arange(4)
     for k in range(n_steps + 1):
-        target = targets[min(int(k * dt / hold_s), len(targets) - 1)] * np.ones(4)
-        err = target - omega
+        step = np.clip(((k * dt - late) // hold_s).astype(int), 0, len(targets) - 1)
+        target = np.array(targets)[step] * np.array(scale)
+        seen = seen + (dt / lag_s) * (target - seen) if lag_s > 0 else target
+        err = seen - omega
         raw = kp * err + integ
         tau = np.clip(raw, -limit, limit)
         integ += dt * ki * err * (raw == tau)  # conditional integration
@@ -107,6 +116,19 @@ def test_a_level_the_torque_exceeds_elsewhere_is_no_ceiling() -> None:
     assert r is not None and not r.plateau
 
 
+def test_one_manoeuvre_tests_the_ceiling_once() -> None:
+    """Four wheels clipped in one step, at demands 3 x apart, are one event, not a ceiling
+    (behind an unnamed lag one reversal's wheels made a false one, exploratory seed 74091);
+    the same four clips a second apart are four, and read the limit."""
+    one = [0.0, 2.5, 2.5, 2.5, 2.5]
+    scale = (1.0, 1.6, 2.2, 3.0)
+    together = read_limit([wheel_log(one, 1.0, scale=scale)], CONFIGURED, 0.10)
+    assert together is not None and together.events == 1 and not together.plateau
+    apart = read_limit([wheel_log(one, 1.0, scale=scale, stagger_s=1.0)], CONFIGURED, 0.10)
+    assert apart is not None and apart.events == 4 and apart.spread > 2.5
+    assert apart.level == pytest.approx(1.0, abs=0.02)
+
+
 def test_the_loops_targets_decide_what_was_asked() -> None:
     """Behind a command lag the logged target runs ahead; given the loop's own (here: the
     wheel's rate itself, nothing asked), no plateau is read."""
@@ -115,6 +137,22 @@ def test_the_loops_targets_decide_what_was_asked() -> None:
     rates = np.gradient(log.phi[:, :4], log.t, axis=0)
     r = read_limit([log], CONFIGURED, 0.10, [rates])
     assert r is not None and not r.plateau and r.asked == 0
+
+
+def test_behind_a_long_lag_only_the_loops_targets_tell_a_load_from_a_limit() -> None:
+    """Behind a 0.8 s command lag the wheel lags the logged target while its motor meets a
+    steady 1.2 N m load: against the logged targets that load reads as a ceiling (why the
+    stage gives the loops' targets after a named lag); against the loop's own, nothing."""
+    log = wheel_log(STEPS, CONFIGURED, load=1.2, inertia=0.005, lag_s=0.8)
+    logged = read_limit([log], CONFIGURED, 0.10)
+    assert logged is not None and logged.level == pytest.approx(1.2, abs=0.03)
+    seen = np.zeros_like(log.cmd)
+    for k in range(1, len(log.t)):
+        seen[k] = seen[k - 1] + (1.0 - math.exp(-(log.t[k] - log.t[k - 1]) / 0.8)) * (
+            log.cmd[k - 1] - seen[k - 1]
+        )
+    loop = read_limit([log], CONFIGURED, 0.10, [seen])
+    assert loop is not None and not loop.plateau
 
 
 def test_logs_without_effort_give_no_reading() -> None:

@@ -11,9 +11,10 @@ least :data:`LAG` behind its loop's target, and beyond what the encoders resolve
 pushing toward it), and among those the top: the samples within a few noise widths of the
 largest. A current limit is a ceiling: the torque stops there whatever the demand. So the
 top is a plateau where it holds :data:`EVENTS` separate events or more (a wheel spinning up
-reaches it for 20-40 ms, one or two samples at 50 Hz) whose demands (the wheel's lag) differ
-by :data:`SPREAD` or more, and no two samples running anywhere go beyond it; its median is
-the limit. A repeated manoeuvre's own peak torque is the same at the same demand, and so is
+reaches it for 20-40 ms, one or two samples at 50 Hz; the wheels of one manoeuvre, within
+:data:`MERGE` of each other, are one event) whose demands (the wheel's lag) differ by
+:data:`SPREAD` or more, and no two samples running anywhere go beyond it; its median is the
+limit. A repeated manoeuvre's own peak torque is the same at the same demand, and so is
 not taken for one. Elsewhere the largest torque given is a lower bound only. The interval is
 the plateau's standard error and the reported torque's scale (``tolerance``: the driver's
 torque constant and the gearhead's efficiency, known to a datasheet's tolerance): a plateau
@@ -42,6 +43,13 @@ EVENTS = 3
 SPREAD = 1.5
 """Ratio of the largest to the smallest demand (lag) among them: the same torque at demands
 this far apart is a ceiling, not the manoeuvre's own peak."""
+MERGE = 0.5
+"""Seconds within which runs at the top (any wheel of one log) are one event: one manoeuvre
+tests the ceiling once. Why: behind an unnamed 0.2 s command lag one reversal's two wheels,
+one of them dipping out of the top and back, made three runs at demands 1.54 x apart, a false
+ceiling at 1.59 N m (exploratory seed 74091; a 0.6 s lag's one manoeuvre, 74099, six runs);
+cuts of 5-78 % clipped in 9-30 manoeuvres a case, each read as before (74093-74095,
+74500-74506)."""
 BAND_SIGMAS = 4.0
 """Half-width of the top band in noise widths."""
 Z = 1.96
@@ -64,11 +72,11 @@ class EffortReading:
     largest: float
     """The largest torque given where asked for more (0 where never asked)."""
     events: int
-    """Separate runs of samples at the top (asked for more)."""
+    """Separate events at the top (asked for more): runs within :data:`MERGE` are one."""
     held: int
-    """Samples in those runs."""
+    """Samples at the top, asked for more."""
     spread: float
-    """Largest over smallest demand (lag, rad/s) among those runs (0: none)."""
+    """Largest over smallest demand (lag, rad/s) among those events (0: none)."""
     level: float | None
     """The plateau's median (N m), where the top is one (see the module); else None."""
     se: float | None
@@ -152,6 +160,67 @@ def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
 
 
+@dataclass(frozen=True)
+class _Wheel:
+    """One driven wheel of one log, as the reading walks it."""
+
+    t: Array
+    dt: float
+    effort: Array
+    torque: Array
+    """|effort|, 0 where not measured."""
+    lag: Array
+    """The loop's target less the wheel's rate (rad/s)."""
+    asked: NDArray[np.bool_]
+    """Asked for more than it gave: lagging by the least asked or more, the torque toward it."""
+
+
+def _walk(log: DriveLog, target: Array) -> list[_Wheel]:
+    """``log``'s four driven wheels against their loops' ``target`` (N, 4)."""
+    lag = target - wheel_rates(log)
+    least = max(LAG, 2.0 * rate_step(log))
+    dt = float(np.median(np.diff(log.t))) if len(log.t) > 1 else 0.0
+    out = []
+    for j in range(4):
+        e = log.effort[:, j]
+        fin = np.isfinite(e)
+        out.append(
+            _Wheel(
+                t=log.t,
+                dt=dt,
+                effort=e,
+                torque=np.where(fin, np.abs(e), 0.0),
+                lag=lag[:, j],
+                asked=fin & (np.abs(lag[:, j]) >= least) & (e * lag[:, j] > 0),
+            )
+        )
+    return out
+
+
+def _events(walks: list[list[_Wheel]], top: float) -> tuple[list[tuple[float, float]], Array]:
+    """The events at the top (torque >= ``top`` while asked): (start time, demand) each, runs
+    of one log within :data:`MERGE` seconds of each other (any wheel) merged; and the torque
+    of every sample in them."""
+    events: list[tuple[float, float]] = []
+    vals: list[Array] = []
+    for wheels in walks:
+        runs = []
+        for w in wheels:
+            for s, e in _runs(w.asked & (w.torque >= top)):
+                runs.append((float(w.t[s]), float(w.t[e - 1]), float(np.max(np.abs(w.lag[s:e])))))
+                vals.append(w.torque[s:e])
+        runs.sort()
+        end = -math.inf  # of this log's event so far
+        for start, stop, demand in runs:
+            if start - end <= MERGE:
+                events[-1] = (events[-1][0], max(events[-1][1], demand))
+                end = max(end, stop)
+            else:
+                events.append((start, demand))
+                end = stop
+    return events, np.concatenate(vals) if vals else np.zeros(0)
+
+
 def read_limit(
     logs: list[DriveLog],
     configured: float,
@@ -174,29 +243,20 @@ def read_limit(
     if not (configured > 0 and 0 <= tolerance < 1):
         raise ValueError(f"configured limit {configured} and tolerance {tolerance}: out of range")
     noise = effort_noise(with_effort)
-    asks: list[tuple[Array, NDArray[np.bool_], Array]] = []
-    samples = 0
-    for log, target in pairs:
-        lag = target - wheel_rates(log)
-        least = max(LAG, 2.0 * rate_step(log))
-        for j in range(4):
-            e = log.effort[:, j]
-            fin = np.isfinite(e)
-            samples += int(fin.sum())
-            a = np.where(fin, np.abs(e), 0.0)
-            asks.append((a, fin & (np.abs(lag[:, j]) >= least) & (e * lag[:, j] > 0), lag[:, j]))
-    asked = sum(int(m.sum()) for _, m, _ in asks)
-    largest = max((float(a[m].max()) for a, m, _ in asks if m.any()), default=0.0)
+    walks = [_walk(log, target) for log, target in pairs]
+    asks = [w for ws in walks for w in ws]
+    samples = sum(int(np.isfinite(a.effort).sum()) for a in asks)
+    asked = sum(int(a.asked.sum()) for a in asks)
+    largest = max((float(a.torque[a.asked].max()) for a in asks if a.asked.any()), default=0.0)
     band = BAND_SIGMAS * noise if math.isfinite(noise) else 0.02 * largest
     band = max(band, 0.01 * largest)
-    runs = [(a, lag, s, e) for a, m, lag in asks for s, e in _runs(m & (a >= largest - band))]
-    demand = [float(np.max(np.abs(lag[s:e]))) for _, lag, s, e in runs]
+    events, vals = _events(walks, largest - band)
+    demand = [dm for _, dm in events]
     spread = max(demand) / min(demand) if demand else 0.0
     # A limit is a ceiling: no two samples running anywhere go beyond it.
-    above = any(e - s >= 2 for a, _, _ in asks for s, e in _runs(a > largest + band))
+    above = any(e - s >= 2 for a in asks for s, e in _runs(a.torque > largest + band))
     level = se = None
-    vals = np.concatenate([a[s:e] for a, _, s, e in runs]) if runs else np.zeros(0)
-    if len(runs) >= EVENTS and spread >= SPREAD and not above:
+    if len(events) >= EVENTS and spread >= SPREAD and not above:
         level = float(np.median(vals))
         dev = float(np.std(vals, ddof=1))
         se = 1.2533 * max(dev, noise if math.isfinite(noise) else 0.0) / math.sqrt(vals.size)
@@ -207,7 +267,7 @@ def read_limit(
         asked=asked,
         noise=noise,
         largest=largest,
-        events=len(runs),
+        events=len(events),
         held=int(vals.size),
         spread=spread,
         level=level,
