@@ -165,7 +165,6 @@ class _Wheel:
     """One driven wheel of one log, as the reading walks it."""
 
     t: Array
-    dt: float
     effort: Array
     torque: Array
     """|effort|, 0 where not measured."""
@@ -179,7 +178,6 @@ def _walk(log: DriveLog, target: Array) -> list[_Wheel]:
     """``log``'s four driven wheels against their loops' ``target`` (N, 4)."""
     lag = target - wheel_rates(log)
     least = max(LAG, 2.0 * rate_step(log))
-    dt = float(np.median(np.diff(log.t))) if len(log.t) > 1 else 0.0
     out = []
     for j in range(4):
         e = log.effort[:, j]
@@ -187,7 +185,6 @@ def _walk(log: DriveLog, target: Array) -> list[_Wheel]:
         out.append(
             _Wheel(
                 t=log.t,
-                dt=dt,
                 effort=e,
                 torque=np.where(fin, np.abs(e), 0.0),
                 lag=lag[:, j],
