@@ -197,6 +197,6 @@ def effort_method(tolerance: float | None, read: bool) -> list[str]:
         "- Effort: where the logs report the motors' torque, the torque limit is where it held"
         f" while a wheel lagged its loop's target by {LAG} rad/s or more and the motor pushed"
         f" toward it: the same torque in {EVENTS} events or more (one manoeuvre's wheels one"
-        f" event) at demands {SPREAD:g} x apart, never exceeded; a change beyond the reported torque's {100 * tolerance:.0f} % scale"
-        " tolerance is named."
+        f" event) at demands {SPREAD:g} x apart, never exceeded; a change beyond the reported"
+        f" torque's {100 * tolerance:.0f} % scale tolerance is named."
     ]
