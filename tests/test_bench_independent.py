@@ -42,6 +42,19 @@ def test_the_plan_is_deterministic_and_its_seeds_are_its_own(b: ModuleType) -> N
     assert [b.tag(c) for c in planned[:5]] == [b.tag(c) for c in b.cases(True)]
 
 
+def test_a_plan_stopped_early_has_every_clean_pair_and_outside_case(b: ModuleType) -> None:
+    """Blocks stop at a registered time: the first 45 planned cases must complete the clean,
+    pair and outside lines, and hold every effect's singles at least twice."""
+    planned = b.planned(False, 52900)
+    head = planned[:45]
+    kinds = [c["kind"] for c in head]
+    assert (kinds.count("clean"), kinds.count("pair"), kinds.count("outside")) == (10, 6, 4)
+    singles = [next(iter(c["effects"])) for c in head if c["kind"] == "single"]
+    assert min(singles.count(e) for e in b.EFFECTS) >= 2
+    tail = [c["kind"] for c in planned[45:]]
+    assert set(tail) == {"single"} and len(tail) == 20
+
+
 def test_the_plan_has_every_kind_and_every_implemented_effect(b: ModuleType) -> None:
     cs = b.cases()
     kinds = [c["kind"] for c in cs]
