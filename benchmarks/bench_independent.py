@@ -250,8 +250,9 @@ def strong_pairs(
     each of ``effects`` in turn, seeds from ``seed0 + n``."""
     pool = list(STRONG) if effects is None else effects
     unknown = [e for e in pool if e not in STRONG]
-    if unknown or len(pool) < 2:
-        raise ValueError(f"--strong-from: need two or more of {', '.join(STRONG)}; got {pool}")
+    if unknown or len(pool) < (2 if n else 1):
+        need = "two or more" if n else "one or more"
+        raise ValueError(f"--strong-from: need {need} of {', '.join(STRONG)}; got {pool}")
     out = []
     for seed in range(seed0, seed0 + n):
         rng = np.random.default_rng([seed, 72800])
@@ -566,6 +567,7 @@ def run_case(
         "below_limit": sorted(set(below_limit(res)) | set(below_limit(followed or {}))),
         "rotor_withdrawn": [x.get("rotor_withdrawn") for x in (res, final)],
         "allowance_withdrawn": [x.get("allowance_withdrawn") for x in (res, final)],
+        "passed_over": [x.get("passed_over") for x in (res, final)],
         "one_wheel": [x.get("one_wheel") for x in (res, final)],
         "odometry": odometry(final),
         "effort_logged": effort,

@@ -95,6 +95,21 @@ def test_strong_pairs_draw_from_the_named_effects_then_singles_in_turn(b: Module
     assert todo[:4] == b.strong_pairs(72900, 4, timing)  # singles after, pairs unchanged
     with pytest.raises(ValueError, match="friction"):
         b.strong_pairs(72900, 1, ["command_lag", "friction"])
+    soils = b.strong_pairs(53000, 0, ["loose_soil"], 3)  # singles of one effect: no pairs
+    assert [(c["kind"], next(iter(c["effects"])), c["seed"]) for c in soils] == [
+        ("single", "loose_soil", s) for s in (53000, 53001, 53002)
+    ]
+    with pytest.raises(ValueError, match="two or more"):
+        b.strong_pairs(53000, 1, ["loose_soil"])
+
+
+
+def test_the_pairs_never_drawn_are_the_effects_diagnose_does_not_try_beside_soil(
+    b: ModuleType,
+) -> None:
+    from rover_env.calibration.candidates import REPLACED_BY_SOIL
+
+    assert b.INERT_ON_SOIL == REPLACED_BY_SOIL  # the tire's effects, in both generators
 
 
 def test_effort_cases_are_cuts_clean_builds_and_others_in_turn(b: ModuleType) -> None:

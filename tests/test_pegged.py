@@ -52,3 +52,40 @@ def test_a_pegged_fit_is_tried_after_the_fits_inside_their_ranges() -> None:
     assert naming_order(ranked, pegged_last=True) == [soil, rr]
     soil.significant = False  # alone, a pegged fit is still tried
     assert naming_order(ranked, pegged_last=True) == [rr]
+
+
+def test_a_pegged_leader_passed_over_is_recorded_and_reported() -> None:
+    # Spent case 52917 (block 52900, a soil of k_phi 5.2e5): the rolling resistance at
+    # c_rr 0.3 had training ΔBIC -79.3 against the soil's -61.8 and took the name.
+    from rover_env.calibration.diagnosis.select import passed_over
+    from rover_env.calibration.report_notes import passed_over_note
+
+    rr = _scored(_fit("rolling_resistance", 0.3), -79.3)
+    soil = _scored(_fit("loose_soil", 1.0 / 3.21), -61.8)
+    rec = passed_over([rr, soil], soil, pegged_last=True)
+    assert rec is not None
+    assert rec["effect"] == "rolling_resistance" and rec["named_first"] == "loose_soil"
+    assert rec["at_end"] == ["rolling_resistance.c_rr"]
+    note = passed_over_note(rec)
+    assert "rolling_resistance had the most evidence" in note and "loose_soil" in note
+    assert passed_over([rr, soil], rr, pegged_last=True) is None  # it was named after all
+    assert passed_over([rr, soil], soil, pegged_last=False) is None
+    inside = _scored(_fit("rolling_resistance", 0.2), -79.3)
+    assert passed_over([inside, soil], soil, pegged_last=True) is None  # not at its end
+
+
+def test_beside_a_loose_soil_winner_no_tire_effect_is_tried() -> None:
+    # Spent case 52917 with pegged_last: the soil named first, then a rolling resistance of
+    # 0.065 beside it, the soil's own resistance under the catalogue's constants.
+    from rover_env.calibration.candidates import REPLACED_BY_SOIL
+    from rover_env.calibration.diagnosis.select import partner_pool
+
+    cands = catalogue()
+    beside_soil = {c.name for c in partner_pool(cands, ["loose_soil"], soil_alone=True)}
+    assert not beside_soil & REPLACED_BY_SOIL
+    assert {"slope", "command_lag", "command_delay", "torque_limit"} <= beside_soil
+    assert "loose_soil" not in beside_soil
+    off = {c.name for c in partner_pool(cands, ["loose_soil"], soil_alone=False)}
+    assert "rolling_resistance" in off
+    beside_rr = {c.name for c in partner_pool(cands, ["rolling_resistance"], soil_alone=True)}
+    assert "loose_soil" in beside_rr and "friction" in beside_rr  # only a soil winner

@@ -88,7 +88,7 @@ def test_pose_minimum_beyond_the_softest_soil_stops_at_the_range() -> None:
 
 
 def test_a_minimum_at_the_softest_rung_is_no_reading_where_ends_are_refused() -> None:
-    """``end=False`` (``--pegged-last``): a best rung at the range's soft end reads nothing
+    """``end=False`` (``--soft-end-unread``): a best rung at the range's soft end reads nothing
     (three spent soil singles read at 0.05-0.15 x the truth there); inside, as before."""
     soil = _soil()
     assert st.pose_minimum(FakeEv(40.0), soil, {}, end=False) is None  # type: ignore[arg-type]
@@ -152,7 +152,7 @@ def test_diagnose_reads_a_named_soil_only_where_asked(rule: str | None) -> None:
         opts=SimpleNamespace(
             soil_from_straight=rule == "straight",
             soil_from_motion=rule == "motion",
-            pegged_last=False,
+            soft_end_unread=False,
             noise_draws=0,
             polish=0,
             name_beyond_allowance=False,

@@ -248,6 +248,17 @@ def with_torque_forms(c: Candidate) -> Candidate:
     return replace(c, forms=TORQUE_FORMS, form_at_off=True)
 
 
+REPLACED_BY_SOIL = frozenset(
+    {"rolling_resistance", "rolling_radius", "friction", "load_dependent_friction"}
+)
+"""The tire's effects, which loose soil replaces: where the ground is loose soil, the soil,
+not the tire, carries the wheel and resists its rolling (SPEC's rover, both generators). In
+the model the rolling resistance still acts there (hinge friction, set from the wheel's
+load), so beside a named soil it can only stand for the soil's own resistance beyond the
+catalogue's fixed soil constants: a form of the soil, not another effect. Forward selection
+does not try these beside a loose-soil winner (:attr:`.diagnosis.state.Options.soil_alone`)."""
+
+
 def catalogue(names: list[str] | None = None) -> list[Candidate]:
     """Candidates for all catalogue effects (or the named ones), in catalogue order."""
     out = []

@@ -163,8 +163,17 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "read a named soil's k_phi from the pose signals on the windows without a turn",
     ),
     (
+        "soil_alone",
+        "beside a loose-soil winner, try no effect of the tire the soil replaces",
+    ),
+    (
         "pegged_last",
-        "name a fit at its range's far end only after fits inside their ranges (off: unscored)",
+        "name a fit at its range's far end only after fits inside their ranges",
+    ),
+    (
+        "soft_end_unread",
+        "read no soil from straight driving whose best rung is the range's soft end"
+        " (off: study 64000)",
     ),
     ("screen", "screen each candidate on half the training windows before its full fit"),
     (

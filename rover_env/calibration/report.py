@@ -25,6 +25,7 @@ from rover_env.calibration.report_notes import (
     effort_method,
     one_wheel_note,
     p_text,
+    passed_over_note,
     phys_text,
     procedure_note,
     rotor_kept_note,
@@ -352,6 +353,8 @@ def _headline(
         L.append(("\n" if named else "") + rotor_note(rotor, demoted, lead))
     if allowed:
         L.append(("\n" if L else "") + allowance_note(allowed, bool(L)))
+    if result.get("passed_over"):
+        L.append(("\n" if L else "") + passed_over_note(result["passed_over"]))
     one = result.get("one_wheel")
     if one and one.get("withdrawn"):
         L.append(("\n" if L else "") + one_wheel_note(one, bool(L)))

@@ -86,6 +86,17 @@ def allowance_note(withdrawn: dict[str, Any], beside: bool) -> str:
     )
 
 
+def passed_over_note(rec: dict[str, Any]) -> str:
+    """Why the fit with the most evidence was not named first: it ended at its range's far
+    end (:func:`.diagnosis.select.passed_over`)."""
+    return (
+        f"{rec['effect']} had the most evidence but ended at its range's far end"
+        f" ({rec['value']}): the effect at its largest, the logs wanting more than it gives, not"
+        f" an estimate of it. {rec['named_first']}, fitted inside its range, was tried for the"
+        " name first."
+    )
+
+
 def procedure_note(differs: list[str]) -> str:
     """The clean-fit allowance table was measured under another procedure than this
     diagnosis ran (:func:`.diagnosis.procedure.differences`): its widenings and withdrawals

@@ -21,7 +21,12 @@ from typing import Any
 import numpy as np
 
 from rover_env.calibration import residuals as rs
-from rover_env.calibration.candidates import merge, separating_plan
+from rover_env.calibration.candidates import (
+    REPLACED_BY_SOIL,
+    Candidate,
+    merge,
+    separating_plan,
+)
 from rover_env.calibration.diagnosis.fit_stage import (
     bias_correct,
     detection_limit,
@@ -83,6 +88,33 @@ def name_winner(d: Diagnosis) -> None:
         d.say,
         detection_limits(d),
     )
+    d.passed_over = passed_over(d.ranked, d.winner, d.opts.pegged_last)
+    if d.passed_over is not None:
+        d.say(
+            f"{d.passed_over['effect']} ended at its range's far end"
+            f" ({', '.join(d.passed_over['at_end'])}) and led the evidence; tried after the fits"
+            f" inside their ranges: {d.passed_over['named_first']} named first"
+        )
+
+
+def passed_over(
+    ranked: list[Scored], winner: Scored | None, pegged_last: bool
+) -> dict[str, Any] | None:
+    """The record of a pegged fit (:func:`.judge.pegged`) that had the most evidence of the
+    significant candidates and was not the winner because ``pegged_last`` tried it after the
+    fits inside their ranges; None otherwise (nothing passed over, or the option is off)."""
+    sig = [s for s in ranked if s.significant or s is winner]
+    if not pegged_last or winner is None or not sig:
+        return None
+    lead = min(sig, key=all_windows_evidence)
+    if lead is winner or not pegged(lead.fit):
+        return None
+    return {
+        "effect": lead.fit.name,
+        "at_end": pegged(lead.fit),
+        "value": fmt_phys(lead.fit),
+        "named_first": winner.fit.name,
+    }
 
 
 def naming_order(ranked: list[Scored], pegged_last: bool) -> list[Scored]:
@@ -274,7 +306,13 @@ def forward_selection(d: Diagnosis) -> None:
         # alone, not that only one is there; the pair is named only if it beats the
         # winner alone by the same window test (stop 32: a foreign 7.3 deg slope tied
         # with a 0.44 s lag was never tried beside it).
-        others = [s for s in d.ranked if s is not winner and s.gain > 0.0][: opts.second]
+        names = [c.name for c in winner.fit.candidates]
+        allowed = {c.name for c in partner_pool(d.cands, names, opts.soil_alone)}
+        others = [
+            s
+            for s in d.ranked
+            if s is not winner and s.gain > 0.0 and {c.name for c in s.fit.candidates} <= allowed
+        ][: opts.second]
         d.tried = map_parallel(
             lambda i: fit_pair(d, others[i]),
             lambda s2: report_pair(d, s2),
@@ -350,7 +388,7 @@ def blind_partners(d: Diagnosis) -> list[Scored]:
     # fits the drives worse than nothing, shows here (issue 16, stop 35: rolling
     # resistance 0.052 + load-dependent friction 0.108, the latter alone p = 1; a
     # soil + 2.2 deg slope, the slope alone fitted at heading -4 deg, truth 131).
-    pool = [c for c in d.cands if c.name not in {w.name for w in w_cands}]
+    pool = partner_pool(d.cands, [w.name for w in w_cands], opts.soil_alone)
     # Stage two's fits weigh the training signals as stage one's did, with the winner as
     # the reference: each by its residual after the winner (or its floor). Weighed by
     # the residuals before it, the signals the winner fixed still set the scale, and
@@ -400,6 +438,15 @@ def blind_partners(d: Diagnosis) -> list[Scored]:
         s.significant = passes_window_test(s, opts) and not s.screened
         s.test = "windows" if s.significant else ""
     return others + shared_refits(d, shared)
+
+
+def partner_pool(cands: list[Candidate], winner: list[str], soil_alone: bool) -> list[Candidate]:
+    """The candidates forward selection tries beside the ``winner``'s effects: every other,
+    except (``soil_alone``) the tire's beside a lone loose soil (:data:`REPLACED_BY_SOIL`)."""
+    gone = set(winner)
+    if soil_alone and winner == ["loose_soil"]:
+        gone |= REPLACED_BY_SOIL
+    return [c for c in cands if c.name not in gone]
 
 
 def fit_pair(d: Diagnosis, s: Scored) -> Scored:
@@ -533,7 +580,7 @@ def read_soil(d: Diagnosis, s: Scored) -> None:
         return
     before, was = fmt_phys(s.fit), s.fit.physical()
     ev_s = d.ev if s.fit_scale is None else replace(d.ev, scale=s.fit_scale)
-    if opts.soil_from_straight and from_straight(ev_s, s.fit, not opts.pegged_last) is not None:
+    if opts.soil_from_straight and from_straight(ev_s, s.fit, not opts.soft_end_unread) is not None:
         rule = "straight"
         how = "straight driving (the pose signals' own minimum on the windows without a turn)"
     elif opts.soil_from_motion and from_motion(s.fit) is not None:

@@ -286,6 +286,14 @@ class Options:
     on 14 of 25. Off by default: on fresh study 61600 (registered) it put k_phi within 2 x
     on 12 of 19 soil singles, short of the registered 70 % (the fit over every signal: 12
     of 23 on study 60800), at wider intervals (median hi / lo 20 against 13)."""
+    soil_alone: bool = True
+    """Beside a loose-soil winner, forward selection tries no effect the soil replaces
+    (:data:`~rover_env.calibration.candidates.REPLACED_BY_SOIL`: the tire's). Why (stop 116,
+    exploratory, spent case 52917, a dry-sand soil of k_phi 5.2e5): with :attr:`pegged_last`
+    the soil was named first (k_phi 3.6e5) and a rolling resistance of 0.065 beside it (held
+    out 97.9 % better against the soil's 89.3 %), the soil's own resistance under the
+    catalogue's regolith constants; the independent generator's tire effects do not act on
+    soil. Scored on fresh block 53000 (docs/calibration/block53000)."""
     soil_from_straight: bool = True
     """Read a named soil's k_phi from straight driving: the pose signals' own minimum over
     the windows without a turn (:func:`.straight.from_straight`). Why (stop 83): in a turn
@@ -294,16 +302,21 @@ class Options:
     pose on straight windows on 22 of 27 (and on 13 of 18 of spent study 61600's, where the
     pose over every window had 12 of 18). On fresh study 62400 (registered): 13 of 15 soil
     singles within 2 x, every named one (docs/calibration/study62400)."""
-    pegged_last: bool = False
+    pegged_last: bool = True
     """Name a candidate whose fit ends at its range's far end (:func:`.judge.pegged`: the
     effect at its largest, the logs wanting more) only after the significant candidates
-    fitted inside their ranges, and read no soil from straight driving whose best rung is
-    the range's soft end (:func:`.straight.pose_minimum`). Why (stop 84, exploratory): a
-    rolling resistance at c_rr 0.3, its range's top, came first on exactly the 4 spent soil
-    singles that lost the soil's name; re-run with it, 3 of them named the soil, their
-    straight reads at the range's soft end (0.05-0.15 x the truth). Off: on fresh study
-    64000 (registered, with the dry sand's soil forms) it refused the straight read of 3
-    named soils, whose fits over every signal stood at 6.56, 0.65 and 4.10 x the truth."""
+    fitted inside their ranges; never dropped. Why (stop 84, exploratory): a rolling
+    resistance at c_rr 0.3, its range's top, came first on exactly the 4 spent soil singles
+    that lost the soil's name; re-run with it, 3 of them named the soil. Study 64000 scored
+    it only coupled with :attr:`soft_end_unread`, which cost 3 straight reads. Alone, on by
+    stop 116: every named fit at a range's end of blocks 50300-52900 (about 1,600 cases)
+    was a rolling resistance at 0.3 on a soil single (5, all wrong) or a torque cut at
+    -0.8 (1, truth -0.76); scored on fresh block 53000 (docs/calibration/block53000)."""
+    soft_end_unread: bool = False
+    """Read no soil from straight driving whose best rung is the range's soft end
+    (:func:`.straight.pose_minimum`: the pose's minimum may lie beyond the range). Off: on
+    fresh study 64000 (registered, with :attr:`pegged_last`) it refused the straight read
+    of 3 named soils, whose fits over every signal stood at 6.56, 0.65 and 4.10 x the truth."""
     odometry: OdometryBand | None = ODOMETRY_BAND
     """Name a rolling radius from dead reckoning against the pose (:mod:`.odometry`) beyond
     this band of what clean drives leave (None: off). Why (stop 75): the replay windows named
@@ -660,6 +673,10 @@ class Diagnosis:
     allowance_withdrawn: dict[str, Any] | None = None
     """The effects whose allowance-widened interval reaches "off", left unnamed
     (:func:`.select.withdraw_within_allowance`)."""
+    passed_over: dict[str, Any] | None = None
+    """A fit at its range's far end that led the naming order and was tried after the fits
+    inside their ranges (:attr:`.Options.pegged_last`): its effect, where it ended and what
+    was named first (:func:`.select.name_winner`)."""
     untested: list[dict[str, Any]] = field(default_factory=list)
     """Drives proposed for what the logs never tested (:func:`.evidence_stage.untested_limit`)."""
     rotor_profile: dict[str, Any] = field(default_factory=dict)

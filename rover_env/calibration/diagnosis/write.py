@@ -125,6 +125,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "rotor_profile": d.rotor_profile,
         "rotor_withdrawn": d.rotor_withdrawn,
         "allowance_withdrawn": d.allowance_withdrawn,
+        "passed_over": d.passed_over,
         "allowance_differs": d.allowance_differs,
         "one_wheel": d.one_wheel,
         "partner_limits": d.partner_limits,
