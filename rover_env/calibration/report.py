@@ -228,6 +228,7 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
             if opts.name_above_limit and opts.partner_limit
             else "."
         )
+        + _order_clauses(opts)
         + " Named with confidence only if the chosen effects make no held-out signal they leave"
         " above its floor worse (per-window mean squares, one-sided Wilcoxon at p <"
         f" {opts.alpha:g}) by at least {opts.trade_share:g} of what the other signals gain"
@@ -255,6 +256,22 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
         f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay,"
         f" {result['seconds']:.0f} s in all{_stage_text(result.get('stage_seconds') or [])}.",
     ]
+
+
+def _order_clauses(opts: Options) -> str:
+    """What the naming order and forward selection leave out or put last."""
+    return (
+        " Beside a loose soil the tire's effects (rolling resistance, rolling radius,"
+        " friction, load-dependent friction) are not tried: on loose soil the soil, not"
+        " the tire, carries and resists the wheel."
+        if opts.soil_alone
+        else ""
+    ) + (
+        " A fit that ends at its range's far end (the effect at its largest) is tried for"
+        " the name after the significant fits inside their ranges."
+        if opts.pegged_last
+        else ""
+    )
 
 
 def _weak_beside_line(weak: dict[str, Any] | None) -> list[str]:
