@@ -103,7 +103,6 @@ def test_strong_pairs_draw_from_the_named_effects_then_singles_in_turn(b: Module
         b.strong_pairs(53000, 1, ["loose_soil"])
 
 
-
 def test_the_pairs_never_drawn_are_the_effects_diagnose_does_not_try_beside_soil(
     b: ModuleType,
 ) -> None:

@@ -89,3 +89,21 @@ def test_beside_a_loose_soil_winner_no_tire_effect_is_tried() -> None:
     assert "rolling_resistance" in off
     beside_rr = {c.name for c in partner_pool(cands, ["rolling_resistance"], soil_alone=True)}
     assert "loose_soil" in beside_rr and "friction" in beside_rr  # only a soil winner
+
+
+def test_the_report_headline_says_a_pegged_leader_was_passed_over() -> None:
+    from rover_env.calibration.report import _headline
+
+    rec = {
+        "effect": "rolling_resistance",
+        "at_end": ["rolling_resistance.c_rr"],
+        "value": "c_rr > 0.294 (95 %; fitted 0.3)",
+        "named_first": "loose_soil",
+    }
+    result = {"named": [], "unexplained": [], "passed_over": rec}
+    text = "\n".join(_headline(result, [], None, None))
+    assert "rolling_resistance had the most evidence but ended at its range's far end" in text
+    assert "loose_soil, fitted inside its range, was tried for the name first" in text
+    assert "had the most evidence" not in "\n".join(
+        _headline({**result, "passed_over": None}, [], None, None)
+    )
