@@ -293,7 +293,8 @@ class Options:
     the soil was named first (k_phi 3.6e5) and a rolling resistance of 0.065 beside it (held
     out 97.9 % better against the soil's 89.3 %), the soil's own resistance under the
     catalogue's regolith constants; the independent generator's tire effects do not act on
-    soil. Scored on fresh block 53000 (docs/calibration/block53000)."""
+    soil. Fresh block 53000 (registered, with :attr:`pegged_last`): 0 of 15 soil singles
+    named a rolling resistance (docs/calibration/block53000)."""
     soil_from_straight: bool = True
     """Read a named soil's k_phi from straight driving: the pose signals' own minimum over
     the windows without a turn (:func:`.straight.from_straight`). Why (stop 83): in a turn
@@ -311,7 +312,8 @@ class Options:
     it only coupled with :attr:`soft_end_unread`, which cost 3 straight reads. Alone, on by
     stop 116: every named fit at a range's end of blocks 50300-52900 (about 1,600 cases)
     was a rolling resistance at 0.3 on a soil single (5, all wrong) or a torque cut at
-    -0.8 (1, truth -0.76); scored on fresh block 53000 (docs/calibration/block53000)."""
+    -0.8 (1, truth -0.76). Fresh block 53000 (registered): no soil single of 15 named a
+    rolling resistance, the soil named on 14 (docs/calibration/block53000)."""
     soft_end_unread: bool = False
     """Read no soil from straight driving whose best rung is the range's soft end
     (:func:`.straight.pose_minimum`: the pose's minimum may lie beyond the range). Off: on
