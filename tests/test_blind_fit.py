@@ -301,8 +301,9 @@ def test_every_switch_defaults_to_its_option_and_turns_off() -> None:
     base = ap.parse_args(["diagnose", "a.csv", "--out", "o"])
     # off by default: the joint loop (stop 68); forms adopted in at most 1 of 114 diagnoses
     # (stop 69); the soil read from the motion, short of its registered line (stop 82); no
-    # straight read at the soft end, which study 64000 did not bear out (stop 85); the next candidate after
-    # a withdrawn name, by block 52400's registered decision (stop 88); a partner's limit
+    # straight read at the soft end, which study 64000 did not bear out (stop 85); the next
+    # candidate after a withdrawn name, by block 52400's registered decision (stop 88); a
+    # partner's limit
     # beside the winner, by study 71000's (stop 90); the forms beside a rival, by study
     # 71600's (stop 97); the interleaved split and the torque limit's forms, new in stop 110
     off = {

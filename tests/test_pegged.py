@@ -107,3 +107,13 @@ def test_the_report_headline_says_a_pegged_leader_was_passed_over() -> None:
     assert "had the most evidence" not in "\n".join(
         _headline({**result, "passed_over": None}, [], None, None)
     )
+
+
+def test_the_method_names_the_effects_left_out_beside_soil_only_when_they_are() -> None:
+    from rover_env.calibration.candidates import REPLACED_BY_SOIL
+    from rover_env.calibration.diagnosis.state import Options
+    from rover_env.calibration.report import _order_clauses
+
+    text = _order_clauses(Options())
+    assert all(n in text for n in REPLACED_BY_SOIL) and "range's far end" in text
+    assert _order_clauses(Options(soil_alone=False, pegged_last=False)) == ""

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from rover_env.calibration.candidates import REPLACED_BY_SOIL
 from rover_env.calibration.diagnosis.judge import form_mismatch
 from rover_env.calibration.diagnosis.rotor import rotor_text
 from rover_env.calibration.diagnosis.state import (
@@ -260,10 +261,10 @@ def _method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str
 
 def _order_clauses(opts: Options) -> str:
     """What the naming order and forward selection leave out or put last."""
+    tire = ", ".join(sorted(REPLACED_BY_SOIL))
     return (
-        " Beside a loose soil the tire's effects (rolling resistance, rolling radius,"
-        " friction, load-dependent friction) are not tried: on loose soil the soil, not"
-        " the tire, carries and resists the wheel."
+        f" Beside a loose soil the tire's effects ({tire}) are not tried: on loose soil the"
+        " soil, not the tire, carries and resists the wheel."
         if opts.soil_alone
         else ""
     ) + (

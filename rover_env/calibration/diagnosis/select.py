@@ -107,11 +107,12 @@ def passed_over(
     if not pegged_last or winner is None or not sig:
         return None
     lead = min(sig, key=all_windows_evidence)
-    if lead is winner or not pegged(lead.fit):
+    at_end = pegged(lead.fit)
+    if lead is winner or not at_end:
         return None
     return {
         "effect": lead.fit.name,
-        "at_end": pegged(lead.fit),
+        "at_end": at_end,
         "value": fmt_phys(lead.fit),
         "named_first": winner.fit.name,
     }
