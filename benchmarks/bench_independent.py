@@ -446,6 +446,11 @@ def fits(final: dict[str, Any], truth: Any) -> dict[str, dict[str, Any]]:
                     row["side"] = (f.get("sides") or {}).get(name, {}).get(param, "")
                     read = f.get("read_from") or {}
                     row["read_from"] = read.get("rule")  # a soil read off the fit (None: the fit)
+                    if read:  # the fit over every signal it replaced; each group's reading
+                        moved = read.get("replaced")
+                        row["replaced"] = moved[name][param][0] if moved else None
+                        row["read_group"] = read.get("group")
+                        row["reads"] = read.get("reads")
                     if name == "slope" and "heading_deg" in f["params"][name]:
                         row["heading"] = list(f["params"][name]["heading_deg"])
                         row["truth_heading"] = params.get("heading_deg", 0.0)

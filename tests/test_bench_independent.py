@@ -649,12 +649,22 @@ def test_a_missed_strong_single_is_given_its_first_reason() -> None:
 
 
 def test_a_soil_row_says_where_its_k_phi_was_read(b: ModuleType) -> None:
-    """The row's fit carries the diagnosis's ``read_from`` rule (None: the fit itself)."""
+    """The row's fit carries the diagnosis's ``read_from`` rule (None: the fit itself), the
+    value it replaced and, from straight driving, the group read and each group's reading."""
     soil = {"params": {"loose_soil": {"k_phi": [1e6, 5e5, 2e6]}}, "sides": {}}
-    for read, want in (({"rule": "straight", "replaced": {}}, "straight"), (None, None)):
-        final = {"final": {"loose_soil": {**soil, "read_from": read}}, "fits": {}}
+    read = {
+        "rule": "straight",
+        "replaced": {"loose_soil": {"k_phi": [3e6, 1e6, 9e6]}},
+        "group": "joints",
+        "reads": {"joints": 1e6, "pose": 7e6},
+    }
+    for r, want in ((read, "straight"), (None, None)):
+        final = {"final": {"loose_soil": {**soil, "read_from": r}}, "fits": {}}
         row = b.fits(final, {"loose_soil": {"k_phi": 8.14e5}})["loose_soil"]
         assert row["read_from"] == want and row["value"] == 1e6
+        assert row.get("replaced") == (3e6 if r else None)
+        assert row.get("read_group") == (r and "joints")
+        assert row.get("reads") == (r and {"joints": 1e6, "pose": 7e6})
 
 
 def test_the_stage_line_sums_each_case_s_passes_and_counts_the_reruns() -> None:

@@ -160,7 +160,11 @@ SWITCHES: tuple[tuple[str, str], ...] = (
     ),
     (
         "soil_from_straight",
-        "read a named soil's k_phi from the pose signals on the windows without a turn",
+        "read a named soil's k_phi from the windows without a turn",
+    ),
+    (
+        "soil_from_joints",
+        "the straight read takes the joint signals' minimum (the wheels' sinkage), not the pose's",
     ),
     (
         "soil_alone",

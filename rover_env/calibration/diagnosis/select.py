@@ -53,12 +53,12 @@ from rover_env.calibration.diagnosis.judge import (
     traded_signals,
     unexplained,
 )
-from rover_env.calibration.diagnosis.motion import from_motion
+from rover_env.calibration.diagnosis.motion import MOTION_GROUP, from_motion
 from rover_env.calibration.diagnosis.parallel import map_parallel
 from rover_env.calibration.diagnosis.rotor import profile_rotor, rotor_test
 from rover_env.calibration.diagnosis.shared import shared_partners, shared_refits
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
-from rover_env.calibration.diagnosis.straight import from_straight
+from rover_env.calibration.diagnosis.straight import SINKAGE_GROUP, from_straight
 from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
 from rover_env.calibration.fit import Evaluator, carry_form_pad, fit, stack_fits, widen_by_groups
 from rover_env.calibration.noise_interval import noise_se, widen_by_noise
@@ -575,24 +575,43 @@ def finish_chosen(d: Diagnosis) -> None:
 
 def read_soil(d: Diagnosis, s: Scored) -> None:
     """A named soil's k_phi read from straight driving or the rover's motion, where the
-    options ask (:mod:`.straight`, :mod:`.motion`); ``s.read_from`` records what it replaced."""
+    options ask (:mod:`.straight`, :mod:`.motion`); ``s.read_from`` records what it replaced
+    (and, read from straight driving, each signal group's reading there)."""
     opts = d.opts
     if not (opts.soil_from_straight or opts.soil_from_motion):
         return
     before, was = fmt_phys(s.fit), s.fit.physical()
     ev_s = d.ev if s.fit_scale is None else replace(d.ev, scale=s.fit_scale)
-    if opts.soil_from_straight and from_straight(ev_s, s.fit, not opts.soft_end_unread) is not None:
+    group = SINKAGE_GROUP if opts.soil_from_joints else MOTION_GROUP
+    read = (
+        from_straight(ev_s, s.fit, not opts.soft_end_unread, group)
+        if opts.soil_from_straight
+        else None
+    )
+    reads: dict[str, object] = {}
+    if read is not None:  # every group's reading, moved or not
+        c = s.fit.candidates[0]
+        got = {g: None if u is None else _shown(c, u) for g, u in read.reads.items()}
+        reads = {"group": read.group, "reads": got}
+    if read is not None and read.replaced is not None:
         rule = "straight"
-        how = "straight driving (the pose signals' own minimum on the windows without a turn)"
+        how = f"straight driving (the {read.group} signals' own minimum on the windows without a turn)"
     elif opts.soil_from_motion and from_motion(s.fit) is not None:
         rule, how = "motion", "the rover's motion (the pose group's own minimum)"
     else:
+        s.read_from = {"rule": None, **reads} if reads else None
         return
     s.read_from = {
         "rule": rule,
         "replaced": {e: {k: list(v) for k, v in p.items()} for e, p in was.items()},
+        **reads,
     }
     d.say(f"{s.fit.name}: read from {how}: {fmt_phys(s.fit)} (over every signal: {before})")
+
+
+def _shown(c: Candidate, x: float) -> float:
+    """``c``'s one parameter at ``x`` in its effect's terms (the soil's k_phi for 1 / k_phi)."""
+    return x if c.shown is None else c.shown(x, x, x, "")[1]
 
 
 def widen_by_sensor_noise(d: Diagnosis) -> None:

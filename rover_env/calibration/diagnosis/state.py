@@ -303,6 +303,15 @@ class Options:
     pose on straight windows on 22 of 27 (and on 13 of 18 of spent study 61600's, where the
     pose over every window had 12 of 18). On fresh study 62400 (registered): 13 of 15 soil
     singles within 2 x, every named one (docs/calibration/study62400)."""
+    soil_from_joints: bool = True
+    """The straight read (:attr:`soil_from_straight`) takes the joint signals' minimum, not
+    the pose's (:data:`.straight.SINKAGE_GROUP`): the suspension's angles are set by the
+    wheels' sinkage, which k_phi governs, while the pose reads the travel, how much of the
+    wheels' turning the soil's shear turns into motion, through shear constants the catalogue
+    fixes at mars-sand's. Both groups' readings are recorded (``read_from``). Why (stop 117,
+    exploratory, spent soil singles re-diagnosed with a grid of k_phi on the straight
+    windows): the joints' minimum within 2 x of the truth on 17 of 17 (0.51-1.81 x), the
+    pose's on 11, the fit over every signal on 10 (docs/calibration/block53100/prereg.md)."""
     pegged_last: bool = True
     """Name a candidate whose fit ends at its range's far end (:func:`.judge.pegged`: the
     effect at its largest, the logs wanting more) only after the significant candidates
@@ -316,7 +325,7 @@ class Options:
     rolling resistance, the soil named on 14 (docs/calibration/block53000)."""
     soft_end_unread: bool = False
     """Read no soil from straight driving whose best rung is the range's soft end
-    (:func:`.straight.pose_minimum`: the pose's minimum may lie beyond the range). Off: on
+    (:func:`.straight.group_minima`: the minimum may lie beyond the range). Off: on
     fresh study 64000 (registered, with :attr:`pegged_last`) it refused the straight read
     of 3 named soils, whose fits over every signal stood at 6.56, 0.65 and 4.10 x the truth."""
     odometry: OdometryBand | None = ODOMETRY_BAND
