@@ -665,6 +665,12 @@ def test_a_soil_row_says_where_its_k_phi_was_read(b: ModuleType) -> None:
         assert row.get("replaced") == (3e6 if r else None)
         assert row.get("read_group") == (r and "joints")
         assert row.get("reads") == (r and {"joints": 1e6, "pose": 7e6})
+    # read, not moved (the joints had no reading): the rule None, the readings kept
+    unmoved = {"rule": None, "group": "joints", "reads": {"joints": None, "pose": 7e6}}
+    final = {"final": {"loose_soil": {**soil, "read_from": unmoved}}, "fits": {}}
+    row = b.fits(final, {"loose_soil": {"k_phi": 8.14e5}})["loose_soil"]
+    assert row["read_from"] is None and row["replaced"] is None
+    assert row["reads"] == {"joints": None, "pose": 7e6} and row["value"] == 1e6
 
 
 def test_the_stage_line_sums_each_case_s_passes_and_counts_the_reruns() -> None:
