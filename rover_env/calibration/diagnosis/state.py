@@ -311,7 +311,9 @@ class Options:
     fixes at mars-sand's. Both groups' readings are recorded (``read_from``). Why (stop 117,
     exploratory, spent soil singles re-diagnosed with a grid of k_phi on the straight
     windows): the joints' minimum within 2 x of the truth on 17 of 17 (0.51-1.81 x), the
-    pose's on 11, the fit over every signal on 10 (docs/calibration/block53100/prereg.md)."""
+    pose's on 11, the fit over every signal on 10 (docs/calibration/block53100/prereg.md).
+    Fresh block 53100 (registered): 15 of 15 named soils within 2 x, the pose's reading on
+    the same cases 14 of 15 (docs/calibration/block53100)."""
     pegged_last: bool = True
     """Name a candidate whose fit ends at its range's far end (:func:`.judge.pegged`: the
     effect at its largest, the logs wanting more) only after the significant candidates
