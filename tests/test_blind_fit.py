@@ -19,8 +19,9 @@ from rover_env.calibration.diagnosis.judge import (
     interval_text,
     strict_json,
 )
-from rover_env.calibration.diagnosis.select import all_windows_evidence, first_confident, runner_up
+from rover_env.calibration.diagnosis.select import all_windows_evidence, first_confident
 from rover_env.calibration.diagnosis.state import Scored
+from rover_env.calibration.diagnosis.tie import runner_up
 from rover_env.calibration.fit import Evaluator, Fit, fit, stack_fits
 from rover_env.calibration.replay import ReplaySettings, make_windows, prepare
 from rover_env.config import RoverConfig

@@ -317,6 +317,11 @@ SEPARATING_PLANS: dict[frozenset[str], tuple[str, str]] = {
         "hard accelerations in turns move load between wheels: only load-dependent friction"
         " responds to that",
     ),
+    frozenset({"slope", "loose_soil"}): (
+        "reversals",
+        "drive the same line forwards and backwards and turn through 180°: a slope helps one"
+        " way and hinders the other, loose soil's compaction resists both",
+    ),
     frozenset({"rolling_resistance", "loose_soil"}): (
         "turn-accel",
         "hard accelerations and turns: on loose soil the slip that traction needs digs the"

@@ -167,6 +167,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "the straight read takes the joint signals' minimum (the wheels' sinkage), not the pose's",
     ),
     (
+        "reversal_tie",
+        "a slope against a significant drag is a tie while the held-out drive never reverses",
+    ),
+    (
         "soil_alone",
         "beside a loose-soil winner, try no effect of the tire the soil replaces",
     ),

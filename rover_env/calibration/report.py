@@ -579,11 +579,14 @@ def tie_text(tie: dict[str, Any]) -> str:
     """The report's paragraph on a tie and the drive that would separate it."""
     a, b = tie["effects"]
     seed, duration = _seed_duration(tie)
+    why = tie.get("unseparated")
+    shown = "fits better" if why else "is not shown better"
+    but = f": {why}" if why else ". The data cannot separate them"
     return (
-        f"**Tie:** {a} is not shown better than {b} on the held-out drive (held-out reduction "
+        f"**Tie:** {a} {shown} than {b} on the held-out drive (held-out reduction "
         f"{100 * tie['held_gain'][0]:.0f} % vs {100 * tie['held_gain'][1]:.0f} %; one-sided"
-        f" Wilcoxon p that {a} is better: {p_text(tie['p_winner_better'])}). The data cannot separate"
-        f" them. Separating drive: plan `{tie['plan']}` (seed {seed}, {duration:g} s):"
+        f" Wilcoxon p that {a} is better: {p_text(tie['p_winner_better'])}){but}."
+        f" Separating drive: plan `{tie['plan']}` (seed {seed}, {duration:g} s):"
         f" {tie['why']}. " + drive_it_text([(tie["plan"], seed, duration)])
     )
 

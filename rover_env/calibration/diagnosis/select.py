@@ -25,7 +25,6 @@ from rover_env.calibration.candidates import (
     REPLACED_BY_SOIL,
     Candidate,
     merge,
-    separating_plan,
 )
 from rover_env.calibration.diagnosis.fit_stage import (
     bias_correct,
@@ -43,7 +42,6 @@ from rover_env.calibration.diagnosis.judge import (
     floor_test,
     fmt_phys,
     interval_reaches_off,
-    p_improved,
     passes_window_test,
     pegged,
     plugin_capable,
@@ -59,7 +57,7 @@ from rover_env.calibration.diagnosis.rotor import profile_rotor, rotor_test
 from rover_env.calibration.diagnosis.shared import shared_partners, shared_refits
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
 from rover_env.calibration.diagnosis.straight import SINKAGE_GROUP, from_straight
-from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
+from rover_env.calibration.diagnosis.tie import tie
 from rover_env.calibration.fit import Evaluator, carry_form_pad, fit, stack_fits, widen_by_groups
 from rover_env.calibration.noise_interval import noise_se, widen_by_noise
 
@@ -255,30 +253,6 @@ def name_next(d: Diagnosis) -> None:
         w["params"] = {**w["params"], **{n: fmt_phys(s.fit, {n}) for n in sorted(off)}}
         d.demoted, d.chosen = [*d.demoted, s], []
     d.final_floor = d.noise
-
-
-def tie(d: Diagnosis) -> dict[str, Any] | None:
-    """The tie between the winner and its runner-up (:func:`runner_up`) if the held-out
-    windows cannot tell them apart at ``tie_alpha``, with the drive that separates them."""
-    winner = d.winner
-    ru = runner_up(winner, d.ranked) if winner is not None else None
-    if winner is None or ru is None:
-        return None
-    p_diff = p_improved(ru.held_losses, winner.held_losses)
-    if p_diff <= d.opts.tie_alpha:
-        return None
-    plan, why = separating_plan(winner.fit.name, ru.fit.name)
-    d.say(f"tie: {winner.fit.name} vs {ru.fit.name} (p={p_diff:.2g}); separate with plan {plan!r}")
-    return {
-        "effects": [winner.fit.name, ru.fit.name],
-        "p_winner_better": p_diff,
-        "held_gain": [winner.gain, ru.gain],
-        "plan": plan,
-        "why": why,
-        # The schedule the rover must drive (rover-env drive-plan), as for evidence.
-        "seed": PLAN_SEED,
-        "duration": PLAN_DURATION,
-    }
 
 
 def forward_selection(d: Diagnosis) -> None:
@@ -715,26 +689,6 @@ def withdrawn_test(off: set[str]) -> str:
     """Why effects ``off`` (:func:`effects_off`) are not named."""
     what = ", ".join(sorted(off))
     return f"not named: the interval of {what} with the clean-fit allowance reaches off"
-
-
-def runner_up(winner: Scored, ranked: list[Scored]) -> Scored | None:
-    """The candidate the winner is tested against for a tie.
-
-    The best other significant candidate, unless a candidate explains the held-out drive
-    better than the winner and pays for itself on training (BIC) without passing the
-    window test (few windows excite it): naming the winner over a rival that explains more
-    would be a choice the data did not make, so that rival is the runner-up and a tie asks
-    for the separating drive. (Stop 30: a 42 ms lag of the second generator was named an
-    18 ms delay, held-out 47 % better at p 0.008, against the lag's 78 % at p 0.019.)
-    """
-    others = [s for s in ranked if s is not winner]
-    sig = [s for s in others if s.significant]
-    rivals = [s for s in others if not s.significant and s.gain > winner.gain and s.d_bic < 0]
-    best = max(sig, key=lambda s: s.gain) if sig else None
-    rival = max(rivals, key=lambda s: s.gain) if rivals else None
-    if rival is not None and (best is None or rival.gain > best.gain):
-        return rival
-    return best
 
 
 def first_confident(

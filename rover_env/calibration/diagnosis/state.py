@@ -101,6 +101,13 @@ class Options:
     min_gain: float = 0.10
     """Smallest relative held-out improvement that can name an effect."""
     tie_alpha: float = 0.05
+    reversal_tie: bool = True
+    """A named slope against a significant drag (rolling resistance, loose soil), or the
+    reverse, is a tie whatever the held-out p while no held-out window drives backwards, the
+    only regime where one helps and the other hinders (:mod:`.tie`). Why (stop 118,
+    exploratory): spent soil singles 53013 and 53104 were named a slope of 11-12 degrees
+    with no tie and no drive proposed; two like them that tied (53011, 53109) were named the
+    soil after their reversing drive."""
     trade_share: float = 0.1
     """A trade keeps an effect from being named only if the traded signals lost at least
     this share of what the other signals gained (:func:`.judge.trade_share`, each signal in
