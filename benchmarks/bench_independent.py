@@ -543,6 +543,9 @@ def run_case(
         "named": final["named"],
         "first_named": res["named"],
         "tie": tie["effects"] if tie else None,
+        # Declared by Options.reversal_tie (the held-out drive never reversed), not the p.
+        "tie_unseparated": bool(tie and tie.get("unseparated")),
+        "final_tie": (followed.get("tie") or {}).get("effects") if followed else None,
         "followup": [
             {"plan": p.plan, "seed": p.seed, "duration": p.duration, "for": sorted(p.effects)}
             for p in props

@@ -11,6 +11,7 @@ from rover_env.calibration.candidates import catalogue, separating_plan
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.diagnosis.tie import (
     UNSEPARATED,
+    reopen,
     reverses,
     tie,
     unseparated_rival,
@@ -94,3 +95,23 @@ def test_a_tie_the_window_test_declares_is_not_marked_unseparated() -> None:
     t = tie(_diagnosis(slope, [slope, rr], rev=True))
     assert t is not None and t["unseparated"] is None
     assert "is not shown better" in tie_text(t)
+
+
+def test_a_tie_resolved_by_naming_both_reopens_when_one_is_withdrawn() -> None:
+    # Spent case 53013: slope and rolling resistance were named together, the resistance
+    # then withdrawn by its clean-fit allowance; the slope alone stood with no drive asked.
+    slope = _scored("slope", [10.7, -11.0], 0.885, 0.1)
+    (c_rr,) = catalogue(["rolling_resistance"])
+    pair = _scored("slope", [10.7, -11.0], 0.90, 0.1)
+    pair.fit.candidates.append(c_rr)
+    t = {"effects": ["slope", "rolling_resistance"], "plan": "reversals"}
+    said: list[str] = []
+    d = SimpleNamespace(tie=None, tie_resolved=t, chosen=[pair], say=said.append)
+    reopen(cast(Diagnosis, d))
+    assert d.tie is None and not said  # both still named: resolved
+    d.chosen = [slope]
+    reopen(cast(Diagnosis, d))
+    assert d.tie is t and "reopened" in said[0]
+    d.tie, d.chosen = None, []  # nothing named at all: the drive is still the evidence
+    reopen(cast(Diagnosis, d))
+    assert d.tie is t

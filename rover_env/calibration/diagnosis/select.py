@@ -57,7 +57,7 @@ from rover_env.calibration.diagnosis.rotor import profile_rotor, rotor_test
 from rover_env.calibration.diagnosis.shared import shared_partners, shared_refits
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
 from rover_env.calibration.diagnosis.straight import SINKAGE_GROUP, from_straight
-from rover_env.calibration.diagnosis.tie import tie
+from rover_env.calibration.diagnosis.tie import reopen, tie
 from rover_env.calibration.fit import Evaluator, carry_form_pad, fit, stack_fits, widen_by_groups
 from rover_env.calibration.noise_interval import noise_se, widen_by_noise
 
@@ -152,6 +152,7 @@ def select(d: Diagnosis) -> None:
     rotor_check(d)
     finish_intervals(d)
     name_next(d)
+    reopen(d)
 
 
 def rotor_check(d: Diagnosis) -> None:
@@ -312,7 +313,7 @@ def forward_selection(d: Diagnosis) -> None:
         d.chosen = [second]
         if d.tie is not None and set(d.tie["effects"]) <= {c.name for c in second.fit.candidates}:
             d.say(f"tie resolved: {' and '.join(d.tie['effects'])} are both named")
-            d.tie = None
+            d.tie_resolved, d.tie = d.tie, None
 
 
 def partner_limits(d: Diagnosis, pairs: list[Scored]) -> dict[str, dict[str, float]] | None:

@@ -658,6 +658,9 @@ class Diagnosis:
     # select (:mod:`.select`)
     winner: Scored | None = None
     tie: dict[str, Any] | None = None
+    tie_resolved: dict[str, Any] | None = None
+    """A tie forward selection resolved by naming both its effects, reopened if one of them
+    is withdrawn after (:func:`.tie.reopen`)."""
     left: list[str] = field(default_factory=list)
     """Held-out signals the winner leaves above its floor."""
     w_floor: dict[str, float] = field(default_factory=dict)

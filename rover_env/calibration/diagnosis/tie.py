@@ -113,3 +113,17 @@ def tie(d: Diagnosis) -> dict[str, Any] | None:
         "seed": PLAN_SEED,
         "duration": PLAN_DURATION,
     }
+
+
+def reopen(d: Diagnosis) -> None:
+    """The tie forward selection resolved by naming both its effects, back where the final
+    choice no longer names both (the clean-fit allowance withdrew one): its drive is still
+    the evidence to get. Why (stop 118, exploratory, spent soil single 53013): a slope tied
+    with a rolling resistance; the two were named together and the resistance was then
+    withdrawn, leaving the slope named with no tie and no drive proposed."""
+    t = d.tie_resolved
+    named = {c.name for s in d.chosen for c in s.fit.candidates}
+    if t is None or d.tie is not None or set(t["effects"]) <= named:
+        return
+    d.tie = t
+    d.say(f"tie reopened: {' and '.join(t['effects'])} are no longer both named")
