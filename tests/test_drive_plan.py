@@ -190,7 +190,7 @@ def test_evidence_and_tie_record_the_seed_and_duration(monkeypatch: pytest.Monke
     monkeypatch.setattr(evidence, "replay_separation", lambda *a, **k: ({}, {}))
     p = evidence.propose(CFG, "torque_limit", {}, {}, {}, seed=3, duration=7.0)
     assert (p["plan"], p["seed"], p["duration"]) == ("accel", 3, 7.0)
-    src = (Path(evidence.__file__).parent / "diagnosis" / "select.py").read_text()  # the tie
+    src = (Path(evidence.__file__).parent / "diagnosis" / "tie.py").read_text()  # the tie
     assert '"seed": PLAN_SEED' in src and '"duration": PLAN_DURATION' in src
 
 

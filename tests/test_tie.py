@@ -16,6 +16,7 @@ from rover_env.calibration.diagnosis.tie import (
     tie,
     unseparated_rival,
 )
+from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
 from rover_env.calibration.fit import Fit
 from rover_env.calibration.replay import PreparedLog, Window
 from rover_env.calibration.report import tie_text
@@ -84,6 +85,7 @@ def test_a_slope_clearly_better_than_a_drag_ties_with_it_until_the_drive_reverse
     assert t is not None and t["effects"] == ["slope", "loose_soil"]
     assert t["p_winner_better"] < 0.05 and t["unseparated"] == UNSEPARATED
     assert t["plan"] == "reversals" == separating_plan("slope", "loose_soil")[0]
+    assert (t["seed"], t["duration"]) == (PLAN_SEED, PLAN_DURATION)  # what drive-plan drives
     assert UNSEPARATED in tie_text(t)
     assert tie(_diagnosis(slope, [slope, soil], rev=True)) is None
     assert tie(_diagnosis(slope, [slope, soil], rev=False, reversal_tie=False)) is None
