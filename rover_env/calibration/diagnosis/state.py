@@ -107,7 +107,9 @@ class Options:
     only regime where one helps and the other hinders (:mod:`.tie`). Why (stop 118,
     exploratory): spent soil singles 53013 and 53104 were named a slope of 11-12 degrees
     with no tie and no drive proposed; two like them that tied (53011, 53109) were named the
-    soil after their reversing drive."""
+    soil after their reversing drive. Fresh block 53200 (registered, 23 strong singles of
+    slope, rolling resistance and soil): the other kind named 0/23, named alone 21/23; the
+    rule declared 2 ties, both kept their right name (docs/calibration/block53200)."""
     trade_share: float = 0.1
     """A trade keeps an effect from being named only if the traded signals lost at least
     this share of what the other signals gained (:func:`.judge.trade_share`, each signal in
