@@ -1,4 +1,4 @@
-"""Rules registered before a block scores them (docs/calibration/README.md): each reads what
+"""Rules registered before a block scores them (docs/calibration/method.md): each reads what
 a case's ``result.json`` stored, so a block run with the code that registered it scores it
 without a rerun. Stop 57's rotor rule is not applied by ``diagnose`` (stop 62's rotor test
 is, and :func:`rotor_test_line` scores it); the evidence rule is, since

@@ -277,12 +277,12 @@ def test_the_leader_is_the_fully_fitted_plugin_candidate_with_the_lowest_bic() -
 def test_the_report_says_when_the_forms_were_fitted_beside_a_leader() -> None:
     """The second pass beside a leader reads as such, not as beside a named effect."""
     from rover_env.calibration.diagnosis.state import LEADING
-    from rover_env.calibration.report import _model_form_line
+    from rover_env.calibration.report_method import model_form_line
 
     form = {"fitted": 13.5, "nominal": 10.0, "training_gain": 0.17, "p": 0.0015}
     mf = {"yaw_spring": {**form, "d_bic": -2.5, "adopted": True}}
-    led = _model_form_line(mf, beside="slope" + LEADING)
-    named = _model_form_line(mf, beside="slope")
+    led = model_form_line(mf, beside="slope" + LEADING)
+    named = model_form_line(mf, beside="slope")
     assert "fitted beside slope (the leading candidate of a first pass that named nothing" in led
     assert "fitted beside slope (named in a first pass" in named
     assert LEADING not in led and LEADING not in named
@@ -344,8 +344,8 @@ def test_a_weak_adoption_beside_the_effect_leaves_the_first_choice() -> None:
 
 
 def test_the_report_says_a_weak_adoption_kept_the_first_choice() -> None:
-    from rover_env.calibration.report import _weak_beside_line
+    from rover_env.calibration.report_method import weak_beside_line
 
-    assert _weak_beside_line(None) == []
-    (line,) = _weak_beside_line({"beside": "command_lag", "changes": ["yaw_spring: a -> b"]})
+    assert weak_beside_line(None) == []
+    (line,) = weak_beside_line({"beside": "command_lag", "changes": ["yaw_spring: a -> b"]})
     assert "Beside command_lag" in line and "yaw_spring: a -> b" in line and "did not run" in line

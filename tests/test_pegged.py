@@ -112,8 +112,8 @@ def test_the_report_headline_says_a_pegged_leader_was_passed_over() -> None:
 def test_the_method_names_the_effects_left_out_beside_soil_only_when_they_are() -> None:
     from rover_env.calibration.candidates import REPLACED_BY_SOIL
     from rover_env.calibration.diagnosis.state import Options
-    from rover_env.calibration.report import _order_clauses
+    from rover_env.calibration.report_method import order_clauses
 
-    text = _order_clauses(Options())
+    text = order_clauses(Options())
     assert all(n in text for n in REPLACED_BY_SOIL) and "range's far end" in text
-    assert _order_clauses(Options(soil_alone=False, pegged_last=False)) == ""
+    assert order_clauses(Options(soil_alone=False, pegged_last=False)) == ""

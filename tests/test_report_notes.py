@@ -73,7 +73,7 @@ def test_a_form_at_the_end_of_its_range_is_said_so() -> None:
     """A form kept nominal because its best value is an open end of its ladder says why;
     one kept nominal because it does not pay its BIC does not."""
     from rover_env.calibration.diagnosis.state import FormFit
-    from rover_env.calibration.report import _model_form_line
+    from rover_env.calibration.report_method import model_form_line
 
     def form(at_end: bool, d_bic: float) -> dict[str, object]:
         f = FormFit(
@@ -90,9 +90,9 @@ def test_a_form_at_the_end_of_its_range_is_said_so() -> None:
         )
         return f.as_json()
 
-    line = _model_form_line({"yaw_spring": form(True, -2.6)})
+    line = model_form_line({"yaw_spring": form(True, -2.6)})
     assert "the end of the range tried" in line and "40 N m/rad" in line, line
-    assert "end of the range" not in _model_form_line({"yaw_spring": form(False, 1.2)})
+    assert "end of the range" not in model_form_line({"yaw_spring": form(False, 1.2)})
 
 
 def test_a_small_trade_is_reported_beside_the_named_effect() -> None:

@@ -328,7 +328,7 @@ def partner_limits(d: Diagnosis, pairs: list[Scored]) -> dict[str, dict[str, flo
     friction of -0.59 and -0.62 was named beside the right lag, 11.5 % better on the
     held-out drive, while its single fit's limit was -1.57 (beyond its range); with
     three drives no pair was named in 183 spent cases. Off by default: fresh study 71000
-    found it changed no final name in 130 cases (docs/calibration/README.md)."""
+    found it changed no final name in 130 cases (docs/calibration/method.md)."""
     winner = d.winner
     if not (d.opts.partner_limit and d.opts.name_above_limit) or winner is None or not pairs:
         return None

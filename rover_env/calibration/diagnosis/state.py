@@ -233,7 +233,7 @@ class Options:
     10 of 11 on clean drives (in-sample for the clean cases of 50800-51500, whose fits made
     the table then; stop 79 measured it again on 100 clean cases of blocks 49000-52100 with
     its own code, the same verdicts on blocks 51800-52100); on fresh block 52000 it
-    withdrew 6 names, 4 not the truth (docs/calibration/README.md). Each effect of a pair is judged by its own allowance
+    withdrew 6 names, 4 not the truth (docs/calibration/method.md). Each effect of a pair is judged by its own allowance
     (stop 78: on block 52000 three false second effects of a pair fit stayed named; on
     fresh block 52100, 16 of 17 names right)."""
     next_after_withdrawn: bool = False
@@ -245,7 +245,7 @@ class Options:
     for 0.076, held out 46 % better) was never tried. Off: fresh block 52400 (registered)
     failed its primary line, final names right 9/11 under 85 %, on two names the rule did
     not make (outside cases); the rule made no final name in 87 cases, 1 right one in a
-    first diagnosis, and nothing on 60 clean cases (docs/calibration/README.md)."""
+    first diagnosis, and nothing on 60 clean cases (docs/calibration/method.md)."""
     one_wheel: bool = True
     """Withdraw a named rolling resistance where dead reckoning's two free wheels disagree
     beyond the odometry band's ``split`` (:mod:`.one_wheel`): the ground drags every wheel
@@ -253,7 +253,7 @@ class Options:
     a rolling resistance in 13 of 24 spent outside cases of the independent generator. On
     fresh study 67200 (registered) it withdrew 8 of 12 such names (final rolling resistances
     on brake drags 4/28) and no rolling-resistance single or clean case of 120 parted the
-    wheels that far (docs/calibration/README.md)."""
+    wheels that far (docs/calibration/method.md)."""
     interleave: bool = False
     """Hold out every other window of each drive instead of the last drive (off: the
     held-out drive is one the fit never saw). Why (stop 110): an effect that only one drive
@@ -285,7 +285,7 @@ class Options:
     study 71000 (registered; 130 cases on one and two drives) failed its power line, 0 of 3
     wrong names in two-name diagnoses removed (all three from odometry's radius or a single
     window name, which it cannot touch); it acted in 3 cases and changed no final name,
-    and removed no right one (docs/calibration/README.md)."""
+    and removed no right one (docs/calibration/method.md)."""
     soil_from_motion: bool = False
     """Read a named soil's k_phi from the rover's motion, the pose group's own minimum, where
     the pose has one (:func:`.motion.from_motion`). Why it was tried (stop 82): the yaw
@@ -476,7 +476,7 @@ class Options:
     conditional anti-windup is adopted (dBIC -5.4) and the limit's held-out drive comes out
     62 % better; the forms are re-chosen beside the winner only. Off by default: on fresh
     study 71600 (16 cases, 8 of them cuts of 51-80 %) it changed no name; no such rival
-    arose (docs/calibration/README.md)."""
+    arose (docs/calibration/studies.md)."""
     forms_given: list[FormFit] | None = None
     """The forms to use instead of fitting them (set by the second pass)."""
     forms_beside: str | None = None
