@@ -16,7 +16,7 @@ from rover_env.calibration.candidates import SOIL_FORMS, catalogue
 from rover_env.calibration.replay import SIGNALS
 from rover_env.config import load_terrain
 from rover_env.effects import EffectError, build_effects
-from rover_env.sim.simulator import effect_soil
+from rover_env.sim.build import effect_soil
 from rover_env.soil import load_soil
 
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from rover_env.calibration.candidates import TORQUE_FORMS, catalogue, with_torque_forms
 from rover_env.config import RoverConfig, load_rover
-from rover_env.sim.simulator import physical_config
+from rover_env.sim.build import physical_config
 
 
 def _cfg(ext: dict[str, dict[str, float]]) -> RoverConfig:

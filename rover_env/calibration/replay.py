@@ -52,8 +52,9 @@ from rover_env.effects import CommandEffect, build_effects, command_sequence
 from rover_env.estimation.dead_reckoning import fixes
 from rover_env.executor import die_with_parent
 from rover_env.logs import DriveLog
+from rover_env.sim.build import physical_config
 from rover_env.sim.model import stable_config, stable_step
-from rover_env.sim.simulator import RoverSim, physical_config
+from rover_env.sim.simulator import RoverSim
 from rover_env.sim.speed_loop import setpoint_recursion
 
 Array = NDArray[np.float64]

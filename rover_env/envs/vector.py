@@ -49,9 +49,10 @@ from rover_env.estimation.fast import FastSlipEstimator
 from rover_env.estimation.sensors import SensorModel
 from rover_env.seeds import check_split, split_of
 from rover_env.sim.batch import BatchRoverSim
+from rover_env.sim.build import resolve_auto_backend
 from rover_env.sim.readers import RoverIndex
 from rover_env.sim.sample import BatchRows, StepSample, run_samples
-from rover_env.sim.simulator import RoverSim, resolve_auto_backend
+from rover_env.sim.simulator import RoverSim
 from rover_env.terrain import Terrain
 
 __all__ = ["ProtoExplorerVectorEnv"]

@@ -56,8 +56,8 @@ from rover_env.effects import build_effects
 from rover_env.generators import foreign_soil
 from rover_env.generators.drives import drive_schedule
 from rover_env.logs import DriveLog, LogMeta, write_log
+from rover_env.sim.build import effect_soil
 from rover_env.sim.model import scene_xml
-from rover_env.sim.simulator import effect_soil
 
 Array = NDArray[np.float64]
 

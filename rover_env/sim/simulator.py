@@ -10,10 +10,9 @@ in one process).
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
@@ -31,9 +30,7 @@ from rover_env.config import (
     load_terrain,
 )
 from rover_env.effects import (
-    LOOSE_SOIL_PRESETS,
     CommandEffect,
-    Effect,
     HingeEffect,
     TireEffect,
     build_effects,
@@ -42,7 +39,8 @@ from rover_env.effects import (
     plugin_refusals,
 )
 from rover_env.rut import check_overflow, refused_writes
-from rover_env.sim.fast import FastBackendError, PluginView, inject_plugin, load_plugin
+from rover_env.sim.build import effect_soil, physical_config, resolve_auto_backend
+from rover_env.sim.fast import PluginView, inject_plugin
 from rover_env.sim.fast.plugin import SCHEDULE_ROWS
 from rover_env.sim.index import (
     SegmentTruth,
@@ -63,7 +61,7 @@ from rover_env.sim.model import (
 )
 from rover_env.sim.speed_loop import advance_setpoints
 from rover_env.sim.tire_layer import TireLayer, TireState
-from rover_env.soil import SoilParams, load_soil
+from rover_env.soil import SoilParams
 from rover_env.soil import static_sinkage as soil_static_sinkage
 from rover_env.terrain import Terrain
 
@@ -77,54 +75,10 @@ FRICTION_DOF = int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF)
 """Constraint type of a dof's dry friction (``frictionloss``) rows in ``efc_*``."""
 
 
-def physical_config(cfg: RoverConfig, effects: Sequence[Effect] | None = None) -> RoverConfig:
-    """``cfg`` as the simulator builds it: the model extensions' configuration changes
-    applied (a torque limit effect changes ``motor.torque_limit``), the extensions cleared.
-    ``effects``: those of ``cfg.extensions`` that are on, if already built."""
-    if effects is None:
-        effects = [e for e in build_effects(cfg.extensions) if not e.is_off]
-    phys = cfg
-    for e in effects:
-        phys = e.apply_config(phys)
-    return dataclasses.replace(phys, extensions={}) if cfg.extensions else phys
-
-
-def effect_soil(terrain: TerrainConfig, effects: Sequence[Effect]) -> SoilParams | None:
-    """The loose soil the model extensions put over the whole ground (``loose_soil``): the
-    terrain's own ground soil, or the effect's preset (``LOOSE_SOIL_PRESETS``) on hard
-    ground, with their changes;
-    None when no extension changes the soil."""
-    changes: dict[str, float] = {}
-    for e in effects:
-        changes.update(e.soil_changes())
-    if not changes:
-        return None
-    preset = LOOSE_SOIL_PRESETS[int(changes.pop("preset", 0.0))]
-    base = load_soil(terrain.soil if terrain.soil else preset)
-    return dataclasses.replace(base, name=f"{base.name} (loose_soil)", **changes)
-
-
 @functools.lru_cache(maxsize=64)
 def _static_sinkage(load: float, radius: float, width: float, params: SoilParams) -> float:
     """:func:`rover_env.soil.static_sinkage`, once per soil (replays reset every window)."""
     return soil_static_sinkage(load, radius, width, params, tol=1e-7)
-
-
-def resolve_auto_backend(cfg: RoverConfig) -> str:
-    """``backend="auto"``: the compiled plugin where it can run this model, else numpy."""
-    if plugin_refusals(cfg.extensions):
-        return "numpy"
-    try:
-        load_plugin()
-    except FastBackendError as exc:
-        warnings.warn(
-            f"backend='auto': using the numpy tire layer (~10x slower) because the fast "
-            f"plugin is unavailable: {exc}",
-            RuntimeWarning,
-            stacklevel=3,
-        )
-        return "numpy"
-    return "plugin"
 
 
 class RoverSim:

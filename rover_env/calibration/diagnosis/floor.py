@@ -85,6 +85,6 @@ def replay_floor(
 
 
 def base_backend(cfg: RoverConfig) -> str:
-    from rover_env.sim.simulator import resolve_auto_backend
+    from rover_env.sim.build import resolve_auto_backend
 
     return resolve_auto_backend(cfg)
