@@ -29,7 +29,7 @@ What differs from the project's simulator (``rover_env.sim``), on purpose:
 * loose soil (``loose_soil``): SOIL.md's equations in this package's own quadrature on a
   rigid wheel whose sinkage is its penetration of the flat surface, with no sinkage state,
   dug hole or ruts (:mod:`rover_env.generators.foreign_soil`); the soil constants are the
-  effect's (:func:`rover_env.sim.simulator.effect_soil`). On soil the tire's effects
+  effect's (:func:`rover_env.sim.build.effect_soil`). On soil the tire's effects
   (rolling resistance, rolling radius, friction and its load dependence, the ellipse) do
   not act, as in the project's simulator, where the soil replaces the tire.
 

@@ -18,7 +18,7 @@ but another implementation and another dynamic design, on purpose (issue 16, ite
   the step), as this generator's tire does.
 
 Used by :class:`rover_env.generators.foreign_logs.ForeignRover` for the ``loose_soil``
-effect, with the constants :func:`rover_env.sim.simulator.effect_soil` would use.
+effect, with the constants :func:`rover_env.sim.build.effect_soil` would use.
 """
 
 from __future__ import annotations
