@@ -231,8 +231,8 @@ def add_cli(sub: Any) -> None:
     p.add_argument(
         "--no-model-form",
         action="store_true",
-        help="keep the configuration's tire relaxation length and speed-loop anti-windup"
-        " (no model-form stage)",
+        help="keep the configuration's model form: joint zeros, speed-loop anti-windup, tire"
+        " relaxation length, yaw springs, joint height (no model-form stage)",
     )
     p.add_argument(
         "--free-common",

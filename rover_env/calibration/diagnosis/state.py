@@ -305,8 +305,9 @@ class Options:
     soil. Fresh block 53000 (registered, with :attr:`pegged_last`): 0 of 15 soil singles
     named a rolling resistance (docs/calibration/block53000)."""
     soil_from_straight: bool = True
-    """Read a named soil's k_phi from straight driving: the pose signals' own minimum over
-    the windows without a turn (:func:`.straight.from_straight`). Why (stop 83): in a turn
+    """Read a named soil's k_phi from straight driving: one signal group's own minimum over
+    the windows without a turn (:func:`.straight.from_straight`; the joints', or the pose's
+    with :attr:`soil_from_joints` off, as it was until stop 117). Why (stop 83): in a turn
     the yaw springs, whose stiffness SPEC does not give, trade with k_phi, and every signal
     over every window put k_phi within 2 x on 16 of 27 spent soil cases of study 60800; the
     pose on straight windows on 22 of 27 (and on 13 of 18 of spent study 61600's, where the
