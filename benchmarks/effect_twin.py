@@ -43,8 +43,8 @@ from typing import Any
 
 import numpy as np
 import yaml
+from _independent_plan import DRIVES, DURATION
 from _motor import add_motor_argument, motors, with_motor
-from bench_independent import DRIVES, DURATION
 from truth_ceiling import case_row, single_cases, truth_ext
 
 from rover_env.calibration import residuals as rs

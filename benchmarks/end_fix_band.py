@@ -34,8 +34,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from _independent_plan import DRIVES, DURATION, catalogue_truth, generator_params
 from _report import write_report
-from bench_independent import DRIVES, DURATION, catalogue_truth, generator_params
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.diagnosis.odometry import WHEELS

@@ -30,7 +30,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bench_independent import DURATION, planned, tag
+from _independent_plan import DURATION, planned, tag
 
 from rover_env.calibration.diagnose import diagnose
 from rover_env.calibration.diagnosis.state import Options

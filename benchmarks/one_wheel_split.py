@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 import yaml
-from bench_independent import DRIVES, DURATION, cases, tag
+from _independent_plan import DRIVES, DURATION, cases, tag
 
 from rover_env.calibration.diagnosis import floor, form, split
 from rover_env.calibration.diagnosis.one_wheel import free_wheel_difference

@@ -35,13 +35,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from bench_independent import (
-    DRIVES,
-    catalogue_truth,
-    drive_proposals,
-    generator_params,
-    proposals,
-)
+from _independent_plan import DRIVES, catalogue_truth, generator_params
+from bench_independent import drive_proposals, proposals
 
 from rover_env.independent import make_independent_logs
 

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from bench_independent import TORQUE_RATIO
+from _independent_plan import TORQUE_RATIO
 from truth_ceiling import test_at_truth
 
 import rover_env.sim.model as model_xml

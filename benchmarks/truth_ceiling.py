@@ -34,9 +34,9 @@ from typing import Any
 
 import numpy as np
 import yaml
+from _independent_plan import DRIVES, DURATION
 from _independent_tables import truth_ratio
 from _motor import add_motor_argument, motors, with_motor
-from bench_independent import DRIVES, DURATION
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue

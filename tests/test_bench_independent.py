@@ -27,16 +27,24 @@ def b() -> ModuleType:
 
 
 @pytest.fixture(scope="module")
+def plan() -> ModuleType:
+    _load("bench_diagnose")
+    return _load("_independent_plan")
+
+
+@pytest.fixture(scope="module")
 def tables() -> ModuleType:
     return _load("_independent_tables")
 
 
-def test_the_plan_is_deterministic_and_its_seeds_are_its_own(b: ModuleType) -> None:
+def test_the_plan_is_deterministic_and_its_seeds_are_its_own(
+    b: ModuleType, plan: ModuleType
+) -> None:
     a = json.dumps(b.cases(), sort_keys=True)
     assert a == json.dumps(b.cases(), sort_keys=True)
     assert a != json.dumps(b.cases(False, b.SEED0 + 1000), sort_keys=True)
     seeds = [c["seed"] for c in b.cases()]
-    assert len(set(seeds)) == len(seeds) and min(seeds) == b.SEED0 == 47500 != b.DEV_SEED0
+    assert len(set(seeds)) == len(seeds) and min(seeds) == b.SEED0 == 47500 != plan.DEV_SEED0
     planned = b.planned(False)
     assert sorted(map(b.tag, planned)) == sorted(map(b.tag, b.cases()))  # all, once
     assert [b.tag(c) for c in planned[:5]] == [b.tag(c) for c in b.cases(True)]
@@ -55,7 +63,9 @@ def test_a_plan_stopped_early_has_every_clean_pair_and_outside_case(b: ModuleTyp
     assert set(tail) == {"single"} and len(tail) == 20
 
 
-def test_the_plan_has_every_kind_and_every_implemented_effect(b: ModuleType) -> None:
+def test_the_plan_has_every_kind_and_every_implemented_effect(
+    b: ModuleType, plan: ModuleType
+) -> None:
     cs = b.cases()
     kinds = [c["kind"] for c in cs]
     assert kinds.count("clean") == 10 and kinds.count("pair") == 6
@@ -78,10 +88,12 @@ def test_the_plan_has_every_kind_and_every_implemented_effect(b: ModuleType) -> 
         if c["kind"] == "pair":
             names = set(c["effects"])
             assert len(names) == 2 and names <= implemented
-            assert not ("loose_soil" in names and names & b.INERT_ON_SOIL), c
+            assert not ("loose_soil" in names and names & plan.INERT_ON_SOIL), c
 
 
-def test_strong_pairs_draw_from_the_named_effects_then_singles_in_turn(b: ModuleType) -> None:
+def test_strong_pairs_draw_from_the_named_effects_then_singles_in_turn(
+    b: ModuleType, plan: ModuleType
+) -> None:
     timing = ["command_lag", "command_delay"]
     todo = b.strong_pairs(72900, 4, timing, 3)
     assert [c["kind"] for c in todo] == ["pair"] * 4 + ["single"] * 3
@@ -90,7 +102,7 @@ def test_strong_pairs_draw_from_the_named_effects_then_singles_in_turn(b: Module
     assert [c["seed"] for c in todo] == list(range(72900, 72907))
     for c in todo:
         for e, p in c["effects"].items():
-            param, lo, hi, _ = b.STRONG[e]
+            param, lo, hi, _ = plan.STRONG[e]
             assert lo <= abs(p[param]) <= hi
     assert todo[:4] == b.strong_pairs(72900, 4, timing)  # singles after, pairs unchanged
     with pytest.raises(ValueError, match="friction"):
@@ -104,20 +116,22 @@ def test_strong_pairs_draw_from_the_named_effects_then_singles_in_turn(b: Module
 
 
 def test_the_pairs_never_drawn_are_the_effects_diagnose_does_not_try_beside_soil(
-    b: ModuleType,
+    b: ModuleType, plan: ModuleType
 ) -> None:
     from rover_env.calibration.candidates import REPLACED_BY_SOIL
 
-    assert b.INERT_ON_SOIL == REPLACED_BY_SOIL  # the tire's effects, in both generators
+    assert plan.INERT_ON_SOIL == REPLACED_BY_SOIL  # the tire's effects, in both generators
 
 
-def test_effort_cases_are_cuts_clean_builds_and_others_in_turn(b: ModuleType) -> None:
+def test_effort_cases_are_cuts_clean_builds_and_others_in_turn(
+    b: ModuleType, plan: ModuleType
+) -> None:
     todo = b.effort_cases(52700, 12)
     kinds = [("clean" if c["kind"] == "clean" else next(iter(c["effects"]))) for c in todo]
     others = [k for i, k in enumerate(kinds) if i % 4 == 3]
     assert kinds[::4] == kinds[1::4] == ["torque_limit"] * 3
     assert kinds[2::4] == ["clean"] * 3
-    assert others == list(b.EFFORT_OTHERS[:3])
+    assert others == list(plan.EFFORT_OTHERS[:3])
     assert [c["seed"] for c in todo] == list(range(52700, 52712))
     for c in todo:
         ind_effects.resolve(c["effects"])  # the generator accepts them
@@ -125,15 +139,31 @@ def test_effort_cases_are_cuts_clean_builds_and_others_in_turn(b: ModuleType) ->
             assert -0.78 <= c["effects"]["torque_limit"]["fraction"] <= -0.05
 
 
-def test_magnitudes_lie_in_their_ranges_in_both_parameterisations(b: ModuleType) -> None:
+def test_balance_cases_are_slopes_clean_builds_and_loads_in_turn(plan: ModuleType) -> None:
+    todo = plan.balance_cases(53400, 8)
+    assert [c["seed"] for c in todo] == list(range(53400, 53408))
+    kinds = [next(iter(c["effects"]), "clean") for c in todo]
+    first, second = ["slope", "clean", "slope"], ["rolling_resistance", "loose_soil"]
+    assert kinds == [*first, second[0], *first, second[1]]
+    lo, hi = plan.BALANCE_SLOPE
+    for c in todo:
+        if "slope" in c["effects"]:
+            assert lo <= c["effects"]["slope"]["deg"] <= hi
+            assert c["truth"]["slope"]["deg"] == c["effects"]["slope"]["deg"]
+    assert todo == plan.balance_cases(53400, 8)  # by seed
+
+
+def test_magnitudes_lie_in_their_ranges_in_both_parameterisations(
+    b: ModuleType, plan: ModuleType
+) -> None:
     for c in b.cases():
         ind_effects.resolve(c["effects"])  # the generator accepts them
         for name, params in c["effects"].items():
-            if name in b.OUTSIDE_RANGES:
-                param, lo, hi = b.OUTSIDE_RANGES[name]
+            if name in plan.OUTSIDE_RANGES:
+                param, lo, hi = plan.OUTSIDE_RANGES[name]
                 signs: tuple[int, ...] = (1,)
             else:
-                param, lo, hi, signs = {**b.RANGES, **b.OWN_RANGES}[name]
+                param, lo, hi, signs = {**b.RANGES, **plan.OWN_RANGES}[name]
             v = params[param]
             assert lo * (1 - 1e-4) <= abs(v) <= hi * (1 + 1e-4), (c["seed"], name, v)
             assert int(math.copysign(1, v)) in signs
@@ -146,40 +176,44 @@ def test_magnitudes_lie_in_their_ranges_in_both_parameterisations(b: ModuleType)
                 effect_class(name)(params)  # inside the catalogue's bounds
 
 
-def test_truth_mapping_for_loose_soil_torque_limit_and_rolling_radius(b: ModuleType) -> None:
+def test_truth_mapping_for_loose_soil_torque_limit_and_rolling_radius(
+    b: ModuleType, plan: ModuleType
+) -> None:
     """As the module docstring states: k_phi = preset k_phi x factor (regolith 8.14e5, dry
     sand 1.52843e6); torque limit (1 + f) 2.8 / 3.0 - 1 (2.8 N m = 0.7 x 100 x 0.02 x 2 A at
     the wheel here, 3.0 N m in the model); rolling radius f x 0.0761 / 0.085."""
-    soil = b.catalogue_truth("loose_soil", {"k_phi": 1.5, "sand": 0.0})
+    soil = plan.catalogue_truth("loose_soil", {"k_phi": 1.5, "sand": 0.0})
     assert soil == {"k_phi": pytest.approx(1.5 * 8.14e5)}
-    sand = b.catalogue_truth("loose_soil", {"k_phi": 0.5, "sand": 1.0})
+    sand = plan.catalogue_truth("loose_soil", {"k_phi": 0.5, "sand": 1.0})
     assert sand == {"k_phi": pytest.approx(0.5 * 1528.43e3)}
-    assert b.catalogue_truth("torque_limit", {"fraction": -0.5}) == {
+    assert plan.catalogue_truth("torque_limit", {"fraction": -0.5}) == {
         "fraction": pytest.approx(0.5 * 2.8 / 3.0 - 1.0)
     }
-    assert b.catalogue_truth("torque_limit", {"fraction": -0.05})["fraction"] == pytest.approx(
+    assert plan.catalogue_truth("torque_limit", {"fraction": -0.05})["fraction"] == pytest.approx(
         -0.11333, abs=1e-5
     )
     r_e = 0.085 - 16.41 * 9.81 / 6 / 1000.0 / 3
-    assert b.catalogue_truth("rolling_radius", {"fraction": -0.1}) == {
+    assert plan.catalogue_truth("rolling_radius", {"fraction": -0.1}) == {
         "fraction": pytest.approx(-0.1 * r_e / 0.085)
     }
     for name in ("friction", "command_delay", "rolling_resistance"):
-        p = b.generator_params(name, 5)
-        assert b.catalogue_truth(name, p) == p
-    slope = b.generator_params("slope", 5)
-    assert b.catalogue_truth("slope", slope) == slope and set(slope) == {"deg", "heading_deg"}
+        p = plan.generator_params(name, 5)
+        assert plan.catalogue_truth(name, p) == p
+    slope = plan.generator_params("slope", 5)
+    assert plan.catalogue_truth("slope", slope) == slope and set(slope) == {"deg", "heading_deg"}
     for c in b.cases():  # every case's truth column is the mapping of its drawn parameters
         if isinstance(c["truth"], dict):
-            assert c["truth"] == {n: b.catalogue_truth(n, p) for n, p in c["effects"].items()}
+            assert c["truth"] == {n: plan.catalogue_truth(n, p) for n, p in c["effects"].items()}
 
 
-def test_load_dependent_friction_maps_to_the_same_slope_of_mu_over_load(b: ModuleType) -> None:
+def test_load_dependent_friction_maps_to_the_same_slope_of_mu_over_load(
+    b: ModuleType, plan: ModuleType
+) -> None:
     """Numerically: the catalogue's mu(F_z) with the mapped fall has the generator's relative
     slope at the static load; the generator's level there is the recorded friction change."""
     fall = 0.3
-    cat = b.catalogue_truth("load_dependent_friction", {"fall": fall})["fall"]
-    f0, h = b.F0_IND, 1e-3
+    cat = plan.catalogue_truth("load_dependent_friction", {"fall": fall})["fall"]
+    f0, h = plan.F0_IND, 1e-3
     ind = lambda f: 1 - fall * math.tanh(f / 60.0)  # noqa: E731
     cat_mu = lambda f: 1 - cat * (f - f0) / (2 * 0.1 * f0)  # noqa: E731
     slope_ind = (ind(f0 + h) - ind(f0 - h)) / (2 * h) / ind(f0)

@@ -72,6 +72,13 @@ def _share(text: str) -> float:
     return v
 
 
+def _degrees(text: str) -> float:
+    """``--balance-allowance``: degrees, 0 or more and under 20."""
+    if not 0.0 <= (v := _number(text)) < 20.0:  # also NaN
+        raise argparse.ArgumentTypeError(f"must be 0 or more and under 20 degrees, got {text}")
+    return v
+
+
 def _tolerance(text: str) -> float:
     """``--effort-tolerance``: a fraction, 0 or more and under 1."""
     if not 0.0 <= (v := _number(text)) < 1.0:  # also NaN
@@ -98,6 +105,7 @@ def _cli(args: argparse.Namespace) -> int:
         odometry=None if args.no_odometry else Options().odometry,
         odometry_end=None if args.no_odometry else Options().odometry_end,
         effort_tolerance=None if args.no_effort else args.effort_tolerance,
+        balance_allowance=None if args.no_balance else args.balance_allowance,
         **{name: getattr(args, name) for name, _ in SWITCHES},
     )
     try:
@@ -214,6 +222,39 @@ SWITCHES: tuple[tuple[str, str], ...] = (
 """The on/off options of :class:`Options` the command line sets, ``--name`` / ``--no-name``."""
 
 
+def _add_torque_flags(p: argparse.ArgumentParser) -> None:
+    """The flags of what diagnose reads from the reported motor torque (``effort_*``)."""
+    p.add_argument(
+        "--effort-tolerance",
+        type=_tolerance,
+        default=Options.effort_tolerance,
+        metavar="FRACTION",
+        help="where the logs report the motors' torque (effort_* columns), read the torque"
+        " limit from it and name a cut beyond this tolerance of the reported torque's scale"
+        f" (default {Options.effort_tolerance}; see Options.effort_tolerance)",
+    )
+    p.add_argument(
+        "--no-effort",
+        action="store_true",
+        help="never read the reported motor torque (neither the torque limit nor the balance)",
+    )
+    p.add_argument(
+        "--balance-allowance",
+        type=_degrees,
+        default=Options.balance_allowance,
+        metavar="DEG",
+        help="where the logs report the motors' torque and the pose's yaw, read the ground's"
+        " tilt from the force balance on steady straight runs and name a slope whose interval"
+        f" clears this many degrees (default {Options.balance_allowance}; see"
+        " Options.balance_allowance)",
+    )
+    p.add_argument(
+        "--no-balance",
+        action="store_true",
+        help="never read the ground's tilt from the reported motor torque",
+    )
+
+
 def add_cli(sub: Any) -> None:
     p = sub.add_parser(
         "diagnose",
@@ -289,20 +330,7 @@ def add_cli(sub: Any) -> None:
         help="never name a rolling radius from dead reckoning against the pose, between fixes"
         " or to each drive's last fix (see Options.odometry, Options.odometry_end)",
     )
-    p.add_argument(
-        "--effort-tolerance",
-        type=_tolerance,
-        default=Options.effort_tolerance,
-        metavar="FRACTION",
-        help="where the logs report the motors' torque (effort_* columns), read the torque"
-        " limit from it and name a cut beyond this tolerance of the reported torque's scale"
-        f" (default {Options.effort_tolerance}; see Options.effort_tolerance)",
-    )
-    p.add_argument(
-        "--no-effort",
-        action="store_true",
-        help="never read the torque limit from the reported motor torque",
-    )
+    _add_torque_flags(p)
     for name, what in SWITCHES:
         on = getattr(Options, name)
         p.add_argument(

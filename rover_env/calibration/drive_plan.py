@@ -185,7 +185,8 @@ def parse_joint_names(text: str | None) -> tuple[str, ...]:
 
 
 def proposals_from_report(path: str | Path, untested: bool = True) -> list[Proposal]:
-    """Every drive a diagnosis proposes (its tie, its evidence rows and, with ``untested``,
+    """Every drive a diagnosis proposes (its tie, its evidence rows, the force balance's
+    drive both ways where its runs did not separate a tilt from a resistance and, with ``untested``,
     the drives for what its logs never tested), merged by (plan, seed, duration); reports
     from before the seed and duration were recorded used :data:`PLAN_SEED` and
     :data:`PLAN_DURATION`."""
@@ -208,6 +209,11 @@ def proposals_from_report(path: str | Path, untested: bool = True) -> list[Propo
         if isinstance(e, dict) and e.get("plan"):
             why = f"evidence for {e['effect']} ({e.get('reason', 'unconfirmed')}): {e['why']}"
             raw.append((e, why, {e["effect"]}))
+    bal = result.get("balance")
+    if isinstance(bal, dict) and bal.get("plan"):
+        raw.append(
+            (bal, f"the force balance on the motors' torque: {bal.get('why_not', '')}", {"slope"})
+        )
     for e in (result.get("untested") or []) if untested else []:
         if isinstance(e, dict) and e.get("plan"):
             why = f"untested {e['effect']} ({e.get('reason', '')}): {e.get('why', '')}"

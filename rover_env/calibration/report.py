@@ -18,6 +18,7 @@ from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
 from rover_env.calibration.report_method import method_lines
 from rover_env.calibration.report_notes import (
     allowance_note,
+    balance_lines,
     effort_lines,
     one_wheel_note,
     p_text,
@@ -259,6 +260,7 @@ def write_report(d: Diagnosis) -> Path:
         *_free_gain_lines(result.get("free_wheel_gain"), result.get("free_wheel_common")),
         *reckoning_lines(result.get("dead_reckoning")),
         *effort_lines(result.get("effort")),
+        *balance_lines(result.get("balance")),
         "",
         *method_lines(result, opts, prepared[0].log.meta.rover),
         "",

@@ -8,7 +8,7 @@ from typing import Any
 
 from rover_env.calibration.candidates import REPLACED_BY_SOIL
 from rover_env.calibration.diagnosis.state import LEADING, ODOMETRY_BAND, OdometryBand, Options
-from rover_env.calibration.report_notes import effort_method
+from rover_env.calibration.report_notes import balance_method, effort_method
 
 
 def method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str]:
@@ -124,6 +124,7 @@ def method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str]
             else []
         ),
         *effort_method(opts.effort_tolerance, result.get("effort") is not None),
+        *balance_method(opts.balance_allowance, result.get("balance") is not None),
         f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay,"
         f" {result['seconds']:.0f} s in all{stage_text(result.get('stage_seconds') or [])}.",
     ]

@@ -211,3 +211,58 @@ def effort_method(tolerance: float | None, read: bool) -> list[str]:
         f" event) at demands {SPREAD:g} x apart, never exceeded; a change beyond the reported"
         f" torque's {100 * tolerance:.0f} % scale tolerance is named."
     ]
+
+
+def balance_lines(r: dict[str, Any] | None) -> list[str]:
+    """The ground's tilt as the reported motor torque's balance reads it
+    (:mod:`.diagnosis.balance_stage`)."""
+    if r is None:
+        return []
+    if not r.get("read"):
+        return [
+            "",
+            f"Force balance (the logs' `effort_*`): {r['runs']} steady straight runs; not read: {r['why_not']}.",
+        ]
+    lo, hi = r["tilt_interval"]
+    clo, chi = r["c_rr_interval"]
+    verdict = (
+        "named `slope` from it"
+        if r.get("named")
+        else f"no slope named from it: {r.get('why_not', 'see above')}"
+    )
+    drive = (
+        f" Proposed drive `{r['plan']}` (seed {r['seed']}, {r['duration']:g} s): write it with"
+        f" `rover-env drive-plan --plan {r['plan']} --seed {r['seed']} --duration {r['duration']:g}"
+        " --out DIR`, drive it on the rover and diagnose again with its log added."
+        if r.get("plan")
+        else ""
+    )
+    moved = "".join(
+        f" It {k} the windows' slope of {w['deg']:.2f}° [{w['interval'][0]:.2f}, {w['interval'][1]:.2f}]."
+        for k in ("withdrew", "replaced")
+        for w in r.get(k) or []
+    )
+    return [
+        "",
+        f"Force balance (the logs' `effort_*` over the lever {1000 * r['lever']:.1f} mm, {r['runs']}"
+        f" steady straight runs, scatter {r['scatter']:.2f} N): the ground rises {r['tilt']:.2f}°"
+        f" [{lo:.2f}, {hi:.2f}] toward {r['heading']:.0f}° with the reported torque's"
+        f" {100 * r['tolerance']:.0f} % scale tolerance, against the {r['allowance']:g}° clean"
+        f" builds read; the rover loses {r['c_rr']:.4f} of its weight rolling [{clo:.4f},"
+        f" {chi:.4f}] (the ground, the tires and the drivetrain's drag together); {verdict}."
+        + moved
+        + drive,
+    ]
+
+
+def balance_method(allowance: float | None, read: bool) -> list[str]:
+    """The method's bullet on the tilt read from the reported torque."""
+    if allowance is None or not read:
+        return []
+    return [
+        "- Balance: where the logs report the motors' torque and the pose's yaw, the driven"
+        " wheels' summed torque over the lever to the contact point, on steady straight runs,"
+        " is fitted as the rover's weight times the ground's tilt along its heading plus a"
+        " resistance that flips with the direction of travel; a tilt whose interval clears"
+        f" {allowance:g}° (what clean builds of another implementation read) names the slope."
+    ]

@@ -2,7 +2,7 @@
 
 split (:mod:`.split`) → form (:mod:`.form`) → floor (:mod:`.floor`) → fit
 (:mod:`.fit_stage`) → select (:mod:`.select`) → odometry (:mod:`.odometry`) → effort
-(:mod:`.effort_stage`) → one wheel (:mod:`.one_wheel`) → evidence (:mod:`.evidence_stage`) → write (:mod:`.write`). After selection the model form is judged again (:mod:`.again`) beside the
+(:mod:`.effort_stage`) → balance (:mod:`.balance_stage`) → one wheel (:mod:`.one_wheel`) → evidence (:mod:`.evidence_stage`) → write (:mod:`.write`). After selection the model form is judged again (:mod:`.again`) beside the
 winner or, with none named, the leading candidate; when that changes the forms, the
 diagnosis runs again from the start under the new options.
 """
@@ -16,6 +16,7 @@ from typing import Any
 
 from rover_env.calibration.diagnosis import (
     again,
+    balance_stage,
     effort_stage,
     evidence_stage,
     fit_stage,
@@ -79,6 +80,7 @@ LAST: tuple[tuple[str, Stage], ...] = (
     ("select", select.select),
     ("odometry", odometry.name_by_odometry),
     ("effort", effort_stage.name_by_effort),
+    ("balance", balance_stage.name_by_balance),
     ("one_wheel", one_wheel.withdraw_one_wheel),
     ("evidence", evidence_stage.seek_evidence),
 )

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from rover_env.calibration.balance import CLEAN_TILT
 from rover_env.calibration.candidates import Candidate
 from rover_env.calibration.fit import Evaluator, Fit
 from rover_env.calibration.form_allowance import FormAllowance, load_allowance
@@ -356,6 +357,12 @@ class Options:
     reported torque (the driver's torque constant and the gearhead's efficiency, as a
     datasheet gives them; None: not read). Why: the wheel angles show a cut under about 60 %
     only as the rotor does (``docs/calibration/limits.md``); the torque itself shows it."""
+    balance_allowance: float | None = CLEAN_TILT
+    """Where the logs report the motors' torque and the pose's yaw, read the ground's tilt from
+    the force balance on steady straight runs (:mod:`rover_env.calibration.balance`) and name
+    a slope whose interval, less this many degrees (what clean builds read), stays above
+    level (None: not read). Why: the windows read a slope through the joints, which clean
+    builds of another implementation lean by up to 2.4°; the summed torque does not lean."""
     model_form: bool = True
     """Fit the model's own form first, in this order: the joint sensors' zeros, the speed
     loop's anti-windup form, the tire's relaxation length, the yaw joints' springs and the
@@ -687,6 +694,9 @@ class Diagnosis:
     effort: dict[str, Any] | None = None
     """The torque limit read from the reported motor torque and what it named
     (:func:`.effort_stage.name_by_effort`; None: no log reports torque, or off)."""
+    balance: dict[str, Any] | None = None
+    """The ground's tilt read from the reported motor torque and what it named
+    (:func:`.balance_stage.name_by_balance`; None: no log reports torque, or off)."""
     one_wheel: dict[str, Any] | None = None
     """Beside a named rolling resistance: the free wheels' dead-reckoning split and whether
     it withdrew the name (:func:`.one_wheel.withdraw_one_wheel`)."""

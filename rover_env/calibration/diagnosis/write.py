@@ -141,6 +141,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "free_wheel_common": free_c if d.ev.free_common_max > 0 else None,
         "dead_reckoning": d.odometry,
         "effort": d.effort,
+        "balance": d.balance,
     }
 
 

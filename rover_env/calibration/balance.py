@@ -1,0 +1,290 @@
+"""The ground's tilt and the rover's resistance read from the motors' reported torque: the
+force balance along the track on steady straight runs.
+
+Why: the wheel angles and joints read a slope through this model's springs, tire and
+geometry, and a clean build of another implementation is read at up to 2.4-4.7° there
+(the clean-fit allowance, ``docs/calibration/limits.md``): its centres of mass sit a few
+millimetres off and the joints lean as on a slope. The force the wheels push with does not
+care where the mass sits. On a steady straight run the driven wheels' ground forces add up
+to what holds the rover against gravity along its track plus what it loses rolling:
+
+    sum_i effort_i / (d - delta) = m g sin(tilt) cos(yaw - heading) + R sign(v)
+
+``d - delta`` is the lever from the axle to the contact point (the wheel radius less the
+tire's deflection at static load, ``tire.C_z``: where this model's ground force acts), yaw
+the rover's heading from the pose fixes, ``m`` the configured mass. Over runs in several
+headings and both directions the tilt vector (``m g sin(tilt)`` along x and y) and ``R`` come
+from one least-squares fit over the runs' means; a slope flips sign with the heading and a
+resistance with the direction of travel, so the two separate where a drive reverses or
+turns (without both, :attr:`BalanceReading.separated` is False). A drivetrain's drag and the
+reported torque's scale (``tolerance``) move ``R``; the scale moves the tilt by its own
+fraction, and the interval carries it. A diagnostic read, like dead reckoning's radius: it
+replays nothing.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import stats
+
+from rover_env.config import RoverConfig
+from rover_env.logs import DriveLog
+
+Array = NDArray[np.float64]
+
+GRAVITY = 9.81
+HOLD = 1.0
+"""Seconds a run's targets must have held before its samples count: the speed loops settle
+and the rover stops accelerating (the generator's and this model's loops settle in 0.3-0.6 s)."""
+MIN_RUN = 0.5
+"""Seconds of settled samples a run needs to count."""
+MOVING = 0.3
+"""rad/s of mean wheel target a run needs (a parked rover's torque holds whatever it last
+needed: static friction decides it, not the balance)."""
+STRAIGHT = 0.05
+"""Largest difference of the left and right targets, as a fraction of their mean, a straight
+run allows (a turn's scrub adds torque on both sides that is not the balance's)."""
+MIN_RUNS = 6
+"""Runs a reading needs: three unknowns and three degrees of freedom for their scatter."""
+YAW_JOINTS = (1, 4)
+"""theta_2 and theta_5, the yaw joints (SPEC §1)."""
+BENT = math.radians(1.0)
+"""Largest yaw of a joint from its median over the log a straight run allows: a rover left
+bent by a turn scrubs on a straight run, its wheels pushing against each other (exploratory,
+independent generator seed 74649: 6-7° bent, 0.5-0.7 N more to roll)."""
+SCALE = 0.2
+"""The summed torque's scale, known to +- this fraction: each motor's torque constant to a
+build's tolerance (issue 47 lists motor gains of +-20 %), and one wheel can carry most of
+the balance (2L carried 60-70 % of it on the independent generator's clean straight runs,
+exploratory seed 74649), so the motors' errors need not average out. The torque limit's
+reading keeps ``--effort-tolerance``: its plateau is each motor's own."""
+SEPARATED = 200.0
+"""Largest :attr:`BalanceReading.inflation` whose tilt a diagnosis names from: runs all one
+way in about one heading leave the tilt along it and the resistance one unknown between
+them, the fit trading a steep tilt against a negative resistance (exploratory seed 74683:
+a 0.91° slope, every run forward within 6° of one heading, read 41.7° [15.4, 68.1] at
+inflation 2261). Reads at 3-144 named their slopes right on exploratory seeds 74681-74700;
+those in the thousands were unseparated."""
+CLEAN_TILT = 0.5
+"""Degrees: the tilt the balance reads on clean builds of another implementation (their 95 %
+quantile), which a slope's interval must clear before the balance names it."""
+Z = 1.96
+CHI2_2 = 5.991
+"""95 % quantile of chi-square with two degrees of freedom (the tilt vector's region)."""
+
+
+@dataclass(frozen=True)
+class BalanceReading:
+    """What the force balance says (forces in N, the tilt in degrees)."""
+
+    runs: int
+    """Steady straight runs over all logs."""
+    tilt_x: float
+    """Tilt vector toward +x of the log frame, degrees (the ground rises that way)."""
+    tilt_y: float
+    se_x: float
+    se_y: float
+    resistance: float
+    """``R``: the force the rover loses rolling (N), as a coefficient of its weight below."""
+    se_resistance: float
+    weight: float
+    """``m g`` of the configured rover (N)."""
+    lever: float
+    """``d - delta`` at static load (m)."""
+    tolerance: float
+    """The reported torque's scale, known to +- this fraction."""
+    inflation: float
+    """How much worse the runs' headings and directions determine the worst of the three
+    unknowns than runs spread evenly would (its standard error over the scatter's over the
+    square root of the runs): runs all forward in one heading cannot tell a tilt from a
+    resistance (inflation in the tens and up)."""
+    scatter: float
+    """Standard deviation of the runs' means about the fit (N)."""
+
+    @property
+    def tilt(self) -> float:
+        """Degrees, the ground's rise toward :attr:`heading`."""
+        return math.hypot(self.tilt_x, self.tilt_y)
+
+    @property
+    def heading(self) -> float:
+        return math.degrees(math.atan2(self.tilt_y, self.tilt_x)) if self.tilt > 0 else 0.0
+
+    def tilt_se(self) -> tuple[float, float]:
+        """The tilt vector's standard errors (degrees) with the reported torque's scale
+        tolerance folded in: a scale off by ``tolerance`` moves each part by that fraction."""
+        return (
+            math.hypot(self.se_x, self.tolerance * abs(self.tilt_x) / Z),
+            math.hypot(self.se_y, self.tolerance * abs(self.tilt_y) / Z),
+        )
+
+    def tilt_interval(self) -> tuple[float, float]:
+        """95 % interval of the tilt's size: the vector's standard errors combined along its
+        direction, as a fitted slope's (``Fit.physical``); from zero where level lies in the
+        vector's own 95 % region (a size near zero is read above it more often than not)."""
+        t, (sx, sy) = self.tilt, self.tilt_se()
+        ux, uy = (self.tilt_x / t, self.tilt_y / t) if t > 0 else (1.0, 0.0)
+        se = math.sqrt((ux * sx) ** 2 + (uy * sy) ** 2)
+        level = (self.tilt_x / max(sx, 1e-12)) ** 2 + (self.tilt_y / max(sy, 1e-12)) ** 2
+        lo = 0.0 if level <= CHI2_2 else max(t - Z * se, 0.0)
+        return lo, t + Z * se
+
+    @property
+    def separated(self) -> bool:
+        """Whether the runs' headings and directions tell the tilt from the resistance."""
+        return self.inflation <= SEPARATED
+
+    @property
+    def c_rr(self) -> float:
+        """The resistance as a rolling-resistance coefficient (of the weight)."""
+        return self.resistance / self.weight
+
+    def c_rr_interval(self) -> tuple[float, float]:
+        lo = (self.resistance - Z * self.se_resistance) / self.weight
+        hi = (self.resistance + Z * self.se_resistance) / self.weight
+        return lo * (1.0 - self.tolerance), hi * (1.0 + self.tolerance)
+
+    def as_json(self) -> dict[str, Any]:
+        out = asdict(self)
+        out.update(
+            tilt=self.tilt,
+            heading=self.heading,
+            tilt_interval=list(self.tilt_interval()),
+            c_rr=self.c_rr,
+            separated=self.separated,
+            c_rr_interval=list(self.c_rr_interval()),
+        )
+        return out
+
+
+@dataclass(frozen=True)
+class Run:
+    """One steady straight run's means."""
+
+    log: int
+    t0: float
+    t1: float
+    force: float
+    """Mean of the driven wheels' summed torque over the lever (N)."""
+    cos_yaw: float
+    sin_yaw: float
+    direction: float
+    """+1 forward, -1 backward."""
+
+
+def lever(cfg: RoverConfig) -> float:
+    """The axle's height above the contact point at static load: the wheel radius less the
+    tire's deflection under a sixth of the weight."""
+    delta = cfg.masses.total * GRAVITY / 6 / cfg.tire.C_z
+    return cfg.geometry.wheel_radius - delta
+
+
+def _yaw(log: DriveLog) -> Array | None:
+    """The heading at every row, interpolated between pose fixes with a yaw (None with fewer
+    than two)."""
+    yaw = log.pose[:, 2]
+    have = np.isfinite(yaw)
+    if have.sum() < 2:
+        return None
+    return np.interp(log.t, log.t[have], np.unwrap(yaw[have]))
+
+
+def _held(t: Array, cmd: Array) -> Array:
+    """Seconds each row's targets have held unchanged."""
+    changed = np.r_[True, np.any(np.abs(np.diff(cmd, axis=0)) > 1e-9, axis=1)]
+    start = np.maximum.accumulate(np.where(changed, np.arange(len(t)), 0))
+    return np.asarray(t - t[start], dtype=np.float64)
+
+
+def runs(log: DriveLog, index: int, arm: float) -> list[Run]:
+    """The log's steady straight runs: targets held :data:`HOLD` s, equal on both sides to
+    :data:`STRAIGHT`, moving; each a stretch of :data:`MIN_RUN` s or more with the torque of
+    every driven wheel and the heading known."""
+    yaw = _yaw(log)
+    if yaw is None or not log.has_effort:
+        return []
+    bent = np.abs(
+        log.theta[:, list(YAW_JOINTS)] - np.median(log.theta[:, list(YAW_JOINTS)], axis=0)
+    )
+    left, right = log.cmd[:, [0, 2]].mean(axis=1), log.cmd[:, [1, 3]].mean(axis=1)
+    mean = 0.5 * (left + right)
+    ok = (
+        (_held(log.t, log.cmd) >= HOLD)
+        & (np.abs(mean) >= MOVING)
+        & (np.abs(left - right) <= STRAIGHT * np.abs(mean))
+        & np.all(np.isfinite(log.effort), axis=1)
+        & np.all(bent <= BENT, axis=1)
+    )
+    out: list[Run] = []
+    edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if log.t[b - 1] - log.t[a] < MIN_RUN:
+            continue
+        s = slice(a, b)
+        out.append(
+            Run(
+                log=index,
+                t0=float(log.t[a]),
+                t1=float(log.t[b - 1]),
+                force=float(np.mean(log.effort[s].sum(axis=1)) / arm),
+                cos_yaw=float(np.mean(np.cos(yaw[s]))),
+                sin_yaw=float(np.mean(np.sin(yaw[s]))),
+                direction=float(np.sign(np.mean(mean[s]))),
+            )
+        )
+    return out
+
+
+def read_balance(
+    logs: list[DriveLog], cfg: RoverConfig, tolerance: float
+) -> tuple[BalanceReading | None, list[Run]]:
+    """The force balance over ``logs`` (None where they lack the torque, the pose's yaw or
+    :data:`MIN_RUNS` steady straight runs), and the runs it used."""
+    arm = lever(cfg)
+    rs = [r for i, log in enumerate(logs) for r in runs(log, i, arm)]
+    if len(rs) < MIN_RUNS:
+        return None, rs
+    X = np.array([[r.cos_yaw, r.sin_yaw, r.direction] for r in rs])
+    y = np.array([r.force for r in rs])
+    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    resid = y - X @ coef
+    dof = len(rs) - X.shape[1]
+    s2 = float(resid @ resid) / dof
+    xtx = X.T @ X
+    try:  # not a pseudo-inverse: it drops the direction the runs leave undetermined
+        inv = np.linalg.inv(xtx)
+    except np.linalg.LinAlgError:
+        return None, rs
+    cov = s2 * inv
+    t_q = float(stats.t.ppf(0.975, dof)) / Z  # the runs are few
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0)) * t_q
+    weight = cfg.masses.total * GRAVITY
+
+    def deg(f: float) -> float:
+        return math.degrees(math.asin(max(-1.0, min(1.0, f / weight))))
+
+    def se_deg(f: float) -> float:
+        return math.degrees(f / weight)
+
+    return (
+        BalanceReading(
+            runs=len(rs),
+            tilt_x=deg(float(coef[0])),
+            tilt_y=deg(float(coef[1])),
+            se_x=se_deg(float(se[0])),
+            se_y=se_deg(float(se[1])),
+            resistance=float(coef[2]),
+            se_resistance=float(se[2]),
+            weight=weight,
+            lever=arm,
+            tolerance=tolerance,
+            inflation=float(np.max(np.sqrt(np.maximum(np.diag(inv), 0.0)))) * math.sqrt(len(rs)),
+            scatter=math.sqrt(s2),
+        ),
+        rs,
+    )

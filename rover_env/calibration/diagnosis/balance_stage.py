@@ -1,0 +1,147 @@
+"""Stage 5d, balance: the ground's tilt read from the motors' reported torque.
+
+Where the logs carry ``effort_*`` columns and the pose's yaw,
+:func:`rover_env.calibration.balance.read_balance` fits the force balance along the track
+over the steady straight runs: a tilt vector and a resistance. A tilt whose interval, less
+what clean builds read (:data:`rover_env.calibration.balance.CLEAN_TILT`), stays above level names ``slope`` from the
+balance, in place of a slope the windows named; a balance that reads the ground level where
+the windows named a slope outside its interval withdraws that slope. Why a stage of its own:
+the windows read a slope through this model's joints and springs, and clean builds of another
+implementation fit tilts up to 2.4° there (the clean-fit allowance), which a slope must clear
+to be named; the summed wheel torque does not depend on where the mass sits.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from rover_env.calibration.balance import SCALE, BalanceReading, Z, read_balance
+from rover_env.calibration.candidates import merge
+from rover_env.calibration.diagnosis.judge import scored_beside
+from rover_env.calibration.diagnosis.state import Diagnosis, Scored
+from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
+from rover_env.calibration.fit import Fit, to_ext
+
+NAME = "slope"
+PLAN = "reversals"
+"""The drive asked for where the runs leave the tilt and the resistance one unknown: long
+runs forwards and backwards on one line and 180° turns."""
+
+
+def name_by_balance(d: Diagnosis) -> None:
+    """Sets :attr:`Diagnosis.balance`; names, replaces or withdraws a slope as the reading
+    says (see the module docstring)."""
+    d.balance = None
+    cand = next((c for c in d.cands if c.name == NAME), None)
+    if d.opts.balance_allowance is None or d.opts.effort_tolerance is None or cand is None:
+        return
+    logs = [p.log for p in d.prepared]
+    if not any(log.has_effort for log in logs):
+        return
+    t0 = time.perf_counter()
+    reading, runs = read_balance(logs, d.base, SCALE)
+    rec: dict[str, Any] = {"runs": len(runs), "read": reading is not None, "named": False}
+    d.balance = rec
+    if reading is None:
+        rec["why_not"] = "fewer steady straight runs with the torque and the heading than it needs"
+        return
+    allow = d.opts.balance_allowance
+    lo, hi = reading.tilt_interval()
+    rec.update(reading.as_json(), allowance=allow, truth_interval=[max(0.0, lo - allow), hi])
+    windows = [s for s in d.chosen if NAME in [c.name for c in s.fit.candidates]]
+    alone = [s for s in windows if len(s.fit.candidates) == 1]
+    wlo = alone[0].fit.physical()[NAME]["deg"][1] if alone else None
+    act = action((lo, hi), allow, wlo, len(windows) > len(alone), reading.separated)
+    if act in WHY_NOT:
+        rec["why_not"] = WHY_NOT[act].format(allow=allow)
+    if act == "unseparated":  # the drive that separates them, for drive-plan and the bench
+        rec.update(plan=PLAN, seed=PLAN_SEED, duration=PLAN_DURATION)
+    if act == "withdraw":
+        d.chosen = [s for s in d.chosen if s not in alone]
+        rec["withdrew"] = [fmt_slope(s) for s in alone]
+        d.say(f"{NAME}: withdrawn, the wheels' torque reads the ground within {hi:.2f}°")
+    if act != "name":
+        return
+    fit = balance_fit(cand, reading, allow, time.perf_counter() - t0)
+    d.chosen = [s for s in d.chosen if s not in alone]
+    rec["replaced"] = [fmt_slope(s) for s in alone]
+    s, _ = scored_beside(d, fit, merge(*(s.fit.ext for s in d.chosen)))
+    s.significant = True
+    s.test = test_text(reading, allow)
+    rec.update(named=True, held_gain=s.gain)
+    d.chosen.append(s)
+    d.say(f"{NAME}: named by {s.test}")
+
+
+WHY_NOT = {
+    "unseparated": "the runs do not tell a tilt from a resistance (all one way, or in about one"
+    " heading): drive the same line forwards and backwards, and turn",
+    "level": "the tilt's interval, less the {allow:g}° clean builds read, reaches level",
+    "withdraw": "the tilt's interval, less the {allow:g}° clean builds read, reaches level",
+    "inside": "a slope is named with another effect; the reading is reported",
+}
+"""Why a reading names nothing, by :func:`action`."""
+
+
+def action(
+    tilt: tuple[float, float],
+    allow: float,
+    windows_low: float | None,
+    inside: bool,
+    separated: bool = True,
+) -> str:
+    """What a reading's tilt interval (low, high; degrees) does beside the windows' slope
+    (``windows_low``: the low end of its interval for the truth where they named it alone;
+    ``inside``: named with another effect): "name" (the interval, less ``allow``, stays
+    above level: the balance's slope replaces theirs), "inside" (reported only),
+    "withdraw" (it reaches level, and theirs lies above its high end), "level", or
+    "unseparated" (the runs do not tell a tilt from a resistance: nothing either way)."""
+    lo, hi = tilt
+    if not separated:
+        return "unseparated"
+    if lo - allow > 0.0:
+        return "inside" if inside else "name"
+    if windows_low is not None and windows_low > hi:
+        return "withdraw"
+    return "level"
+
+
+def balance_fit(cand: Any, r: BalanceReading, allow: float, seconds: float) -> Fit:
+    """The slope as the balance reads it: the tilt vector with its standard errors (the
+    scale's tolerance folded in), and the clean builds' tilt as its allowance."""
+    x = np.array([r.tilt_x, r.tilt_y])
+    se = np.array(r.tilt_se())
+    fit = Fit(
+        candidates=[cand],
+        x=x,
+        ci_lo=x - Z * se,
+        ci_hi=x + Z * se,
+        se=se,
+        cost=float("nan"),
+        nfev=1,
+        ext=to_ext([cand], x),
+        seconds=seconds,
+        which="train",
+        method="balance",
+    )
+    fit.allowance = {NAME: (allow, 0.0)}  # below, above: clean builds read up to allow high
+    return fit
+
+
+def test_text(r: BalanceReading, allow: float) -> str:
+    """The naming's reason, in the report's words."""
+    lo, hi = r.tilt_interval()
+    return (
+        f"balance: the wheels' summed torque over {r.runs} steady straight runs reads the ground"
+        f" rising {r.tilt:.2f}° [{lo:.2f}, {hi:.2f}] toward {r.heading:.0f}°, beyond the"
+        f" {allow:g}° clean builds read"
+    )
+
+
+def fmt_slope(s: Scored) -> dict[str, Any]:
+    """A withdrawn or replaced slope, for the record."""
+    v, lo, hi = s.fit.physical()[NAME]["deg"]
+    return {"effects": [c.name for c in s.fit.candidates], "deg": v, "interval": [lo, hi]}

@@ -1,0 +1,232 @@
+"""The ground's tilt and the rover's resistance read from the reported motor torque
+(rover_env.calibration.balance) and what the balance stage does with them.
+
+The logs here come from a rigid rover of this file's own: straight runs and turns at given
+wheel speeds, the heading turning with the sides' difference, and each driven wheel's torque
+a quarter of what holds the rover against gravity along its heading and its resistance,
+times the lever, plus the driver's noise. Not the simulator.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rover_env.calibration.balance import CLEAN_TILT, lever, read_balance
+from rover_env.calibration.diagnosis.balance_stage import WHY_NOT, action
+from rover_env.calibration.drive_plan import DrivePlanError, proposals_from_report
+from rover_env.calibration.report_notes import balance_lines
+from rover_env.cli import main
+from rover_env.config import RoverConfig
+from rover_env.logs import DriveLog, LogMeta
+
+CFG = RoverConfig()
+WEIGHT = CFG.masses.total * 9.81
+
+# (seconds, left, right) wheel targets: straight runs both ways joined by turns of about 90°.
+PLAN = [
+    (4.0, 2.0, 2.0),
+    (1.5, -1.5, 1.5),
+    (4.0, 2.5, 2.5),
+    (4.0, -2.0, -2.0),
+    (1.5, -1.5, 1.5),
+    (4.0, 1.5, 1.5),
+    (4.0, -2.5, -2.5),
+    (1.5, -1.5, 1.5),
+    (4.0, 3.0, 3.0),
+    (4.0, -1.5, -1.5),
+]
+
+
+def rover_log(
+    tilt_deg: float,
+    heading_deg: float,
+    c_rr: float,
+    *,
+    plan: list[tuple[float, float, float]] = PLAN,
+    seed: int = 0,
+    noise: float = 0.02,
+    scale: float = 1.0,
+    yaw0: float = 0.0,
+) -> DriveLog:
+    """One drive of ``plan`` on ground rising ``tilt_deg`` toward ``heading_deg``, the rover
+    losing ``c_rr`` of its weight rolling; the driver reports ``scale`` x the torque."""
+    rng = np.random.default_rng(seed)
+    dt = 0.02
+    t = np.arange(0.0, sum(p[0] for p in plan) + 1.0, dt)
+    cmd = np.zeros((len(t), 4))
+    edges = np.cumsum([1.0] + [p[0] for p in plan])
+    for (dur, left, right), t0 in zip(plan, edges[:-1], strict=True):
+        on = (t >= t0) & (t < t0 + dur)
+        cmd[on] = [left, right, left, right]
+    r = CFG.geometry.wheel_radius
+    yaw = yaw0 + np.cumsum((cmd[:, 1] - cmd[:, 0]) * r / (2 * CFG.geometry.half_track)) * dt
+    v = 0.5 * (cmd[:, 0] + cmd[:, 1])
+    g = WEIGHT * math.sin(math.radians(tilt_deg))
+    force = g * np.cos(yaw - math.radians(heading_deg)) + c_rr * WEIGHT * np.sign(v)
+    effort = scale * np.repeat((force * lever(CFG) / 4)[:, None], 4, axis=1)
+    effort += rng.normal(0.0, noise, effort.shape)
+    phi = np.cumsum(np.c_[cmd, cmd[:, :2]], axis=0) * dt
+    pose = np.full((len(t), 3), np.nan)
+    fix = np.arange(0, len(t), 50)  # 1 Hz
+    pose[fix, 2] = yaw[fix] + rng.normal(0.0, 0.005, len(fix))
+    return DriveLog(
+        t=t,
+        cmd=cmd,
+        phi=phi,
+        theta=np.zeros((len(t), 5)),
+        pose=pose,
+        meta=LogMeta(rover="proto_explorer", sample_rate_hz=50.0),
+        effort=effort,
+    )
+
+
+@pytest.mark.parametrize(
+    ("tilt", "heading", "c_rr"), [(0.0, 0.0, 0.01), (1.0, 40.0, 0.01), (3.0, -120.0, 0.05)]
+)
+def test_tilt_heading_and_resistance_are_read_within_their_intervals(
+    tilt: float, heading: float, c_rr: float
+) -> None:
+    logs = [rover_log(tilt, heading, c_rr, seed=s, yaw0=0.3 * s) for s in range(3)]
+    r, runs = read_balance(logs, CFG, 0.1)
+    assert r is not None and len(runs) == 3 * 7
+    lo, hi = r.tilt_interval()
+    assert lo <= tilt <= hi
+    assert hi - lo < 0.3 + 2 * 0.1 * tilt  # the noise, and the 10 % scale tolerance
+    if tilt > 0:
+        assert abs(math.remainder(r.heading - heading, 360.0)) < 5.0
+    clo, chi = r.c_rr_interval()
+    assert clo <= c_rr <= chi
+    assert r.inflation < 3.0
+
+
+def test_a_torque_scale_off_is_inside_the_tolerance() -> None:
+    logs = [rover_log(2.0, 10.0, 0.02, seed=s, scale=1.08) for s in range(3)]
+    r, _ = read_balance(logs, CFG, 0.1)
+    assert r is not None
+    lo, hi = r.tilt_interval()
+    assert lo <= 2.0 <= hi
+    assert r.tilt == pytest.approx(2.16, abs=0.05)  # the scale moves the read by its own part
+    narrow, _ = read_balance(logs, CFG, 0.0)
+    assert narrow is not None and not narrow.tilt_interval()[0] <= 2.0 <= narrow.tilt_interval()[1]
+
+
+def test_runs_one_way_in_one_heading_cannot_tell_a_tilt_from_a_resistance() -> None:
+    plan = [(4.0, 2.0, 2.0), (0.5, 0.0, 0.0)] * 4
+    logs = [rover_log(2.0, 0.0, 0.02, plan=plan, seed=s) for s in range(2)]
+    r, runs = read_balance(logs, CFG, 0.1)
+    assert r is not None and len(runs) == 8
+    assert not r.separated  # the tilt along the track and the resistance are one unknown
+    assert action(r.tilt_interval(), CLEAN_TILT, 3.0, False, r.separated) == "unseparated"
+
+
+def test_logs_without_torque_or_heading_give_no_reading() -> None:
+    log = rover_log(1.0, 0.0, 0.01)
+    bare = DriveLog(log.t, log.cmd, log.phi, log.theta, log.pose, log.meta)
+    assert read_balance([bare], CFG, 0.1)[0] is None
+    blind = DriveLog(
+        log.t,
+        log.cmd,
+        log.phi,
+        log.theta,
+        np.full_like(log.pose, np.nan),
+        log.meta,
+        effort=log.effort,
+    )
+    assert read_balance([blind], CFG, 0.1) == (None, [])
+
+
+def test_a_rover_left_bent_is_not_a_straight_run() -> None:
+    logs = [rover_log(0.0, 0.0, 0.01, seed=s, yaw0=0.3 * s) for s in range(3)]
+    _, straight = read_balance(logs, CFG, 0.1)
+    bent = logs[0].theta.copy()
+    bent[logs[0].t > 20.0, 1] = math.radians(5.0)  # theta_2 held off after 20 s
+    logs[0] = DriveLog(
+        logs[0].t, logs[0].cmd, logs[0].phi, bent, logs[0].pose, logs[0].meta, effort=logs[0].effort
+    )
+    _, kept = read_balance(logs, CFG, 0.1)
+    assert len(kept) < len(straight)
+    assert all(r.t1 <= 20.0 for r in kept if r.log == 0)
+
+
+@pytest.mark.parametrize(
+    ("tilt", "windows_low", "inside", "expected"),
+    [
+        ((0.9, 1.3), None, False, "name"),
+        ((0.9, 1.3), 2.6, False, "name"),
+        ((0.9, 1.3), None, True, "inside"),
+        ((0.2, 0.6), None, False, "level"),
+        ((0.2, 0.6), 2.5, False, "withdraw"),
+        ((0.2, 0.6), 0.4, False, "level"),
+    ],
+)
+def test_what_a_reading_does_beside_the_windows(
+    tilt: tuple[float, float], windows_low: float | None, inside: bool, expected: str
+) -> None:
+    assert action(tilt, 0.5, windows_low, inside) == expected
+    assert action(tilt, 0.5, windows_low, inside, separated=False) == "unseparated"
+
+
+def test_the_report_says_what_was_read() -> None:
+    logs = [rover_log(1.5, 30.0, 0.02, seed=s, yaw0=0.3 * s) for s in range(3)]
+    r, runs = read_balance(logs, CFG, 0.1)
+    assert r is not None
+    rec = {"runs": len(runs), "read": True, "named": True, "allowance": 0.5, **r.as_json()}
+    text = "\n".join(balance_lines(rec))
+    assert "named `slope` from it" in text and "toward 30°" in text
+    none = "\n".join(balance_lines({"runs": 2, "read": False, "why_not": "too few"}))
+    assert "2 steady straight runs" in none and "too few" in none
+
+
+@pytest.mark.parametrize("bad", ["-0.1", "25", "nan", "level"])
+def test_a_bad_balance_allowance_is_refused_naming_the_flag(
+    bad: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        main(
+            [
+                "diagnose",
+                str(tmp_path / "x.csv"),
+                "--out",
+                str(tmp_path),
+                "--balance-allowance",
+                bad,
+            ]
+        )
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert "--balance-allowance" in err and bad in err, err
+
+
+def test_an_unseparated_reading_asks_for_the_drive_both_ways(tmp_path: Path) -> None:
+    rec = {
+        "runs": 9,
+        "read": True,
+        "named": False,
+        "allowance": 0.5,
+        **rover_read([(4.0, 2.0, 2.0), (0.5, 0.0, 0.0)] * 4),
+        "why_not": WHY_NOT["unseparated"],
+        "plan": "reversals",
+        "seed": 3,
+        "duration": 60.0,
+    }
+    text = "\n".join(balance_lines(rec))
+    assert "drive-plan --plan reversals --seed 3 --duration 60" in text
+    (tmp_path / "result.json").write_text(json.dumps({"balance": rec}))
+    (prop,) = proposals_from_report(tmp_path)
+    assert (prop.plan, prop.seed, prop.duration) == ("reversals", 3, 60.0)
+    assert prop.effects == {"slope"} and "force balance" in prop.why[0]
+    del rec["plan"]
+    (tmp_path / "result.json").write_text(json.dumps({"balance": rec}))
+    with pytest.raises(DrivePlanError, match="proposes no drive"):
+        proposals_from_report(tmp_path)
+
+
+def rover_read(plan: list[tuple[float, float, float]]) -> dict[str, object]:
+    r, _ = read_balance([rover_log(1.0, 0.0, 0.02, plan=plan, seed=s) for s in range(2)], CFG, 0.2)
+    assert r is not None and not r.separated
+    return r.as_json()
