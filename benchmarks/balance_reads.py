@@ -73,38 +73,54 @@ def line(row: dict[str, Any]) -> str:
     head = f"{row['kind']:18s} {row['seed']} {truth[0]:>7s} {truth[1]:7.4f}  runs {row['runs']:2d}"
     if "tilt" not in row:
         return head + "  not read"
-    lo, hi = row["tilt_interval"]
-    clo, chi = row["c_rr_interval"]
+    lo, hi = (math.inf if v is None else v for v in row["tilt_interval"])
+    clo, chi = (math.nan if v is None else v for v in row["c_rr_interval"])
+    infl = math.inf if row["inflation"] is None else row["inflation"]
     return (
         head + f"  tilt {row['tilt']:5.2f} [{lo:5.2f}, {hi:5.2f}] toward {row['heading']:6.0f}"
-        f"  c_rr {row['c_rr']:.4f} [{clo:.4f}, {chi:.4f}]  inflation {row['inflation']:.0f}"
+        f"  c_rr {row['c_rr']:.4f} [{clo:.4f}, {chi:.4f}]  inflation {infl:.0f}"
+        + ("" if row["separated"] else " (unseparated)")
+        + ("  NAMED" if named(row) else "")
     )
 
 
+def named(row: dict[str, Any]) -> bool:
+    """Whether the balance stage would name a slope from this reading (alone, nothing else
+    named): its runs separate, and its interval, less ``CLEAN_TILT``, stays above level."""
+    return bool(row.get("separated")) and row["tilt_interval"][0] - CLEAN_TILT > 0.0
+
+
 def summary(rows: list[dict[str, Any]]) -> list[str]:
-    """The clean builds' tilt quantiles and the slopes' reads against the truth."""
+    """The clean builds' reads (the measurement behind ``CLEAN_TILT``), the other loads', and
+    the slopes' against the truth, counting what the balance stage would name."""
     out = []
-    clean = [r for r in rows if r["kind"] == "clean" and "tilt" in r]
-    if clean:
-        t = np.array([r["tilt"] for r in clean])
-        lows = np.array([r["tilt_interval"][0] for r in clean])
+    for kinds, what in ((("clean",), "clean builds"), (tuple(RANGES)[1:], "drags and soils")):
+        part = [r for r in rows if r["kind"] in kinds and "tilt" in r]
+        sep = [r for r in part if r["separated"]]
+        if not part:
+            continue
+        lows = [r["tilt_interval"][0] for r in sep]
         out.append(
-            f"clean builds: {len(clean)} read; tilt median {np.median(t):.2f}°, 95 % quantile"
-            f" {np.quantile(t, 0.95):.2f}°, largest {t.max():.2f}°; interval's low end above"
-            f" {CLEAN_TILT:g}° (would be named) in {int(np.sum(lows > CLEAN_TILT))}"
+            f"{what}: {len(part)} read, {len(sep)} separated; of those the tilt up to"
+            f" {max((r['tilt'] for r in sep), default=0.0):.2f}°, the interval's low end up to"
+            f" {max(lows, default=0.0):.2f}°; a slope would be named on {sum(map(named, part))}"
         )
     slopes = [r for r in rows if r["kind"] == "slope" and "tilt" in r]
     if slopes:
         truth = [r["effects"]["slope"]["deg"] for r in slopes]
+        hit = [named(r) for r in slopes]
         cover = sum(
             r["tilt_interval"][0] - CLEAN_TILT <= t <= r["tilt_interval"][1]
-            for r, t in zip(slopes, truth, strict=True)
+            for r, t, h in zip(slopes, truth, hit, strict=True)
+            if h
         )
-        named = [r for r in slopes if r["tilt_interval"][0] > CLEAN_TILT]
+        big = [h for h, t in zip(hit, truth, strict=True) if t >= 2 * CLEAN_TILT]
+        ratio = [r["tilt"] / t for r, t, h in zip(slopes, truth, hit, strict=True) if h]
         out.append(
-            f"slopes: {len(slopes)} read; named (low end above {CLEAN_TILT:g}°) {len(named)};"
-            f" truth in [low - {CLEAN_TILT:g}, high] {cover}/{len(slopes)}; read over truth"
-            f" median {np.median([r['tilt'] / t for r, t in zip(slopes, truth, strict=True)]):.2f}"
+            f"slopes: {len(slopes)} read; named {sum(hit)} (of {2 * CLEAN_TILT:g}° or more"
+            f" {sum(big)}/{len(big)}, under it {sum(hit) - sum(big)}/{len(hit) - len(big)});"
+            f" of the named, the truth in [low - {CLEAN_TILT:g}, high] {cover}/{sum(hit)},"
+            f" read over truth {min(ratio, default=0):.2f}-{max(ratio, default=0):.2f}"
         )
     return out
 
@@ -117,14 +133,15 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
 
     fig, ax = plt.subplots(figsize=(6, 4.5))
     for r in rows:
-        if "tilt" not in r or r["kind"] not in ("clean", "slope"):
-            continue
+        if "tilt" not in r or r["kind"] not in ("clean", "slope") or not r["separated"]:
+            continue  # unseparated reads have no bounded interval to draw
         t = r["effects"]["slope"]["deg"] if r["kind"] == "slope" else 0.0
         lo, hi = r["tilt_interval"]
         c = "tab:blue" if r["kind"] == "slope" else "tab:gray"
         ax.errorbar(t, r["tilt"], yerr=[[r["tilt"] - lo], [hi - r["tilt"]]], fmt="o", color=c, ms=4)
     ax.plot([0, 3.2], [0, 3.2], "k:", lw=1)
     ax.axhline(CLEAN_TILT, color="tab:red", lw=1, label=f"CLEAN_TILT {CLEAN_TILT:g}°")
+    ax.set_title("force balance: separated reads (unseparated ones ask for a drive)", fontsize=9)
     ax.set_xlabel("true tilt (°; clean builds at 0)")
     ax.set_ylabel("balance's tilt and 95 % interval (°)")
     ax.set_ylim(0, 4)

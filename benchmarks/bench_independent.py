@@ -14,10 +14,11 @@ Cases (seeds from 47500, magnitudes drawn by seed, log-uniform over each effect'
 5 singles of each of the 9 catalogue effects the generator implements (45), 10 clean, 6
 pairs (never a tire-only effect with loose soil, ``INERT_ON_SOIL``), 4 outside the catalogue
 (``payload``, ``toe``, ``brake_drag``, ``battery_sag``); ranges: ``bench_diagnose.RANGES``.
+The cases are planned in ``_independent_plan.py`` (this matrix's and the smaller studies').
 
 The generator's parameters against the catalogue's (``rover_env.effects``; the truth column
 is the catalogue parameter that gives the same physical quantity in diagnose's model, the
-``proto_explorer`` rover the logs name, :func:`catalogue_truth`):
+``proto_explorer`` rover the logs name, ``_independent_plan.catalogue_truth``):
 
 - ``rolling_resistance`` c_rr, ``friction`` fraction (mu_x, mu_y times 1 + f), ``command_lag``
   tau, ``command_delay`` delay: the same definition in both; truth = the drawn value.

@@ -16,19 +16,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rover_env.calibration.balance import CLEAN_TILT, lever, read_balance
-from rover_env.calibration.diagnosis.balance_stage import WHY_NOT, action
+from rover_env.calibration.balance import CLEAN_TILT, Run, lever, read_balance
+from rover_env.calibration.diagnosis.balance_stage import PLAN, action, record
 from rover_env.calibration.drive_plan import DrivePlanError, proposals_from_report
+from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
 from rover_env.calibration.report_notes import balance_lines
 from rover_env.cli import main
 from rover_env.config import RoverConfig
 from rover_env.logs import DriveLog, LogMeta
 
 CFG = RoverConfig()
+WHY_NOT_NONE = "fewer steady straight runs with the torque and the heading than it needs"
 WEIGHT = CFG.masses.total * 9.81
 
 # (seconds, left, right) wheel targets: straight runs both ways joined by turns of about 90°.
-PLAN = [
+DRIVE = [
     (4.0, 2.0, 2.0),
     (1.5, -1.5, 1.5),
     (4.0, 2.5, 2.5),
@@ -47,11 +49,11 @@ def rover_log(
     heading_deg: float,
     c_rr: float,
     *,
-    plan: list[tuple[float, float, float]] = PLAN,
+    plan: list[tuple[float, float, float]] = DRIVE,
     seed: int = 0,
     noise: float = 0.02,
     scale: float = 1.0,
-    yaw0: float = 0.0,
+    fix_every: int = 50,
 ) -> DriveLog:
     """One drive of ``plan`` on ground rising ``tilt_deg`` toward ``heading_deg``, the rover
     losing ``c_rr`` of its weight rolling; the driver reports ``scale`` x the torque."""
@@ -64,7 +66,7 @@ def rover_log(
         on = (t >= t0) & (t < t0 + dur)
         cmd[on] = [left, right, left, right]
     r = CFG.geometry.wheel_radius
-    yaw = yaw0 + np.cumsum((cmd[:, 1] - cmd[:, 0]) * r / (2 * CFG.geometry.half_track)) * dt
+    yaw = np.cumsum((cmd[:, 1] - cmd[:, 0]) * r / (2 * CFG.geometry.half_track)) * dt
     v = 0.5 * (cmd[:, 0] + cmd[:, 1])
     g = WEIGHT * math.sin(math.radians(tilt_deg))
     force = g * np.cos(yaw - math.radians(heading_deg)) + c_rr * WEIGHT * np.sign(v)
@@ -72,7 +74,7 @@ def rover_log(
     effort += rng.normal(0.0, noise, effort.shape)
     phi = np.cumsum(np.c_[cmd, cmd[:, :2]], axis=0) * dt
     pose = np.full((len(t), 3), np.nan)
-    fix = np.arange(0, len(t), 50)  # 1 Hz
+    fix = np.arange(0, len(t), fix_every)  # 1 Hz by default
     pose[fix, 2] = yaw[fix] + rng.normal(0.0, 0.005, len(fix))
     return DriveLog(
         t=t,
@@ -91,9 +93,9 @@ def rover_log(
 def test_tilt_heading_and_resistance_are_read_within_their_intervals(
     tilt: float, heading: float, c_rr: float
 ) -> None:
-    logs = [rover_log(tilt, heading, c_rr, seed=s, yaw0=0.3 * s) for s in range(3)]
+    logs = [rover_log(tilt, heading, c_rr, seed=s) for s in range(3)]
     r, runs = read_balance(logs, CFG, 0.1)
-    assert r is not None and len(runs) == 3 * 7
+    assert r is not None and len(runs) == 3 * 7  # DRIVE's seven straight runs a log
     lo, hi = r.tilt_interval()
     assert lo <= tilt <= hi
     assert hi - lo < 0.3 + 2 * 0.1 * tilt  # the noise, and the 10 % scale tolerance
@@ -104,13 +106,14 @@ def test_tilt_heading_and_resistance_are_read_within_their_intervals(
     assert r.inflation < 3.0
 
 
-def test_a_torque_scale_off_is_inside_the_tolerance() -> None:
-    logs = [rover_log(2.0, 10.0, 0.02, seed=s, scale=1.08) for s in range(3)]
-    r, _ = read_balance(logs, CFG, 0.1)
+@pytest.mark.parametrize("heading", [10.0, 45.0, -135.0])
+def test_a_torque_scale_off_is_inside_the_tolerance(heading: float) -> None:
+    logs = [rover_log(2.0, heading, 0.02, seed=s, scale=1.18) for s in range(3)]
+    r, _ = read_balance(logs, CFG, 0.2)
     assert r is not None
     lo, hi = r.tilt_interval()
-    assert lo <= 2.0 <= hi
-    assert r.tilt == pytest.approx(2.16, abs=0.05)  # the scale moves the read by its own part
+    assert lo <= 2.0 <= hi  # at any heading: the scale moves the whole vector
+    assert r.tilt == pytest.approx(2.36, abs=0.05)  # the scale moves the read by its own part
     narrow, _ = read_balance(logs, CFG, 0.0)
     assert narrow is not None and not narrow.tilt_interval()[0] <= 2.0 <= narrow.tilt_interval()[1]
 
@@ -141,7 +144,7 @@ def test_logs_without_torque_or_heading_give_no_reading() -> None:
 
 
 def test_a_rover_left_bent_is_not_a_straight_run() -> None:
-    logs = [rover_log(0.0, 0.0, 0.01, seed=s, yaw0=0.3 * s) for s in range(3)]
+    logs = [rover_log(0.0, 0.0, 0.01, seed=s) for s in range(3)]
     _, straight = read_balance(logs, CFG, 0.1)
     bent = logs[0].theta.copy()
     bent[logs[0].t > 20.0, 1] = math.radians(5.0)  # theta_2 held off after 20 s
@@ -159,6 +162,7 @@ def test_a_rover_left_bent_is_not_a_straight_run() -> None:
         ((0.9, 1.3), None, False, "name"),
         ((0.9, 1.3), 2.6, False, "name"),
         ((0.9, 1.3), None, True, "inside"),
+        ((0.2, 0.6), 2.5, True, "inside"),
         ((0.2, 0.6), None, False, "level"),
         ((0.2, 0.6), 2.5, False, "withdraw"),
         ((0.2, 0.6), 0.4, False, "level"),
@@ -172,7 +176,7 @@ def test_what_a_reading_does_beside_the_windows(
 
 
 def test_the_report_says_what_was_read() -> None:
-    logs = [rover_log(1.5, 30.0, 0.02, seed=s, yaw0=0.3 * s) for s in range(3)]
+    logs = [rover_log(1.5, 30.0, 0.02, seed=s) for s in range(3)]
     r, runs = read_balance(logs, CFG, 0.1)
     assert r is not None
     rec = {"runs": len(runs), "read": True, "named": True, "allowance": 0.5, **r.as_json()}
@@ -203,30 +207,79 @@ def test_a_bad_balance_allowance_is_refused_naming_the_flag(
 
 
 def test_an_unseparated_reading_asks_for_the_drive_both_ways(tmp_path: Path) -> None:
-    rec = {
-        "runs": 9,
-        "read": True,
-        "named": False,
-        "allowance": 0.5,
-        **rover_read([(4.0, 2.0, 2.0), (0.5, 0.0, 0.0)] * 4),
-        "why_not": WHY_NOT["unseparated"],
-        "plan": "reversals",
-        "seed": 3,
-        "duration": 60.0,
-    }
+    logs = [
+        rover_log(1.0, 0.0, 0.02, plan=[(4.0, 2.0, 2.0), (0.5, 0.0, 0.0)] * 4, seed=s)
+        for s in range(2)
+    ]
+    reading, runs = read_balance(logs, CFG, 0.2)
+    act, rec = record(reading, len(runs), 0.5, 3.0, False)
+    assert act == "unseparated" and not rec["named"] and rec["plan"] == PLAN
     text = "\n".join(balance_lines(rec))
-    assert "drive-plan --plan reversals --seed 3 --duration 60" in text
+    assert f"drive-plan --plan {PLAN} --seed {PLAN_SEED} --duration {PLAN_DURATION:g}" in text
     (tmp_path / "result.json").write_text(json.dumps({"balance": rec}))
     (prop,) = proposals_from_report(tmp_path)
-    assert (prop.plan, prop.seed, prop.duration) == ("reversals", 3, 60.0)
+    assert (prop.plan, prop.seed, prop.duration) == (PLAN, PLAN_SEED, PLAN_DURATION)
     assert prop.effects == {"slope"} and "force balance" in prop.why[0]
-    del rec["plan"]
+    sloped, runs = read_balance([rover_log(1.5, 0.0, 0.02, seed=s) for s in range(3)], CFG, 0.2)
+    act, rec = record(sloped, len(runs), 0.5, None, False)
+    assert act == "name" and "plan" not in rec
     (tmp_path / "result.json").write_text(json.dumps({"balance": rec}))
     with pytest.raises(DrivePlanError, match="proposes no drive"):
         proposals_from_report(tmp_path)
 
 
-def rover_read(plan: list[tuple[float, float, float]]) -> dict[str, object]:
-    r, _ = read_balance([rover_log(1.0, 0.0, 0.02, plan=plan, seed=s) for s in range(2)], CFG, 0.2)
-    assert r is not None and not r.separated
-    return r.as_json()
+def test_runs_that_determine_nothing_are_read_unseparated_with_open_bounds() -> None:
+    plan = [(4.0, 2.0, 2.0), (0.5, 0.0, 0.0)] * 4  # forwards in one heading, every run alike
+    logs = [rover_log(1.0, 0.0, 0.02, plan=plan, seed=s, noise=0.0) for s in range(2)]
+    for log in logs:
+        log.pose[:, 2] = np.where(np.isfinite(log.pose[:, 2]), 0.0, np.nan)  # exactly straight
+    r, runs = read_balance(logs, CFG, 0.2)
+    assert r is not None and len(runs) == 8 and not r.separated
+    assert r.tilt_interval()[1] == math.inf
+    rec = r.as_json()
+    assert rec["tilt_interval"][1] is None and rec["inflation"] is None
+    json.dumps(rec, allow_nan=False)  # no infinity in result.json
+    act, out = record(r, len(runs), 0.5, None, False)
+    assert act == "unseparated" and "unbounded" in "\n".join(balance_lines(out))
+
+
+def test_a_heading_far_from_every_fix_is_not_known() -> None:
+    sparse = [rover_log(1.0, 40.0, 0.02, seed=s, fix_every=10**6) for s in range(3)]  # t = 0 only
+    assert read_balance(sparse, CFG, 0.2)[0] is None
+
+    def seconds(runs: list[Run]) -> float:
+        return sum(r.t1 - r.t0 for r in runs)
+
+    every_1s = read_balance([rover_log(1.0, 40.0, 0.02, seed=s) for s in range(3)], CFG, 0.2)[1]
+    every_6s = [rover_log(1.0, 40.0, 0.02, seed=s, fix_every=300) for s in range(3)]
+    kept = read_balance(every_6s, CFG, 0.2)[1]
+    assert seconds(kept) < 0.8 * seconds(every_1s)  # the rows over 2 s from a fix are dropped
+    for r in kept:  # and no run is read where no fix lies within 2 s
+        assert (
+            min(abs(r.t0 - 6.0 * round(r.t0 / 6.0)), abs(r.t1 - 6.0 * round(r.t1 / 6.0)))
+            <= 2.0 + 0.02
+        )
+
+
+def test_the_resistance_interval_widens_by_the_scale_on_both_sides() -> None:
+    logs = [rover_log(0.0, 0.0, -0.001, seed=s) for s in range(3)]  # a push, as a bad zero reads
+    r, _ = read_balance(logs, CFG, 0.2)
+    assert r is not None
+    lo, hi = r.c_rr_interval()
+    plain, _ = read_balance(logs, CFG, 0.0)
+    assert plain is not None
+    plo, phi = plain.c_rr_interval()
+    assert lo < plo < 0.0 and hi > phi
+    assert lo <= -0.001 <= hi
+
+
+def test_a_level_reading_withdraws_a_slope_the_windows_named_alone_only() -> None:
+    level, runs = read_balance([rover_log(0.0, 0.0, 0.02, seed=s) for s in range(3)], CFG, 0.2)
+    assert level is not None and level.separated
+    assert record(level, len(runs), 0.5, 2.6, False)[0] == "withdraw"
+    assert record(level, len(runs), 0.5, 2.6, True)[0] == "inside"  # a pair's: reported
+    assert record(level, len(runs), 0.5, None, False)[0] == "level"
+    assert record(None, 3, 0.5, None, False) == (
+        "none",
+        {"runs": 3, "read": False, "named": False, "why_not": WHY_NOT_NONE},
+    )

@@ -460,7 +460,7 @@ def test_result_json_says_where_the_seconds_went(rr_case: tuple[Path, dict]) -> 
         assert list(p)[-1] == "again"  # a pass that ran again stops at the re-judgement
     last = list(passes[-1])
     assert last[:5] == ["split", "form", "floor", "fit", "winner"]
-    assert last[-5:] == ["select", "odometry", "effort", "one_wheel", "evidence"]
+    assert last[-6:] == ["select", "odometry", "effort", "balance", "one_wheel", "evidence"]
     spent = sum(v for p in passes for v in p.values())
     assert all(v >= 0 for p in passes for v in p.values())
     assert 0.5 * result["seconds"] < spent <= result["seconds"]

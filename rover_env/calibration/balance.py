@@ -71,27 +71,38 @@ a 0.91° slope, every run forward within 6° of one heading, read 41.7° [15.4, 
 inflation 2261). Reads at 3-144 named their slopes right on exploratory seeds 74681-74700;
 those in the thousands were unseparated."""
 CLEAN_TILT = 0.5
-"""Degrees: the tilt the balance reads on clean builds of another implementation (their 95 %
-quantile), which a slope's interval must clear before the balance names it."""
+"""Degrees a slope's interval must clear before the balance names it: what clean builds of
+another implementation read. On 20 clean builds of the independent generator (exploratory
+seeds 74661-74680) the intervals' low ends reached 0.10° (the tilts read, up to 1.3°, only
+where the runs determine the tilt poorly and its interval is wide); 0.5° leaves room for an
+implementation that is not that one."""
+FIX_GAP = 2.0
+"""Seconds from the nearest pose fix beyond which a row's heading is not known (the
+generator's fixes come at 1 Hz; between fixes far apart a turn may have been made)."""
 Z = 1.96
-CHI2_2 = 5.991
-"""95 % quantile of chi-square with two degrees of freedom (the tilt vector's region)."""
 
 
 @dataclass(frozen=True)
 class BalanceReading:
-    """What the force balance says (forces in N, the tilt in degrees)."""
+    """What the force balance says (forces in N, the tilt in degrees). Standard errors are
+    the fit's own; the intervals scale them by Student's t over :attr:`dof` (the runs are
+    few) and add the reported torque's scale :attr:`tolerance`."""
 
     runs: int
     """Steady straight runs over all logs."""
     tilt_x: float
     """Tilt vector toward +x of the log frame, degrees (the ground rises that way)."""
     tilt_y: float
-    se_x: float
-    se_y: float
+    sd_x: float
+    """Standard error of :attr:`tilt_x` (degrees; inf where the runs leave it undetermined)."""
+    sd_y: float
+    corr: float
+    """Correlation of the two parts' errors."""
     resistance: float
     """``R``: the force the rover loses rolling (N), as a coefficient of its weight below."""
-    se_resistance: float
+    sd_resistance: float
+    dof: int
+    """Runs less the three unknowns."""
     weight: float
     """``m g`` of the configured rover (N)."""
     lever: float
@@ -102,7 +113,7 @@ class BalanceReading:
     """How much worse the runs' headings and directions determine the worst of the three
     unknowns than runs spread evenly would (its standard error over the scatter's over the
     square root of the runs): runs all forward in one heading cannot tell a tilt from a
-    resistance (inflation in the tens and up)."""
+    resistance (inflation in the thousands, or inf)."""
     scatter: float
     """Standard deviation of the runs' means about the fit (N)."""
 
@@ -115,29 +126,48 @@ class BalanceReading:
     def heading(self) -> float:
         return math.degrees(math.atan2(self.tilt_y, self.tilt_x)) if self.tilt > 0 else 0.0
 
+    @property
+    def separated(self) -> bool:
+        """Whether the runs' headings and directions tell the tilt from the resistance."""
+        return self.inflation <= SEPARATED
+
+    @property
+    def t_scale(self) -> float:
+        """Student's t over :data:`Z`: what the few runs' standard errors are scaled by."""
+        return float(stats.t.ppf(0.975, self.dof)) / Z
+
     def tilt_se(self) -> tuple[float, float]:
-        """The tilt vector's standard errors (degrees) with the reported torque's scale
-        tolerance folded in: a scale off by ``tolerance`` moves each part by that fraction."""
+        """The tilt vector's standard errors for a 95 % interval at :data:`Z` (degrees):
+        Student's t's scaling, and the reported torque's scale tolerance, which moves the
+        whole vector by its fraction (so each part by the tilt's size times it)."""
+        pad = self.tolerance * self.tilt / Z
         return (
-            math.hypot(self.se_x, self.tolerance * abs(self.tilt_x) / Z),
-            math.hypot(self.se_y, self.tolerance * abs(self.tilt_y) / Z),
+            math.hypot(self.sd_x * self.t_scale, pad),
+            math.hypot(self.sd_y * self.t_scale, pad),
         )
 
     def tilt_interval(self) -> tuple[float, float]:
         """95 % interval of the tilt's size: the vector's standard errors combined along its
         direction, as a fitted slope's (``Fit.physical``); from zero where level lies in the
-        vector's own 95 % region (a size near zero is read above it more often than not)."""
+        vector's own 95 % region (Hotelling's: its two parts' covariance, F over the runs'
+        degrees of freedom), since a size near zero is read above it more often than not."""
         t, (sx, sy) = self.tilt, self.tilt_se()
+        if not (math.isfinite(sx) and math.isfinite(sy)):
+            return 0.0, math.inf
         ux, uy = (self.tilt_x / t, self.tilt_y / t) if t > 0 else (1.0, 0.0)
         se = math.sqrt((ux * sx) ** 2 + (uy * sy) ** 2)
-        level = (self.tilt_x / max(sx, 1e-12)) ** 2 + (self.tilt_y / max(sy, 1e-12)) ** 2
-        lo = 0.0 if level <= CHI2_2 else max(t - Z * se, 0.0)
-        return lo, t + Z * se
+        return (0.0 if self.level_inside() else max(t - Z * se, 0.0)), t + Z * se
 
-    @property
-    def separated(self) -> bool:
-        """Whether the runs' headings and directions tell the tilt from the resistance."""
-        return self.inflation <= SEPARATED
+    def level_inside(self) -> bool:
+        """Whether a level ground lies in the tilt vector's 95 % region."""
+        vx, vy = self.sd_x**2, self.sd_y**2
+        cxy = self.corr * self.sd_x * self.sd_y
+        det = vx * vy - cxy**2
+        if not (math.isfinite(det) and det > 0.0):
+            return True
+        x, y = self.tilt_x, self.tilt_y
+        q = (vy * x * x - 2 * cxy * x * y + vx * y * y) / det
+        return q <= 2.0 * float(stats.f.ppf(0.95, 2, self.dof))  # the regression's F test
 
     @property
     def c_rr(self) -> float:
@@ -145,9 +175,10 @@ class BalanceReading:
         return self.resistance / self.weight
 
     def c_rr_interval(self) -> tuple[float, float]:
-        lo = (self.resistance - Z * self.se_resistance) / self.weight
-        hi = (self.resistance + Z * self.se_resistance) / self.weight
-        return lo * (1.0 - self.tolerance), hi * (1.0 + self.tolerance)
+        """95 % interval of :attr:`c_rr`, each end moved away by the scale's tolerance."""
+        half = Z * self.sd_resistance * self.t_scale
+        lo, hi = (self.resistance - half) / self.weight, (self.resistance + half) / self.weight
+        return lo - self.tolerance * abs(lo), hi + self.tolerance * abs(hi)
 
     def as_json(self) -> dict[str, Any]:
         out = asdict(self)
@@ -156,10 +187,19 @@ class BalanceReading:
             heading=self.heading,
             tilt_interval=list(self.tilt_interval()),
             c_rr=self.c_rr,
-            separated=self.separated,
             c_rr_interval=list(self.c_rr_interval()),
+            separated=self.separated,
         )
-        return out
+        return {k: _finite(v) for k, v in out.items()}
+
+
+def _finite(v: Any) -> Any:
+    """JSON has no infinity: None in its place (a bound the runs leave open)."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, list):
+        return [_finite(x) for x in v]
+    return v
 
 
 @dataclass(frozen=True)
@@ -185,13 +225,18 @@ def lever(cfg: RoverConfig) -> float:
 
 
 def _yaw(log: DriveLog) -> Array | None:
-    """The heading at every row, interpolated between pose fixes with a yaw (None with fewer
-    than two)."""
+    """The heading at every row, interpolated between pose fixes with a yaw; NaN farther than
+    :data:`FIX_GAP` from every fix (a turn between two fixes far apart is not a line). None
+    with fewer than two fixes."""
     yaw = log.pose[:, 2]
     have = np.isfinite(yaw)
     if have.sum() < 2:
         return None
-    return np.interp(log.t, log.t[have], np.unwrap(yaw[have]))
+    tf = log.t[have]
+    out = np.interp(log.t, tf, np.unwrap(yaw[have]))
+    k = np.clip(np.searchsorted(tf, log.t), 1, len(tf) - 1)
+    near = np.minimum(np.abs(log.t - tf[k - 1]), np.abs(tf[k] - log.t))
+    return np.where(near <= FIX_GAP, out, np.nan)
 
 
 def _held(t: Array, cmd: Array) -> Array:
@@ -219,6 +264,7 @@ def runs(log: DriveLog, index: int, arm: float) -> list[Run]:
         & (np.abs(left - right) <= STRAIGHT * np.abs(mean))
         & np.all(np.isfinite(log.effort), axis=1)
         & np.all(bent <= BENT, axis=1)
+        & np.isfinite(yaw)
     )
     out: list[Run] = []
     edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
@@ -255,35 +301,38 @@ def read_balance(
     resid = y - X @ coef
     dof = len(rs) - X.shape[1]
     s2 = float(resid @ resid) / dof
-    xtx = X.T @ X
     try:  # not a pseudo-inverse: it drops the direction the runs leave undetermined
-        inv = np.linalg.inv(xtx)
+        inv = np.linalg.inv(X.T @ X)
     except np.linalg.LinAlgError:
-        return None, rs
+        inv = np.full((3, 3), np.inf)
     cov = s2 * inv
-    t_q = float(stats.t.ppf(0.975, dof)) / Z  # the runs are few
-    se = np.sqrt(np.maximum(np.diag(cov), 0.0)) * t_q
     weight = cfg.masses.total * GRAVITY
-
-    def deg(f: float) -> float:
-        return math.degrees(math.asin(max(-1.0, min(1.0, f / weight))))
-
-    def se_deg(f: float) -> float:
-        return math.degrees(f / weight)
-
+    # The tilt vector: its size from the force along it, its parts along the heading.
+    size = math.degrees(math.asin(min(1.0, math.hypot(coef[0], coef[1]) / weight)))
+    head = math.atan2(coef[1], coef[0])
+    deg = math.degrees(1.0 / weight)  # N of force to degrees of tilt, near level
+    sd = np.sqrt(np.abs(np.diag(cov)))
+    corr = (
+        float(cov[0, 1] / (sd[0] * sd[1]))
+        if np.all(np.isfinite(sd[:2])) and sd[0] * sd[1] > 0
+        else 0.0
+    )
+    infl = float(np.max(np.sqrt(np.abs(np.diag(inv))))) * math.sqrt(len(rs))
     return (
         BalanceReading(
             runs=len(rs),
-            tilt_x=deg(float(coef[0])),
-            tilt_y=deg(float(coef[1])),
-            se_x=se_deg(float(se[0])),
-            se_y=se_deg(float(se[1])),
+            tilt_x=size * math.cos(head),
+            tilt_y=size * math.sin(head),
+            sd_x=float(sd[0]) * deg,
+            sd_y=float(sd[1]) * deg,
+            corr=corr,
             resistance=float(coef[2]),
-            se_resistance=float(se[2]),
+            sd_resistance=float(sd[2]),
+            dof=dof,
             weight=weight,
             lever=arm,
             tolerance=tolerance,
-            inflation=float(np.max(np.sqrt(np.maximum(np.diag(inv), 0.0)))) * math.sqrt(len(rs)),
+            inflation=infl if math.isfinite(infl) else math.inf,
             scatter=math.sqrt(s2),
         ),
         rs,

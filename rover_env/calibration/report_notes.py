@@ -3,6 +3,7 @@ the rotor test), and the words for a fit's values: shared by :mod:`.report` and 
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -223,8 +224,7 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
             "",
             f"Force balance (the logs' `effort_*`): {r['runs']} steady straight runs; not read: {r['why_not']}.",
         ]
-    lo, hi = r["tilt_interval"]
-    clo, chi = r["c_rr_interval"]
+    (lo, hi), (clo, chi) = r["tilt_interval"], r["c_rr_interval"]
     verdict = (
         "named `slope` from it"
         if r.get("named")
@@ -246,13 +246,18 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
         "",
         f"Force balance (the logs' `effort_*` over the lever {1000 * r['lever']:.1f} mm, {r['runs']}"
         f" steady straight runs, scatter {r['scatter']:.2f} N): the ground rises {r['tilt']:.2f}°"
-        f" [{lo:.2f}, {hi:.2f}] toward {r['heading']:.0f}° with the reported torque's"
+        f" [{_end(lo, '.2f')}, {_end(hi, '.2f')}] toward {r['heading']:.0f}° with the reported torque's"
         f" {100 * r['tolerance']:.0f} % scale tolerance, against the {r['allowance']:g}° clean"
-        f" builds read; the rover loses {r['c_rr']:.4f} of its weight rolling [{clo:.4f},"
-        f" {chi:.4f}] (the ground, the tires and the drivetrain's drag together); {verdict}."
+        f" builds read; the rover loses {r['c_rr']:.4f} of its weight rolling [{_end(clo, '.4f')},"
+        f" {_end(chi, '.4f')}] (the ground, the tires and the drivetrain's drag together); {verdict}."
         + moved
         + drive,
     ]
+
+
+def _end(v: float | None, spec: str) -> str:
+    """An interval's end, or "unbounded" where the runs leave it open (None in the JSON)."""
+    return "unbounded" if v is None or not math.isfinite(v) else format(v, spec)
 
 
 def balance_method(allowance: float | None, read: bool) -> list[str]:

@@ -43,22 +43,15 @@ def name_by_balance(d: Diagnosis) -> None:
         return
     t0 = time.perf_counter()
     reading, runs = read_balance(logs, d.base, SCALE)
-    rec: dict[str, Any] = {"runs": len(runs), "read": reading is not None, "named": False}
-    d.balance = rec
-    if reading is None:
-        rec["why_not"] = "fewer steady straight runs with the torque and the heading than it needs"
-        return
-    allow = d.opts.balance_allowance
-    lo, hi = reading.tilt_interval()
-    rec.update(reading.as_json(), allowance=allow, truth_interval=[max(0.0, lo - allow), hi])
     windows = [s for s in d.chosen if NAME in [c.name for c in s.fit.candidates]]
     alone = [s for s in windows if len(s.fit.candidates) == 1]
     wlo = alone[0].fit.physical()[NAME]["deg"][1] if alone else None
-    act = action((lo, hi), allow, wlo, len(windows) > len(alone), reading.separated)
-    if act in WHY_NOT:
-        rec["why_not"] = WHY_NOT[act].format(allow=allow)
-    if act == "unseparated":  # the drive that separates them, for drive-plan and the bench
-        rec.update(plan=PLAN, seed=PLAN_SEED, duration=PLAN_DURATION)
+    allow = d.opts.balance_allowance
+    act, rec = record(reading, len(runs), allow, wlo, len(windows) > len(alone))
+    d.balance = rec
+    if reading is None:
+        return
+    hi = reading.tilt_interval()[1]
     if act == "withdraw":
         d.chosen = [s for s in d.chosen if s not in alone]
         rec["withdrew"] = [fmt_slope(s) for s in alone]
@@ -68,12 +61,36 @@ def name_by_balance(d: Diagnosis) -> None:
     fit = balance_fit(cand, reading, allow, time.perf_counter() - t0)
     d.chosen = [s for s in d.chosen if s not in alone]
     rec["replaced"] = [fmt_slope(s) for s in alone]
-    s, _ = scored_beside(d, fit, merge(*(s.fit.ext for s in d.chosen)))
+    s, _ = scored_beside(d, fit, merge(*(s.fit.ext for s in d.chosen)), k=2)
     s.significant = True
     s.test = test_text(reading, allow)
     rec.update(named=True, held_gain=s.gain)
     d.chosen.append(s)
     d.say(f"{NAME}: named by {s.test}")
+
+
+def record(
+    reading: BalanceReading | None,
+    runs: int,
+    allow: float,
+    windows_low: float | None,
+    inside: bool,
+) -> tuple[str, dict[str, Any]]:
+    """What a reading does (:func:`action`; "none" without a reading) and its record for
+    ``result.json``: the reading, the interval for the truth with the allowance, why nothing
+    was named, and the drive it asks for where its runs do not separate."""
+    rec: dict[str, Any] = {"runs": runs, "read": reading is not None, "named": False}
+    if reading is None:
+        rec["why_not"] = "fewer steady straight runs with the torque and the heading than it needs"
+        return "none", rec
+    lo, hi = reading.tilt_interval()
+    rec.update(reading.as_json(), allowance=allow, truth_interval=[max(0.0, lo - allow), hi])
+    act = action((lo, hi), allow, windows_low, inside, reading.separated)
+    if act in WHY_NOT:
+        rec["why_not"] = WHY_NOT[act].format(allow=allow)
+    if act == "unseparated":  # the drive that separates them, for drive-plan and the bench
+        rec.update(plan=PLAN, seed=PLAN_SEED, duration=PLAN_DURATION)
+    return act, rec
 
 
 WHY_NOT = {
@@ -96,14 +113,17 @@ def action(
     """What a reading's tilt interval (low, high; degrees) does beside the windows' slope
     (``windows_low``: the low end of its interval for the truth where they named it alone;
     ``inside``: named with another effect): "name" (the interval, less ``allow``, stays
-    above level: the balance's slope replaces theirs), "inside" (reported only),
+    above level: the balance's slope replaces theirs), "inside" (a slope named in a pair:
+    the reading is reported, either way),
     "withdraw" (it reaches level, and theirs lies above its high end), "level", or
     "unseparated" (the runs do not tell a tilt from a resistance: nothing either way)."""
     lo, hi = tilt
     if not separated:
         return "unseparated"
+    if inside:
+        return "inside"
     if lo - allow > 0.0:
-        return "inside" if inside else "name"
+        return "name"
     if windows_low is not None and windows_low > hi:
         return "withdraw"
     return "level"

@@ -22,7 +22,11 @@ from rover_env.config import RoverConfig
 
 def seek_evidence(d: Diagnosis) -> None:
     """Sets :attr:`Diagnosis.evidence`."""
-    d.evidence = missing_evidence(d.ev, d.ranked, d.chosen, d.noise, d.base, d.opts, d.say)
+    # A slope the force balance read (named, or level) needs no drive from the windows.
+    read = {"slope"} if (d.balance or {}).get("separated") else set()
+    d.evidence = missing_evidence(
+        d.ev, d.ranked, d.chosen, d.noise, d.base, d.opts, d.say, frozenset(read)
+    )
     d.untested = untested_limit(d)
 
 
@@ -34,8 +38,10 @@ def missing_evidence(
     base: RoverConfig,
     opts: Options,
     say: Any,
+    read: frozenset[str] = frozenset(),
 ) -> list[dict[str, Any]]:
-    """Candidates the training drives support but the held-out drive cannot confirm.
+    """Candidates the training drives support but the held-out drive cannot confirm (none
+    of ``read``: effects a direct reading settled).
 
     A candidate qualifies when it is not named, lowers the training BIC, moves some training
     signal by at least one replay floor, and on the held-out drive either moves no signal
@@ -52,7 +58,7 @@ def missing_evidence(
         if len(out) >= opts.evidence:
             break
         name = s.fit.name
-        if name in named or s.d_bic >= 0 or s.fit.x.size == 0:
+        if name in named or name in read or s.d_bic >= 0 or s.fit.x.size == 0:
             continue
         if all(v == 0.0 for v in s.fit.x):
             continue

@@ -548,14 +548,15 @@ def strict_json(obj: Any) -> Any:
     return obj
 
 
-def scored_beside(d: Diagnosis, fit: Fit, ref_ext: Extensions) -> tuple[Scored, Array]:
+def scored_beside(d: Diagnosis, fit: Fit, ref_ext: Extensions, k: int = 1) -> tuple[Scored, Array]:
     """A fit read directly (dead reckoning's radius, the reported torque's limit; ``fit``,
     its extension alone: what the configuration gets) judged on the windows beside what it
     was read against (``ref_ext``: the named effects, a lead), and that reference's held-out
-    losses. Until stop 105 the windows replayed the radius without the named effects, and
+    losses (``k``: the fit's free parameters, for its information criteria). Until stop 105
+    the windows replayed the radius without the named effects, and
     reported a radius beside a named drag as making the held-out drive worse by the drag's
     share."""
     ref_held = rs.window_losses(d.ev.run(ref_ext, "held"), d.noise)
-    s = score(d, replace(fit, ext=merge(ref_ext, fit.ext)), ref_held, ref_ext, k=1)
+    s = score(d, replace(fit, ext=merge(ref_ext, fit.ext)), ref_held, ref_ext, k=k)
     s.fit = fit
     return s, ref_held
