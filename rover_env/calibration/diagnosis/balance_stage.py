@@ -3,12 +3,15 @@
 Where the logs carry ``effort_*`` columns and the pose's yaw,
 :func:`rover_env.calibration.balance.read_balance` fits the force balance along the track
 over the steady straight runs: a tilt vector and a resistance. A tilt whose interval, less
-what clean builds read (:data:`rover_env.calibration.balance.CLEAN_TILT`), stays above level names ``slope`` from the
-balance, in place of a slope the windows named; a balance that reads the ground level where
-the windows named a slope outside its interval withdraws that slope. Why a stage of its own:
-the windows read a slope through this model's joints and springs, and clean builds of another
-implementation fit tilts up to 2.4° there (the clean-fit allowance), which a slope must clear
-to be named; the summed wheel torque does not depend on where the mass sits.
+what clean builds read (:data:`rover_env.calibration.balance.CLEAN_TILT`), stays above
+level names ``slope`` from the balance, in place of a slope the windows named alone; a
+balance that reads the ground level under a slope the windows named alone withdraws it;
+beside a slope named in a pair the reading is reported. Where the runs leave the tilt and
+the resistance one unknown it names nothing and asks for the :data:`PLAN` drive. Why a
+stage of its own: the windows read a slope through this model's joints and springs, and
+clean builds of another implementation fit tilts up to 2.4° there (the clean-fit
+allowance), which a slope must clear to be named; the summed wheel torque does not depend
+on where the mass sits.
 """
 
 from __future__ import annotations
