@@ -52,24 +52,21 @@ def name_by_balance(d: Diagnosis) -> None:
     allow = d.opts.balance_allowance
     act, rec = record(reading, len(runs), allow, wlo, len(windows) > len(alone))
     d.balance = rec
-    if reading is None:
+    if reading is None or act not in ("withdraw", "name"):
         return
-    hi = reading.tilt_interval()[1]
+    d.chosen = [s for s in d.chosen if s not in alone]
+    rec["withdrew" if act == "withdraw" else "replaced"] = [fmt_slope(s) for s in alone]
     if act == "withdraw":
-        d.chosen = [s for s in d.chosen if s not in alone]
-        rec["withdrew"] = [fmt_slope(s) for s in alone]
+        hi = reading.tilt_interval()[1]
         d.say(f"{NAME}: withdrawn, the wheels' torque reads the ground within {hi:.2f}°")
-    if act != "name":
         return
     fit = balance_fit(cand, reading, allow, time.perf_counter() - t0)
-    d.chosen = [s for s in d.chosen if s not in alone]
-    rec["replaced"] = [fmt_slope(s) for s in alone]
-    s, _ = scored_beside(d, fit, merge(*(s.fit.ext for s in d.chosen)), k=2)
-    s.significant = True
-    s.test = test_text(reading, allow)
-    rec.update(named=True, held_gain=s.gain)
-    d.chosen.append(s)
-    d.say(f"{NAME}: named by {s.test}")
+    named, _ = scored_beside(d, fit, merge(*(s.fit.ext for s in d.chosen)), k=2)
+    named.significant = True
+    named.test = test_text(reading, allow)
+    rec.update(named=True, held_gain=named.gain)
+    d.chosen.append(named)
+    d.say(f"{NAME}: named by {named.test}")
 
 
 def record(
@@ -117,9 +114,9 @@ def action(
     (``windows_low``: the low end of its interval for the truth where they named it alone;
     ``inside``: named with another effect): "name" (the interval, less ``allow``, stays
     above level: the balance's slope replaces theirs), "inside" (a slope named in a pair:
-    the reading is reported, either way),
-    "withdraw" (it reaches level, and theirs lies above its high end), "level", or
-    "unseparated" (the runs do not tell a tilt from a resistance: nothing either way)."""
+    the reading is reported, either way), "withdraw" (it reaches level, and theirs lies
+    above its high end), "level", or "unseparated" (the runs do not tell a tilt from a
+    resistance: nothing either way)."""
     lo, hi = tilt
     if not separated:
         return "unseparated"
