@@ -11,7 +11,7 @@ import math
 from typing import Any
 
 import numpy as np
-from bench_diagnose import INERT_ON_SOIL, draw
+from bench_diagnose import INERT_ON_SOIL, RANGES, draw
 
 from rover_env.config import load_rover
 from rover_env.effects import effect_class
@@ -265,10 +265,17 @@ BALANCE_SLOPE = (0.3, 3.0)
 clean tilt to above the windows' clean-fit allowance (2.4°)."""
 
 
-def balance_cases(seed0: int, n: int) -> list[dict[str, Any]]:
+def balance_cases(
+    seed0: int, n: int, others: tuple[str, ...] = BALANCE_OTHERS
+) -> list[dict[str, Any]]:
     """``n`` cases from ``seed0``, in fours: a slope (:data:`BALANCE_SLOPE`, heading drawn), a
-    clean build, a slope, one :data:`BALANCE_OTHERS` effect (the matrix's range) in turn: what
-    the force balance on the reported torque meets (stop 120)."""
+    clean build, a slope, one of ``others`` (the matrix's range) in turn: what the force
+    balance on the reported torque (stop 120) or on the wheels' slip (stop 121) meets."""
+    bad = [e for e in others if (e not in RANGES and e not in OUTSIDE_RANGES) or e == "slope"]
+    if not others or bad:
+        raise ValueError(
+            f"--balance-others: unknown effects {bad}" if bad else "--balance-others: none"
+        )
     out = []
     for i, seed in enumerate(range(seed0, seed0 + n)):
         if i % 2 == 0:
@@ -280,7 +287,7 @@ def balance_cases(seed0: int, n: int) -> list[dict[str, Any]]:
         elif i % 4 == 1:
             out.append(_case("clean", {}, seed))
         else:
-            e = BALANCE_OTHERS[(i // 4) % len(BALANCE_OTHERS)]
+            e = others[(i // 4) % len(others)]
             out.append(_case("single", {e: generator_params(e, seed)}, seed))
     return out
 

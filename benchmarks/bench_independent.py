@@ -78,6 +78,7 @@ from pathlib import Path
 from typing import Any
 
 from _independent_plan import (
+    BALANCE_OTHERS,
     DRIVES,
     DURATION,
     EFFECTS,
@@ -437,7 +438,14 @@ def main() -> int:
         type=int,
         default=0,
         help="run N cases of small slopes, clean builds and drags or soils in turn from --seed0"
-        " (balance_cases) instead of the matrix; with --effort, what the force balance meets",
+        " (balance_cases) instead of the matrix; with --effort, what the force balance meets,"
+        " without it what the slip balance meets",
+    )
+    ap.add_argument(
+        "--balance-others",
+        default=",".join(BALANCE_OTHERS),
+        help="with --balance-cases: the effects beside the slopes and clean builds, in turn"
+        f" (default {','.join(BALANCE_OTHERS)})",
     )
     args = ap.parse_args()
     out = Path(args.out)
@@ -445,7 +453,9 @@ def main() -> int:
         todo = (
             effort_cases(args.seed0, args.effort_cases)
             if args.effort_cases
-            else balance_cases(args.seed0, args.balance_cases)
+            else balance_cases(
+                args.seed0, args.balance_cases, tuple(args.balance_others.split(","))
+            )
             if args.balance_cases
             else strong_pairs(
                 args.seed0,

@@ -4,7 +4,9 @@
 The logs here come from a rigid rover of this file's own: straight runs and turns at given
 wheel speeds, the heading turning with the sides' difference, and each driven wheel's torque
 a quarter of what holds the rover against gravity along its heading and its resistance,
-times the lever, plus the driver's noise. Not the simulator.
+times the lever, plus the driver's noise; the free wheels turn slower than the driven ones by
+the slip that traction takes at the tires' slip stiffness (times ``stiff``), plus a slip the
+same both ways (``slip_offset``: a radius off). Not the simulator.
 """
 
 from __future__ import annotations
@@ -54,9 +56,12 @@ def rover_log(
     noise: float = 0.02,
     scale: float = 1.0,
     fix_every: int = 50,
+    stiff: float = 1.0,
+    slip_offset: float = 0.0,
 ) -> DriveLog:
     """One drive of ``plan`` on ground rising ``tilt_deg`` toward ``heading_deg``, the rover
-    losing ``c_rr`` of its weight rolling; the driver reports ``scale`` x the torque."""
+    losing ``c_rr`` of its weight rolling; the driver reports ``scale`` x the torque; the
+    tires' slip stiffness is ``stiff`` x the configured one."""
     rng = np.random.default_rng(seed)
     dt = 0.02
     t = np.arange(0.0, sum(p[0] for p in plan) + 1.0, dt)
@@ -72,7 +77,8 @@ def rover_log(
     force = g * np.cos(yaw - math.radians(heading_deg)) + c_rr * WEIGHT * np.sign(v)
     effort = scale * np.repeat((force * lever(CFG) / 4)[:, None], 4, axis=1)
     effort += rng.normal(0.0, noise, effort.shape)
-    phi = np.cumsum(np.c_[cmd, cmd[:, :2]], axis=0) * dt
+    slip = np.sign(v) * force / (4 * CFG.tire.C_s * stiff) + np.where(v != 0, slip_offset, 0.0)
+    phi = np.cumsum(np.c_[cmd, cmd[:, :2] * (1.0 - slip)[:, None]], axis=0) * dt
     pose = np.full((len(t), 3), np.nan)
     fix = np.arange(0, len(t), fix_every)  # 1 Hz by default
     pose[fix, 2] = yaw[fix] + rng.normal(0.0, 0.005, len(fix))
@@ -186,9 +192,10 @@ def test_the_report_says_what_was_read() -> None:
     assert "2 steady straight runs" in none and "too few" in none
 
 
+@pytest.mark.parametrize("flag", ["--balance-allowance", "--slip-allowance"])
 @pytest.mark.parametrize("bad", ["-0.1", "25", "nan", "level"])
 def test_a_bad_balance_allowance_is_refused_naming_the_flag(
-    bad: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    flag: str, bad: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     with pytest.raises(SystemExit) as exit_:
         main(
@@ -197,13 +204,13 @@ def test_a_bad_balance_allowance_is_refused_naming_the_flag(
                 str(tmp_path / "x.csv"),
                 "--out",
                 str(tmp_path),
-                "--balance-allowance",
+                flag,
                 bad,
             ]
         )
     assert exit_.value.code == 2
     err = capsys.readouterr().err
-    assert "--balance-allowance" in err and bad in err, err
+    assert flag in err and bad in err, err
 
 
 def test_an_unseparated_reading_asks_for_the_drive_both_ways(tmp_path: Path) -> None:
@@ -281,5 +288,75 @@ def test_a_level_reading_withdraws_a_slope_the_windows_named_alone_only() -> Non
     assert record(level, len(runs), 0.5, None, False)[0] == "level"
     assert record(None, 3, 0.5, None, False) == (
         "none",
-        {"runs": 3, "read": False, "named": False, "why_not": WHY_NOT_NONE},
+        {"runs": 3, "read": False, "named": False, "source": "effort", "why_not": WHY_NOT_NONE},
     )
+
+
+def bare(log: DriveLog) -> DriveLog:
+    """The log without its torque columns (SPEC §6's)."""
+    return DriveLog(log.t, log.cmd, log.phi, log.theta, log.pose, log.meta)
+
+
+@pytest.mark.parametrize(("tilt", "heading"), [(0.0, 0.0), (1.0, 40.0), (2.5, -120.0)])
+def test_the_slip_balance_reads_the_tilt_without_torque(tilt: float, heading: float) -> None:
+    logs = [bare(rover_log(tilt, heading, 0.02, seed=s, slip_offset=0.012)) for s in range(3)]
+    assert read_balance(logs, CFG, 0.2)[0] is None  # no torque: the torque's balance is blind
+    r, runs = read_balance(logs, CFG, 0.2, "slip")
+    assert r is not None and len(runs) == 3 * 7 and r.source == "slip"
+    lo, hi = r.tilt_interval()
+    assert lo <= tilt <= hi
+    assert r.tilt == pytest.approx(
+        tilt, abs=0.02
+    )  # the radius's slip, the same both ways, is not a tilt
+    if tilt > 0:
+        assert abs(math.remainder(r.heading - heading, 360.0)) < 2.0
+    drag = 0.02 * WEIGHT / (4 * CFG.tire.C_s)
+    assert r.offset_slip == pytest.approx(0.012 + drag, rel=0.05)
+
+
+def test_a_tire_stiffer_or_softer_than_configured_is_inside_the_slip_tolerance() -> None:
+    for stiff in (0.85, 1.18):
+        logs = [bare(rover_log(2.0, 70.0, 0.02, seed=s, stiff=stiff)) for s in range(3)]
+        r, _ = read_balance(logs, CFG, 0.2, "slip")
+        assert r is not None
+        lo, hi = r.tilt_interval()
+        assert lo <= 2.0 <= hi
+        assert r.tilt == pytest.approx(2.0 / stiff, rel=0.02)
+
+
+def test_the_stage_reads_the_torque_where_logged_and_the_slip_elsewhere() -> None:
+    from rover_env.calibration.balance import CLEAN_SLIP_TILT, SCALE, SLIP_SCALE
+    from rover_env.calibration.diagnosis.balance_stage import source
+    from rover_env.calibration.diagnosis.state import Options
+
+    assert source(Options(), True) == ("effort", CLEAN_TILT, SCALE)
+    assert source(Options(), False) == ("slip", CLEAN_SLIP_TILT, SLIP_SCALE)
+    assert source(Options(effort_tolerance=None), True)[0] == "slip"  # torque not read
+    assert source(Options(balance_allowance=None), True) is None
+    assert source(Options(slip_allowance=None), False) is None
+    assert source(Options(slip_allowance=0.2), False) == ("slip", 0.2, SLIP_SCALE)
+
+
+def test_the_slip_balance_is_reported_and_proposes_its_drive(tmp_path: Path) -> None:
+    logs = [bare(rover_log(1.5, 30.0, 0.02, seed=s)) for s in range(3)]
+    r, runs = read_balance(logs, CFG, 0.2, "slip")
+    act, rec = record(r, len(runs), 0.3, None, False, "slip")
+    assert act == "name" and rec["source"] == "slip"
+    text = "\n".join(balance_lines(json.loads(json.dumps(rec))))
+    assert "slip against the free wheels'" in text and "toward 30°" in text
+    plan = [(4.0, 2.0, 2.0), (0.5, 0.0, 0.0)] * 4
+    one_way = [bare(rover_log(1.0, 0.0, 0.02, plan=plan, seed=s)) for s in range(2)]
+    r, runs = read_balance(one_way, CFG, 0.2, "slip")
+    act, rec = record(r, len(runs), 0.3, None, False, "slip")
+    assert act == "unseparated" and rec["plan"] == PLAN
+    (tmp_path / "result.json").write_text(json.dumps({"balance": rec}))
+    (prop,) = proposals_from_report(tmp_path)
+    assert "the wheels' slip" in prop.why[0]
+    none = record(None, 2, 0.3, None, False, "slip")[1]
+    assert "torque" not in none["why_not"]
+    from rover_env.calibration.report_notes import balance_method
+
+    assert "free wheels" in balance_method(0.3, True, "slip")[0]
+    assert "torque" in balance_method(0.5, True)[0] and balance_method(None, True, "slip") == []
+    with pytest.raises(ValueError, match="source"):
+        read_balance(logs, CFG, 0.2, "pose")

@@ -151,6 +151,13 @@ def test_balance_cases_are_slopes_clean_builds_and_loads_in_turn(plan: ModuleTyp
             assert lo <= c["effects"]["slope"]["deg"] <= hi
             assert c["truth"]["slope"]["deg"] == c["effects"]["slope"]["deg"]
     assert todo == plan.balance_cases(53400, 8)  # by seed
+    others = ("command_lag", "friction", "payload")
+    todo = plan.balance_cases(53400, 12, others)
+    assert [next(iter(c["effects"]), "clean") for c in todo][3::4] == list(others)
+    with pytest.raises(ValueError, match="unknown effects"):
+        plan.balance_cases(53400, 4, ("slope",))
+    with pytest.raises(ValueError, match="unknown effects"):
+        plan.balance_cases(53400, 4, ("gremlins",))
 
 
 def test_magnitudes_lie_in_their_ranges_in_both_parameterisations(

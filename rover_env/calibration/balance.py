@@ -20,6 +20,17 @@ turns (without both, :attr:`BalanceReading.separated` is False). A drivetrain's 
 reported torque's scale (``tolerance``) move ``R``; the scale moves the tilt by its own
 fraction, and the interval carries it. A diagnostic read, like dead reckoning's radius: it
 replays nothing.
+
+Logs without the torque (SPEC §6's) get the same balance from the wheels' slip
+(``source="slip"``): on hard ground a driven wheel passes its share of the traction through
+slip, ``F = C_s S`` below the tire's critical slip (SPEC §3, eq. 13 with ``l_n`` near 1), and
+the free wheels (segment 3's) roll with the ground. So a run's slip, one minus the free
+wheels' turn over the driven wheels', relative to the direction of travel, times the four
+driven tires' ``C_s``, is the traction along the track: a slope adds it going up and takes it
+going down, while a wheel radius off, a rolling resistance, soil and sensor gains add the
+same slip both ways (the fit's resistance term). Exploratory seeds 74713-74724: clean
+builds of the independent generator read within 0.01 % of slip forwards against backwards
+on one line, a 1° slope 1.43 % (``2 m g sin(1°) / (4 C_s)`` is 1.40 %).
 """
 
 from __future__ import annotations
@@ -32,7 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-from rover_env.config import RoverConfig
+from rover_env.config import DRIVEN_WHEELS, RoverConfig
 from rover_env.logs import DriveLog
 
 Array = NDArray[np.float64]
@@ -76,6 +87,26 @@ another implementation read. On 20 clean builds of the independent generator (ex
 seeds 74661-74680) the intervals' low ends reached 0.10° (the tilts read, up to 1.3°, only
 where the runs determine the tilt poorly and its interval is wide); 0.5° leaves room for an
 implementation that is not that one."""
+SLIP_SCALE = 0.2
+"""The driven tires' slip stiffness (``tire.C_s``), known to +- this fraction, for the slip
+balance: another implementation's tire passes the same traction at its own slip (the
+independent generator read 2-6 % steeper than ``C_s`` says, exploratory seeds 74713-74728);
+a real tire's stiffness is the paper's figure, not a measurement of this rover."""
+CLEAN_SLIP_TILT = 0.3
+"""Degrees a slope's interval must clear before the slip balance names it (see
+:data:`CLEAN_TILT`). On 40 clean builds, drags and soils of the independent generator
+(exploratory seeds 74725-74784, ``benchmarks/balance_reads.py --source slip``) and this
+model's own clean build every interval reached level; 0.3° leaves room for an
+implementation whose rover slips differently forwards and backwards."""
+SLIP_FLOOR = 0.0008
+"""Standard deviation (unit slip) a steady run's slip is given beyond the encoders'
+resolution. On 30 clean builds and drags of the independent generator (exploratory seeds
+74725-74784, 402 runs) the runs scattered by 0.02 % beyond it, but runs a few seconds after
+a turn, the yaw joints still up to 1° off, slipped 0.2-0.3 % more (seed 74738): two such runs
+in one heading read the tilt across the track alone. At 0.08 % they cannot; the runs'
+scatter counts where it is larger."""
+SOURCES = ("effort", "slip")
+"""What a run's traction is read from: the reported torque, or the wheels' slip."""
 FIX_GAP = 2.0
 """Seconds from the nearest pose fix beyond which a row's heading is not known (the
 generator's fixes come at 1 Hz; between fixes far apart a turn may have been made)."""
@@ -116,6 +147,11 @@ class BalanceReading:
     resistance (inflation in the thousands, or inf)."""
     scatter: float
     """Standard deviation of the runs' means about the fit (N)."""
+    source: str = "effort"
+    """What the traction was read from (:data:`SOURCES`)."""
+    stiffness: float = 0.0
+    """The driven tires' summed slip stiffness (N per unit slip) the slip balance reads the
+    traction with; 0 for the torque's."""
 
     @property
     def tilt(self) -> float:
@@ -170,6 +206,12 @@ class BalanceReading:
         return q <= 2.0 * float(stats.f.ppf(0.95, 2, self.dof))  # the regression's F test
 
     @property
+    def offset_slip(self) -> float:
+        """The slip balance's resistance term as the slip it is (a radius or sensor gain off
+        shows here as much as the ground's drag); NaN for the torque's balance."""
+        return self.resistance / self.stiffness if self.stiffness > 0 else math.nan
+
+    @property
     def c_rr(self) -> float:
         """The resistance as a rolling-resistance coefficient (of the weight)."""
         return self.resistance / self.weight
@@ -189,6 +231,7 @@ class BalanceReading:
             c_rr=self.c_rr,
             c_rr_interval=list(self.c_rr_interval()),
             separated=self.separated,
+            offset_slip=self.offset_slip,
         )
         return {k: _finite(v) for k, v in out.items()}
 
@@ -210,11 +253,22 @@ class Run:
     t0: float
     t1: float
     force: float
-    """Mean of the driven wheels' summed torque over the lever (N)."""
+    """The traction along the heading (N): the driven wheels' summed torque over the lever
+    (mean over the run), or the run's slip relative to its direction times the tires' slip
+    stiffness, signed by the direction (the slip balance)."""
     cos_yaw: float
     sin_yaw: float
     direction: float
     """+1 forward, -1 backward."""
+    noise: float = 0.0
+    """The slip balance's standard error of :attr:`force` (N): :data:`SLIP_FLOOR` and the
+    encoders' resolution over the run's turn; 0 for the torque's (its runs' own scatter)."""
+
+
+def stiffness(cfg: RoverConfig) -> float:
+    """The driven tires' summed slip stiffness (N per unit slip): what converts the slip
+    balance's slip to traction."""
+    return cfg.tire.C_s * len(DRIVEN_WHEELS)
 
 
 def lever(cfg: RoverConfig) -> float:
@@ -246,12 +300,13 @@ def _held(t: Array, cmd: Array) -> Array:
     return np.asarray(t - t[start], dtype=np.float64)
 
 
-def runs(log: DriveLog, index: int, arm: float) -> list[Run]:
+def runs(log: DriveLog, index: int, per_unit: float, source: str = "effort") -> list[Run]:
     """The log's steady straight runs: targets held :data:`HOLD` s, equal on both sides to
-    :data:`STRAIGHT`, moving; each a stretch of :data:`MIN_RUN` s or more with the torque of
-    every driven wheel and the heading known."""
+    :data:`STRAIGHT`, moving; each a stretch of :data:`MIN_RUN` s or more with the heading
+    known (and, for ``source`` "effort", the torque of every driven wheel). ``per_unit``: the
+    lever (m) for the torque, the tires' slip stiffness (N) for the slip."""
     yaw = _yaw(log)
-    if yaw is None or not log.has_effort:
+    if yaw is None or (source == "effort" and not log.has_effort):
         return []
     bent = np.abs(
         log.theta[:, list(YAW_JOINTS)] - np.median(log.theta[:, list(YAW_JOINTS)], axis=0)
@@ -262,50 +317,100 @@ def runs(log: DriveLog, index: int, arm: float) -> list[Run]:
         (_held(log.t, log.cmd) >= HOLD)
         & (np.abs(mean) >= MOVING)
         & (np.abs(left - right) <= STRAIGHT * np.abs(mean))
-        & np.all(np.isfinite(log.effort), axis=1)
         & np.all(bent <= BENT, axis=1)
         & np.isfinite(yaw)
     )
+    if source == "effort":
+        ok &= np.all(np.isfinite(log.effort), axis=1)
     out: list[Run] = []
     edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
+    res = resolution(log.phi)
     for a, b in zip(edges[::2], edges[1::2], strict=True):
         if log.t[b - 1] - log.t[a] < MIN_RUN:
             continue
         s = slice(a, b)
+        direction = float(np.sign(np.mean(mean[s])))
+        turned = log.phi[b - 1] - log.phi[a]
         out.append(
             Run(
                 log=index,
                 t0=float(log.t[a]),
                 t1=float(log.t[b - 1]),
-                force=float(np.mean(log.effort[s].sum(axis=1)) / arm),
+                force=(
+                    float(np.mean(log.effort[s].sum(axis=1)) / per_unit)
+                    if source == "effort"
+                    else direction * _slip(turned) * per_unit
+                ),
                 cos_yaw=float(np.mean(np.cos(yaw[s]))),
                 sin_yaw=float(np.mean(np.sin(yaw[s]))),
-                direction=float(np.sign(np.mean(mean[s]))),
+                direction=direction,
+                noise=0.0 if source == "effort" else _slip_noise(turned, res) * per_unit,
             )
         )
     return out
 
 
+def resolution(phi: Array) -> float:
+    """The wheel encoders' step (rad): the smallest change between rows any wheel shows,
+    where the angles are quantised (0 where they change by less than a micro-radian: not
+    quantised, or not by a readable step)."""
+    d = np.abs(np.diff(phi, axis=0))
+    d = d[d > 1e-6]
+    return float(d.min()) if d.size else 0.0
+
+
+def _slip_noise(turned: Array, res: float) -> float:
+    """A run's slip's standard error: :data:`SLIP_FLOOR` and the resolution ``res`` at both
+    ends of each wheel's turn (uniform, variance ``res^2 / 12`` an end), through the four
+    driven wheels' mean and the two free wheels' (``res / (2 sqrt 2 |turn|)``)."""
+    driven = abs(float(np.mean(turned[: len(DRIVEN_WHEELS)])))
+    q = res / (2.0 * math.sqrt(2.0) * driven) if driven > 0 else math.inf
+    return math.hypot(SLIP_FLOOR, q)
+
+
+def _slip(turned: Array) -> float:
+    """A run's slip relative to its direction of travel from the six wheels' turn over it:
+    one minus the free wheels' mean over the driven wheels' mean (WHEELS order, the free
+    wheels last). Positive where the driven wheels spin ahead of the ground."""
+    driven = float(np.mean(turned[: len(DRIVEN_WHEELS)]))
+    free = float(np.mean(turned[len(DRIVEN_WHEELS) :]))
+    return 1.0 - free / driven if driven != 0.0 else 0.0
+
+
 def read_balance(
-    logs: list[DriveLog], cfg: RoverConfig, tolerance: float
+    logs: list[DriveLog], cfg: RoverConfig, tolerance: float, source: str = "effort"
 ) -> tuple[BalanceReading | None, list[Run]]:
-    """The force balance over ``logs`` (None where they lack the torque, the pose's yaw or
-    :data:`MIN_RUNS` steady straight runs), and the runs it used."""
-    arm = lever(cfg)
-    rs = [r for i, log in enumerate(logs) for r in runs(log, i, arm)]
+    """The force balance over ``logs`` (None where they lack the torque (for ``source``
+    "effort"), the pose's yaw or :data:`MIN_RUNS` steady straight runs), and the runs it
+    used. ``tolerance``: the scale of the torque (or the tires' slip stiffness) as a
+    fraction."""
+    if source not in SOURCES:
+        raise ValueError(f"source must be one of {SOURCES}, got {source!r}")
+    arm, cs = lever(cfg), stiffness(cfg)
+    rs = [
+        r
+        for i, log in enumerate(logs)
+        for r in runs(log, i, arm if source == "effort" else cs, source)
+    ]
     if len(rs) < MIN_RUNS:
         return None, rs
     X = np.array([[r.cos_yaw, r.sin_yaw, r.direction] for r in rs])
     y = np.array([r.force for r in rs])
-    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    # The slip's runs are weighed by their known noise, and their scatter about it counts
+    # only where it is larger; the torque's runs are alike, their scatter all there is.
+    w = np.array([1.0 / r.noise for r in rs]) if source == "slip" else np.ones(len(rs))
+    coef, *_ = np.linalg.lstsq(X * w[:, None], y * w, rcond=None)
     resid = y - X @ coef
     dof = len(rs) - X.shape[1]
-    s2 = float(resid @ resid) / dof
+    s2 = float(np.sum((resid * w) ** 2)) / dof
+    if source == "slip":
+        s2 = max(s2, 1.0)
     try:  # not a pseudo-inverse: it drops the direction the runs leave undetermined
         inv = np.linalg.inv(X.T @ X)
+        cov = s2 * np.linalg.inv((X * w[:, None]).T @ (X * w[:, None]))
     except np.linalg.LinAlgError:
         inv = np.full((3, 3), np.inf)
-    cov = s2 * inv
+        cov = np.full((3, 3), np.inf)
     weight = cfg.masses.total * GRAVITY
     # The tilt vector: its size from the force along it, its parts along the heading.
     size = math.degrees(math.asin(min(1.0, math.hypot(coef[0], coef[1]) / weight)))
@@ -333,7 +438,9 @@ def read_balance(
             lever=arm,
             tolerance=tolerance,
             inflation=infl if math.isfinite(infl) else math.inf,
-            scatter=math.sqrt(s2),
+            scatter=math.sqrt(float(resid @ resid) / dof),
+            source=source,
+            stiffness=cs if source == "slip" else 0.0,
         ),
         rs,
     )

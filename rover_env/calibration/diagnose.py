@@ -73,7 +73,7 @@ def _share(text: str) -> float:
 
 
 def _degrees(text: str) -> float:
-    """``--balance-allowance``: degrees, 0 or more and under 20."""
+    """``--balance-allowance``, ``--slip-allowance``: degrees, 0 or more and under 20."""
     if not 0.0 <= (v := _number(text)) < 20.0:  # also NaN
         raise argparse.ArgumentTypeError(f"must be 0 or more and under 20 degrees, got {text}")
     return v
@@ -106,6 +106,7 @@ def _cli(args: argparse.Namespace) -> int:
         odometry_end=None if args.no_odometry else Options().odometry_end,
         effort_tolerance=None if args.no_effort else args.effort_tolerance,
         balance_allowance=None if args.no_balance else args.balance_allowance,
+        slip_allowance=None if args.no_slip_balance else args.slip_allowance,
         **{name: getattr(args, name) for name, _ in SWITCHES},
     )
     try:
@@ -252,6 +253,21 @@ def _add_torque_flags(p: argparse.ArgumentParser) -> None:
         "--no-balance",
         action="store_true",
         help="never read the ground's tilt from the reported motor torque",
+    )
+    p.add_argument(
+        "--slip-allowance",
+        type=_degrees,
+        default=Options.slip_allowance,
+        metavar="DEG",
+        help="where the logs carry the pose's yaw but no torque, read the ground's tilt from"
+        " the driven wheels' slip against the free wheels' on steady straight runs, forwards"
+        " against backwards, and name a slope whose interval clears this many degrees"
+        f" (default {Options.slip_allowance}; see Options.slip_allowance)",
+    )
+    p.add_argument(
+        "--no-slip-balance",
+        action="store_true",
+        help="never read the ground's tilt from the wheels' slip",
     )
 
 

@@ -211,9 +211,8 @@ def proposals_from_report(path: str | Path, untested: bool = True) -> list[Propo
             raw.append((e, why, {e["effect"]}))
     bal = result.get("balance")
     if isinstance(bal, dict) and bal.get("plan"):
-        raw.append(
-            (bal, f"the force balance on the motors' torque: {bal.get('why_not', '')}", {"slope"})
-        )
+        on = "the wheels' slip" if bal.get("source") == "slip" else "the motors' torque"
+        raw.append((bal, f"the force balance on {on}: {bal.get('why_not', '')}", {"slope"}))
     for e in (result.get("untested") or []) if untested else []:
         if isinstance(e, dict) and e.get("plan"):
             why = f"untested {e['effect']} ({e.get('reason', '')}): {e.get('why', '')}"

@@ -124,10 +124,17 @@ def method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str]
             else []
         ),
         *effort_method(opts.effort_tolerance, result.get("effort") is not None),
-        *balance_method(opts.balance_allowance, result.get("balance") is not None),
+        *_balance_method(opts, result.get("balance")),
         f"- Cost: {result['replays']} replays, {result['replay_seconds']:.0f} s of replay,"
         f" {result['seconds']:.0f} s in all{stage_text(result.get('stage_seconds') or [])}.",
     ]
+
+
+def _balance_method(opts: Options, bal: dict[str, Any] | None) -> list[str]:
+    """The balance's bullet, for the source it read."""
+    slip = (bal or {}).get("source") == "slip"
+    allow = opts.slip_allowance if slip else opts.balance_allowance
+    return balance_method(allow, bal is not None, "slip" if slip else "effort")
 
 
 def order_clauses(opts: Options) -> str:

@@ -219,10 +219,12 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
     (:mod:`.diagnosis.balance_stage`)."""
     if r is None:
         return []
+    slip = r.get("source") == "slip"
+    what = "the wheels' slip, forwards against backwards" if slip else "the logs' `effort_*`"
     if not r.get("read"):
         return [
             "",
-            f"Force balance (the logs' `effort_*`): {r['runs']} steady straight runs; not read: {r['why_not']}.",
+            f"Force balance ({what}): {r['runs']} steady straight runs; not read: {r['why_not']}.",
         ]
     (lo, hi), (clo, chi) = r["tilt_interval"], r["c_rr_interval"]
     verdict = (
@@ -242,17 +244,24 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
         for k in ("withdrew", "replaced")
         for w in r.get(k) or []
     )
-    return [
-        "",
-        f"Force balance (the logs' `effort_*` over the lever {1000 * r['lever']:.1f} mm, {r['runs']}"
-        f" steady straight runs, scatter {r['scatter']:.2f} N): the ground rises {r['tilt']:.2f}°"
-        f" [{_end(lo, '.2f')}, {_end(hi, '.2f')}] toward {r['heading']:.0f}° with the reported torque's"
-        f" {100 * r['tolerance']:.0f} % scale tolerance, against the {r['allowance']:g}° clean"
-        f" builds read; the rover loses {r['c_rr']:.4f} of its weight rolling [{_end(clo, '.4f')},"
-        f" {_end(chi, '.4f')}] (the ground, the tires and the drivetrain's drag together); {verdict}."
-        + moved
-        + drive,
-    ]
+    head = (
+        f"Force balance (the driven wheels' slip against the free wheels' times their tires'"
+        f" {r['stiffness']:g} N of slip stiffness, {r['runs']} steady straight runs, scatter"
+        f" {r['scatter']:.2f} N): the ground rises {r['tilt']:.2f}° [{_end(lo, '.2f')},"
+        f" {_end(hi, '.2f')}] toward {r['heading']:.0f}° with the stiffness's"
+        f" {100 * r['tolerance']:.0f} % tolerance, against the {r['allowance']:g}° clean builds"
+        f" read; the same slip both ways (a radius, a resistance, the ground):"
+        f" {100 * r['offset_slip']:.2f} %"
+        if slip
+        else f"Force balance (the logs' `effort_*` over the lever {1000 * r['lever']:.1f} mm,"
+        f" {r['runs']} steady straight runs, scatter {r['scatter']:.2f} N): the ground rises"
+        f" {r['tilt']:.2f}° [{_end(lo, '.2f')}, {_end(hi, '.2f')}] toward {r['heading']:.0f}°"
+        f" with the reported torque's {100 * r['tolerance']:.0f} % scale tolerance, against the"
+        f" {r['allowance']:g}° clean builds read; the rover loses {r['c_rr']:.4f} of its weight"
+        f" rolling [{_end(clo, '.4f')}, {_end(chi, '.4f')}] (the ground, the tires and the"
+        " drivetrain's drag together)"
+    )
+    return ["", f"{head}; {verdict}." + moved + drive]
 
 
 def _end(v: float | None, spec: str) -> str:
@@ -260,10 +269,20 @@ def _end(v: float | None, spec: str) -> str:
     return "unbounded" if v is None or not math.isfinite(v) else format(v, spec)
 
 
-def balance_method(allowance: float | None, read: bool) -> list[str]:
-    """The method's bullet on the tilt read from the reported torque."""
+def balance_method(allowance: float | None, read: bool, source: str = "effort") -> list[str]:
+    """The method's bullet on the tilt read from the reported torque (or the wheels' slip)."""
     if allowance is None or not read:
         return []
+    if source == "slip":
+        return [
+            "- Balance (slip): where the logs carry the pose's yaw and no torque, each steady"
+            " straight run's slip (one minus the free wheels' turn over the driven wheels')"
+            " times the driven tires' slip stiffness is the traction along the track; it is"
+            " fitted as the rover's weight times the ground's tilt along its heading plus a"
+            " term that flips with the direction of travel (a radius or a resistance slips the"
+            f" same both ways); a tilt whose interval clears {allowance:g}° (what clean builds of"
+            " another implementation read) names the slope."
+        ]
     return [
         "- Balance: where the logs report the motors' torque and the pose's yaw, the driven"
         " wheels' summed torque over the lever to the contact point, on steady straight runs,"

@@ -1,8 +1,12 @@
-"""Stage 5d, balance: the ground's tilt read from the motors' reported torque.
+"""Stage 5d, balance: the ground's tilt read from the motors' reported torque, or from the
+wheels' slip where the logs carry no torque.
 
 Where the logs carry ``effort_*`` columns and the pose's yaw,
 :func:`rover_env.calibration.balance.read_balance` fits the force balance along the track
-over the steady straight runs: a tilt vector and a resistance. A tilt whose interval, less
+over the steady straight runs: a tilt vector and a resistance. Logs with the pose's yaw and
+no torque (SPEC §6's) get the slip balance: the same fit with each run's traction read from
+the driven wheels' slip against the free wheels' (``source`` "slip", its own allowance
+:data:`rover_env.calibration.balance.CLEAN_SLIP_TILT`). A tilt whose interval, less
 what clean builds read (:data:`rover_env.calibration.balance.CLEAN_TILT`), stays above
 level names ``slope`` from the balance, in place of a slope the windows named alone; a
 balance that reads the ground level under a slope the windows named alone withdraws it;
@@ -21,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from rover_env.calibration.balance import SCALE, BalanceReading, Z, read_balance
+from rover_env.calibration.balance import SCALE, SLIP_SCALE, BalanceReading, Z, read_balance
 from rover_env.calibration.candidates import merge
 from rover_env.calibration.diagnosis.judge import scored_beside
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
@@ -39,18 +43,17 @@ def name_by_balance(d: Diagnosis) -> None:
     says (see the module docstring)."""
     d.balance = None
     cand = next((c for c in d.cands if c.name == NAME), None)
-    if d.opts.balance_allowance is None or d.opts.effort_tolerance is None or cand is None:
-        return
     logs = [p.log for p in d.prepared]
-    if not any(log.has_effort for log in logs):
+    how = source(d.opts, any(log.has_effort for log in logs))
+    if cand is None or how is None:
         return
+    src, allow, tolerance = how
     t0 = time.perf_counter()
-    reading, runs = read_balance(logs, d.base, SCALE)
+    reading, runs = read_balance(logs, d.base, tolerance, src)
     windows = [s for s in d.chosen if NAME in [c.name for c in s.fit.candidates]]
     alone = [s for s in windows if len(s.fit.candidates) == 1]
     wlo = alone[0].fit.physical()[NAME]["deg"][1] if alone else None
-    allow = d.opts.balance_allowance
-    act, rec = record(reading, len(runs), allow, wlo, len(windows) > len(alone))
+    act, rec = record(reading, len(runs), allow, wlo, len(windows) > len(alone), src)
     d.balance = rec
     if reading is None or act not in ("withdraw", "name"):
         return
@@ -58,7 +61,7 @@ def name_by_balance(d: Diagnosis) -> None:
     rec["withdrew" if act == "withdraw" else "replaced"] = [fmt_slope(s) for s in alone]
     if act == "withdraw":
         hi = reading.tilt_interval()[1]
-        d.say(f"{NAME}: withdrawn, the wheels' torque reads the ground within {hi:.2f}°")
+        d.say(f"{NAME}: withdrawn, the wheels' {src} reads the ground within {hi:.2f}°")
         return
     fit = balance_fit(cand, reading, allow, time.perf_counter() - t0)
     named, _ = scored_beside(d, fit, merge(*(s.fit.ext for s in d.chosen)), k=2)
@@ -69,19 +72,38 @@ def name_by_balance(d: Diagnosis) -> None:
     d.say(f"{NAME}: named by {named.test}")
 
 
+def source(opts: Any, effort: bool) -> tuple[str, float, float] | None:
+    """Which balance a diagnosis reads (the source, its allowance in degrees, its scale
+    tolerance): the torque's where the logs report it and it is read, else the slip's; None
+    where the one that applies is off."""
+    if effort and opts.effort_tolerance is not None:
+        return None if opts.balance_allowance is None else ("effort", opts.balance_allowance, SCALE)
+    return None if opts.slip_allowance is None else ("slip", opts.slip_allowance, SLIP_SCALE)
+
+
 def record(
     reading: BalanceReading | None,
     runs: int,
     allow: float,
     windows_low: float | None,
     inside: bool,
+    src: str = "effort",
 ) -> tuple[str, dict[str, Any]]:
     """What a reading does (:func:`action`; "none" without a reading) and its record for
     ``result.json``: the reading, the interval for the truth with the allowance, why nothing
     was named, and the drive it asks for where its runs do not separate."""
-    rec: dict[str, Any] = {"runs": runs, "read": reading is not None, "named": False}
+    rec: dict[str, Any] = {
+        "runs": runs,
+        "read": reading is not None,
+        "named": False,
+        "source": src,
+    }
     if reading is None:
-        rec["why_not"] = "fewer steady straight runs with the torque and the heading than it needs"
+        rec["why_not"] = (
+            "fewer steady straight runs with the torque and the heading than it needs"
+            if src == "effort"
+            else "fewer steady straight runs with the heading than it needs"
+        )
         return "none", rec
     lo, hi = reading.tilt_interval()
     rec.update(reading.as_json(), allowance=allow, truth_interval=[max(0.0, lo - allow), hi])
@@ -154,8 +176,13 @@ def balance_fit(cand: Any, r: BalanceReading, allow: float, seconds: float) -> F
 def test_text(r: BalanceReading, allow: float) -> str:
     """The naming's reason, in the report's words."""
     lo, hi = r.tilt_interval()
+    what = (
+        "the wheels' summed torque"
+        if r.source == "effort"
+        else "the driven wheels' slip against the free wheels', forwards against backwards,"
+    )
     return (
-        f"balance: the wheels' summed torque over {r.runs} steady straight runs reads the ground"
+        f"balance: {what} over {r.runs} steady straight runs reads the ground"
         f" rising {r.tilt:.2f}° [{lo:.2f}, {hi:.2f}] toward {r.heading:.0f}°, beyond the"
         f" {allow:g}° clean builds read"
     )

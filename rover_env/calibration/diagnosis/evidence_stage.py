@@ -22,7 +22,7 @@ from rover_env.config import RoverConfig
 
 def seek_evidence(d: Diagnosis) -> None:
     """Sets :attr:`Diagnosis.evidence`."""
-    # A slope the force balance read (named, or level) needs no drive from the windows.
+    # A slope the balance read (torque or slip; named, or level) needs no drive from the windows.
     read = {"slope"} if (d.balance or {}).get("separated") else set()
     d.evidence = missing_evidence(
         d.ev, d.ranked, d.chosen, d.noise, d.base, d.opts, d.say, frozenset(read)

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from rover_env.calibration.balance import CLEAN_TILT
+from rover_env.calibration.balance import CLEAN_SLIP_TILT, CLEAN_TILT
 from rover_env.calibration.candidates import Candidate
 from rover_env.calibration.fit import Evaluator, Fit
 from rover_env.calibration.form_allowance import FormAllowance, load_allowance
@@ -363,6 +363,12 @@ class Options:
     a slope whose interval, less this many degrees (what clean builds read), stays above
     level (None: not read). Why: the windows read a slope through the joints, which clean
     builds of another implementation lean by up to 2.4°; the summed torque does not lean."""
+    slip_allowance: float | None = CLEAN_SLIP_TILT
+    """Where the logs carry the pose's yaw and no torque (or it is not read), read the tilt
+    from the slip balance instead: each steady straight run's driven-wheel slip against the
+    free wheels', forwards against backwards (a slope adds traction one way and takes it the
+    other, a radius or resistance adds the same slip both ways); a slope whose interval, less
+    this many degrees, stays above level is named (None: not read)."""
     model_form: bool = True
     """Fit the model's own form first, in this order: the joint sensors' zeros, the speed
     loop's anti-windup form, the tire's relaxation length, the yaw joints' springs and the
@@ -695,8 +701,9 @@ class Diagnosis:
     """The torque limit read from the reported motor torque and what it named
     (:func:`.effort_stage.name_by_effort`; None: no log reports torque, or off)."""
     balance: dict[str, Any] | None = None
-    """The ground's tilt read from the reported motor torque and what it named
-    (:func:`.balance_stage.name_by_balance`; None: no log reports torque, or off)."""
+    """The ground's tilt read from the reported motor torque, or from the wheels' slip, and
+    what it named (:func:`.balance_stage.name_by_balance`; its ``source`` says which; None:
+    the balance that applies is off, or there is no slope candidate)."""
     one_wheel: dict[str, Any] | None = None
     """Beside a named rolling resistance: the free wheels' dead-reckoning split and whether
     it withdrew the name (:func:`.one_wheel.withdraw_one_wheel`)."""
