@@ -182,7 +182,7 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seed0", type=int, default=0, help="the first case's seed (new layouts)")
+    ap.add_argument("--seed0", type=int, help="the first case's seed (not with --existing)")
     for kind in ("clean", "slopes", "rr", "soils"):
         ap.add_argument(f"--{kind}", type=int, default=0, help=f"cases of {kind}")
     ap.add_argument("--work", type=Path, required=True)
@@ -192,16 +192,19 @@ def main() -> None:
         "--existing", action="store_true", help="read the cases already in WORK, generate none"
     )
     a = ap.parse_args()
+    if (a.seed0 is None) != a.existing:
+        ap.error("give --seed0 for new cases, or --existing to read those in WORK (not both)")
     kinds = (
         ["clean"] * a.clean
         + ["slope"] * a.slopes
         + ["rolling_resistance"] * a.rr
         + ["loose_soil"] * a.soils
     )
-    jobs = [(a.work, k, a.seed0 + i, a.source) for i, k in enumerate(kinds)]
     if a.existing:
         found = [p.name.rsplit("_", 1) for p in sorted(a.work.glob("*_*")) if p.is_dir()]
         jobs = [(a.work, k, int(s), a.source) for k, s in found if k == "clean" or k in RANGES]
+    else:
+        jobs = [(a.work, k, a.seed0 + i, a.source) for i, k in enumerate(kinds)]
     a.work.mkdir(parents=True, exist_ok=True)
     rows = []
     with ProcessPoolExecutor(a.workers) as ex:

@@ -332,7 +332,7 @@ def test_the_stage_reads_the_torque_where_logged_and_the_slip_elsewhere() -> Non
     assert source(Options(), True) == ("effort", CLEAN_TILT, SCALE)
     assert source(Options(), False) == ("slip", CLEAN_SLIP_TILT, SLIP_SCALE)
     assert source(Options(effort_tolerance=None), True)[0] == "slip"  # torque not read
-    assert source(Options(balance_allowance=None), True) is None
+    assert source(Options(balance_allowance=None), True)[0] == "slip"  # each switch its own
     assert source(Options(slip_allowance=None), False) is None
     assert source(Options(slip_allowance=0.2), False) == ("slip", 0.2, SLIP_SCALE)
 
@@ -352,6 +352,11 @@ def test_the_slip_balance_is_reported_and_proposes_its_drive(tmp_path: Path) -> 
     (tmp_path / "result.json").write_text(json.dumps({"balance": rec}))
     (prop,) = proposals_from_report(tmp_path)
     assert "the wheels' slip" in prop.why[0]
+    soil_act, _ = record(r, len(runs), 0.3, None, False, "slip", soil=True)
+    assert soil_act == "unseparated"  # the drive is still asked for
+    sloped, sruns = read_balance(logs, CFG, 0.2, "slip")
+    assert record(sloped, len(sruns), 0.3, None, False, "slip", soil=True)[0] == "soil"
+    assert record(sloped, len(sruns), 0.3, None, False, "effort", soil=True)[0] == "name"
     none = record(None, 2, 0.3, None, False, "slip")[1]
     assert "torque" not in none["why_not"]
     from rover_env.calibration.report_notes import balance_method
@@ -360,3 +365,63 @@ def test_the_slip_balance_is_reported_and_proposes_its_drive(tmp_path: Path) -> 
     assert "torque" in balance_method(0.5, True)[0] and balance_method(None, True, "slip") == []
     with pytest.raises(ValueError, match="source"):
         read_balance(logs, CFG, 0.2, "pose")
+
+
+def test_the_slip_balance_weighs_runs_by_the_encoders_step_and_its_floor(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import rover_env.calibration.balance as balance
+
+    logs = [bare(rover_log(1.0, 40.0, 0.02, seed=s)) for s in range(3)]
+    r, runs = read_balance(logs, CFG, 0.2, "slip")
+    assert r is not None and balance.resolution(logs[0].phi) == 0.0  # not quantised
+    assert all(x.noise == pytest.approx(balance.SLIP_FLOOR * 400.0) for x in runs)
+    lo, hi = r.tilt_interval()
+    assert hi - lo < 0.1 + 2 * 0.2 * 1.0  # the floor over 21 runs, and the 20 % stiffness
+    step = 2 * math.pi / 1024  # a 1024-count encoder
+    coarse = [
+        DriveLog(x.t, x.cmd, np.round(x.phi / step) * step, x.theta, x.pose, x.meta) for x in logs
+    ]
+    rq, runs_q = read_balance(coarse, CFG, 0.2, "slip")
+    assert rq is not None and balance.resolution(coarse[0].phi) == pytest.approx(step)
+    assert min(x.noise for x in runs_q) > balance.SLIP_FLOOR * 400.0
+    assert rq.tilt_interval()[0] <= 1.0 <= rq.tilt_interval()[1]
+    bare_width = np.diff(read_balance(logs, CFG, 0.0, "slip")[0].tilt_interval())[0]  # type: ignore[union-attr]
+    monkeypatch.setattr(balance, "SLIP_FLOOR", 10 * balance.SLIP_FLOOR)
+    wide, _ = read_balance(logs, CFG, 0.0, "slip")
+    assert wide is not None  # the runs agree better than the floor: it sets the width
+    assert np.diff(wide.tilt_interval())[0] > 5 * bare_width
+
+
+def test_runs_beyond_the_critical_slip_are_left_out() -> None:
+    from rover_env.calibration.balance import critical_slip
+
+    assert critical_slip(CFG) == pytest.approx(3 * 0.4 * WEIGHT / 6 / 100.0)
+    logs = [bare(rover_log(1.0, 40.0, 0.02, seed=s)) for s in range(3)]
+    stalled = logs[0].phi.copy()
+    stalled[:, 4:] = 0.0  # the free wheels' encoders dead: every run "slips" 100 %
+    logs[0] = DriveLog(logs[0].t, logs[0].cmd, stalled, logs[0].theta, logs[0].pose, logs[0].meta)
+    r, runs = read_balance(logs, CFG, 0.2, "slip")
+    assert r is not None and {x.log for x in runs} == {1, 2} and len(runs) == 14
+    assert r.tilt_interval()[0] <= 1.0 <= r.tilt_interval()[1]
+
+
+def test_a_wide_separated_reading_leaves_the_windows_their_slope_drive() -> None:
+    from types import SimpleNamespace
+
+    from rover_env.calibration.diagnosis.evidence_stage import balance_settled
+
+    edge = SimpleNamespace(edge=lambda effect, side: 2.4)
+
+    def settled(**bal: object) -> bool:
+        d = SimpleNamespace(balance={"separated": True, **bal}, allowance=edge)
+        return balance_settled(d)  # type: ignore[arg-type]
+
+    assert settled(named=True, tilt_interval=[0.8, 9.0])
+    assert settled(withdrew=[{"deg": 3.0}], tilt_interval=[0.0, 0.4])
+    assert settled(tilt_interval=[0.0, 1.2])  # level, narrower than the windows can name
+    assert not settled(tilt_interval=[0.0, 8.99])  # level inside, but it says little
+    assert not settled(tilt_interval=[0.0, None])
+    assert not balance_settled(SimpleNamespace(balance=None, allowance=edge))  # type: ignore[arg-type]
+    unsep = SimpleNamespace(balance={"separated": False, "named": False}, allowance=edge)
+    assert not balance_settled(unsep)  # type: ignore[arg-type]

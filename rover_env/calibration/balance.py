@@ -1,5 +1,5 @@
-"""The ground's tilt and the rover's resistance read from the motors' reported torque: the
-force balance along the track on steady straight runs.
+"""The ground's tilt and the rover's resistance read from the motors' reported torque, or
+from the wheels' slip: the force balance along the track on steady straight runs.
 
 Why: the wheel angles and joints read a slope through this model's springs, tire and
 geometry, and a clean build of another implementation is read at up to 2.4-4.7° there
@@ -43,6 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
+from rover_env.calibration.residuals import resolution
 from rover_env.config import DRIVEN_WHEELS, RoverConfig
 from rover_env.logs import DriveLog
 
@@ -90,7 +91,7 @@ implementation that is not that one."""
 SLIP_SCALE = 0.2
 """The driven tires' slip stiffness (``tire.C_s``), known to +- this fraction, for the slip
 balance: another implementation's tire passes the same traction at its own slip (the
-independent generator read 2-6 % steeper than ``C_s`` says, exploratory seeds 74713-74728);
+independent generator read 2-7 % steeper than ``C_s`` says, exploratory seeds 74713-74728);
 a real tire's stiffness is the paper's figure, not a measurement of this rover."""
 CLEAN_SLIP_TILT = 0.3
 """Degrees a slope's interval must clear before the slip balance names it (see
@@ -117,7 +118,8 @@ Z = 1.96
 class BalanceReading:
     """What the force balance says (forces in N, the tilt in degrees). Standard errors are
     the fit's own; the intervals scale them by Student's t over :attr:`dof` (the runs are
-    few) and add the reported torque's scale :attr:`tolerance`."""
+    few) and add the scale :attr:`tolerance` of the reported torque (or, for the slip, of
+    the tires' slip stiffness)."""
 
     runs: int
     """Steady straight runs over all logs."""
@@ -130,7 +132,8 @@ class BalanceReading:
     corr: float
     """Correlation of the two parts' errors."""
     resistance: float
-    """``R``: the force the rover loses rolling (N), as a coefficient of its weight below."""
+    """``R``: the force the rover loses rolling (N), as a coefficient of its weight below;
+    for the slip, the slip the same both ways times the stiffness (:attr:`offset_slip`)."""
     sd_resistance: float
     dof: int
     """Runs less the three unknowns."""
@@ -139,7 +142,8 @@ class BalanceReading:
     lever: float
     """``d - delta`` at static load (m)."""
     tolerance: float
-    """The reported torque's scale, known to +- this fraction."""
+    """The reported torque's scale (or the tires' slip stiffness), known to +- this
+    fraction."""
     inflation: float
     """How much worse the runs' headings and directions determine the worst of the three
     unknowns than runs spread evenly would (its standard error over the scatter's over the
@@ -174,8 +178,9 @@ class BalanceReading:
 
     def tilt_se(self) -> tuple[float, float]:
         """The tilt vector's standard errors for a 95 % interval at :data:`Z` (degrees):
-        Student's t's scaling, and the reported torque's scale tolerance, which moves the
-        whole vector by its fraction (so each part by the tilt's size times it)."""
+        Student's t's scaling, and the scale tolerance (the reported torque's, or the tires'
+        slip stiffness'), which moves the whole vector by its fraction (so each part by the
+        tilt's size times it)."""
         pad = self.tolerance * self.tilt / Z
         return (
             math.hypot(self.sd_x * self.t_scale, pad),
@@ -223,13 +228,18 @@ class BalanceReading:
         return lo - self.tolerance * abs(lo), hi + self.tolerance * abs(hi)
 
     def as_json(self) -> dict[str, Any]:
+        """The reading for ``result.json``. For the slip, the lever and the rolling
+        coefficient mean nothing (its second term holds a radius or a sensor gain off as
+        much as a drag): null there, ``offset_slip`` in their place; NaN and infinity null."""
         out = asdict(self)
+        slip = self.source == "slip"
         out.update(
             tilt=self.tilt,
             heading=self.heading,
             tilt_interval=list(self.tilt_interval()),
-            c_rr=self.c_rr,
-            c_rr_interval=list(self.c_rr_interval()),
+            c_rr=None if slip else self.c_rr,
+            c_rr_interval=None if slip else list(self.c_rr_interval()),
+            lever=None if slip else self.lever,
             separated=self.separated,
             offset_slip=self.offset_slip,
         )
@@ -271,6 +281,15 @@ def stiffness(cfg: RoverConfig) -> float:
     return cfg.tire.C_s * len(DRIVEN_WHEELS)
 
 
+def critical_slip(cfg: RoverConfig) -> float:
+    """The driven tire's critical slip at static load, ``3 mu_x F_z / C_s`` (SPEC §3, eq. 15):
+    beyond it the whole contact patch slides and traction no longer grows as ``C_s S``; a
+    run slipping that much (a stall, a spinning wheel, an encoder counting backwards) says
+    nothing of the tilt by the slip balance's reading."""
+    f_z = cfg.masses.total * GRAVITY / 6
+    return 3.0 * cfg.tire.mu_x * f_z / cfg.tire.C_s
+
+
 def lever(cfg: RoverConfig) -> float:
     """The axle's height above the contact point at static load: the wheel radius less the
     tire's deflection under a sixth of the weight."""
@@ -300,11 +319,18 @@ def _held(t: Array, cmd: Array) -> Array:
     return np.asarray(t - t[start], dtype=np.float64)
 
 
-def runs(log: DriveLog, index: int, per_unit: float, source: str = "effort") -> list[Run]:
+def runs(
+    log: DriveLog,
+    index: int,
+    per_unit: float,
+    source: str = "effort",
+    slip_limit: float = math.inf,
+) -> list[Run]:
     """The log's steady straight runs: targets held :data:`HOLD` s, equal on both sides to
     :data:`STRAIGHT`, moving; each a stretch of :data:`MIN_RUN` s or more with the heading
     known (and, for ``source`` "effort", the torque of every driven wheel). ``per_unit``: the
-    lever (m) for the torque, the tires' slip stiffness (N) for the slip."""
+    lever (m) for the torque, the tires' slip stiffness (N) for the slip; for the slip, runs
+    slipping ``slip_limit`` or more either way are left out (:func:`critical_slip`)."""
     yaw = _yaw(log)
     if yaw is None or (source == "effort" and not log.has_effort):
         return []
@@ -331,6 +357,8 @@ def runs(log: DriveLog, index: int, per_unit: float, source: str = "effort") -> 
         s = slice(a, b)
         direction = float(np.sign(np.mean(mean[s])))
         turned = log.phi[b - 1] - log.phi[a]
+        if source == "slip" and not abs(_slip(turned)) < slip_limit:
+            continue  # the patch slides (or a wheel stalls): traction is not C_s S there
         out.append(
             Run(
                 log=index,
@@ -350,15 +378,6 @@ def runs(log: DriveLog, index: int, per_unit: float, source: str = "effort") -> 
     return out
 
 
-def resolution(phi: Array) -> float:
-    """The wheel encoders' step (rad): the smallest change between rows any wheel shows,
-    where the angles are quantised (0 where they change by less than a micro-radian: not
-    quantised, or not by a readable step)."""
-    d = np.abs(np.diff(phi, axis=0))
-    d = d[d > 1e-6]
-    return float(d.min()) if d.size else 0.0
-
-
 def _slip_noise(turned: Array, res: float) -> float:
     """A run's slip's standard error: :data:`SLIP_FLOOR` and the resolution ``res`` at both
     ends of each wheel's turn (uniform, variance ``res^2 / 12`` an end), through the four
@@ -374,7 +393,7 @@ def _slip(turned: Array) -> float:
     wheels last). Positive where the driven wheels spin ahead of the ground."""
     driven = float(np.mean(turned[: len(DRIVEN_WHEELS)]))
     free = float(np.mean(turned[len(DRIVEN_WHEELS) :]))
-    return 1.0 - free / driven if driven != 0.0 else 0.0
+    return 1.0 - free / driven if driven != 0.0 else math.inf
 
 
 def read_balance(
@@ -386,11 +405,11 @@ def read_balance(
     fraction."""
     if source not in SOURCES:
         raise ValueError(f"source must be one of {SOURCES}, got {source!r}")
-    arm, cs = lever(cfg), stiffness(cfg)
+    arm, cs, sc = lever(cfg), stiffness(cfg), critical_slip(cfg)
     rs = [
         r
         for i, log in enumerate(logs)
-        for r in runs(log, i, arm if source == "effort" else cs, source)
+        for r in runs(log, i, arm if source == "effort" else cs, source, sc)
     ]
     if len(rs) < MIN_RUNS:
         return None, rs

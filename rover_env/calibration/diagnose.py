@@ -237,7 +237,8 @@ def _add_torque_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--no-effort",
         action="store_true",
-        help="never read the reported motor torque (neither the torque limit nor the balance)",
+        help="never read the reported motor torque (neither the torque limit nor the force"
+        " balance on it; the slip balance reads the tilt instead)",
     )
     p.add_argument(
         "--balance-allowance",
@@ -252,14 +253,16 @@ def _add_torque_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--no-balance",
         action="store_true",
-        help="never read the ground's tilt from the reported motor torque",
+        help="never read the ground's tilt from the reported motor torque (the slip balance"
+        " reads it instead)",
     )
     p.add_argument(
         "--slip-allowance",
         type=_degrees,
         default=Options.slip_allowance,
         metavar="DEG",
-        help="where the logs carry the pose's yaw but no torque, read the ground's tilt from"
+        help="where the logs carry the pose's yaw but no torque (or it is not read), read the"
+        " ground's tilt from"
         " the driven wheels' slip against the free wheels' on steady straight runs, forwards"
         " against backwards, and name a slope whose interval clears this many degrees"
         f" (default {Options.slip_allowance}; see Options.slip_allowance)",

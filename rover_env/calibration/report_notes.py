@@ -215,8 +215,8 @@ def effort_method(tolerance: float | None, read: bool) -> list[str]:
 
 
 def balance_lines(r: dict[str, Any] | None) -> list[str]:
-    """The ground's tilt as the reported motor torque's balance reads it
-    (:mod:`.diagnosis.balance_stage`)."""
+    """The ground's tilt as the balance reads it, on the reported motor torque or on the
+    wheels' slip (:mod:`.diagnosis.balance_stage`)."""
     if r is None:
         return []
     slip = r.get("source") == "slip"
@@ -226,7 +226,8 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
             "",
             f"Force balance ({what}): {r['runs']} steady straight runs; not read: {r['why_not']}.",
         ]
-    (lo, hi), (clo, chi) = r["tilt_interval"], r["c_rr_interval"]
+    lo, hi = r["tilt_interval"]
+    clo, chi = r.get("c_rr_interval") or (None, None)  # null for the slip's
     verdict = (
         "named `slope` from it"
         if r.get("named")

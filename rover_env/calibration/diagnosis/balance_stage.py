@@ -7,7 +7,8 @@ over the steady straight runs: a tilt vector and a resistance. Logs with the pos
 no torque (SPEC §6's) get the slip balance: the same fit with each run's traction read from
 the driven wheels' slip against the free wheels' (``source`` "slip", its own allowance
 :data:`rover_env.calibration.balance.CLEAN_SLIP_TILT`). A tilt whose interval, less
-what clean builds read (:data:`rover_env.calibration.balance.CLEAN_TILT`), stays above
+what clean builds read (:data:`rover_env.calibration.balance.CLEAN_TILT`; for the slip
+:data:`rover_env.calibration.balance.CLEAN_SLIP_TILT`), stays above
 level names ``slope`` from the balance, in place of a slope the windows named alone; a
 balance that reads the ground level under a slope the windows named alone withdraws it;
 beside a slope named in a pair the reading is reported. Where the runs leave the tilt and
@@ -33,6 +34,10 @@ from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
 from rover_env.calibration.fit import Fit, to_ext
 
 NAME = "slope"
+SOIL = "loose_soil"
+"""Beside it the slip balance only reports: its reading assumes hard ground (stop 121, after
+block 53600's soil case 53607 read 1.14° [0.82, 1.47] on level soil, forwards slipping 21.4 %
+and backwards 19.7 %; not scored on fresh cases)."""
 PLAN = "reversals"
 """The drive asked for where the runs leave the tilt and the resistance one unknown: long
 runs forwards and backwards on one line and 180° turns."""
@@ -48,12 +53,15 @@ def name_by_balance(d: Diagnosis) -> None:
     if cand is None or how is None:
         return
     src, allow, tolerance = how
+    if src == "slip" and not any(np.isfinite(log.pose[:, 2]).sum() >= 2 for log in logs):
+        return  # no heading anywhere (the pose at the end only, or none): nothing to report
     t0 = time.perf_counter()
     reading, runs = read_balance(logs, d.base, tolerance, src)
     windows = [s for s in d.chosen if NAME in [c.name for c in s.fit.candidates]]
     alone = [s for s in windows if len(s.fit.candidates) == 1]
     wlo = alone[0].fit.physical()[NAME]["deg"][1] if alone else None
-    act, rec = record(reading, len(runs), allow, wlo, len(windows) > len(alone), src)
+    soil = any(c.name == SOIL for s in d.chosen for c in s.fit.candidates)
+    act, rec = record(reading, len(runs), allow, wlo, len(windows) > len(alone), src, soil)
     d.balance = rec
     if reading is None or act not in ("withdraw", "name"):
         return
@@ -61,7 +69,8 @@ def name_by_balance(d: Diagnosis) -> None:
     rec["withdrew" if act == "withdraw" else "replaced"] = [fmt_slope(s) for s in alone]
     if act == "withdraw":
         hi = reading.tilt_interval()[1]
-        d.say(f"{NAME}: withdrawn, the wheels' {src} reads the ground within {hi:.2f}°")
+        what = "torque" if src == "effort" else "slip"
+        d.say(f"{NAME}: withdrawn, the wheels' {what} reads the ground within {hi:.2f}°")
         return
     fit = balance_fit(cand, reading, allow, time.perf_counter() - t0)
     named, _ = scored_beside(d, fit, merge(*(s.fit.ext for s in d.chosen)), k=2)
@@ -74,10 +83,11 @@ def name_by_balance(d: Diagnosis) -> None:
 
 def source(opts: Any, effort: bool) -> tuple[str, float, float] | None:
     """Which balance a diagnosis reads (the source, its allowance in degrees, its scale
-    tolerance): the torque's where the logs report it and it is read, else the slip's; None
-    where the one that applies is off."""
-    if effort and opts.effort_tolerance is not None:
-        return None if opts.balance_allowance is None else ("effort", opts.balance_allowance, SCALE)
+    tolerance): the torque's where the logs report it and both the torque and its balance
+    are read, else the slip's; None where that is off too. Each switch turns off its own
+    reading: with the torque balance off the slip still reads the tilt."""
+    if effort and opts.effort_tolerance is not None and opts.balance_allowance is not None:
+        return "effort", opts.balance_allowance, SCALE
     return None if opts.slip_allowance is None else ("slip", opts.slip_allowance, SLIP_SCALE)
 
 
@@ -88,10 +98,12 @@ def record(
     windows_low: float | None,
     inside: bool,
     src: str = "effort",
+    soil: bool = False,
 ) -> tuple[str, dict[str, Any]]:
-    """What a reading does (:func:`action`; "none" without a reading) and its record for
-    ``result.json``: the reading, the interval for the truth with the allowance, why nothing
-    was named, and the drive it asks for where its runs do not separate."""
+    """What a reading does (:func:`action`; "none" without a reading; "soil" for the slip's
+    beside a named loose soil: reported only) and its record for ``result.json``: the
+    reading, the interval for the truth with the allowance, why nothing was named, and the
+    drive it asks for where its runs do not separate."""
     rec: dict[str, Any] = {
         "runs": runs,
         "read": reading is not None,
@@ -108,6 +120,8 @@ def record(
     lo, hi = reading.tilt_interval()
     rec.update(reading.as_json(), allowance=allow, truth_interval=[max(0.0, lo - allow), hi])
     act = action((lo, hi), allow, windows_low, inside, reading.separated)
+    if src == "slip" and soil and act != "unseparated":
+        act = "soil"
     if act in WHY_NOT:
         rec["why_not"] = WHY_NOT[act].format(allow=allow)
     if act == "unseparated":  # the drive that separates them, for drive-plan and the bench
@@ -121,6 +135,9 @@ WHY_NOT = {
     "level": "the tilt's interval, less the {allow:g}° clean builds read, reaches level",
     "withdraw": "the tilt's interval, less the {allow:g}° clean builds read, reaches level",
     "inside": "a slope is named with another effect; the reading is reported",
+    "soil": "loose soil is named, and the slip balance assumes hard ground (a tire's slip"
+    " stiffness; on soil the free wheels bulldoze differently forwards and backwards): the"
+    " reading is reported",
 }
 """Why a reading names nothing, by :func:`action`."""
 

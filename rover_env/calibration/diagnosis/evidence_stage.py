@@ -22,12 +22,27 @@ from rover_env.config import RoverConfig
 
 def seek_evidence(d: Diagnosis) -> None:
     """Sets :attr:`Diagnosis.evidence`."""
-    # A slope the balance read (torque or slip; named, or level) needs no drive from the windows.
-    read = {"slope"} if (d.balance or {}).get("separated") else set()
+    read = {"slope"} if balance_settled(d) else set()
     d.evidence = missing_evidence(
         d.ev, d.ranked, d.chosen, d.noise, d.base, d.opts, d.say, frozenset(read)
     )
     d.untested = untested_limit(d)
+
+
+def balance_settled(d: Diagnosis) -> bool:
+    """Whether the balance (torque or slip) settled the slope, so the windows need no drive
+    for it: its runs separate and it named or withdrew one, or its interval ends below
+    the tilt the windows could name from (the clean-fit allowance's edge). A separated
+    reading can still be wide (a clean build's 0-9°, exploratory seed 74761): that settles
+    nothing."""
+    bal = d.balance or {}
+    if not bal.get("separated"):
+        return False
+    if bal.get("named") or bal.get("withdrew"):
+        return True
+    hi = (bal.get("tilt_interval") or [None, None])[1]
+    edge = d.allowance.edge("slope", "deg") if d.allowance is not None else 0.0
+    return hi is not None and hi <= edge
 
 
 def missing_evidence(
