@@ -104,8 +104,9 @@ SLIP_FLOOR = 0.0008
 resolution. On 30 clean builds and drags of the independent generator (exploratory seeds
 74725-74784, 402 runs) the runs scattered by 0.02 % beyond it, but runs a few seconds after
 a turn, the yaw joints still up to 1° off, slipped 0.2-0.3 % more (seed 74738): two such runs
-in one heading read the tilt across the track alone. At 0.08 % they cannot; the runs'
-scatter counts where it is larger."""
+in one heading read the tilt across the track alone. At 0.08 % those two cannot; the runs'
+scatter counts where it is larger. Runs that scrub more still can: block 53600's clean build
+53637 was named 2.40° from two runs 1-2 s after turns that slipped 1.3-1.5 % (limits.md)."""
 SOURCES = ("effort", "slip")
 """What a run's traction is read from: the reported torque, or the wheels' slip."""
 FIX_GAP = 2.0

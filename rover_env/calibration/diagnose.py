@@ -262,9 +262,9 @@ def _add_torque_flags(p: argparse.ArgumentParser) -> None:
         default=Options.slip_allowance,
         metavar="DEG",
         help="where the logs carry the pose's yaw but no torque (or it is not read), read the"
-        " ground's tilt from"
-        " the driven wheels' slip against the free wheels' on steady straight runs, forwards"
-        " against backwards, and name a slope whose interval clears this many degrees"
+        " ground's tilt from the driven wheels' slip against the free wheels' on steady"
+        " straight runs, forwards against backwards, and name a slope whose interval clears"
+        " this many degrees"
         f" (default {Options.slip_allowance}; see Options.slip_allowance)",
     )
     p.add_argument(
