@@ -298,14 +298,20 @@ def lever(cfg: RoverConfig) -> float:
     return cfg.geometry.wheel_radius - delta
 
 
+def has_heading(log: DriveLog) -> bool:
+    """Whether the log's pose gives a heading to read runs by: two fixes with a yaw or more
+    (SPEC §6's pose at the end only has one)."""
+    return int(np.isfinite(log.pose[:, 2]).sum()) >= 2
+
+
 def _yaw(log: DriveLog) -> Array | None:
     """The heading at every row, interpolated between pose fixes with a yaw; NaN farther than
     :data:`FIX_GAP` from every fix (a turn between two fixes far apart is not a line). None
     with fewer than two fixes."""
+    if not has_heading(log):
+        return None
     yaw = log.pose[:, 2]
     have = np.isfinite(yaw)
-    if have.sum() < 2:
-        return None
     tf = log.t[have]
     out = np.interp(log.t, tf, np.unwrap(yaw[have]))
     k = np.clip(np.searchsorted(tf, log.t), 1, len(tf) - 1)
@@ -358,7 +364,8 @@ def runs(
         s = slice(a, b)
         direction = float(np.sign(np.mean(mean[s])))
         turned = log.phi[b - 1] - log.phi[a]
-        if source == "slip" and not abs(_slip(turned)) < slip_limit:
+        slip = _slip(turned) if source == "slip" else 0.0
+        if not abs(slip) < slip_limit:
             continue  # the patch slides (or a wheel stalls): traction is not C_s S there
         out.append(
             Run(
@@ -368,7 +375,7 @@ def runs(
                 force=(
                     float(np.mean(log.effort[s].sum(axis=1)) / per_unit)
                     if source == "effort"
-                    else direction * _slip(turned) * per_unit
+                    else direction * slip * per_unit
                 ),
                 cos_yaw=float(np.mean(np.cos(yaw[s]))),
                 sin_yaw=float(np.mean(np.sin(yaw[s]))),

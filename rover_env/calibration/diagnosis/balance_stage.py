@@ -26,10 +26,17 @@ from typing import Any
 
 import numpy as np
 
-from rover_env.calibration.balance import SCALE, SLIP_SCALE, BalanceReading, Z, read_balance
+from rover_env.calibration.balance import (
+    SCALE,
+    SLIP_SCALE,
+    BalanceReading,
+    Z,
+    has_heading,
+    read_balance,
+)
 from rover_env.calibration.candidates import merge
 from rover_env.calibration.diagnosis.judge import scored_beside
-from rover_env.calibration.diagnosis.state import Diagnosis, Scored
+from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
 from rover_env.calibration.fit import Fit, to_ext
 
@@ -53,7 +60,7 @@ def name_by_balance(d: Diagnosis) -> None:
     if cand is None or how is None:
         return
     src, allow, tolerance = how
-    if src == "slip" and not any(np.isfinite(log.pose[:, 2]).sum() >= 2 for log in logs):
+    if src == "slip" and not any(map(has_heading, logs)):
         return  # no heading anywhere (the pose at the end only, or none): nothing to report
     t0 = time.perf_counter()
     reading, runs = read_balance(logs, d.base, tolerance, src)
@@ -81,7 +88,7 @@ def name_by_balance(d: Diagnosis) -> None:
     d.say(f"{NAME}: named by {named.test}")
 
 
-def source(opts: Any, effort: bool) -> tuple[str, float, float] | None:
+def source(opts: Options, effort: bool) -> tuple[str, float, float] | None:
     """Which balance a diagnosis reads (the source, its allowance in degrees, its scale
     tolerance): the torque's where the logs report it and both the torque and its balance
     are read, else the slip's; None where that is off too. Each switch turns off its own
