@@ -18,8 +18,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rover_env.calibration.balance import CLEAN_TILT, Run, lever, read_balance
-from rover_env.calibration.diagnosis.balance_stage import PLAN, action, record
+from rover_env.calibration.balance import (
+    CLEAN_TILT,
+    HOLD,
+    TURN_SETTLE,
+    BalanceReading,
+    Run,
+    lever,
+    read_balance,
+    runs,
+)
+from rover_env.calibration.diagnosis.balance_stage import PLAN, UNDECIDED, action, record
 from rover_env.calibration.drive_plan import DrivePlanError, proposals_from_report
 from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
 from rover_env.calibration.report_notes import balance_lines
@@ -187,7 +196,7 @@ def test_the_report_says_what_was_read() -> None:
     assert r is not None
     rec = {"runs": len(runs), "read": True, "named": True, "allowance": 0.5, **r.as_json()}
     text = "\n".join(balance_lines(rec))
-    assert "named `slope` from it" in text and "toward 30°" in text
+    assert "named `slope` from it" in text and f"toward {r.heading:.0f}°" in text
     none = "\n".join(balance_lines({"runs": 2, "read": False, "why_not": "too few"}))
     assert "2 steady straight runs" in none and "too few" in none
 
@@ -288,7 +297,14 @@ def test_a_level_reading_withdraws_a_slope_the_windows_named_alone_only() -> Non
     assert record(level, len(runs), 0.5, None, False)[0] == "level"
     assert record(None, 3, 0.5, None, False) == (
         "none",
-        {"runs": 3, "read": False, "named": False, "source": "effort", "why_not": WHY_NOT_NONE},
+        {
+            "runs": 3,
+            "read": False,
+            "named": False,
+            "source": "effort",
+            "action": "none",
+            "why_not": WHY_NOT_NONE,
+        },
     )
 
 
@@ -425,3 +441,51 @@ def test_a_wide_separated_reading_leaves_the_windows_their_slope_drive() -> None
     assert not balance_settled(SimpleNamespace(balance=None, allowance=edge))  # type: ignore[arg-type]
     unsep = SimpleNamespace(balance={"separated": False, "named": False}, allowance=edge)
     assert not balance_settled(unsep)  # type: ignore[arg-type]
+
+
+def test_a_straight_run_counts_only_once_the_chain_settles_after_a_turn() -> None:
+    log = rover_log(0.0, 0.0, 0.01)  # DRIVE: a 1.5 s pivot before every other straight run
+    pivots = np.abs(log.cmd[:, 0] - log.cmd[:, 1]) > 0
+    ends = log.t[np.flatnonzero(pivots[:-1] & ~pivots[1:])]
+    settled = runs(log, 0, lever(CFG))
+    early = runs(log, 0, lever(CFG), settle=0.0)
+    for e in ends:
+        after = [r for r in settled if e < r.t0 < e + 5.0]
+        assert after and all(r.t0 >= e + TURN_SETTLE - 0.03 for r in after)
+        assert any(e < r.t0 < e + HOLD + 0.05 for r in early)
+    assert len(settled) == len(early)  # the runs stay; their first seconds go
+
+
+def _reading(sd: float, tilt: float = 0.4) -> BalanceReading:
+    return BalanceReading(
+        runs=12, tilt_x=tilt, tilt_y=0.0, sd_x=sd, sd_y=sd, corr=0.0, resistance=0.0,
+        sd_resistance=1.0, dof=9, weight=WEIGHT, lever=lever(CFG), tolerance=0.2,
+        inflation=10.0, scatter=1.0, source="slip", stiffness=4 * CFG.tire.C_s,
+    )  # fmt: skip
+
+
+def test_a_wide_level_reading_asks_for_the_drive_and_a_narrow_one_does_not() -> None:
+    wide, narrow = _reading(sd=0.8), _reading(sd=0.15)
+    assert wide.tilt_interval()[0] == 0.0 and wide.tilt_interval()[1] > UNDECIDED
+    assert narrow.tilt_interval()[1] < UNDECIDED
+    act, rec = record(wide, 12, 0.3, None, False, "slip")
+    assert act == "wide" and rec["plan"] == PLAN and f"{UNDECIDED:g}°" in rec["why_not"]
+    act, rec = record(narrow, 12, 0.3, None, False, "slip")
+    assert act == "level" and "plan" not in rec
+    act, rec = record(wide, 12, 0.3, 3.0, True, "slip")  # beside a pair: reported, no drive
+    assert act == "inside" and "plan" not in rec
+
+
+def test_the_reversals_drive_crosses_its_first_line(tmp_path: Path) -> None:
+    """The drive the balance asks for reads the slope across the first line: its pivot turns
+    the rover well off it (the model's own drive; its pose at 1 Hz)."""
+    from rover_env.generators.make_logs import make_logs
+    from rover_env.logs import read_log
+
+    (path,) = make_logs(tmp_path, {}, drives=1, seed=3, plan=PLAN, progress=False)
+    log = read_log(path)
+    rs = runs(log, 0, 4 * CFG.tire.C_s, "slip")
+    yaws = [math.degrees(math.atan2(r.sin_yaw, r.cos_yaw)) for r in rs]
+    first, last = yaws[0], yaws[-1]
+    assert len(rs) >= 5 and {r.direction for r in rs} == {-1.0, 1.0}
+    assert 45.0 <= abs(last - first) <= 135.0, yaws

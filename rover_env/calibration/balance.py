@@ -109,6 +109,14 @@ scatter counts where it is larger. Runs that scrub more still can: block 53600's
 53637 was named 2.40° from two runs 1-2 s after turns that slipped 1.3-1.5 % (limits.md)."""
 SOURCES = ("effort", "slip")
 """What a run's traction is read from: the reported torque, or the wheels' slip."""
+TURN_SETTLE = 3.0
+"""Seconds after the last turning row (left and right targets apart by more than
+:data:`STRAIGHT` of their mean, or a pivot) before a straight run's samples count: the chain
+straightens and scrubs for a few seconds after a turn. Exploratory (the clean builds and
+level-ground singles of seeds 74725-74784 and of spent block 53600, 598 runs): runs starting
+within 4 s of a turn strayed from their case's level by up to 1.3 % of slip (95th percentile
+0.4-0.5 %), later ones by up to 0.11 % and 0.72 %; block 53600's clean build 53637 was named
+2.40° from two runs 1-2 s after turns."""
 FIX_GAP = 2.0
 """Seconds from the nearest pose fix beyond which a row's heading is not known (the
 generator's fixes come at 1 Hz; between fixes far apart a turn may have been made)."""
@@ -319,6 +327,14 @@ def _yaw(log: DriveLog) -> Array | None:
     return np.where(near <= FIX_GAP, out, np.nan)
 
 
+def _since_turn(t: Array, left: Array, right: Array) -> Array:
+    """Seconds since the last turning row (inf where none came before)."""
+    mean = 0.5 * (left + right)
+    turning = np.abs(left - right) > STRAIGHT * np.maximum(np.abs(mean), MOVING)
+    last = np.maximum.accumulate(np.where(turning, np.arange(len(t)), -1))
+    return np.where(last >= 0, t - t[np.maximum(last, 0)], np.inf)
+
+
 def _held(t: Array, cmd: Array) -> Array:
     """Seconds each row's targets have held unchanged."""
     changed = np.r_[True, np.any(np.abs(np.diff(cmd, axis=0)) > 1e-9, axis=1)]
@@ -332,12 +348,14 @@ def runs(
     per_unit: float,
     source: str = "effort",
     slip_limit: float = math.inf,
+    settle: float = TURN_SETTLE,
 ) -> list[Run]:
     """The log's steady straight runs: targets held :data:`HOLD` s, equal on both sides to
-    :data:`STRAIGHT`, moving; each a stretch of :data:`MIN_RUN` s or more with the heading
-    known (and, for ``source`` "effort", the torque of every driven wheel). ``per_unit``: the
-    lever (m) for the torque, the tires' slip stiffness (N) for the slip; for the slip, runs
-    slipping ``slip_limit`` or more either way are left out (:func:`critical_slip`)."""
+    :data:`STRAIGHT`, moving, ``settle`` s after the last turn (:data:`TURN_SETTLE`); each a
+    stretch of :data:`MIN_RUN` s or more with the heading known (and, for ``source``
+    "effort", the torque of every driven wheel). ``per_unit``: the lever (m) for the torque,
+    the tires' slip stiffness (N) for the slip; for the slip, runs slipping ``slip_limit`` or
+    more either way are left out (:func:`critical_slip`)."""
     yaw = _yaw(log)
     if yaw is None or (source == "effort" and not log.has_effort):
         return []
@@ -352,6 +370,7 @@ def runs(
         & (np.abs(left - right) <= STRAIGHT * np.abs(mean))
         & np.all(bent <= BENT, axis=1)
         & np.isfinite(yaw)
+        & (_since_turn(log.t, left, right) >= settle)
     )
     if source == "effort":
         ok &= np.all(np.isfinite(log.effort), axis=1)

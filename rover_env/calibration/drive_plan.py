@@ -71,8 +71,9 @@ CSV_HEADER: tuple[str, ...] = ("t", *(f"cmd_{w}" for w in DRIVEN_WHEELS))
 PLAN_PURPOSE: dict[str, str] = {
     "test": "a general test drive: steps from rest, straight runs at several speeds, turns,"
     " a pivot turn, braking, reversing",
-    "reversals": "long forward and backward runs on one line and 180° turns: a slope helps"
-    " one way and hinders the other, rolling resistance opposes both",
+    "reversals": "long forward and backward runs on one line, a long pivot, and the same on the"
+    " crossing line: a slope helps one way and hinders the other, rolling resistance opposes"
+    " both",
     "turn-accel": "accelerating and braking while turning: high traction demand",
     "steps": "command steps of many sizes with holds of varied length: lag against delay",
     "speeds": "slow constant speeds and gentle turns at many loads: rolling radius against slip",

@@ -52,7 +52,10 @@ EVIDENCE_PLANS: dict[str, tuple[str, str]] = {
         "long constant-speed runs forward and back: a steady resisting force shows as steady"
         " extra slip of the driven wheels and slower free wheels",
     ),
-    "slope": ("reversals", "the same line forwards and backwards and 180° turns"),
+    "slope": (
+        "reversals",
+        "the same line forwards and backwards, a long pivot and the crossing line",
+    ),
     "command_lag": ("steps", "command steps of many sizes and hold times"),
     "command_delay": ("steps", "command steps of many sizes and hold times"),
     "friction": ("turn-accel", "accelerating and braking in turns: high traction demand"),

@@ -42,12 +42,19 @@ def _test_plan(rng: np.random.Generator, vmax: float) -> list[Segment]:
     return [s for i in order for s in blocks[i]]
 
 
+PIVOT = (11.0, 13.0)
+"""Seconds of the reversals plan's pivot (drawn): long enough to leave the first line's
+heading, so the crossing line reads the slope across it. A six-wheel rover scrubs as it
+pivots: at 0.45 of the top wheel speed this model and the independent generator turned
+25-30° in 4 s (exploratory seed 74793, block 53600's case 53606), about 7° a second."""
+
+
 def _reversal_plan(rng: np.random.Generator, vmax: float) -> list[Segment]:
     out: list[Segment] = []
     for v in (0.5 * vmax, 0.75 * vmax):
         out += [(6.0, (v, v)), (1.5, (0.0, 0.0)), (6.0, (-v, -v)), (1.5, (0.0, 0.0))]
     w = 0.45 * vmax
-    out += [(float(rng.uniform(3.5, 4.5)), (-w, w)), (1.0, (0.0, 0.0))]
+    out += [(float(rng.uniform(*PIVOT)), (-w, w)), (1.0, (0.0, 0.0))]
     out += [(6.0, (0.6 * vmax, 0.6 * vmax)), (1.5, (0.0, 0.0)), (6.0, (-0.6 * vmax, -0.6 * vmax))]
     return out
 

@@ -12,8 +12,9 @@ Test plans (``--plan``), each 50 s by default, drawn with the seed:
 * ``test`` (default): what a test engineer would drive to expose an unknown effect: step
   accelerations from rest, straight runs at several speeds, left and right turns, a pivot
   turn, braking to a stop, reversing straight and turning;
-* ``reversals``: long forward and backward runs on one line plus 180° turns (separates a
-  slope, which helps one way, from rolling resistance, which opposes both);
+* ``reversals``: long forward and backward runs on one line, a long pivot, and the same on
+  the crossing line (separates a slope, which helps one way, from rolling resistance, which
+  opposes both, and reads the slope across the first line);
 * ``turn-accel``: accelerating and braking while turning (separates combined slip, the
   friction ellipse, from the friction level);
 * ``steps``: command steps of many sizes with holds of varied length (separates lag from

@@ -46,8 +46,15 @@ SOIL = "loose_soil"
 block 53600's soil case 53607 read 1.14° [0.82, 1.47] on level soil, forwards slipping 21.4 %
 and backwards 19.7 %; not scored on fresh cases)."""
 PLAN = "reversals"
-"""The drive asked for where the runs leave the tilt and the resistance one unknown: long
-runs forwards and backwards on one line and 180° turns."""
+"""The drive asked for where the runs leave the tilt and the resistance one unknown, or the
+tilt's interval wide (:data:`UNDECIDED`): long runs forwards and backwards on one line, a
+long pivot, and the same on the crossing line."""
+UNDECIDED = 1.0
+"""Degrees: a separated reading that names nothing while its interval for the truth reaches
+this high asks for the :data:`PLAN` drive too. Runs all in about one heading read the slope
+along it and leave the part across it loose (block 53600: three slopes of 0.97-1.16° missed
+at [0, 3.2-5.6]; not scored on fresh cases when set). A slope of 1° costs the rover 1.7 % of
+its weight, a rolling resistance's size."""
 
 
 def name_by_balance(d: Diagnosis) -> None:
@@ -108,14 +115,17 @@ def record(
     soil: bool = False,
 ) -> tuple[str, dict[str, Any]]:
     """What a reading does (:func:`action`; "none" without a reading; "soil" for the slip's
-    beside a named loose soil: reported only) and its record for ``result.json``: the
-    reading, the interval for the truth with the allowance, why nothing was named, and the
-    drive it asks for where its runs do not separate."""
+    beside a named loose soil: reported only; "wide" for a "level" whose interval reaches
+    :data:`UNDECIDED`: it asks for the drive too) and its record for ``result.json``: the
+    reading, the interval for the truth with the allowance, what it did (``action``), why
+    nothing was named, and the drive it asks for where its runs do not separate or its
+    interval is wide."""
     rec: dict[str, Any] = {
         "runs": runs,
         "read": reading is not None,
         "named": False,
         "source": src,
+        "action": "none",
     }
     if reading is None:
         rec["why_not"] = (
@@ -129,17 +139,24 @@ def record(
     act = action((lo, hi), allow, windows_low, inside, reading.separated)
     if src == "slip" and soil and act != "unseparated":
         act = "soil"
+    if act == "level" and hi > UNDECIDED:
+        act = "wide"
+    rec["action"] = act
     if act in WHY_NOT:
-        rec["why_not"] = WHY_NOT[act].format(allow=allow)
-    if act == "unseparated":  # the drive that separates them, for drive-plan and the bench
+        rec["why_not"] = WHY_NOT[act].format(allow=allow, wide=UNDECIDED)
+    if act in ("unseparated", "wide"):  # the drive that decides, for drive-plan and the bench
         rec.update(plan=PLAN, seed=PLAN_SEED, duration=PLAN_DURATION)
     return act, rec
 
 
 WHY_NOT = {
     "unseparated": "the runs do not tell a tilt from a resistance (all one way, or in about one"
-    " heading): drive the same line forwards and backwards, and turn",
+    " heading): drive the same line forwards and backwards, pivot long, and drive the"
+    " crossing line",
     "level": "the tilt's interval, less the {allow:g}° clean builds read, reaches level",
+    "wide": "the tilt's interval, less the {allow:g}° clean builds read, reaches level, and"
+    " reaches {wide:g}° too (the runs read the slope across their headings poorly): drive"
+    " the same line forwards and backwards, pivot long, and drive the crossing line",
     "withdraw": "the tilt's interval, less the {allow:g}° clean builds read, reaches level",
     "inside": "a slope is named with another effect; the reading is reported",
     "soil": "loose soil is named, and the slip balance assumes hard ground (a tire's slip"
