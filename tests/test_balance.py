@@ -196,6 +196,7 @@ def test_the_report_says_what_was_read() -> None:
     assert r is not None
     rec = {"runs": len(runs), "read": True, "named": True, "allowance": 0.5, **r.as_json()}
     text = "\n".join(balance_lines(rec))
+    assert abs(math.remainder(r.heading - 30.0, 360.0)) < 2.0
     assert "named `slope` from it" in text and f"toward {r.heading:.0f}°" in text
     none = "\n".join(balance_lines({"runs": 2, "read": False, "why_not": "too few"}))
     assert "2 steady straight runs" in none and "too few" in none
@@ -474,6 +475,21 @@ def test_a_wide_level_reading_asks_for_the_drive_and_a_narrow_one_does_not() -> 
     assert act == "level" and "plan" not in rec
     act, rec = record(wide, 12, 0.3, 3.0, True, "slip")  # beside a pair: reported, no drive
     assert act == "inside" and "plan" not in rec
+    act, rec = record(wide, 12, 0.3, None, False, "slip", soil=True)  # beside a named soil
+    assert act == "soil" and "plan" not in rec
+    act, _ = record(wide, 12, 0.3, wide.tilt_interval()[1] + 0.5, False, "slip")
+    assert act == "withdraw"  # a windows' slope above its whole interval: withdrawn, no drive
+    act, rec = record(wide, 12, 0.3, 1.0, False, "slip")  # one it cannot withdraw: the drive
+    assert act == "wide" and rec["plan"] == PLAN
+
+
+def test_a_wide_reading_proposes_its_drive_in_the_report(tmp_path: Path) -> None:
+    _, rec = record(_reading(sd=0.8), 12, 0.3, None, False, "slip")
+    text = "\n".join(balance_lines(rec))
+    assert f"drive-plan --plan {PLAN} --seed {PLAN_SEED}" in text and "crossing line" in text
+    (tmp_path / "result.json").write_text(json.dumps({"balance": rec}))
+    (prop,) = proposals_from_report(tmp_path)
+    assert prop.plan == PLAN and prop.effects == {"slope"}
 
 
 def test_the_reversals_drive_crosses_its_first_line(tmp_path: Path) -> None:
@@ -486,6 +502,6 @@ def test_the_reversals_drive_crosses_its_first_line(tmp_path: Path) -> None:
     log = read_log(path)
     rs = runs(log, 0, 4 * CFG.tire.C_s, "slip")
     yaws = [math.degrees(math.atan2(r.sin_yaw, r.cos_yaw)) for r in rs]
-    first, last = yaws[0], yaws[-1]
+    turned = abs(math.remainder(yaws[-1] - yaws[0], 180.0))  # between the lines, either way
     assert len(rs) >= 5 and {r.direction for r in rs} == {-1.0, 1.0}
-    assert 45.0 <= abs(last - first) <= 135.0, yaws
+    assert turned >= 45.0, yaws

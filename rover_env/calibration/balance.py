@@ -105,8 +105,9 @@ resolution. On 30 clean builds and drags of the independent generator (explorato
 74725-74784, 402 runs) the runs scattered by 0.02 % beyond it, but runs a few seconds after
 a turn, the yaw joints still up to 1° off, slipped 0.2-0.3 % more (seed 74738): two such runs
 in one heading read the tilt across the track alone. At 0.08 % those two cannot; the runs'
-scatter counts where it is larger. Runs that scrub more still can: block 53600's clean build
-53637 was named 2.40° from two runs 1-2 s after turns that slipped 1.3-1.5 % (limits.md)."""
+scatter counts where it is larger. Runs that scrub more still could: block 53600's clean
+build 53637 was named 2.40° from two runs 1-2 s after turns that slipped 1.3-1.5 %
+(limits.md); since stop 122 a run's samples count only :data:`TURN_SETTLE` s after a turn."""
 SOURCES = ("effort", "slip")
 """What a run's traction is read from: the reported torque, or the wheels' slip."""
 TURN_SETTLE = 3.0
@@ -116,7 +117,8 @@ straightens and scrubs for a few seconds after a turn. Exploratory (the clean bu
 level-ground singles of seeds 74725-74784 and of spent block 53600, 598 runs): runs starting
 within 4 s of a turn strayed from their case's level by up to 1.3 % of slip (95th percentile
 0.4-0.5 %), later ones by up to 0.11 % and 0.72 %; block 53600's clean build 53637 was named
-2.40° from two runs 1-2 s after turns."""
+2.40° from two runs 1-2 s after turns. A log's first run, with no turn before it in the
+log, counts as settled (a log cut just after a turn is not)."""
 FIX_GAP = 2.0
 """Seconds from the nearest pose fix beyond which a row's heading is not known (the
 generator's fixes come at 1 Hz; between fixes far apart a turn may have been made)."""

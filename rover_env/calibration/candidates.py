@@ -285,8 +285,8 @@ def merge(*exts: Extensions) -> Extensions:
 SEPARATING_PLANS: dict[frozenset[str], tuple[str, str]] = {
     frozenset({"rolling_resistance", "slope"}): (
         "reversals",
-        "drive the same line forwards and backwards and turn through 180°: a slope helps one"
-        " way and hinders the other, rolling resistance opposes both",
+        "drive a line forwards and backwards, pivot long, and drive the crossing line both"
+        " ways: a slope helps one way and hinders the other, rolling resistance opposes both",
     ),
     frozenset({"friction", "combined_slip"}): (
         "turn-accel",
@@ -319,8 +319,9 @@ SEPARATING_PLANS: dict[frozenset[str], tuple[str, str]] = {
     ),
     frozenset({"slope", "loose_soil"}): (
         "reversals",
-        "drive the same line forwards and backwards and turn through 180°: a slope helps one"
-        " way and hinders the other, loose soil's compaction resists both",
+        "drive a line forwards and backwards, pivot long, and drive the crossing line both"
+        " ways: a slope helps one way and hinders the other, loose soil's compaction resists"
+        " both",
     ),
     frozenset({"rolling_resistance", "loose_soil"}): (
         "turn-accel",

@@ -187,7 +187,8 @@ def parse_joint_names(text: str | None) -> tuple[str, ...]:
 
 def proposals_from_report(path: str | Path, untested: bool = True) -> list[Proposal]:
     """Every drive a diagnosis proposes (its tie, its evidence rows, the force balance's
-    drive both ways where its runs did not separate a tilt from a resistance and, with ``untested``,
+    drive where its runs did not separate a tilt from a resistance or its interval is wide
+    and, with ``untested``,
     the drives for what its logs never tested), merged by (plan, seed, duration); reports
     from before the seed and duration were recorded used :data:`PLAN_SEED` and
     :data:`PLAN_DURATION`."""
@@ -322,7 +323,7 @@ def _ground_lines(g: dict[str, float], cfg: RoverConfig, slope: bool) -> list[st
     dx, dy = g["x_max"] - g["x_min"], g["y_max"] - g["y_min"]
     where = (
         "**Drive it on the slope in question** (the ground of the drives that showed it),"
-        " along the same line each way: this plan separates a slope from what opposes both"
+        " each line both ways: this plan separates a slope from what opposes both"
         " directions, which flat ground cannot show."
         if slope
         else "Drive it on the same kind of ground as the other logs of the diagnosis."

@@ -43,10 +43,12 @@ def _test_plan(rng: np.random.Generator, vmax: float) -> list[Segment]:
 
 
 PIVOT = (11.0, 13.0)
-"""Seconds of the reversals plan's pivot (drawn): long enough to leave the first line's
-heading, so the crossing line reads the slope across it. A six-wheel rover scrubs as it
-pivots: at 0.45 of the top wheel speed this model and the independent generator turned
-25-30° in 4 s (exploratory seed 74793, block 53600's case 53606), about 7° a second."""
+"""Seconds of the reversals plan's pivot (drawn, of the plan's 55.5-57.5 s; a 50 s drive
+squeezes it to 9.9-11.3 s): long enough to leave the first line's heading, so the crossing
+line reads the slope across it. A six-wheel rover scrubs as it pivots: at 0.45 of the top
+wheel speed this model and the independent generator turned 25-30° in 4 s (exploratory seed
+74793, block 53600's case 53606), about 7° a second, and this plan's pivot 65-90°. A rover
+that pivots at 15-18° a second would come round to about its first line (limits.md)."""
 
 
 def _reversal_plan(rng: np.random.Generator, vmax: float) -> list[Segment]:

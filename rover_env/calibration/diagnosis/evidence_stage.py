@@ -33,8 +33,9 @@ def balance_settled(d: Diagnosis) -> bool:
     """Whether the balance (torque or slip) settled the slope, so the windows need no drive
     for it: its runs separate and it named or withdrew one, or its interval ends below
     the tilt the windows could name from (the clean-fit allowance's edge). A separated
-    reading can still be wide (a clean build's 0-9°, exploratory seed 74761): that settles
-    nothing."""
+    reading can still reach beyond that edge (a clean build's 0-9°, exploratory seed 74761):
+    that settles nothing. (The balance asks for its own drive from 1° up,
+    ``balance_stage.UNDECIDED``; one proposal of that plan results either way.)"""
     bal = d.balance or {}
     if not bal.get("separated"):
         return False
