@@ -44,7 +44,7 @@ NAME = "slope"
 SOIL = "loose_soil"
 """Beside it the slip balance only reports: its reading assumes hard ground (stop 121, after
 block 53600's soil case 53607 read 1.14° [0.82, 1.47] on level soil, forwards slipping 21.4 %
-and backwards 19.7 %; not scored on fresh cases)."""
+and backwards 19.7 %; block 53700's one soil, 53707, was reported so, 0.24° [0, 0.84])."""
 PLAN = "reversals"
 """The drive asked for where the runs leave the tilt and the resistance one unknown, or the
 tilt's interval wide (:data:`UNDECIDED`): long runs forwards and backwards on one line, a
@@ -53,8 +53,9 @@ UNDECIDED = 1.0
 """Degrees: a separated reading that names nothing while its interval for the truth reaches
 this high asks for the :data:`PLAN` drive too. Runs all in about one heading read the slope
 along it and leave the part across it loose (block 53600: three slopes of 0.97-1.16° missed
-at [0, 3.2-5.6]; not scored on fresh cases when set). A slope of 1° costs the rover 1.7 % of
-its weight, a rolling resistance's size."""
+at [0, 3.2-5.6]; set after that look, then scored on block 53700: slopes of 0.6° or more 8
+of 8, 12 of 32 first readings wide). A slope of 1° costs the rover 1.7 % of its weight, a
+rolling resistance's size."""
 
 
 def name_by_balance(d: Diagnosis) -> None:
