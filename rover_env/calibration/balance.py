@@ -12,7 +12,8 @@ to what holds the rover against gravity along its track plus what it loses rolli
 
 ``d - delta`` is the lever from the axle to the contact point (the wheel radius less the
 tire's deflection at static load, ``tire.C_z``: where this model's ground force acts), yaw
-the rover's heading from the pose fixes, ``m`` the configured mass. Over runs in several
+the rover's heading from the pose fixes (or, where a log has one fix or none, from its
+free wheels fitted to it: :mod:`rover_env.calibration.heading`), ``m`` the configured mass. Over runs in several
 headings and both directions the tilt vector (``m g sin(tilt)`` along x and y) and ``R`` come
 from one least-squares fit over the runs' means; a slope flips sign with the heading and a
 resistance with the direction of travel, so the two separate where a drive reverses or
@@ -36,13 +37,15 @@ on one line, a 1° slope 1.43 % (``2 m g sin(1°) / (4 C_s)`` is 1.40 %).
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
+from rover_env.calibration.heading import SOURCES as HEADING_SOURCES
+from rover_env.calibration.heading import has_heading, headings
 from rover_env.calibration.residuals import resolution
 from rover_env.config import DRIVEN_WHEELS, RoverConfig
 from rover_env.logs import DriveLog
@@ -167,6 +170,10 @@ class BalanceReading:
     stiffness: float = 0.0
     """The driven tires' summed slip stiffness (N per unit slip) the slip balance reads the
     traction with; 0 for the torque's."""
+    heading_from: str = "pose"
+    """Where the runs' headings came from (:data:`HEADING_SOURCES`, comma-separated where
+    the logs differ): the pose's fixes, the free wheels scaled to a log's one fix, or the
+    free wheels alone."""
 
     @property
     def tilt(self) -> float:
@@ -284,6 +291,8 @@ class Run:
     noise: float = 0.0
     """The slip balance's standard error of :attr:`force` (N): :data:`SLIP_FLOOR` and the
     encoders' resolution over the run's turn; 0 for the torque's (its runs' own scatter)."""
+    rows: tuple[int, int] = (0, 0)
+    """The log's rows it spans (start, stop), for its heading read again."""
 
 
 def stiffness(cfg: RoverConfig) -> float:
@@ -306,12 +315,6 @@ def lever(cfg: RoverConfig) -> float:
     tire's deflection under a sixth of the weight."""
     delta = cfg.masses.total * GRAVITY / 6 / cfg.tire.C_z
     return cfg.geometry.wheel_radius - delta
-
-
-def has_heading(log: DriveLog) -> bool:
-    """Whether the log's pose gives a heading to read runs by: two fixes with a yaw or more
-    (SPEC §6's pose at the end only has one)."""
-    return int(np.isfinite(log.pose[:, 2]).sum()) >= 2
 
 
 def _yaw(log: DriveLog) -> Array | None:
@@ -351,14 +354,16 @@ def runs(
     source: str = "effort",
     slip_limit: float = math.inf,
     settle: float = TURN_SETTLE,
+    yaw: Array | None = None,
 ) -> list[Run]:
     """The log's steady straight runs: targets held :data:`HOLD` s, equal on both sides to
     :data:`STRAIGHT`, moving, ``settle`` s after the last turn (:data:`TURN_SETTLE`); each a
-    stretch of :data:`MIN_RUN` s or more with the heading known (and, for ``source``
-    "effort", the torque of every driven wheel). ``per_unit``: the lever (m) for the torque,
-    the tires' slip stiffness (N) for the slip; for the slip, runs slipping ``slip_limit`` or
-    more either way are left out (:func:`critical_slip`)."""
-    yaw = _yaw(log)
+    stretch of :data:`MIN_RUN` s or more with the heading known (``yaw``; by default the
+    pose's, :func:`_yaw`) and, for ``source`` "effort", the torque of every driven wheel.
+    ``per_unit``: the lever (m) for the torque, the tires' slip stiffness (N) for the slip;
+    for the slip, runs slipping ``slip_limit`` or more either way are left out
+    (:func:`critical_slip`)."""
+    yaw = _yaw(log) if yaw is None else yaw
     if yaw is None or (source == "effort" and not log.has_effort):
         return []
     bent = np.abs(
@@ -402,6 +407,7 @@ def runs(
                 sin_yaw=float(np.mean(np.sin(yaw[s]))),
                 direction=direction,
                 noise=0.0 if source == "effort" else _slip_noise(turned, res) * per_unit,
+                rows=(int(a), int(b)),
             )
         )
     return out
@@ -425,27 +431,13 @@ def _slip(turned: Array) -> float:
     return 1.0 - free / driven if driven != 0.0 else math.inf
 
 
-def read_balance(
-    logs: list[DriveLog], cfg: RoverConfig, tolerance: float, source: str = "effort"
-) -> tuple[BalanceReading | None, list[Run]]:
-    """The force balance over ``logs`` (None where they lack the torque (for ``source``
-    "effort"), the pose's yaw or :data:`MIN_RUNS` steady straight runs), and the runs it
-    used. ``tolerance``: the scale of the torque (or the tires' slip stiffness) as a
-    fraction."""
-    if source not in SOURCES:
-        raise ValueError(f"source must be one of {SOURCES}, got {source!r}")
-    arm, cs, sc = lever(cfg), stiffness(cfg), critical_slip(cfg)
-    rs = [
-        r
-        for i, log in enumerate(logs)
-        for r in runs(log, i, arm if source == "effort" else cs, source, sc)
-    ]
-    if len(rs) < MIN_RUNS:
-        return None, rs
+def _solve(rs: list[Run], source: str) -> tuple[Array, Array, Array, Array, int]:
+    """The runs' least squares: the tilt vector's two forces and the resistance, their
+    covariance, the design's own inverse (for the inflation), the residuals and the degrees
+    of freedom. The slip's runs are weighed by their known noise, and their scatter about it
+    counts only where it is larger; the torque's runs are alike, their scatter all there is."""
     X = np.array([[r.cos_yaw, r.sin_yaw, r.direction] for r in rs])
     y = np.array([r.force for r in rs])
-    # The slip's runs are weighed by their known noise, and their scatter about it counts
-    # only where it is larger; the torque's runs are alike, their scatter all there is.
     w = np.array([1.0 / r.noise for r in rs]) if source == "slip" else np.ones(len(rs))
     coef, *_ = np.linalg.lstsq(X * w[:, None], y * w, rcond=None)
     resid = y - X @ coef
@@ -459,6 +451,50 @@ def read_balance(
     except np.linalg.LinAlgError:
         inv = np.full((3, 3), np.inf)
         cov = np.full((3, 3), np.inf)
+    return coef, cov, inv, resid, dof
+
+
+def _headed(rs: list[Run], yaws: list[Array | None]) -> list[Run]:
+    """The runs with their headings read again from ``yaws`` (a log's heading moved)."""
+    out = []
+    for r in rs:
+        yaw = yaws[r.log]
+        if yaw is None:
+            out.append(r)
+            continue
+        s = slice(*r.rows)
+        c, n = float(np.mean(np.cos(yaw[s]))), float(np.mean(np.sin(yaw[s])))
+        out.append(replace(r, cos_yaw=c, sin_yaw=n))
+    return out
+
+
+def read_balance(
+    logs: list[DriveLog], cfg: RoverConfig, tolerance: float, source: str = "effort"
+) -> tuple[BalanceReading | None, list[Run]]:
+    """The force balance over ``logs`` (None where they lack the torque (for ``source``
+    "effort"), the pose's yaw or :data:`MIN_RUNS` steady straight runs), and the runs it
+    used. ``tolerance``: the scale of the torque (or the tires' slip stiffness) as a
+    fraction."""
+    if source not in SOURCES:
+        raise ValueError(f"source must be one of {SOURCES}, got {source!r}")
+    arm, cs, sc = lever(cfg), stiffness(cfg), critical_slip(cfg)
+    hd = headings(logs, cfg, [_yaw(log) for log in logs])
+    yaws = hd.yaw()
+    rs = [
+        r
+        for i, log in enumerate(logs)
+        for r in runs(log, i, arm if source == "effort" else cs, source, sc, yaw=yaws[i])
+    ]
+    if len(rs) < MIN_RUNS:
+        return None, rs
+    used = {hd.source[r.log] for r in rs}
+    coef, cov, inv, resid, dof = _solve(rs, source)
+    # The headings' own uncertainty (logs without the pose's fixes): read again with them
+    # moved along each principal direction of their fit, both ways; the tilt's moves add.
+    for step in hd.steps():
+        ends = [_solve(_headed(rs, hd.yaw(sign * step)), source)[0][:2] for sign in (1, -1)]
+        half = 0.5 * (ends[0] - ends[1])
+        cov[:2, :2] += np.outer(half, half)
     weight = cfg.masses.total * GRAVITY
     # The tilt vector: its size from the force along it, its parts along the heading.
     size = math.degrees(math.asin(min(1.0, math.hypot(coef[0], coef[1]) / weight)))
@@ -489,6 +525,7 @@ def read_balance(
             scatter=math.sqrt(float(resid @ resid) / dof),
             source=source,
             stiffness=cs if source == "slip" else 0.0,
+            heading_from=", ".join(h for h in HEADING_SOURCES if h in used),
         ),
         rs,
     )

@@ -245,9 +245,10 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
         for k in ("withdrew", "replaced")
         for w in r.get(k) or []
     )
+    runs = f"{r['runs']} steady straight runs{_headed(r.get('heading_from'))}"
     head = (
         f"Force balance (the driven wheels' slip against the free wheels' times their tires'"
-        f" {r['stiffness']:g} N of slip stiffness, {r['runs']} steady straight runs, scatter"
+        f" {r['stiffness']:g} N of slip stiffness, {runs}, scatter"
         f" {r['scatter']:.2f} N): the ground rises {r['tilt']:.2f}° [{_end(lo, '.2f')},"
         f" {_end(hi, '.2f')}] toward {r['heading']:.0f}° with the stiffness's"
         f" {100 * r['tolerance']:.0f} % tolerance, against the {r['allowance']:g}° clean builds"
@@ -255,7 +256,7 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
         f" {100 * r['offset_slip']:.2f} %"
         if slip
         else f"Force balance (the logs' `effort_*` over the lever {1000 * r['lever']:.1f} mm,"
-        f" {r['runs']} steady straight runs, scatter {r['scatter']:.2f} N): the ground rises"
+        f" {runs}, scatter {r['scatter']:.2f} N): the ground rises"
         f" {r['tilt']:.2f}° [{_end(lo, '.2f')}, {_end(hi, '.2f')}] toward {r['heading']:.0f}°"
         f" with the reported torque's {100 * r['tolerance']:.0f} % scale tolerance, against the"
         f" {r['allowance']:g}° clean builds read; the rover loses {r['c_rr']:.4f} of its weight"
@@ -263,6 +264,22 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
         " drivetrain's drag together)"
     )
     return ["", f"{head}; {verdict}." + moved + drive]
+
+
+HEADED = {
+    "end fix": "the free wheels' turn fitted to each drive's one pose fix",
+    "free wheels": "the free wheels' turn",
+}
+"""Where the runs' headings came from, where not the pose's fixes
+(:mod:`rover_env.calibration.heading`)."""
+
+
+def _headed(source: str | None) -> str:
+    """The runs' headings' source, where not the pose alone."""
+    if not source or source == "pose":
+        return ""
+    parts = [HEADED.get(p.strip(), p.strip()) for p in source.split(",") if p.strip() != "pose"]
+    return ", headed by " + " and ".join(parts) + (" and the pose" if "pose" in source else "")
 
 
 def _end(v: float | None, spec: str) -> str:

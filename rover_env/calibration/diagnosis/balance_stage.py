@@ -1,10 +1,12 @@
 """Stage 5d, balance: the ground's tilt read from the motors' reported torque, or from the
 wheels' slip where the logs carry no torque.
 
-Where the logs carry ``effort_*`` columns and the pose's yaw,
+Where the logs carry ``effort_*`` columns,
 :func:`rover_env.calibration.balance.read_balance` fits the force balance along the track
-over the steady straight runs: a tilt vector and a resistance. Logs with the pose's yaw and
-no torque (SPEC §6's) get the slip balance: the same fit with each run's traction read from
+over the steady straight runs: a tilt vector and a resistance. Each run's heading is the
+pose's, or where a log holds one fix or none (SPEC §6's pose at the end only) the free
+wheels' turn fitted to that fix (:mod:`rover_env.calibration.heading`). Logs
+without the torque (SPEC §6's) get the slip balance: the same fit with each run's traction read from
 the driven wheels' slip against the free wheels' (``source`` "slip", its own allowance
 :data:`rover_env.calibration.balance.CLEAN_SLIP_TILT`). A tilt whose interval, less
 what clean builds read (:data:`rover_env.calibration.balance.CLEAN_TILT`; for the slip
@@ -27,11 +29,12 @@ from typing import Any
 import numpy as np
 
 from rover_env.calibration.balance import (
+    CLEAN_SLIP_TILT,
+    CLEAN_TILT,
     SCALE,
     SLIP_SCALE,
     BalanceReading,
     Z,
-    has_heading,
     read_balance,
 )
 from rover_env.calibration.candidates import merge
@@ -51,7 +54,9 @@ tilt's interval wide (:data:`UNDECIDED`): long runs forwards and backwards on on
 long pivot, and the same on the crossing line."""
 UNDECIDED = 1.0
 """Degrees: a separated reading that names nothing while its interval for the truth reaches
-this high asks for the :data:`PLAN` drive too. Runs all in about one heading read the slope
+this high (at the default allowance; above it by as much as ``--slip-allowance`` or
+``--balance-allowance`` is set above its default, :func:`wide_at`) asks for the
+:data:`PLAN` drive too. Runs all in about one heading read the slope
 along it and leave the part across it loose (block 53600: three slopes of 0.97-1.16° missed
 at [0, 3.2-5.6]; set after that look, then scored on block 53700: slopes of 0.6° or more 8
 of 8, 12 of 32 first readings wide). A slope of 1° costs the rover 1.7 % of its weight, a
@@ -68,8 +73,6 @@ def name_by_balance(d: Diagnosis) -> None:
     if cand is None or how is None:
         return
     src, allow, tolerance = how
-    if src == "slip" and not any(map(has_heading, logs)):
-        return  # no heading anywhere (the pose at the end only, or none): nothing to report
     t0 = time.perf_counter()
     reading, runs = read_balance(logs, d.base, tolerance, src)
     windows = [s for s in d.chosen if NAME in [c.name for c in s.fit.candidates]]
@@ -140,14 +143,23 @@ def record(
     act = action((lo, hi), allow, windows_low, inside, reading.separated)
     if src == "slip" and soil and act != "unseparated":
         act = "soil"
-    if act == "level" and hi > UNDECIDED:
+    if act == "level" and hi > wide_at(allow, src):
         act = "wide"
     rec["action"] = act
     if act in WHY_NOT:
-        rec["why_not"] = WHY_NOT[act].format(allow=allow, wide=UNDECIDED)
+        rec["why_not"] = WHY_NOT[act].format(allow=allow, wide=wide_at(allow, src))
     if act in ("unseparated", "wide"):  # the drive that decides, for drive-plan and the bench
         rec.update(plan=PLAN, seed=PLAN_SEED, duration=PLAN_DURATION)
     return act, rec
+
+
+def wide_at(allow: float, src: str) -> float:
+    """Degrees a level reading's interval reaches to ask for the drive: :data:`UNDECIDED`
+    beyond what the allowance adds over its default (``CLEAN_TILT``, or ``CLEAN_SLIP_TILT``
+    for the slip). Why: a larger allowance widens the interval for the truth by itself, and
+    no drive narrows what clean builds read; a narrow reading under a raised allowance would
+    otherwise ask for a drive that cannot decide it."""
+    return UNDECIDED + allow - (CLEAN_SLIP_TILT if src == "slip" else CLEAN_TILT)
 
 
 WHY_NOT = {
