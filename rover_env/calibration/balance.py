@@ -13,8 +13,8 @@ to what holds the rover against gravity along its track plus what it loses rolli
 ``d - delta`` is the lever from the axle to the contact point (the wheel radius less the
 tire's deflection at static load, ``tire.C_z``: where this model's ground force acts), yaw
 the rover's heading from the pose fixes (or, where a log has one fix or none, from its
-free wheels fitted to it: :mod:`rover_env.calibration.heading`), ``m`` the configured mass. Over runs in several
-headings and both directions the tilt vector (``m g sin(tilt)`` along x and y) and ``R`` come
+free wheels fitted to it: :mod:`rover_env.calibration.heading`), ``m`` the configured
+mass. Over runs in several headings and both directions the tilt vector (``m g sin(tilt)`` along x and y) and ``R`` come
 from one least-squares fit over the runs' means; a slope flips sign with the heading and a
 resistance with the direction of travel, so the two separate where a drive reverses or
 turns (without both, :attr:`BalanceReading.separated` is False). A drivetrain's drag and the
@@ -172,8 +172,8 @@ class BalanceReading:
     traction with; 0 for the torque's."""
     heading_from: str = "pose"
     """Where the runs' headings came from (:data:`HEADING_SOURCES`, comma-separated where
-    the logs differ): the pose's fixes, the free wheels scaled to a log's one fix, or the
-    free wheels alone."""
+    the logs differ): the pose's fixes, the free wheels fitted to each log's one fix, or
+    the free wheels alone."""
 
     @property
     def tilt(self) -> float:

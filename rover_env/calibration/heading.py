@@ -15,7 +15,7 @@ independent generator with the pose at 1 Hz (spent block 53600, exploratory) tho
 left 0.8° of the heading unexplained (median of each log's worst row; 90 % under 1.1°)
 where the free wheels alone were off by up to 8-31°. Why the free wheels: the driven ones
 slip through a pivot (read 420° where the rover turned 17-118°, exploratory seeds
-74801-74802). The fit's own uncertainty goes with it (:attr:`Headings.steps`): the balance
+74801-74802). The fit's own uncertainty goes with it (:meth:`Headings.steps`): the balance
 reads the tilt again with the headings moved along each of the fit's principal directions,
 and what the tilt moves by widens its interval.
 """

@@ -5,8 +5,8 @@ Where the logs carry ``effort_*`` columns,
 :func:`rover_env.calibration.balance.read_balance` fits the force balance along the track
 over the steady straight runs: a tilt vector and a resistance. Each run's heading is the
 pose's, or where a log holds one fix or none (SPEC §6's pose at the end only) the free
-wheels' turn fitted to that fix (:mod:`rover_env.calibration.heading`). Logs
-without the torque (SPEC §6's) get the slip balance: the same fit with each run's traction read from
+wheels' turn fitted to that fix (:mod:`rover_env.calibration.heading`). Logs without
+the torque (SPEC §6's) get the slip balance: the same fit with each run's traction read from
 the driven wheels' slip against the free wheels' (``source`` "slip", its own allowance
 :data:`rover_env.calibration.balance.CLEAN_SLIP_TILT`). A tilt whose interval, less
 what clean builds read (:data:`rover_env.calibration.balance.CLEAN_TILT`; for the slip
