@@ -73,9 +73,8 @@ class Headings:
 
     pose_yaw: list[Array | None]
     basis: list[tuple[Array, Array] | None]
-    """Per log: the free wheels' (kin, travel), None where the pose gives the heading."""
-    slot: list[int | None]
-    """Per log: its ``a`` in ``theta``, None where the pose gives the heading."""
+    """Per log: the free wheels' (kin, travel), None where the pose gives the heading; the
+    k-th log with a basis has its ``a`` at ``theta[k]``."""
     source: list[str]
     theta: Array
     cov: Array
@@ -84,12 +83,14 @@ class Headings:
         """Every log's heading, with ``theta`` moved by ``shift``."""
         th = self.theta if shift is None else self.theta + shift
         out: list[Array | None] = []
-        for pose, basis, k in zip(self.pose_yaw, self.basis, self.slot, strict=True):
-            if basis is None or k is None:
+        k = 0
+        for pose, basis in zip(self.pose_yaw, self.basis, strict=True):
+            if basis is None:
                 out.append(pose)
                 continue
             kin, travel = basis
             out.append((1.0 + th[k]) * kin + th[-1] * travel)
+            k += 1
         return out
 
     def steps(self) -> list[Array]:
@@ -108,19 +109,16 @@ def headings(logs: list[DriveLog], cfg: RoverConfig, pose_yaw: list[Array | None
     the free wheels' own turn, then one least-squares fit of ``a_i`` and the shared ``c``
     with their priors."""
     basis: list[tuple[Array, Array] | None] = []
-    slot: list[int | None] = []
     source: list[str] = []
-    rows: list[tuple[int, float, float, float]] = []  # (slot, kin, travel, fix) at a fix
+    rows: list[tuple[int, float, float, float]] = []  # (its a's index, kin, travel, fix)
     for log, pose in zip(logs, pose_yaw, strict=True):
         if pose is not None:
             basis.append(None)
-            slot.append(None)
             source.append("pose")
             continue
         kin, travel = free_wheels(log, cfg)
-        k = sum(s is not None for s in slot)
+        k = sum(b is not None for b in basis)
         basis.append((kin, travel))
-        slot.append(k)
         have = np.flatnonzero(np.isfinite(log.pose[1:, 2])) + 1  # the start's is the frame
         if len(have) == 0:
             source.append("free wheels")
@@ -130,9 +128,9 @@ def headings(logs: list[DriveLog], cfg: RoverConfig, pose_yaw: list[Array | None
         fix += 2.0 * math.pi * round((kin[j] - fix) / (2.0 * math.pi))
         rows.append((k, float(kin[j]), float(travel[j]), fix))
         source.append("end fix")
-    m = sum(s is not None for s in slot)
+    m = sum(b is not None for b in basis)
     if m == 0:
-        return Headings(pose_yaw, basis, slot, source, np.zeros(0), np.zeros((0, 0)))
+        return Headings(pose_yaw, basis, source, np.zeros(0), np.zeros((0, 0)))
     # Least squares with the priors as rows: fix residuals over FIX_SD, theta over its SD.
     prior = np.r_[np.full(m, SCALE_SD), DRIFT_SD]
     A = [np.diag(1.0 / prior)]
@@ -145,4 +143,4 @@ def headings(logs: list[DriveLog], cfg: RoverConfig, pose_yaw: list[Array | None
     AA, bb = np.vstack(A), np.concatenate(b)
     theta, *_ = np.linalg.lstsq(AA, bb, rcond=None)
     cov = np.linalg.inv(AA.T @ AA)
-    return Headings(pose_yaw, basis, slot, source, theta, cov)
+    return Headings(pose_yaw, basis, source, theta, cov)
