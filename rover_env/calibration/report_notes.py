@@ -293,18 +293,20 @@ def balance_method(allowance: float | None, read: bool, source: str = "effort") 
         return []
     if source == "slip":
         return [
-            "- Balance (slip): where the logs carry the pose's yaw and no torque, each steady"
-            " straight run's slip (one minus the free wheels' turn over the driven wheels')"
-            " times the driven tires' slip stiffness is the traction along the track; it is"
-            " fitted as the rover's weight times the ground's tilt along its heading plus a"
-            " term that flips with the direction of travel (a radius or a resistance slips the"
-            f" same both ways); a tilt whose interval clears {allowance:g}° (what clean builds of"
-            " another implementation read) names the slope."
+            "- Balance (slip): where the logs carry no torque, each steady straight run's slip"
+            " (one minus the free wheels' turn over the driven wheels') times the driven tires'"
+            " slip stiffness is the traction along the track; it is fitted as the rover's"
+            " weight times the ground's tilt along its heading (the pose's, or the free"
+            " wheels' turn fitted to each drive's last fix) plus a term that flips with the"
+            " direction of travel (a radius or a resistance slips the same both ways); a tilt"
+            f" whose interval clears {allowance:g}° (what clean builds of another"
+            " implementation read) names the slope."
         ]
     return [
-        "- Balance: where the logs report the motors' torque and the pose's yaw, the driven"
-        " wheels' summed torque over the lever to the contact point, on steady straight runs,"
-        " is fitted as the rover's weight times the ground's tilt along its heading plus a"
-        " resistance that flips with the direction of travel; a tilt whose interval clears"
+        "- Balance: where the logs report the motors' torque, the driven wheels' summed torque"
+        " over the lever to the contact point, on steady straight runs, is fitted as the"
+        " rover's weight times the ground's tilt along its heading (the pose's, or the free"
+        " wheels' turn fitted to each drive's last fix) plus a resistance that flips with the"
+        " direction of travel; a tilt whose interval clears"
         f" {allowance:g}° (what clean builds of another implementation read) names the slope."
     ]
