@@ -114,7 +114,7 @@ from rover_env.calibration.drive_plan import (
     proposals_from_report,
 )
 from rover_env.independent.drive import Schedule
-from rover_env.independent.generate import SAMPLE_HZ, make_independent_logs
+from rover_env.independent.generate import HEADINGS, SAMPLE_HZ, make_independent_logs
 from rover_env.logs import read_log, write_log
 
 
@@ -217,6 +217,7 @@ def drive_proposals(
     props: list[Proposal],
     pose: str = "as-logged",
     effort: bool = False,
+    headings: str = "same",
 ) -> list[Path]:
     """Each proposed drive driven by the case's rover (the same ``seed``: the same build)
     with the noise of drive ``DRIVES + j``, into ``d/followup_j`` (kept where it is
@@ -233,6 +234,7 @@ def drive_proposals(
                 plan=schedule(prop),
                 first_index=DRIVES + j,
                 effort=effort,
+                headings=headings,
             )
             as_logged(more, pose, seed + DRIVES + j)
         extra += more
@@ -246,6 +248,7 @@ def run_case(
     untested: bool = False,
     pose: str = "as-logged",
     effort: bool = False,
+    headings: str = "same",
 ) -> dict[str, Any]:
     d = root / tag(case)
     if d.exists():  # a fresh start: no logs or reports of an interrupted run mixed in
@@ -259,13 +262,14 @@ def run_case(
         seed=case["seed"],
         duration=DURATION,
         effort=effort,
+        headings=headings,
     )
     as_logged(paths, pose, case["seed"])
     t1 = time.perf_counter()
     res = diagnose([str(p) for p in paths], d / "out", opts)
     t2 = time.perf_counter()
     props = proposals(d / "out", untested)
-    extra = drive_proposals(d, case["effects"], case["seed"], props, pose, effort)
+    extra = drive_proposals(d, case["effects"], case["seed"], props, pose, effort, headings)
     followed = (
         diagnose([str(p) for p in [*paths, *extra]], d / "out_followup", opts) if extra else None
     )
@@ -277,6 +281,7 @@ def run_case(
         "equivalent": case.get("equivalent"),
         "untested_driven": untested,
         "pose": pose,
+        "headings": headings,
         "named": final["named"],
         "first_named": res["named"],
         "tie": tie["effects"] if tie else None,
@@ -328,10 +333,11 @@ def case_row(
     untested: bool = False,
     pose: str = "as-logged",
     effort: bool = False,
+    headings: str = "same",
 ) -> dict[str, Any]:
     """``run_case``, or a row recording its error: one broken case must not stop the matrix."""
     try:
-        return run_case(case, root, workers, untested, pose, effort)
+        return run_case(case, root, workers, untested, pose, effort, headings)
     except Exception as exc:  # recorded in the table, the matrix goes on
         return {
             **_identity(case),
@@ -394,6 +400,13 @@ def main() -> int:
         choices=("as-logged", "end"),
         default="as-logged",
         help="the logs' pose: every fix, or each drive's last only (the paper's log, SPEC 6)",
+    )
+    ap.add_argument(
+        "--headings",
+        choices=HEADINGS,
+        default="same",
+        help="where each drive starts facing: the same way (same), drawn and written to each"
+        " log's YAML as start_heading_deg (drawn), or drawn and not written (unlogged)",
     )
     ap.add_argument("--workers", type=int, default=1, help="diagnose's worker processes per case")
     ap.add_argument(
@@ -501,7 +514,9 @@ def main() -> int:
     print(f"{len(mine)} cases to run ({len(rows)} done before), work in {args.work}", flush=True)
     for k, c in enumerate(mine, 1):
         t0 = time.perf_counter()
-        row = case_row(c, Path(args.work), args.workers, args.untested, args.pose, args.effort)
+        row = case_row(
+            c, Path(args.work), args.workers, args.untested, args.pose, args.effort, args.headings
+        )
         rows.append(row)
         _order(rows, todo)
         path.write_text(json.dumps(rows, indent=1, default=finite))

@@ -74,6 +74,17 @@ class StateSource(Source):
 
 
 @dataclass(frozen=True, kw_only=True)
+class ReferenceSource(StateSource):
+    """A heading or pose reference (``yaw``, ``pose``)."""
+
+    shared_frame: bool = True
+    """The reference's frame is the same for every drive (a total station, motion capture,
+    RTK, an IMU fused with a compass): the log's start heading in it is written as the YAML's
+    ``start_heading_deg``, which places the drives' own frames in one. ``false`` for a
+    reference that starts anew each drive at an arbitrary heading."""
+
+
+@dataclass(frozen=True, kw_only=True)
 class AngleSource(StateSource):
     """JointState positions, one per log column (WHEELS or JOINTS order): rad = sign*unit*x - offset."""
 
@@ -123,8 +134,8 @@ class TopicMap:
     rate_hz: float = 50.0
     max_gap_s: float = 0.25
     min_rate_hz: float = 10.0
-    yaw: StateSource | None = None
-    pose: StateSource | None = None
+    yaw: ReferenceSource | None = None
+    pose: ReferenceSource | None = None
     effort: EffortSource | None = None
     terrain: str | dict[str, Any] | None = None
     notes: str | None = None
@@ -350,7 +361,10 @@ def load_topic_map(path: str | Path) -> TopicMap:
         elif key == "effort":
             sections[key] = _effort(sub, sections["wheels"])
         else:
-            sections[key] = StateSource(**_common(sub, key))
+            shared = sub.get("shared_frame", True)
+            if not isinstance(shared, bool):
+                raise sub.error("shared_frame", f"must be true or false, got {shared!r}")
+            sections[key] = ReferenceSource(**_common(sub, key), shared_frame=shared)
         sub.done()
     if "yaw" in sections and "pose" in sections:
         raise k.error("yaw", "give yaw or pose, not both (pose fills x, y and yaw)")

@@ -401,6 +401,15 @@ def _heading(s: _Series, grid: Ints, start: int) -> tuple[Array, Array]:
     return on_grid - on_grid[0], r0
 
 
+def _start_heading(tmap: TopicMap, r0: Array | None) -> float | None:
+    """The log's start heading in the reference's frame (degrees) where the map says that
+    frame is shared by every drive (``shared_frame``), else None."""
+    ref = tmap.pose or tmap.yaw
+    if r0 is None or ref is None or not ref.shared_frame:
+        return None
+    return round(math.degrees(math.atan2(r0[1, 0], r0[0, 0])), 6)
+
+
 def _nearest_samples(s: _Series, grid: Ints) -> NDArray[np.bool_]:
     """The grid samples nearest to a message of ``s`` (within half a sample of the grid):
     a reference slower than the log's clock stays as sparse as it was measured."""
@@ -473,8 +482,9 @@ def import_bag(
         grid = _grid(start, end, tmap.rate_hz)
     phi = _interp(series["wheels"], grid, start)
     pose = np.full((grid.size, 3), np.nan)
+    r0 = None
     if "yaw" in series:
-        pose[:, 2] = _heading(series["yaw"], grid, start)[0]
+        pose[:, 2], r0 = _heading(series["yaw"], grid, start)
     if "pose" in series:
         pose[:, 2], r0 = _heading(series["pose"], grid, start)
         xyz = _interp(series["pose"], grid, start, series["pose"].values[:, 4:])
@@ -497,6 +507,7 @@ def import_bag(
             sample_rate_hz=tmap.rate_hz,
             terrain=tmap.terrain,
             notes=f"{tmap.notes}\n{notes}" if tmap.notes else notes,
+            start_heading_deg=_start_heading(tmap, r0),
         ),
     )
     if summary is not None:

@@ -36,7 +36,7 @@ EFFORT_COLUMNS: tuple[str, ...] = tuple(f"effort_{w}" for w in DRIVEN_WHEELS)
 """Optional: the driven wheels' motor torque as the drivers report it (N m at the wheel shaft,
 after the gearhead, as ``motor.torque_limit`` is given), e.g. ROS 2 ``JointState.effort``."""
 REQUIRED_COLUMNS: tuple[str, ...] = (T_COLUMN, *CMD_COLUMNS, *PHI_COLUMNS, *THETA_COLUMNS)
-META_KEYS: tuple[str, ...] = ("rover", "sample_rate_hz", "terrain", "notes")
+META_KEYS: tuple[str, ...] = ("rover", "sample_rate_hz", "terrain", "notes", "start_heading_deg")
 
 
 class LogError(ValueError):
@@ -77,6 +77,12 @@ class LogMeta:
     notes: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)
     """Unknown YAML keys, kept so a round trip loses nothing (they warn on read)."""
+    start_heading_deg: float | None = None
+    """Optional: segment 3's heading at t = 0 (degrees, counter-clockwise) in a frame every
+    drive of the rover shares (a compass, the site's survey). The pose is in each log's own
+    frame (SPEC §6); this places those frames in one, so a slope found on drives that
+    started facing different ways has one direction. Absent: the drives started facing
+    the same way."""
 
     def __post_init__(self) -> None:
         _check_meta(self, None)
@@ -156,6 +162,13 @@ def _check_meta(meta: LogMeta, file: Path | None) -> None:
         raise LogError(f"'terrain' must be a name, a mapping or absent, got {meta.terrain!r}", file)
     if meta.notes is not None and not isinstance(meta.notes, str):
         raise LogError(f"'notes' must be text, got {meta.notes!r}", file)
+    head = meta.start_heading_deg
+    if head is not None:
+        if isinstance(head, bool) or not isinstance(head, int | float | np.floating | np.integer):
+            raise LogError(f"'start_heading_deg' must be a number or absent, got {head!r}", file)
+        if not math.isfinite(head):
+            raise LogError(f"'start_heading_deg' must be finite, got {head!r}", file)
+        meta.start_heading_deg = float(head)
     if not isinstance(meta.extra, dict):
         raise LogError(f"extra must be a mapping, got {meta.extra!r}", file)
     clash = sorted(set(map(str, meta.extra)) & set(META_KEYS))
@@ -238,6 +251,7 @@ def _read_meta(path: Path) -> LogMeta:
             terrain=data.get("terrain"),
             notes=data.get("notes"),
             extra={str(k): data[k] for k in unknown},
+            start_heading_deg=data.get("start_heading_deg"),
         )
     except LogError as exc:
         raise LogError(str(exc), path) from None
@@ -400,6 +414,8 @@ def _yaml_text(meta: LogMeta) -> str:
         data["terrain"] = meta.terrain
     if meta.notes is not None:
         data["notes"] = meta.notes
+    if meta.start_heading_deg is not None:
+        data["start_heading_deg"] = float(meta.start_heading_deg)
     data.update(meta.extra)
     try:
         return yaml.safe_dump(data, sort_keys=False, allow_unicode=True)

@@ -18,12 +18,19 @@ slip through a pivot (read 420° where the rover turned 17-118°, exploratory se
 74801-74802). The fit's own uncertainty goes with it (:meth:`Headings.steps`): the balance
 reads the tilt again with the headings moved along each of the fit's principal directions,
 and what the tilt moves by widens its interval.
+
+Each log's heading is in its own frame (segment 3 at its start, SPEC §6). Where the logs'
+YAML gives ``start_heading_deg`` (:func:`start_yaw`), every heading is turned by it into the
+frame the drives share, so the ground's tilt has one direction over drives that started
+facing different ways.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,7 +38,7 @@ from numpy.typing import NDArray
 from rover_env.config import RoverConfig
 from rover_env.estimation.dead_reckoning import FREE
 from rover_env.estimation.estimator import static_rolling_radius
-from rover_env.logs import DriveLog
+from rover_env.logs import DriveLog, LogError
 
 Array = NDArray[np.float64]
 
@@ -56,6 +63,28 @@ def has_heading(log: DriveLog) -> bool:
     return int(np.isfinite(log.pose[:, 2]).sum()) >= 2
 
 
+def start_yaw(log: DriveLog) -> float:
+    """Segment 3's heading at the log's start in the frame the drives share (rad): the YAML's
+    ``start_heading_deg``, 0 where it is absent (the drives started facing the same way)."""
+    head = log.meta.start_heading_deg
+    return 0.0 if head is None else math.radians(head)
+
+
+def check_frames(logs: list[DriveLog], names: Sequence[str | Path]) -> None:
+    """One clear error where some logs give ``start_heading_deg`` and others do not: their
+    frames could not be placed in one (the missing ones would be taken as 0)."""
+    given = [log.meta.start_heading_deg is not None for log in logs]
+    if any(given) and not all(given):
+        have = Path(names[given.index(True)]).name
+        lack = [Path(n) for n, g in zip(names, given, strict=True) if not g]
+        raise LogError(
+            f"key 'start_heading_deg' is absent here but given for {have}: give every drive's"
+            f" start heading in the frame they share, or none (all started facing the same way;"
+            f" also absent for: {', '.join(n.name for n in lack)})",
+            lack[0],
+        )
+
+
 def free_wheels(log: DriveLog, cfg: RoverConfig) -> tuple[Array, Array]:
     """Segment 3's yaw (rad) as its free wheels turn apart, and their mean travel (m), both
     from zero at the log's start."""
@@ -78,18 +107,20 @@ class Headings:
     source: list[str]
     theta: Array
     cov: Array
+    start: list[float]
+    """Per log: its frame's turn into the shared one (rad, :func:`start_yaw`)."""
 
     def yaw(self, shift: Array | None = None) -> list[Array | None]:
-        """Every log's heading, with ``theta`` moved by ``shift``."""
+        """Every log's heading in the shared frame, with ``theta`` moved by ``shift``."""
         th = self.theta if shift is None else self.theta + shift
         out: list[Array | None] = []
         k = 0
-        for pose, basis in zip(self.pose_yaw, self.basis, strict=True):
+        for pose, basis, s0 in zip(self.pose_yaw, self.basis, self.start, strict=True):
             if basis is None:
-                out.append(pose)
+                out.append(None if pose is None else pose + s0)
                 continue
             kin, travel = basis
-            out.append((1.0 + th[k]) * kin + th[-1] * travel)
+            out.append((1.0 + th[k]) * kin + th[-1] * travel + s0)
             k += 1
         return out
 
@@ -129,8 +160,9 @@ def headings(logs: list[DriveLog], cfg: RoverConfig, pose_yaw: list[Array | None
         rows.append((k, float(kin[j]), float(travel[j]), fix))
         source.append("end fix")
     m = sum(b is not None for b in basis)
+    start = [start_yaw(log) for log in logs]
     if m == 0:
-        return Headings(pose_yaw, basis, source, np.zeros(0), np.zeros((0, 0)))
+        return Headings(pose_yaw, basis, source, np.zeros(0), np.zeros((0, 0)), start)
     # Least squares with the priors as rows: fix residuals over FIX_SD, theta over its SD.
     prior = np.r_[np.full(m, SCALE_SD), DRIFT_SD]
     A = [np.diag(1.0 / prior)]
@@ -143,4 +175,4 @@ def headings(logs: list[DriveLog], cfg: RoverConfig, pose_yaw: list[Array | None
     AA, bb = np.vstack(A), np.concatenate(b)
     theta, *_ = np.linalg.lstsq(AA, bb, rcond=None)
     cov = np.linalg.inv(AA.T @ AA)
-    return Headings(pose_yaw, basis, source, theta, cov)
+    return Headings(pose_yaw, basis, source, theta, cov, start)

@@ -10,8 +10,9 @@ window is re-initialised from the log:
   non-slipping: forward speed and yaw rate of segment 3, no sideways or vertical motion;
   the free joint's six velocities are solved so segment 3 moves that way given the joint
   rates (MuJoCo body Jacobian, so any joint layout works);
-* the heading of the rover in the log frame (needed only when gravity is tilted) from the
-  logged pose where it exists, dead reckoning from the free wheels in between;
+* the heading of the rover (needed only when gravity is tilted) from the logged pose where it
+  exists, dead reckoning from the free wheels in between, turned by the log's
+  ``start_heading_deg`` into the frame the drives share where the YAML gives one;
 * the speed controllers' integrated angle setpoints by running the controller's own
   setpoint recursion (integrate the command, clip to ``max_angle_error`` of the wheel; with
   ``motor.anti_windup: conditional`` also hold the integral while the PI's raw torque,
@@ -47,6 +48,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from rover_env.calibration.heading import start_yaw
 from rover_env.config import JOINTS, WHEELS, MotorSpec, RoverConfig, TerrainConfig, to_dict
 from rover_env.effects import CommandEffect, build_effects, command_sequence
 from rover_env.estimation.dead_reckoning import fixes
@@ -285,6 +287,7 @@ def prepare(log: DriveLog, cfg: RoverConfig, name: str, settings: ReplaySettings
     if have.size:
         corr = log.pose[have, 2] - dr[have]
         yaw = dr + np.interp(t, t[have], corr)
+    yaw = yaw + start_yaw(log)  # in the frame the drives share (their YAML's start heading)
     return PreparedLog(
         log=log,
         name=name,

@@ -11,6 +11,18 @@ from rover_env.calibration.diagnosis.state import LEADING, ODOMETRY_BAND, Odomet
 from rover_env.calibration.report_notes import balance_method, effort_method
 
 
+def _frames_line(result: dict[str, Any]) -> list[str]:
+    """Where the logs gave their start headings: the frame every heading here is in."""
+    heads = result.get("start_headings") or []
+    if not any(h is not None for h in heads):
+        return []
+    each = ", ".join(f"{Path(p).name} {h:g}°" for p, h in zip(result["logs"], heads, strict=True))
+    return [
+        f"- Frames: each log's headings turned by its `start_heading_deg` ({each}) into the"
+        " frame the drives share; a slope's heading and the balance's are in that frame."
+    ]
+
+
 def method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str]:
     """The report's "Data and method" section."""
     st = opts.settings
@@ -18,6 +30,7 @@ def method_lines(result: dict[str, Any], opts: Options, rover: str) -> list[str]
         "## Data and method",
         "",
         f"- Logs: {', '.join(Path(p).name for p in result['logs'])}; rover `{rover}`.",
+        *_frames_line(result),
         f"- Split: {result['split']}.",
         f"- Replay: multiple shooting, windows of {st.window:g} s re-initialised from the log (joint"
         " angles and rates, wheel rates, segment 3's motion from the free wheels, controller"

@@ -7,7 +7,7 @@ import sys
 
 from rover_env.independent.drive import Schedule
 from rover_env.independent.effects import EffectError, parse_cli
-from rover_env.independent.generate import make_independent_logs
+from rover_env.independent.generate import HEADINGS, make_independent_logs
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -48,6 +48,14 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="also log the drivers' reported motor torque (effort_1L ... effort_2R, N m)",
     )
+    ap.add_argument(
+        "--headings",
+        choices=HEADINGS,
+        default="same",
+        help="where each drive starts facing: same (+x of the world, every log's frame alike),"
+        " drawn (drawn per drive and written as start_heading_deg), unlogged (drawn, not"
+        " written); a slope's heading_deg is in the world",
+    )
     a = ap.parse_args(argv)
     try:
         effects = dict(parse_cli(s) for s in a.effect)
@@ -61,6 +69,7 @@ def main(argv: list[str] | None = None) -> int:
             plan=Schedule.from_csv(a.plan_csv) if a.plan_csv else None,
             first_index=a.first_index,
             effort=a.effort,
+            headings=a.headings,
         )
     except (EffectError, ValueError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -12,10 +12,18 @@ would write even on a slope or loose soil: the effect is what diagnose must find
 numbers the files from there (``drive_03.csv``...) and draws their sensor noise as the drives of
 that index would: a follow-up drive of the same rover (same ``seed``: the same build) adds to
 the first ones without repeating their noise.
+
+``headings``: where each drive starts facing. ``same`` (every drive along the world's +x, the
+slope's ``heading_deg`` then in every log's frame); ``drawn`` (each drive's start heading
+drawn from ``seed`` and its index, uniform over the circle, and written to its YAML as
+``start_heading_deg``: a rover whose drives start wherever the last ended, with a compass);
+``unlogged`` (drawn as ``drawn``, not written: the same rover without one). The slope's
+``heading_deg`` is then in the world, and each log sees it turned by its start.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -33,6 +41,9 @@ from rover_env.independent.model import RoverParams
 from rover_env.independent.simulate import CONTROL_EVERY, DT, SETTLE_S, simulate
 from rover_env.logs import DriveLog, LogMeta, write_log
 
+HEADINGS = ("same", "drawn", "unlogged")
+"""Where each drive starts facing (module docstring)."""
+
 SAMPLE_HZ = 50.0
 
 
@@ -46,6 +57,7 @@ def make_independent_logs(
     plan: list[drive.Manoeuvre] | drive.Schedule | None = None,
     first_index: int = 0,
     effort: bool = False,
+    headings: str = "same",
 ) -> list[Path]:
     """Write ``drives`` logs of ``duration`` seconds (or ``plan``'s) into ``out``; returns the
     CSV paths. ``nuisance``: the build drawn from ``seed`` (True), built to drawing (False),
@@ -54,6 +66,8 @@ def make_independent_logs(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     eff = resolve(effects)
+    if headings not in HEADINGS:
+        raise ValueError(f"headings must be one of {HEADINGS}, got {headings!r}")
     if first_index < 0:
         raise ValueError(f"first_index must be >= 0, got {first_index}")
     if isinstance(plan, drive.Schedule):
@@ -76,7 +90,9 @@ def make_independent_logs(
     plans: list[dict[str, Any]] = []
     for i in range(first_index, first_index + drives):
         kind, record, cmd = _targets(plan, i, seed, duration, t)
-        truth = simulate(params, eff, t, cmd)
+        start = start_heading(seed, i) if headings != "same" else 0.0
+        seen = dataclasses.replace(eff, slope_heading_deg=eff.slope_heading_deg - start)
+        truth = simulate(params, seen, t, cmd)
         rng = np.random.default_rng([47, 3, seed, i])
         phi = sensors.encoder_angles(truth.phi, params.encoder_cpr, rng.uniform(0.0, 1.0, 6))
         theta = sensors.potentiometers(
@@ -88,6 +104,7 @@ def make_independent_logs(
             sample_rate_hz=SAMPLE_HZ,
             terrain="flat",
             notes=f"independent generator (issue 47), seed {seed}, drive {i} ({kind})",
+            start_heading_deg=start if headings == "drawn" else None,
         )
         tau = np.zeros((0, 4))
         if effort:  # its own stream: the other columns are the same with or without it
@@ -95,7 +112,7 @@ def make_independent_logs(
             tau = sensors.effort(truth.current, per_amp, np.random.default_rng([47, 4, seed, i]))
         log = DriveLog(t=t, cmd=cmd, phi=phi, theta=theta, pose=pose, meta=meta, effort=tau)
         paths.append(write_log(log, out / f"drive_{i:02d}.csv", overwrite=True))
-        plans.append({"file": paths[-1].name, "kind": kind, **record})
+        plans.append({"file": paths[-1].name, "kind": kind, "start_heading_deg": start, **record})
     truth_doc = {
         "generator": "rover_env.independent",
         "seed": seed,
@@ -117,6 +134,11 @@ def make_independent_logs(
     }
     (out / "truth.yaml").write_text(yaml.safe_dump(truth_doc, sort_keys=False), encoding="utf-8")
     return paths
+
+
+def start_heading(seed: int, i: int) -> float:
+    """Drive ``i``'s start heading in the world (degrees) where ``headings`` draws them."""
+    return round(float(np.random.default_rng([47, 7, seed, i]).uniform(-180.0, 180.0)), 1)
 
 
 def _targets(

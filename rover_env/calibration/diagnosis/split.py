@@ -17,6 +17,7 @@ from pathlib import Path
 from rover_env.calibration.diagnosis.procedure import check_options, differences
 from rover_env.calibration.diagnosis.state import STRAIGHT, Diagnosis
 from rover_env.calibration.ground import common_ground
+from rover_env.calibration.heading import check_frames
 from rover_env.calibration.replay import Window, make_windows, prepare, straight_windows
 from rover_env.config import RoverConfig, load_rover, resolve_path
 from rover_env.logs import DriveLog, LogError, read_log
@@ -36,6 +37,7 @@ def split(d: Diagnosis) -> None:
     # the whole path was sorted, and "followup_0/drive_03.csv" went first, into training.)
     files = sorted((Path(p) for p in d.paths), key=lambda p: (p.name, str(p)))
     logs = [read_log(p) for p in files]
+    check_frames(logs, files)
     rovers = {lg.meta.rover for lg in logs}
     if len(rovers) > 1:
         raise LogError(f"the logs name different rovers ({', '.join(sorted(rovers))})", files[0])

@@ -93,6 +93,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
     free_g, free_c = d.ev.free_gains(final_extensions(d))
     return {
         "logs": [str(f) for f in d.files],
+        "start_headings": [lg.meta.start_heading_deg for lg in d.logs],
         "split": d.split,
         "named": named,
         "tie": d.tie,

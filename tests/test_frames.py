@@ -1,0 +1,171 @@
+"""Drives that start facing different ways: each log's pose is in its own frame (SPEC §6), and
+the YAML's ``start_heading_deg`` places those frames in one (rover_env.calibration.heading,
+the replay's heading, the independent generator's ``headings``).
+
+The balance's logs come from test_balance's rigid rover (not the simulator): a drive that
+started facing ``psi`` in the world sees a slope rising toward ``h`` as rising toward
+``h - psi`` in its own frame.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from rover_env.calibration.balance import read_balance
+from rover_env.calibration.heading import check_frames, headings
+from rover_env.calibration.replay import ReplaySettings, prepare
+from rover_env.config import RoverConfig
+from rover_env.independent.generate import make_independent_logs, start_heading
+from rover_env.logs import DriveLog, LogError, LogMeta, read_log, write_log
+from tests.test_balance import bare, rover_log
+
+CFG = RoverConfig()
+STARTS = (0.0, 100.0, -150.0)
+"""Where the three drives started facing in the world (degrees)."""
+
+
+def _started(log: DriveLog, psi: float | None) -> DriveLog:
+    """``log`` with ``psi`` as its YAML's start heading (None: the key absent)."""
+    meta = dataclasses.replace(log.meta, start_heading_deg=psi)
+    return DriveLog(log.t, log.cmd, log.phi, log.theta, log.pose, meta, effort=log.effort)
+
+
+def _drives(tilt: float, heading: float, say: bool, end_only: bool = False) -> list[DriveLog]:
+    """Three drives on one slope (rising toward ``heading`` in the world) that started facing
+    :data:`STARTS`; ``say``: their YAML gives the start heading."""
+    out = []
+    for s, psi in enumerate(STARTS):
+        log = bare(rover_log(tilt, heading - psi, 0.02, seed=s, slip_offset=0.01))
+        if end_only:
+            pose = np.full_like(log.pose, np.nan)
+            last = np.flatnonzero(np.isfinite(log.pose[:, 2]))[-1]
+            pose[last] = log.pose[last]
+            log = DriveLog(log.t, log.cmd, log.phi, log.theta, pose, log.meta)
+        out.append(_started(log, psi if say else None))
+    return out
+
+
+@pytest.mark.parametrize("end_only", [False, True])
+def test_drives_started_facing_different_ways_read_one_slope_by_their_start_headings(
+    end_only: bool,
+) -> None:
+    """Given the start headings the slip balance reads the slope's tilt and its direction in
+    the world, within its interval; without them the same runs disagree (each log sees the
+    slope elsewhere) and the reading is far off or its scatter many times larger."""
+    told, _ = read_balance(_drives(1.5, 60.0, True, end_only), CFG, 0.2, "slip")
+    assert told is not None
+    lo, hi = told.tilt_interval()
+    assert lo <= 1.5 <= hi
+    assert abs(math.remainder(told.heading - 60.0, 360.0)) < 5.0
+    blind, _ = read_balance(_drives(1.5, 60.0, False, end_only), CFG, 0.2, "slip")
+    assert blind is not None
+    assert blind.scatter > 5.0 * told.scatter
+
+
+def test_the_headings_turn_by_each_logs_start() -> None:
+    logs = _drives(0.0, 0.0, True, end_only=True)
+    plain = headings([_started(lg, None) for lg in logs], CFG, [None] * 3).yaw()
+    turned = headings(logs, CFG, [None] * 3).yaw()
+    for a, b, psi in zip(plain, turned, STARTS, strict=True):
+        assert a is not None and b is not None
+        assert np.allclose(b - a, math.radians(psi))
+
+
+def test_some_logs_with_a_start_heading_and_some_without_is_one_clear_error() -> None:
+    logs = _drives(0.0, 0.0, True)
+    logs[2] = _started(logs[2], None)
+    names = [Path(f"/x/drive_0{i}.csv") for i in range(3)]
+    with pytest.raises(LogError, match=r"drive_02\.csv.*start_heading_deg.*drive_00\.csv"):
+        check_frames(logs, names)
+    check_frames(_drives(0.0, 0.0, True), names)  # all: fine
+    check_frames(_drives(0.0, 0.0, False), names)  # none: fine
+
+
+def test_the_replay_starts_its_windows_in_the_shared_frame() -> None:
+    log = rover_log(0.0, 0.0, 0.0)
+    st = ReplaySettings()
+    a = prepare(_started(log, None), CFG, "a", st)
+    b = prepare(_started(log, -30.0), CFG, "b", st)
+    assert np.allclose(b.yaw3 - a.yaw3, math.radians(-30.0))
+
+
+def test_the_start_heading_round_trips_and_bad_values_name_the_key(tmp_path: Path) -> None:
+    log = _started(rover_log(0.0, 0.0, 0.0), 123.5)
+    path = write_log(log, tmp_path / "drive.csv")
+    assert read_log(path).meta.start_heading_deg == 123.5
+    text = path.with_suffix(".yaml").read_text()
+    assert "start_heading_deg: 123.5" in text
+    for bad in ("north", ".nan", "true"):
+        path.with_suffix(".yaml").write_text(text.replace("123.5", bad))
+        with pytest.raises(LogError, match=r"drive\.yaml.*'start_heading_deg'"):
+            read_log(path)
+    with pytest.raises(LogError, match="start_heading_deg"):
+        LogMeta(rover="proto_explorer", sample_rate_hz=50.0, start_heading_deg=math.inf)
+
+
+def test_the_generator_turns_the_slope_by_each_drives_start(tmp_path: Path) -> None:
+    """A drive that started facing ``psi`` on a slope rising toward 30° in the world is the
+    drive that started along +x on one rising toward ``30 - psi``, sample for sample; its YAML
+    says ``psi`` (``drawn``) or nothing (``unlogged``)."""
+    slope = {"deg": 3.0, "heading_deg": 30.0}
+    kw = {"drives": 1, "seed": 5, "duration": 2.0, "first_index": 1}
+    (drawn,) = make_independent_logs(tmp_path / "d", {"slope": slope}, headings="drawn", **kw)
+    (unlogged,) = make_independent_logs(tmp_path / "u", {"slope": slope}, headings="unlogged", **kw)
+    psi = start_heading(5, 1)
+    turned = {"slope": {**slope, "heading_deg": 30.0 - psi}}
+    (same,) = make_independent_logs(tmp_path / "s", turned, headings="same", **kw)
+    (level,) = make_independent_logs(tmp_path / "l", {"slope": slope}, headings="same", **kw)
+    a, b, c, d = (read_log(p) for p in (drawn, unlogged, same, level))
+    assert a.meta.start_heading_deg == psi and abs(psi) > 1.0
+    assert b.meta.start_heading_deg is None and c.meta.start_heading_deg is None
+    for other in (b, c):
+        assert np.array_equal(a.theta, other.theta) and np.array_equal(a.phi, other.phi)
+    assert not np.array_equal(a.theta, d.theta)  # the start does turn what the joints see
+    truth = yaml.safe_load((tmp_path / "d" / "truth.yaml").read_text())
+    assert truth["drives"][0]["start_heading_deg"] == psi
+    with pytest.raises(ValueError, match="headings"):
+        make_independent_logs(tmp_path / "x", {}, headings="north", **kw)
+
+
+def test_a_bag_whose_reference_every_drive_shares_gives_the_start_heading(
+    tmp_path: Path,
+) -> None:
+    """The IMU's yaw at the log's start is written as ``start_heading_deg`` (the log's own
+    yaw still starts at 0); ``shared_frame: false`` (a reference that starts anew each
+    drive) writes none; the key must be true or false."""
+    from rover_env.bag_map import BagError
+    from rover_env.bags import import_bag
+    from tests.test_bags import BASE, MS, Msgs, _synthetic, quat_z, write_bag, write_map
+
+    m = Msgs()
+    topics = _synthetic(m)
+    kind, imu = topics["/imu/data"]
+    topics["/imu/data"] = (
+        kind,
+        [(r, m.imu(r - MS, quat_z(1.2 + 0.1 * (r - MS - BASE) / 1e9))) for r, _ in imu],
+    )
+    bag = write_bag(tmp_path / "bag", topics, m)
+    log = import_bag(bag, write_map(tmp_path / "shared.yaml", lambda d: None))
+    assert log.meta.start_heading_deg == pytest.approx(math.degrees(1.2), abs=0.01)
+    assert log.pose[0, 2] == pytest.approx(0.0, abs=1e-12)
+    own = write_map(tmp_path / "own.yaml", lambda d: d["yaw"].update(shared_frame=False))
+    assert import_bag(bag, own).meta.start_heading_deg is None
+    bad = write_map(tmp_path / "bad.yaml", lambda d: d["yaw"].update(shared_frame="yes"))
+    with pytest.raises(BagError, match=r"bad\.yaml.*yaw\.shared_frame"):
+        import_bag(bag, bad)
+
+
+def test_the_report_says_which_frame_its_headings_are_in() -> None:
+    from rover_env.calibration.report_method import _frames_line
+
+    logs = ["/d/drive_00.csv", "/d/drive_01.csv"]
+    (line,) = _frames_line({"logs": logs, "start_headings": [37.5, -120.0]})
+    assert "drive_00.csv 37.5°" in line and "drive_01.csv -120°" in line
+    assert _frames_line({"logs": logs, "start_headings": [None, None]}) == []
+    assert _frames_line({"logs": logs}) == []  # results written before the key existed
