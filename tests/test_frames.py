@@ -169,3 +169,27 @@ def test_the_report_says_which_frame_its_headings_are_in() -> None:
     assert "drive_00.csv 37.5°" in line and "drive_01.csv -120°" in line
     assert _frames_line({"logs": logs, "start_headings": [None, None]}) == []
     assert _frames_line({"logs": logs}) == []  # results written before the key existed
+
+
+def test_runs_that_read_the_ground_turned_between_logs_say_so_and_name_nothing() -> None:
+    """Without start headings the balance tries each log's frame turned on its own: drives
+    that started facing different ways fit far better so (the reading names nothing and
+    asks for no drive, "frames", and the turns found are the starts' differences); drives
+    that started alike do not, and name their slope."""
+    from rover_env.calibration.balance import CLEAN_SLIP_TILT
+    from rover_env.calibration.diagnosis.balance_stage import TURNED_F, record
+
+    blind, runs = read_balance(_drives(1.5, 60.0, False), CFG, 0.2, "slip")
+    assert blind is not None and blind.turned_f > TURNED_F
+    for found, psi in zip(blind.turned_deg, STARTS, strict=True):
+        assert abs(math.remainder(found - psi, 360.0)) <= 5.0 + 1e-9  # one step of its grid
+    act, rec = record(blind, len(runs), CLEAN_SLIP_TILT, None, False, "slip")
+    assert act == "frames" and "start_heading_deg" in rec["why_not"] and "plan" not in rec
+    alike = [
+        _started(bare(rover_log(1.5, 60.0, 0.02, seed=s, slip_offset=0.01)), None) for s in range(3)
+    ]
+    same, runs = read_balance(alike, CFG, 0.2, "slip")
+    assert same is not None and same.turned_f < TURNED_F
+    assert record(same, len(runs), CLEAN_SLIP_TILT, None, False, "slip")[0] == "name"
+    told, _ = read_balance(_drives(1.5, 60.0, True), CFG, 0.2, "slip")
+    assert told is not None and told.turned_f == 0.0 and told.turned_deg == ()

@@ -174,6 +174,12 @@ class BalanceReading:
     """Where the runs' headings came from (:data:`HEADING_SOURCES`, comma-separated where
     the logs differ): the pose's fixes, the free wheels fitted to each log's one fix, or
     the free wheels alone."""
+    turned_f: float = 0.0
+    """How much better the runs fit with each log's frame turned freely than in one frame
+    (an F ratio over the turns' degrees of freedom; :func:`turned_frames`); 0 where the
+    logs give their start headings or fewer than two logs have runs."""
+    turned_deg: tuple[float, ...] = ()
+    """Each log's best turn (degrees; the first log's 0), where :attr:`turned_f` is read."""
 
     @property
     def tilt(self) -> float:
@@ -454,6 +460,40 @@ def _solve(rs: list[Run], source: str) -> tuple[Array, Array, Array, Array, int]
     return coef, cov, inv, resid, dof
 
 
+def turned_frames(
+    rs: list[Run], yaws: list[Array | None], source: str
+) -> tuple[float, tuple[float, ...]]:
+    """Whether the runs read the ground turned between logs: each log's heading turned by
+    its own angle (the first log's held; a 5° grid, three sweeps over the logs), and the F
+    ratio of what that explains over what is left, with the turns' degrees of freedom.
+    Logs that started facing different ways without saying so (``start_heading_deg``) read
+    one slope in as many directions: exploratory seeds 74824-74833 gave 30-2,000 so, and
+    0-3.4 where the frames agreed (docs/calibration/method.md, step 5)."""
+    logs = sorted({r.log for r in rs})
+    if len(logs) < 2:
+        return 0.0, ()
+    w = np.array([1.0 / r.noise for r in rs]) if source == "slip" else np.ones(len(rs))
+
+    def rss(turn: Array) -> float:
+        moved = [None if y is None else y + turn[i] for i, y in enumerate(yaws)]
+        resid = _solve(_headed(rs, moved), source)[3]
+        return float(np.sum((resid * w) ** 2))
+
+    turn = np.zeros(len(yaws))
+    grid = np.radians(np.arange(0.0, 360.0, 5.0))
+    before = best = rss(turn)
+    for _ in range(3):
+        for i in logs[1:]:
+            tries = [rss(np.where(np.arange(len(yaws)) == i, g, turn)) for g in grid]
+            turn[i], best = grid[int(np.argmin(tries))], min(tries)
+    k = len(logs) - 1
+    dof = len(rs) - 3 - k
+    if dof <= 0 or best <= 0.0:
+        return 0.0, ()
+    f = (before - best) / k / (best / dof)
+    return max(f, 0.0), tuple(float(math.degrees(math.remainder(t, 2 * math.pi))) for t in turn)
+
+
 def _headed(rs: list[Run], yaws: list[Array | None]) -> list[Run]:
     """The runs with their headings read again from ``yaws`` (a log's heading moved)."""
     out = []
@@ -507,6 +547,10 @@ def read_balance(
         else 0.0
     )
     infl = float(np.max(np.sqrt(np.abs(np.diag(inv))))) * math.sqrt(len(rs))
+    # Logs that give no start heading are read as facing alike: how much turning each frame
+    # would explain tells a report that they did not (:func:`turned_frames`).
+    told = any(log.meta.start_heading_deg is not None for log in logs)
+    tf, td = (0.0, ()) if told else turned_frames(rs, yaws, source)
     return (
         BalanceReading(
             runs=len(rs),
@@ -526,6 +570,8 @@ def read_balance(
             source=source,
             stiffness=cs if source == "slip" else 0.0,
             heading_from=", ".join(h for h in HEADING_SOURCES if h in used),
+            turned_f=tf,
+            turned_deg=td,
         ),
         rs,
     )
