@@ -399,7 +399,9 @@ def plan_markdown(
         " short.",
         "2. Record it with the rover's usual bag recording (wheel encoders, joint angles, the"
         " pose reference, and this command topic).",
-        "3. Import the recording with `rover-env import-bag` (a SPEC §6 log).",
+        "3. Import the recording with `rover-env import-bag` (a SPEC §6 log). Where the earlier"
+        " logs give `start_heading_deg`, this one must too: `import-bag` writes it from a"
+        " shared-frame pose or yaw reference, or add the heading the rover started at.",
         "4. Run `rover-env diagnose` again with the earlier logs and this one added LAST, so"
         " that it is the held-out drive.",
         "",

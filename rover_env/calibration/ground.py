@@ -6,7 +6,8 @@ a terrain mapping inline. The calibration replay starts every window from the lo
 angles and the free wheels' motion, but it does not know *where* on the ground the rover
 was (the pose is relative and sparse). So it can honour a ground that is the same
 everywhere: flat, a uniform slope (the terrain's ``slope_deg``, its x and y axes taken as the
-log frame: segment 3 at t = 0), a uniform friction (``mu_x``, ``mu_y``) and loose soil over
+log frame: segment 3 at t = 0; the frame the drives share where the logs give
+``start_heading_deg``), a uniform friction (``mu_x``, ``mu_y``) and loose soil over
 the whole ground (``soil``). A ground that varies from place to place (bumps, roughness,
 friction or soil patches, rocks) is refused with one error naming the file and the key,
 never replayed as if it were flat.
