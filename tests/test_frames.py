@@ -17,12 +17,18 @@ import numpy as np
 import pytest
 import yaml
 
-from rover_env.calibration.balance import read_balance
+from rover_env.bag_map import BagError
+from rover_env.bags import import_bag
+from rover_env.calibration.balance import CLEAN_SLIP_TILT, read_balance
+from rover_env.calibration.diagnosis.balance_stage import TURNED_F, record
 from rover_env.calibration.heading import check_frames, headings
 from rover_env.calibration.replay import ReplaySettings, prepare
+from rover_env.calibration.report_method import _frames_line
+from rover_env.calibration.report_notes import balance_lines
 from rover_env.config import RoverConfig
 from rover_env.independent.generate import make_independent_logs, start_heading
 from rover_env.logs import DriveLog, LogError, LogMeta, read_log, write_log
+from tests.test_bags import BASE, MS, Msgs, _synthetic, quat_z, write_bag, write_map
 from tests.test_balance import bare, rover_log
 
 CFG = RoverConfig()
@@ -139,10 +145,6 @@ def test_a_bag_whose_reference_every_drive_shares_gives_the_start_heading(
     """The IMU's yaw at the log's start is written as ``start_heading_deg`` (the log's own
     yaw still starts at 0); ``shared_frame: false`` (a reference that starts anew each
     drive) writes none; the key must be true or false."""
-    from rover_env.bag_map import BagError
-    from rover_env.bags import import_bag
-    from tests.test_bags import BASE, MS, Msgs, _synthetic, quat_z, write_bag, write_map
-
     m = Msgs()
     topics = _synthetic(m)
     kind, imu = topics["/imu/data"]
@@ -162,8 +164,6 @@ def test_a_bag_whose_reference_every_drive_shares_gives_the_start_heading(
 
 
 def test_the_report_says_which_frame_its_headings_are_in() -> None:
-    from rover_env.calibration.report_method import _frames_line
-
     logs = ["/d/drive_00.csv", "/d/drive_01.csv"]
     (line,) = _frames_line({"logs": logs, "start_headings": [37.5, -120.0]})
     assert "drive_00.csv 37.5°" in line and "drive_01.csv -120°" in line
@@ -171,25 +171,26 @@ def test_the_report_says_which_frame_its_headings_are_in() -> None:
     assert _frames_line({"logs": logs}) == []  # results written before the key existed
 
 
-def test_runs_that_read_the_ground_turned_between_logs_say_so_and_name_nothing() -> None:
+def test_runs_that_read_the_ground_turned_between_logs_say_so() -> None:
     """Without start headings the balance tries each log's frame turned on its own: drives
-    that started facing different ways fit far better so (the reading names nothing and
-    asks for no drive, "frames", and the turns found are the starts' differences); drives
-    that started alike do not, and name their slope."""
-    from rover_env.calibration.balance import CLEAN_SLIP_TILT
-    from rover_env.calibration.diagnosis.balance_stage import TURNED_F, record
-
+    that started facing different ways fit far better so (the reading's record says so and
+    the turns found are the starts' differences; what the reading does is unchanged);
+    drives that started alike do not; with the start headings given it is not tried."""
     blind, runs = read_balance(_drives(1.5, 60.0, False), CFG, 0.2, "slip")
     assert blind is not None and blind.turned_f > TURNED_F
     for found, psi in zip(blind.turned_deg, STARTS, strict=True):
         assert abs(math.remainder(found - psi, 360.0)) <= 5.0 + 1e-9  # one step of its grid
     act, rec = record(blind, len(runs), CLEAN_SLIP_TILT, None, False, "slip")
-    assert act == "frames" and "start_heading_deg" in rec["why_not"] and "plan" not in rec
+    assert "start_heading_deg" in rec["frames"] and f"{blind.turned_deg[1]:.0f}°" in rec["frames"]
+    assert rec["frames"] in "".join(balance_lines(rec))  # the report says it
+    unturned = dataclasses.replace(blind, turned_f=0.0, turned_deg=())
+    assert record(unturned, len(runs), CLEAN_SLIP_TILT, None, False, "slip")[0] == act
     alike = [
         _started(bare(rover_log(1.5, 60.0, 0.02, seed=s, slip_offset=0.01)), None) for s in range(3)
     ]
     same, runs = read_balance(alike, CFG, 0.2, "slip")
     assert same is not None and same.turned_f < TURNED_F
-    assert record(same, len(runs), CLEAN_SLIP_TILT, None, False, "slip")[0] == "name"
+    act, rec = record(same, len(runs), CLEAN_SLIP_TILT, None, False, "slip")
+    assert act == "name" and "frames" not in rec
     told, _ = read_balance(_drives(1.5, 60.0, True), CFG, 0.2, "slip")
     assert told is not None and told.turned_f == 0.0 and told.turned_deg == ()

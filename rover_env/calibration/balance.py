@@ -467,8 +467,9 @@ def turned_frames(
     its own angle (the first log's held; a 5° grid, three sweeps over the logs), and the F
     ratio of what that explains over what is left, with the turns' degrees of freedom.
     Logs that started facing different ways without saying so (``start_heading_deg``) read
-    one slope in as many directions: exploratory seeds 74824-74833 gave 30-2,000 so, and
-    0-3.4 where the frames agreed (docs/calibration/method.md, step 5)."""
+    one slope in as many directions; but runs in few headings can fit better turned too
+    (:data:`~rover_env.calibration.diagnosis.balance_stage.TURNED_F`; docs/calibration/
+    method.md, step 5)."""
     logs = sorted({r.log for r in rs})
     if len(logs) < 2:
         return 0.0, ()

@@ -263,7 +263,8 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
         f" rolling [{_end(clo, '.4f')}, {_end(chi, '.4f')}] (the ground, the tires and the"
         " drivetrain's drag together)"
     )
-    return ["", f"{head}; {verdict}." + moved + drive]
+    frames = f" {r['frames']}" if r.get("frames") else ""
+    return ["", f"{head}; {verdict}." + moved + drive + frames]
 
 
 HEADED = {
