@@ -399,8 +399,13 @@ def test_the_slip_balance_reads_the_tilt_without_torque(tilt: float, heading: fl
     assert r.tilt == pytest.approx(
         tilt, abs=0.02
     )  # the radius's slip, the same both ways, is not a tilt
+    hlo, hhi = r.heading_interval()
     if tilt > 0:
         assert abs(math.remainder(r.heading - heading, 360.0)) < 2.0
+        assert hlo <= r.heading + math.remainder(heading - r.heading, 360.0) <= hhi
+        assert 0.0 < hhi - hlo < 30.0  # seven runs in three headings a drive: a few degrees
+    else:
+        assert hhi - hlo == 360.0  # level: no direction
     drag = 0.02 * WEIGHT / (4 * CFG.tire.C_s)
     assert r.offset_slip == pytest.approx(0.012 + drag, rel=0.05)
 

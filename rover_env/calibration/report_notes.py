@@ -250,14 +250,14 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
         f"Force balance (the driven wheels' slip against the free wheels' times their tires'"
         f" {r['stiffness']:g} N of slip stiffness, {runs}, scatter"
         f" {r['scatter']:.2f} N): the ground rises {r['tilt']:.2f}° [{_end(lo, '.2f')},"
-        f" {_end(hi, '.2f')}] toward {r['heading']:.0f}° with the stiffness's"
+        f" {_end(hi, '.2f')}] toward {r['heading']:.0f}°{_across(r)} with the stiffness's"
         f" {100 * r['tolerance']:.0f} % tolerance, against the {r['allowance']:g}° clean builds"
         f" read; the same slip both ways (a radius, a resistance, the ground):"
         f" {100 * r['offset_slip']:.2f} %"
         if slip
         else f"Force balance (the logs' `effort_*` over the lever {1000 * r['lever']:.1f} mm,"
         f" {runs}, scatter {r['scatter']:.2f} N): the ground rises"
-        f" {r['tilt']:.2f}° [{_end(lo, '.2f')}, {_end(hi, '.2f')}] toward {r['heading']:.0f}°"
+        f" {r['tilt']:.2f}° [{_end(lo, '.2f')}, {_end(hi, '.2f')}] toward {r['heading']:.0f}°{_across(r)}"
         f" with the reported torque's {100 * r['tolerance']:.0f} % scale tolerance, against the"
         f" {r['allowance']:g}° clean builds read; the rover loses {r['c_rr']:.4f} of its weight"
         f" rolling [{_end(clo, '.4f')}, {_end(chi, '.4f')}] (the ground, the tires and the"
@@ -281,6 +281,14 @@ def _headed(source: str | None) -> str:
         return ""
     parts = [HEADED.get(p.strip(), p.strip()) for p in source.split(",") if p.strip() != "pose"]
     return ", headed by " + " and ".join(parts) + (" and the pose" if "pose" in source else "")
+
+
+def _across(r: dict[str, Any]) -> str:
+    """The heading's 95 % interval, where the record has one that is not the whole circle."""
+    lo, hi = r.get("heading_interval") or (None, None)
+    if lo is None or hi is None or hi - lo >= 360.0:
+        return ""
+    return f" [{lo:.0f}°, {hi:.0f}°]"
 
 
 def _end(v: float | None, spec: str) -> str:

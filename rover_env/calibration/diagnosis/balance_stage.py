@@ -247,6 +247,7 @@ def balance_fit(cand: Any, r: BalanceReading, allow: float, seconds: float) -> F
 def test_text(r: BalanceReading, allow: float) -> str:
     """The naming's reason, in the report's words."""
     lo, hi = r.tilt_interval()
+    hlo, hhi = r.heading_interval()
     what = (
         "the wheels' summed torque"
         if r.source == "effort"
@@ -254,7 +255,8 @@ def test_text(r: BalanceReading, allow: float) -> str:
     )
     return (
         f"balance: {what} over {r.runs} steady straight runs reads the ground"
-        f" rising {r.tilt:.2f}° [{lo:.2f}, {hi:.2f}] toward {r.heading:.0f}°, beyond the"
+        f" rising {r.tilt:.2f}° [{lo:.2f}, {hi:.2f}] toward {r.heading:.0f}° [{hlo:.0f}°,"
+        f" {hhi:.0f}°], beyond the"
         f" {allow:g}° clean builds read"
     )
 
