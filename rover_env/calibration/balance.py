@@ -229,20 +229,14 @@ class BalanceReading:
         tolerance moves the size, not the direction); the whole circle where that reaches
         half of it or the runs leave the vector open. Checked on the slopes named by spent
         blocks 53700-53900 (exploratory): 38 of 40 truths inside."""
-        t = self.tilt
-        var = self._across_var()
-        if not (t > 0 and math.isfinite(var)):
-            return self.heading - 180.0, self.heading + 180.0
-        half = math.degrees(Z * self.t_scale * math.sqrt(max(var, 0.0)) / t)  # rad to deg
-        half = min(half, 180.0)
+        t, half = self.tilt, 180.0
+        if t > 0:
+            px, py = -self.tilt_y / t, self.tilt_x / t  # across the vector's direction
+            cxy = self.corr * self.sd_x * self.sd_y
+            var = (px * self.sd_x) ** 2 + (py * self.sd_y) ** 2 + 2 * px * py * cxy  # deg^2
+            if math.isfinite(var):  # its standard error over the size: radians, to degrees
+                half = min(half, math.degrees(Z * self.t_scale * math.sqrt(max(var, 0.0)) / t))
         return self.heading - half, self.heading + half
-
-    def _across_var(self) -> float:
-        """Variance (degrees squared) of the tilt vector across its own direction."""
-        t = self.tilt
-        px, py = (-self.tilt_y / t, self.tilt_x / t) if t > 0 else (0.0, 1.0)
-        cxy = self.corr * self.sd_x * self.sd_y
-        return float((px * self.sd_x) ** 2 + (py * self.sd_y) ** 2 + 2 * px * py * cxy)
 
     def level_inside(self) -> bool:
         """Whether a level ground lies in the tilt vector's 95 % region."""
