@@ -29,7 +29,7 @@ from rover_env.config import RoverConfig
 from rover_env.independent.generate import make_independent_logs, start_heading
 from rover_env.logs import DriveLog, LogError, LogMeta, read_log, write_log
 from tests.test_bags import BASE, MS, Msgs, _synthetic, quat_z, write_bag, write_map
-from tests.test_balance import bare, rover_log
+from tests.test_balance import _end_only, bare, rover_log
 
 CFG = RoverConfig()
 STARTS = (0.0, 100.0, -150.0)
@@ -48,12 +48,7 @@ def _drives(tilt: float, heading: float, say: bool, end_only: bool = False) -> l
     out = []
     for s, psi in enumerate(STARTS):
         log = bare(rover_log(tilt, heading - psi, 0.02, seed=s, slip_offset=0.01))
-        if end_only:
-            pose = np.full_like(log.pose, np.nan)
-            last = np.flatnonzero(np.isfinite(log.pose[:, 2]))[-1]
-            pose[last] = log.pose[last]
-            log = DriveLog(log.t, log.cmd, log.phi, log.theta, pose, log.meta)
-        out.append(_started(log, psi if say else None))
+        out.append(_started(_end_only(log) if end_only else log, psi if say else None))
     return out
 
 
@@ -63,7 +58,7 @@ def test_drives_started_facing_different_ways_read_one_slope_by_their_start_head
 ) -> None:
     """Given the start headings the slip balance reads the slope's tilt and its direction in
     the world, within its interval; without them the same runs disagree (each log sees the
-    slope elsewhere) and the reading is far off or its scatter many times larger."""
+    slope elsewhere): their scatter about the fit is many times larger."""
     told, _ = read_balance(_drives(1.5, 60.0, True, end_only), CFG, 0.2, "slip")
     assert told is not None
     lo, hi = told.tilt_interval()
