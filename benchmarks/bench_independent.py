@@ -107,6 +107,7 @@ from bench_diagnose import RANGES, finite
 from log_variants import variant
 
 from rover_env.calibration.diagnose import Options, diagnose
+from rover_env.calibration.diagnosis.frames import FRAMES
 from rover_env.calibration.drive_plan import (
     DrivePlanError,
     Proposal,
@@ -249,11 +250,12 @@ def run_case(
     pose: str = "as-logged",
     effort: bool = False,
     headings: str = "same",
+    frames: str = "given",
 ) -> dict[str, Any]:
     d = root / tag(case)
     if d.exists():  # a fresh start: no logs or reports of an interrupted run mixed in
         shutil.rmtree(d)
-    opts = Options(progress=False, workers=workers)
+    opts = Options(progress=False, workers=workers, frames=frames)
     t0 = time.perf_counter()
     paths = make_independent_logs(
         d / "logs",
@@ -282,6 +284,8 @@ def run_case(
         "untested_driven": untested,
         "pose": pose,
         "headings": headings,
+        "frames": frames,
+        "frames_fit": [x.get("frames") for x in (res, final)],
         "named": final["named"],
         "first_named": res["named"],
         "tie": tie["effects"] if tie else None,
@@ -334,10 +338,11 @@ def case_row(
     pose: str = "as-logged",
     effort: bool = False,
     headings: str = "same",
+    frames: str = "given",
 ) -> dict[str, Any]:
     """``run_case``, or a row recording its error: one broken case must not stop the matrix."""
     try:
-        return run_case(case, root, workers, untested, pose, effort, headings)
+        return run_case(case, root, workers, untested, pose, effort, headings, frames)
     except Exception as exc:  # recorded in the table, the matrix goes on
         return {
             **_identity(case),
@@ -407,6 +412,12 @@ def main() -> int:
         default="same",
         help="where each drive starts facing: the same way (same), drawn and written to each"
         " log's YAML as start_heading_deg (drawn), or drawn and not written (unlogged)",
+    )
+    ap.add_argument(
+        "--frames",
+        choices=FRAMES,
+        default="given",
+        help="diagnose's --frames: each log's frame as given, or fitted (for --headings unlogged)",
     )
     ap.add_argument("--workers", type=int, default=1, help="diagnose's worker processes per case")
     ap.add_argument(
@@ -515,7 +526,14 @@ def main() -> int:
     for k, c in enumerate(mine, 1):
         t0 = time.perf_counter()
         row = case_row(
-            c, Path(args.work), args.workers, args.untested, args.pose, args.effort, args.headings
+            c,
+            Path(args.work),
+            args.workers,
+            args.untested,
+            args.pose,
+            args.effort,
+            args.headings,
+            args.frames,
         )
         rows.append(row)
         _order(rows, todo)

@@ -21,6 +21,8 @@ from rover_env.bag_map import BagError
 from rover_env.bags import import_bag
 from rover_env.calibration.balance import CLEAN_SLIP_TILT, read_balance
 from rover_env.calibration.diagnosis.balance_stage import TURNED_F, record
+from rover_env.calibration.diagnosis.frames import FIT_F, fit_frames
+from rover_env.calibration.diagnosis.state import Diagnosis, Options
 from rover_env.calibration.heading import check_frames, headings
 from rover_env.calibration.replay import ReplaySettings, prepare
 from rover_env.calibration.report_method import _frames_line
@@ -189,3 +191,78 @@ def test_runs_that_read_the_ground_turned_between_logs_say_so() -> None:
     assert act == "name" and "frames" not in rec
     told, _ = read_balance(_drives(1.5, 60.0, True), CFG, 0.2, "slip")
     assert told is not None and told.turned_f == 0.0 and told.turned_deg == ()
+
+
+def _fitted(logs: list[DriveLog], frames: str = "fit") -> tuple[Diagnosis, list[DriveLog]]:
+    """``logs`` through the split's frames step, as ``diagnose --frames <frames>`` reads them."""
+    d = Diagnosis(
+        [], Path("/nonexistent"), Options(frames=frames, form_allowance=None, progress=False)
+    )
+    files = [Path(f"/d/drive_0{i}.csv") for i in range(len(logs))]
+    return d, fit_frames(d, logs, files, CFG)
+
+
+def test_frames_fitted_turn_each_log_into_the_firsts_and_read_the_slope_there() -> None:
+    """``--frames fit`` on drives that started facing :data:`STARTS` without saying so: the
+    turns found are the starts' differences within 2° (the 5° grid, then 1° steps), and the
+    balance then reads the slope's tilt inside its interval and its heading, in the first
+    log's frame, within 5°; the report says the frames were fitted."""
+    d, logs = _fitted(_drives(1.5, 60.0, False))
+    assert d.frames is not None and d.frames["fitted"] and d.frames["f"] > TURNED_F
+    for log, psi in zip(logs, STARTS, strict=True):
+        assert log.meta.start_heading_deg is not None
+        assert abs(math.remainder(log.meta.start_heading_deg - psi, 360.0)) <= 2.0
+    sd = tuple(d.frames["turn_sd_deg"])
+    assert sd[0] == 0.0 and all(0.0 < s < 10.0 for s in sd[1:])  # the first log's is held
+    r, _ = read_balance(logs, CFG, 0.2, "slip", sd)
+    assert r is not None and r.tilt_interval()[0] <= 1.5 <= r.tilt_interval()[1]
+    assert abs(math.remainder(r.heading - 60.0, 360.0)) < 5.0
+    # The turns' uncertainty widens the heading's interval over the frames-given reading's.
+    given, _ = read_balance(logs, CFG, 0.2, "slip")
+    assert given is not None and given.heading == pytest.approx(r.heading)
+    width = [h[1] - h[0] for h in (r.heading_interval(), given.heading_interval())]
+    assert width[0] > width[1]
+    files = [f"/d/drive_0{i}.csv" for i in range(3)]
+    heads = [lg.meta.start_heading_deg for lg in logs]
+    (line,) = _frames_line({"logs": files, "start_headings": heads, "frames": d.frames})
+    assert "fitted" in line and "drive_00.csv's" in line and f"F {d.frames['f']:.1f}" in line
+    assert f"± {sd[1]:.0f}°" in line
+
+
+def test_frames_are_not_fitted_where_turning_them_explains_little() -> None:
+    """On level ground drives started facing different ways have nothing to turn: their
+    runs fit hardly better turned, the frames are read as given (facing alike), the report
+    says why, and the balance names no slope."""
+    logs = _drives(0.0, 0.0, False)
+    d, kept = _fitted(logs)
+    assert d.frames is not None and not d.frames["fitted"] and d.frames["f"] < FIT_F
+    assert kept is logs
+    r, runs = read_balance(kept, CFG, 0.2, "slip")
+    assert r is not None
+    assert record(r, len(runs), CLEAN_SLIP_TILT, None, False, "slip")[0] != "name"
+    (line,) = _frames_line(
+        {"logs": ["/d/a.csv"] * 3, "start_headings": [None] * 3, "frames": d.frames}
+    )
+    assert "not fitted" in line and f"under {FIT_F:g}" in line
+
+
+def test_frames_given_leave_the_logs_and_fit_refuses_logs_that_give_them() -> None:
+    logs = _drives(1.5, 60.0, True)
+    d, same = _fitted(logs, "given")
+    assert same is logs and d.frames is None
+    with pytest.raises(LogError, match=r"drive_00\.csv.*start_heading_deg.*--frames fit"):
+        _fitted(logs)
+    with pytest.raises(ValueError, match="frames"):
+        _fitted(logs, "north")
+    few = [_started(bare(rover_log(0.0, 0.0, 0.0, seed=0)), None)]
+    few[0] = DriveLog(
+        few[0].t[:50],
+        *(a[:50] for a in (few[0].cmd, few[0].phi, few[0].theta, few[0].pose)),
+        few[0].meta,
+    )
+    d, kept = _fitted(few)
+    assert d.frames is not None and not d.frames["fitted"] and kept == few
+    (line,) = _frames_line(
+        {"logs": ["/d/drive_00.csv"], "start_headings": [None], "frames": d.frames}
+    )
+    assert "not fitted" in line

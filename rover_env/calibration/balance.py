@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from rover_env.calibration.heading import SOURCES as HEADING_SOURCES
-from rover_env.calibration.heading import has_heading, headings
+from rover_env.calibration.heading import Headings, has_heading, headings
 from rover_env.calibration.residuals import resolution
 from rover_env.config import DRIVEN_WHEELS, RoverConfig
 from rover_env.logs import DriveLog
@@ -480,7 +480,8 @@ def turned_frames(
     rs: list[Run], yaws: list[Array | None], source: str
 ) -> tuple[float, tuple[float, ...]]:
     """Whether the runs read the ground turned between logs: each log's heading turned by
-    its own angle (the first log's held; a 5° grid, three sweeps over the logs), and the F
+    its own angle (the first log's held; a 5° grid, three sweeps over the logs, then 1°
+    steps), and the F
     ratio of what that explains over what is left, with the turns' degrees of freedom.
     Logs that started facing different ways without saying so (``start_heading_deg``) read
     one slope in as many directions; but runs in few headings can fit better turned too
@@ -497,18 +498,29 @@ def turned_frames(
         return float(np.sum((resid * w) ** 2))
 
     turn = np.zeros(len(yaws))
-    grid = np.radians(np.arange(0.0, 360.0, 5.0))
     before = best = rss(turn)
-    for _ in range(3):
+    # Three sweeps of a 5° grid over the whole turn, then two of 1° steps about each
+    # log's turn (the grid's resolution alone would turn a slope's heading by up to 2.5°).
+    coarse = [np.radians(np.arange(0.0, 360.0, 5.0))] * 3
+    for grid in [*coarse, None, None]:
         for i in logs[1:]:
-            tries = [rss(np.where(np.arange(len(yaws)) == i, g, turn)) for g in grid]
-            turn[i], best = grid[int(np.argmin(tries))], min(tries)
+            near = turn[i] + np.radians(np.arange(-4.0, 5.0, 1.0))
+            tries = [
+                (rss(np.where(np.arange(len(yaws)) == i, g, turn)), g)
+                for g in (near if grid is None else grid)
+            ]
+            best, turn[i] = min(tries, key=lambda t: t[0])
     k = len(logs) - 1
     dof = len(rs) - 3 - k
     if dof <= 0 or best <= 0.0:
         return 0.0, ()
     f = (before - best) / k / (best / dof)
     return max(f, 0.0), tuple(float(math.degrees(math.remainder(t, 2 * math.pi))) for t in turn)
+
+
+def _turned(yaws: list[Array | None], i: int, by: float) -> list[Array | None]:
+    """``yaws`` with log ``i``'s turned by ``by`` (rad)."""
+    return [None if y is None else y + (by if j == i else 0.0) for j, y in enumerate(yaws)]
 
 
 def _headed(rs: list[Run], yaws: list[Array | None]) -> list[Run]:
@@ -525,13 +537,11 @@ def _headed(rs: list[Run], yaws: list[Array | None]) -> list[Run]:
     return out
 
 
-def read_balance(
-    logs: list[DriveLog], cfg: RoverConfig, tolerance: float, source: str = "effort"
-) -> tuple[BalanceReading | None, list[Run]]:
-    """The force balance over ``logs`` (None where they lack the torque (for ``source``
-    "effort"), the pose's yaw or :data:`MIN_RUNS` steady straight runs), and the runs it
-    used. ``tolerance``: the scale of the torque (or the tires' slip stiffness) as a
-    fraction."""
+def _read_runs(
+    logs: list[DriveLog], cfg: RoverConfig, source: str
+) -> tuple[Headings, list[Array | None], list[Run]]:
+    """The logs' headings, each log's heading in the shared frame, and their steady straight
+    runs."""
     if source not in SOURCES:
         raise ValueError(f"source must be one of {SOURCES}, got {source!r}")
     arm, cs, sc = lever(cfg), stiffness(cfg), critical_slip(cfg)
@@ -542,6 +552,84 @@ def read_balance(
         for i, log in enumerate(logs)
         for r in runs(log, i, arm if source == "effort" else cs, source, sc, yaw=yaws[i])
     ]
+    return hd, yaws, rs
+
+
+@dataclass(frozen=True)
+class Turns:
+    """Each log's frame turned into the first read one's (:func:`frame_turns`)."""
+
+    f: float
+    """The F ratio of what the turns explain over what is left (:func:`turned_frames`)."""
+    deg: tuple[float, ...]
+    """Per log, its turn (degrees; 0 for the first log with a run and for logs without)."""
+    sd_deg: tuple[float, ...]
+    """Per log, its turn's standard deviation (degrees, :func:`turn_sd`; 0 where held)."""
+    runs: tuple[int, ...]
+    """Per log, its steady straight runs."""
+
+
+def frame_turns(logs: list[DriveLog], cfg: RoverConfig, source: str) -> Turns | None:
+    """Each log's frame turned into the first's, where the drives did not share one and the
+    logs cannot say (:mod:`rover_env.calibration.diagnosis.frames`): the turns of
+    :func:`turned_frames` on the steady straight runs, with their standard deviations (a
+    log with no run keeps its turn at 0: nothing reads its frame). None under
+    :data:`MIN_RUNS`."""
+    _, yaws, rs = _read_runs(logs, cfg, source)
+    if len(rs) < MIN_RUNS:
+        return None
+    f, turns = turned_frames(rs, yaws, source)
+    deg = turns or (0.0,) * len(logs)
+    counts = tuple(sum(r.log == i for r in rs) for i in range(len(logs)))
+    return Turns(f, deg, turn_sd(rs, yaws, source, deg), counts)
+
+
+def turn_sd(
+    rs: list[Run], yaws: list[Array | None], source: str, turns: tuple[float, ...]
+) -> tuple[float, ...]:
+    """Each turned log's turn's standard deviation (degrees): the runs' misfit against its
+    turn moved 2° both ways, the others held, the tilt and resistance fitted again; the
+    curvature's Gaussian width, scaled as :func:`_solve` scales (the slip's by its known
+    noise, at least). 180 where moving it costs nothing. Why: a reading in fitted frames is
+    otherwise as sure of the slope's heading as if the frames had been given."""
+    logs = sorted({r.log for r in rs})
+    w = np.array([1.0 / r.noise for r in rs]) if source == "slip" else np.ones(len(rs))
+    base = np.radians(np.asarray(turns, dtype=np.float64))
+
+    def rss(i: int, by: float) -> float:
+        moved = [
+            None if y is None else y + base[j] + (by if j == i else 0.0) for j, y in enumerate(yaws)
+        ]
+        return float(np.sum((_solve(_headed(rs, moved), source)[3] * w) ** 2))
+
+    dof = len(rs) - 3 - max(len(logs) - 1, 0)
+    r0 = rss(-1, 0.0)
+    s2 = r0 / dof if dof > 0 else math.inf
+    if source == "slip":
+        s2 = max(s2, 1.0)
+    step = math.radians(2.0)
+    out = [0.0] * len(turns)
+    for i in logs[1:]:
+        curv = (rss(i, step) + rss(i, -step) - 2.0 * r0) / step**2
+        sd = math.sqrt(2.0 * s2 / curv) if curv > 0.0 and math.isfinite(s2) else math.pi
+        out[i] = math.degrees(min(sd, math.pi))
+    return tuple(out)
+
+
+def read_balance(
+    logs: list[DriveLog],
+    cfg: RoverConfig,
+    tolerance: float,
+    source: str = "effort",
+    turn_sd: tuple[float, ...] = (),
+) -> tuple[BalanceReading | None, list[Run]]:
+    """The force balance over ``logs`` (None where they lack the torque (for ``source``
+    "effort"), the pose's yaw or :data:`MIN_RUNS` steady straight runs), and the runs it
+    used. ``tolerance``: the scale of the torque (or the tires' slip stiffness) as a
+    fraction. ``turn_sd``: per log, the standard deviation (degrees) of a start heading that
+    was fitted, not given (:class:`Turns`); the tilt's covariance carries it."""
+    hd, yaws, rs = _read_runs(logs, cfg, source)
+    arm, cs = lever(cfg), stiffness(cfg)
     if len(rs) < MIN_RUNS:
         return None, rs
     used = {hd.source[r.log] for r in rs}
@@ -552,6 +640,15 @@ def read_balance(
         ends = [_solve(_headed(rs, hd.yaw(sign * step)), source)[0][:2] for sign in (1, -1)]
         half = 0.5 * (ends[0] - ends[1])
         cov[:2, :2] += np.outer(half, half)
+    # Fitted frames' own uncertainty, the same way: each log's turned by its SD, both ways.
+    for i, turn in enumerate(turn_sd):
+        if turn > 0.0:
+            ends = [
+                _solve(_headed(rs, _turned(yaws, i, sign * math.radians(turn))), source)[0][:2]
+                for sign in (1, -1)
+            ]
+            half = 0.5 * (ends[0] - ends[1])
+            cov[:2, :2] += np.outer(half, half)
     weight = cfg.masses.total * GRAVITY
     # The tilt vector: its size from the force along it, its parts along the heading.
     size = math.degrees(math.asin(min(1.0, math.hypot(coef[0], coef[1]) / weight)))

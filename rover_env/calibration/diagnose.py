@@ -41,6 +41,7 @@ import argparse
 import os
 from typing import Any
 
+from rover_env.calibration.diagnosis.frames import FRAMES
 from rover_env.calibration.diagnosis.pipeline import diagnose
 from rover_env.calibration.diagnosis.state import Options
 from rover_env.calibration.replay import ReplaySettings
@@ -107,6 +108,7 @@ def _cli(args: argparse.Namespace) -> int:
         effort_tolerance=None if args.no_effort else args.effort_tolerance,
         balance_allowance=None if args.no_balance else args.balance_allowance,
         slip_allowance=None if args.no_slip_balance else args.slip_allowance,
+        frames=args.frames,
         **{name: getattr(args, name) for name, _ in SWITCHES},
     )
     try:
@@ -271,6 +273,15 @@ def _add_torque_flags(p: argparse.ArgumentParser) -> None:
         "--no-slip-balance",
         action="store_true",
         help="never read the ground's tilt from the wheels' slip",
+    )
+    p.add_argument(
+        "--frames",
+        choices=FRAMES,
+        default=Options.frames,
+        help="each log's frame: 'given' (its YAML's start_heading_deg, or all facing the same"
+        " way where no log gives one) or 'fit' (the drives share no frame: each log's turn"
+        " fitted from the wheels' slip or torque on steady straight runs; a slope's heading"
+        f" is then in the first log's frame; default {Options.frames})",
     )
 
 

@@ -14,9 +14,29 @@ from rover_env.calibration.report_notes import balance_method, effort_method
 def _frames_line(result: dict[str, Any]) -> list[str]:
     """Where the logs gave their start headings: the frame every heading here is in."""
     heads = result.get("start_headings") or []
+    fr = result.get("frames")
+    if fr and not fr.get("fitted"):
+        return [f"- Frames: not fitted ({fr['why_not']}); the drives read as facing the same way."]
     if not any(h is not None for h in heads):
         return []
     each = ", ".join(f"{Path(p).name} {h:g}°" for p, h in zip(result["logs"], heads, strict=True))
+    if fr:
+        sds = fr["turn_sd_deg"]
+        each = ", ".join(
+            f"{Path(p).name} {h:.0f}°" + (f" ± {sd:.0f}°" if sd else "")
+            for p, h, sd in zip(result["logs"], heads, sds, strict=True)
+        )
+        unread = fr["unread"]
+        return [
+            f"- Frames fitted (`--frames fit`): each log's frame turned into {fr['first']}'s"
+            f" by the {fr['source']} balance's steady straight runs ({each}; F {fr['f']:.1f});"
+            " a slope's heading and the balance's are in that frame."
+            + (
+                f" No runs read the frame of {', '.join(unread)}: taken as the first's."
+                if unread
+                else ""
+            )
+        ]
     return [
         f"- Frames: each log's headings turned by its `start_heading_deg` ({each}) into the"
         " frame the drives share; a slope's heading and the balance's are in that frame."

@@ -64,7 +64,8 @@ fresh cases, so it only reports."""
 FRAMES = (
     "Its runs fit {f:.0f} times better with each log's frame turned on its own (turns"
     " {turns}): if the drives did not start facing the same way, give each log's start"
-    " heading in a frame they share (`start_heading_deg` in its YAML) and diagnose again."
+    " heading in a frame they share (`start_heading_deg` in its YAML) and diagnose again, or"
+    " where they share none, diagnose with `--frames fit`."
 )
 UNDECIDED = 1.0
 """Degrees: a separated reading that names nothing while its interval for the truth reaches
@@ -88,7 +89,9 @@ def name_by_balance(d: Diagnosis) -> None:
         return
     src, allow, tolerance = how
     t0 = time.perf_counter()
-    reading, runs = read_balance(logs, d.base, tolerance, src)
+    fr = d.frames  # fitted frames (:mod:`.frames`): their turns' uncertainty joins the tilt's
+    sd = tuple(fr["turn_sd_deg"]) if fr and fr.get("fitted") else ()
+    reading, runs = read_balance(logs, d.base, tolerance, src, sd)
     windows = [s for s in d.chosen if NAME in [c.name for c in s.fit.candidates]]
     alone = [s for s in windows if len(s.fit.candidates) == 1]
     wlo = alone[0].fit.physical()[NAME]["deg"][1] if alone else None

@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
+from rover_env.calibration.diagnosis.frames import fit_frames
 from rover_env.calibration.diagnosis.procedure import check_options, differences
 from rover_env.calibration.diagnosis.state import STRAIGHT, Diagnosis
 from rover_env.calibration.ground import common_ground
@@ -42,6 +43,7 @@ def split(d: Diagnosis) -> None:
     if len(rovers) > 1:
         raise LogError(f"the logs name different rovers ({', '.join(sorted(rovers))})", files[0])
     base = rover_of(logs[0])
+    logs = fit_frames(d, logs, files, base)  # with --frames fit, each its fitted start heading
     # The ground the logs declare (flat, a uniform slope or soil), or one clear refusal.
     st = replace(d.opts.settings, terrain=common_ground(logs))
     prepared = [prepare(lg, base, f.name, st) for lg, f in zip(logs, files, strict=True)]

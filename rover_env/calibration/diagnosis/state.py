@@ -180,6 +180,10 @@ class Options:
     half and reweighed by what it leaves (:func:`.shared.shared_refits`); False: beside the winner held at its fit, as every
     other partner (the behaviour until stop 102). Fresh studies 72900 and 73000 (registered):
     18/20 and 20/20 pair effects named, no single lag or delay gaining a partner (0/12)."""
+    frames: str = "given"
+    """Each log's frame: ``given`` (its ``start_heading_deg``, or every drive facing the same
+    way where no log gives one) or ``fit`` (none given and no frame the drives share: each
+    log's turn fitted by the balance's runs, :mod:`.frames`)."""
     candidates: list[str] | None = None
     progress: bool = True
     workers: int = 1
@@ -651,6 +655,8 @@ class Diagnosis:
     held_w: list[Window] = field(init=False)
     sets: dict[str, list[Window]] = field(init=False)
     split: str = field(init=False)
+    frames: dict[str, Any] | None = None
+    """Each log's frame as fitted (:func:`.frames.fit_frames`; None: the frames as given)."""
     # form (:mod:`.form`)
     sensor_noise: dict[str, float] = field(init=False)
     base0: RoverConfig = field(init=False)

@@ -94,6 +94,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
     return {
         "logs": [str(f) for f in d.files],
         "start_headings": [lg.meta.start_heading_deg for lg in d.logs],
+        "frames": d.frames,
         "split": d.split,
         "named": named,
         "tie": d.tie,
