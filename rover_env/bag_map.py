@@ -81,7 +81,8 @@ class ReferenceSource(StateSource):
     """The reference's frame is the same for every drive (a total station, motion capture,
     RTK, an IMU fused with a compass): the log's start heading in it is written as the YAML's
     ``start_heading_deg``, which places the drives' own frames in one. ``false`` for a
-    reference that starts anew each drive at an arbitrary heading."""
+    reference that starts anew each drive at an arbitrary heading (``diagnose --frames fit``
+    then fits each log's frame)."""
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -20,7 +20,8 @@ import yaml
 from rover_env.bag_map import BagError
 from rover_env.bags import import_bag
 from rover_env.calibration.balance import CLEAN_SLIP_TILT, read_balance
-from rover_env.calibration.diagnosis.balance_stage import TURNED_F, record
+from rover_env.calibration.diagnosis.balance_stage import TURNED_F, in_frames, record
+from rover_env.calibration.diagnosis.balance_stage import test_text as naming_text
 from rover_env.calibration.diagnosis.frames import FIT_F, fit_frames
 from rover_env.calibration.diagnosis.state import Diagnosis, Options
 from rover_env.calibration.heading import check_frames, headings
@@ -244,6 +245,14 @@ def test_frames_are_not_fitted_where_turning_them_explains_little() -> None:
         {"logs": ["/d/a.csv"] * 3, "start_headings": [None] * 3, "frames": d.frames}
     )
     assert "not fitted" in line and f"under {FIT_F:g}" in line
+    # Read as facing alike only because nothing could be fitted: the heading is in no frame.
+    slope, _ = read_balance(_drives(1.5, 60.0, False), CFG, 0.2, "slip")
+    assert slope is not None and slope.heading_interval()[1] - slope.heading_interval()[0] < 360
+    unread = in_frames(slope, d.frames)
+    assert unread is not None and unread.frames_unread and unread.tilt == slope.tilt
+    assert unread.heading_interval()[1] - unread.heading_interval()[0] == pytest.approx(360.0)
+    assert "the frames were not fitted" in naming_text(unread, CLEAN_SLIP_TILT)
+    assert in_frames(slope, {"fitted": True}) is slope and in_frames(slope, None) is slope
 
 
 def test_frames_given_leave_the_logs_and_fit_refuses_logs_that_give_them() -> None:

@@ -24,6 +24,7 @@ on where the mass sits.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -92,6 +93,7 @@ def name_by_balance(d: Diagnosis) -> None:
     fr = d.frames  # fitted frames (:mod:`.frames`): their turns' uncertainty joins the tilt's
     sd = tuple(fr["turn_sd_deg"]) if fr and fr.get("fitted") else ()
     reading, runs = read_balance(logs, d.base, tolerance, src, sd)
+    reading = in_frames(reading, fr)
     windows = [s for s in d.chosen if NAME in [c.name for c in s.fit.candidates]]
     alone = [s for s in windows if len(s.fit.candidates) == 1]
     wlo = alone[0].fit.physical()[NAME]["deg"][1] if alone else None
@@ -114,6 +116,17 @@ def name_by_balance(d: Diagnosis) -> None:
     rec.update(named=True, held_gain=named.gain)
     d.chosen.append(named)
     d.say(f"{NAME}: named by {named.test}")
+
+
+def in_frames(
+    reading: BalanceReading | None, frames: dict[str, Any] | None
+) -> BalanceReading | None:
+    """``reading``, marked :attr:`~BalanceReading.frames_unread` where the frames were to be
+    fitted and were not (``frames``: :attr:`Diagnosis.frames`): its heading is then in no
+    one frame."""
+    if reading is None or not frames or frames.get("fitted"):
+        return reading
+    return replace(reading, frames_unread=True)
 
 
 def source(opts: Options, effort: bool) -> tuple[str, float, float] | None:
@@ -256,11 +269,17 @@ def test_text(r: BalanceReading, allow: float) -> str:
         if r.source == "effort"
         else "the driven wheels' slip against the free wheels', forwards against backwards,"
     )
+    toward = (
+        f"[{hlo:.0f}°, {hhi:.0f}°]"
+        if hhi - hlo < 360.0
+        else "(any way: the frames were not fitted)"
+        if r.frames_unread
+        else "(its interval the whole circle)"
+    )
     return (
         f"balance: {what} over {r.runs} steady straight runs reads the ground"
-        f" rising {r.tilt:.2f}° [{lo:.2f}, {hi:.2f}] toward {r.heading:.0f}° [{hlo:.0f}°,"
-        f" {hhi:.0f}°], beyond the"
-        f" {allow:g}° clean builds read"
+        f" rising {r.tilt:.2f}° [{lo:.2f}, {hi:.2f}] toward {r.heading:.0f}° {toward}, beyond"
+        f" the {allow:g}° clean builds read"
     )
 
 
