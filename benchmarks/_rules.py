@@ -61,8 +61,9 @@ def rotor_test_line(rows: list[dict[str, Any]]) -> str:
     withdrawn = [r for r in stored if any(r["rotor_withdrawn"])]
     kept = [r for r in stored if "torque_limit" in r["named"]]
     partner = [r for r in withdrawn if any((w or {}).get("kept") for w in r["rotor_withdrawn"])]
-    partner_right = sum(
-        any((w or {}).get("kept") in (r.get("truth") or {}) for w in r["rotor_withdrawn"])
+    partner_right = sum(  # a clean build's truth is not a dict of effects
+        isinstance(r.get("truth"), dict)
+        and any((w or {}).get("kept") in r["truth"] for w in r["rotor_withdrawn"])
         for r in partner
     )
     return (
