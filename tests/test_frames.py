@@ -249,10 +249,16 @@ def test_frames_are_not_fitted_where_turning_them_explains_little() -> None:
     slope, _ = read_balance(_drives(1.5, 60.0, False), CFG, 0.2, "slip")
     assert slope is not None and slope.heading_interval()[1] - slope.heading_interval()[0] < 360
     unread = in_frames(slope, d.frames)
-    assert unread is not None and unread.frames_unread and unread.tilt == slope.tilt
+    assert unread is not None and unread.frames_placed == "unread" and unread.tilt == slope.tilt
     assert unread.heading_interval()[1] - unread.heading_interval()[0] == pytest.approx(360.0)
     assert "the frames were not fitted" in naming_text(unread, CLEAN_SLIP_TILT)
-    assert in_frames(slope, {"fitted": True}) is slope and in_frames(slope, None) is slope
+    fitted = in_frames(slope, {"fitted": True})  # fitted frames: the heading is not known either
+    assert fitted is not None and fitted.frames_placed == "fitted"
+    assert fitted.heading_interval()[1] - fitted.heading_interval()[0] == pytest.approx(360.0)
+    assert "in fitted frames the heading is not known" in naming_text(fitted, CLEAN_SLIP_TILT)
+    assert in_frames(slope, None) is slope
+    rec = record(fitted, 21, CLEAN_SLIP_TILT, None, False, "slip")[1]
+    assert "not known: the frames were fitted" in "".join(balance_lines(rec))
 
 
 def test_frames_given_leave_the_logs_and_fit_refuses_logs_that_give_them() -> None:

@@ -180,11 +180,15 @@ class BalanceReading:
     logs give their start headings or fewer than two logs have runs."""
     turned_deg: tuple[float, ...] = ()
     """Each log's best turn (degrees; the first log's 0), where :attr:`turned_f` is read."""
-    frames_unread: bool = False
-    """The drives share no frame and theirs were not fitted (``diagnose --frames fit`` under
-    its F ratio, :mod:`rover_env.calibration.diagnosis.frames`): the runs were read as
-    facing alike, so :attr:`heading` is in no one frame and its interval is the whole
-    circle. The tilt's size stands as read."""
+    frames_placed: str = "given"
+    """How the logs' frames were placed: "given" (their start headings, or every drive
+    facing alike), "fitted" or "unread" (``diagnose --frames fit``: the turns fitted, or
+    under its F ratio the drives read as facing alike;
+    :mod:`rover_env.calibration.diagnosis.frames`). In either of the last two
+    :attr:`heading` is not known and its interval is the whole circle; the tilt's size
+    stands. Why "fitted" too: on block 54000 (registered) 5 of 7 slopes named in fitted
+    frames read their heading 31-132° off (54020: the mirror of the truth, each log's runs
+    on about one line), while their sizes held."""
 
     @property
     def tilt(self) -> float:
@@ -235,7 +239,7 @@ class BalanceReading:
         half of it or the runs leave the vector open. Checked on the slopes named by spent
         blocks 53700-53900 (exploratory): 38 of 40 truths inside."""
         t, half = self.tilt, 180.0
-        if t > 0 and not self.frames_unread:
+        if t > 0 and self.frames_placed == "given":
             px, py = -self.tilt_y / t, self.tilt_x / t  # across the vector's direction
             cxy = self.corr * self.sd_x * self.sd_y
             var = (px * self.sd_x) ** 2 + (py * self.sd_y) ** 2 + 2 * px * py * cxy  # deg^2

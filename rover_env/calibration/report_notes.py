@@ -284,7 +284,12 @@ def _headed(source: str | None) -> str:
 
 
 def _across(r: dict[str, Any]) -> str:
-    """The heading's 95 % interval, where the record has one that is not the whole circle."""
+    """The heading's 95 % interval, where the record has one that is not the whole circle;
+    where the frames were fitted or left unread (``diagnose --frames fit``) that the heading
+    is not known."""
+    placed = r.get("frames_placed", "given")
+    if placed != "given":
+        return f" (not known: the frames were {'fitted' if placed == 'fitted' else 'not fitted'})"
     lo, hi = r.get("heading_interval") or (None, None)
     if lo is None or hi is None or hi - lo >= 360.0:
         return ""

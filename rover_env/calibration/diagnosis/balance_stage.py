@@ -121,12 +121,12 @@ def name_by_balance(d: Diagnosis) -> None:
 def in_frames(
     reading: BalanceReading | None, frames: dict[str, Any] | None
 ) -> BalanceReading | None:
-    """``reading``, marked :attr:`~BalanceReading.frames_unread` where the frames were to be
-    fitted and were not (``frames``: :attr:`Diagnosis.frames`): its heading is then in no
-    one frame."""
-    if reading is None or not frames or frames.get("fitted"):
+    """``reading`` with how its frames were placed (:attr:`~BalanceReading.frames_placed`;
+    ``frames``: :attr:`Diagnosis.frames`, None where they were given): fitted or left
+    unread, its heading is not known."""
+    if reading is None or not frames:
         return reading
-    return replace(reading, frames_unread=True)
+    return replace(reading, frames_placed="fitted" if frames.get("fitted") else "unread")
 
 
 def source(opts: Options, effort: bool) -> tuple[str, float, float] | None:
@@ -273,7 +273,9 @@ def test_text(r: BalanceReading, allow: float) -> str:
         f"[{hlo:.0f}°, {hhi:.0f}°]"
         if hhi - hlo < 360.0
         else "(any way: the frames were not fitted)"
-        if r.frames_unread
+        if r.frames_placed == "unread"
+        else "(any way: in fitted frames the heading is not known)"
+        if r.frames_placed == "fitted"
         else "(its interval the whole circle)"
     )
     return (
