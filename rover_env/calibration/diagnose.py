@@ -280,8 +280,8 @@ def _add_torque_flags(p: argparse.ArgumentParser) -> None:
         default=Options.frames,
         help="each log's frame: 'given' (its YAML's start_heading_deg, or all facing the same"
         " way where no log gives one) or 'fit' (the drives share no frame: each log's turn"
-        " fitted from the wheels' slip or torque on steady straight runs; a slope's heading"
-        f" is then in the first log's frame; default {Options.frames})",
+        " fitted from the wheels' slip or torque on steady straight runs; the balance then"
+        f" gives a slope's size, not its heading; default {Options.frames})",
     )
 
 

@@ -30,7 +30,7 @@ def _frames_line(result: dict[str, Any]) -> list[str]:
         return [
             f"- Frames fitted (`--frames fit`): each log's frame turned into {fr['first']}'s"
             f" by the {fr['source']} balance's steady straight runs ({each}; F {fr['f']:.1f});"
-            " a slope's heading and the balance's are in that frame."
+            " the balance gives a slope's size in them, not its heading."
             + (
                 f" No runs read the frame of {', '.join(unread)}: taken as the first's."
                 if unread

@@ -7,10 +7,12 @@ have started facing any way, and a slope then reads in as many directions as the
 logs. With ``Options.frames`` "fit" the balance's steady straight runs
 (:func:`rover_env.calibration.balance.frame_turns`) turn each log's frame into the first's
 where that fits them :data:`FIT_F` times better or more, and the logs are read on as if
-each gave that turn as its ``start_heading_deg``: the
-windows' tilted gravity, both balances and the report all use it, and a slope's heading is
-in the first log's frame. Under :data:`FIT_F` (a small slope, runs in few headings, level
-ground) the logs are read as facing the same way, as with "given".
+each gave that turn as its ``start_heading_deg``: the windows' tilted gravity, both
+balances and the report all use it. Under :data:`FIT_F` (a small slope, runs in few
+headings, level ground) the logs are read as facing the same way, as with "given". Either
+way the balance gives a slope's size and no heading
+(:attr:`rover_env.calibration.balance.BalanceReading.frames_placed`): the turns decide the
+size, not the heading (block 54000, docs/calibration/studies.md).
 """
 
 from __future__ import annotations
