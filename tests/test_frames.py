@@ -227,6 +227,9 @@ def test_frames_fitted_turn_each_log_into_the_firsts_and_read_the_slope_there() 
     heads = [lg.meta.start_heading_deg for lg in logs]
     (line,) = _frames_line({"logs": files, "start_headings": heads, "frames": d.frames})
     assert "fitted" in line and "drive_00.csv's" in line and f"F {d.frames['f']:.1f}" in line
+    assert (
+        "heading, wherever this report gives one, is in drive_00.csv's frame and not known" in line
+    )
     assert f"± {sd[1]:.0f}°" in line
 
 

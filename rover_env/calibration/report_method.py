@@ -16,7 +16,10 @@ def _frames_line(result: dict[str, Any]) -> list[str]:
     heads = result.get("start_headings") or []
     fr = result.get("frames")
     if fr and not fr.get("fitted"):
-        return [f"- Frames: not fitted ({fr['why_not']}); the drives read as facing the same way."]
+        return [
+            f"- Frames: not fitted ({fr['why_not']}); the drives read as facing the same way,"
+            " and a slope's heading, wherever this report gives one, is not known."
+        ]
     if not any(h is not None for h in heads):
         return []
     each = ", ".join(f"{Path(p).name} {h:g}°" for p, h in zip(result["logs"], heads, strict=True))
@@ -30,7 +33,8 @@ def _frames_line(result: dict[str, Any]) -> list[str]:
         return [
             f"- Frames fitted (`--frames fit`): each log's frame turned into {fr['first']}'s"
             f" by the {fr['source']} balance's steady straight runs ({each}; F {fr['f']:.1f});"
-            " the balance gives a slope's size in them, not its heading."
+            " a slope's size is read in them; its heading, wherever this report gives one,"
+            f" is in {fr['first']}'s frame and not known (turns fitted so can mirror it)."
             + (
                 f" No runs read the frame of {', '.join(unread)}: taken as the first's."
                 if unread
