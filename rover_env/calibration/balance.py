@@ -490,8 +490,8 @@ def turned_frames(
 ) -> tuple[float, tuple[float, ...]]:
     """Whether the runs read the ground turned between logs: each log's heading turned by
     its own angle (the first log's held; a 5° grid, three sweeps over the logs, then 1°
-    steps), and the F
-    ratio of what that explains over what is left, with the turns' degrees of freedom.
+    steps), and the F ratio of what that explains over what is left, with the turns'
+    degrees of freedom.
     Logs that started facing different ways without saying so (``start_heading_deg``) read
     one slope in as many directions; but runs in few headings can fit better turned too
     (:data:`~rover_env.calibration.diagnosis.balance_stage.TURNED_F`; docs/calibration/
@@ -499,12 +499,9 @@ def turned_frames(
     logs = sorted({r.log for r in rs})
     if len(logs) < 2:
         return 0.0, ()
-    w = np.array([1.0 / r.noise for r in rs]) if source == "slip" else np.ones(len(rs))
 
     def rss(turn: Array) -> float:
-        moved = [None if y is None else y + turn[i] for i, y in enumerate(yaws)]
-        resid = _solve(_headed(rs, moved), source)[3]
-        return float(np.sum((resid * w) ** 2))
+        return _misfit(rs, yaws, source, turn)
 
     turn = np.zeros(len(yaws))
     before = best = rss(turn)
@@ -527,9 +524,28 @@ def turned_frames(
     return max(f, 0.0), tuple(float(math.degrees(math.remainder(t, 2 * math.pi))) for t in turn)
 
 
-def _turned(yaws: list[Array | None], i: int, by: float) -> list[Array | None]:
-    """``yaws`` with log ``i``'s turned by ``by`` (rad)."""
-    return [None if y is None else y + (by if j == i else 0.0) for j, y in enumerate(yaws)]
+def _turned(yaws: list[Array | None], turn: Array) -> list[Array | None]:
+    """``yaws`` with each log's turned by its ``turn`` (rad)."""
+    return [None if y is None else y + turn[j] for j, y in enumerate(yaws)]
+
+
+def _misfit(rs: list[Run], yaws: list[Array | None], source: str, turn: Array) -> float:
+    """The runs' weighted residual sum of squares with each log's heading turned by its
+    ``turn`` (rad), the tilt and resistance fitted again (weights as :func:`_solve`'s)."""
+    w = np.array([1.0 / r.noise for r in rs]) if source == "slip" else np.ones(len(rs))
+    resid = _solve(_headed(rs, _turned(yaws, turn)), source)[3]
+    return float(np.sum((resid * w) ** 2))
+
+
+def _both_ways(
+    rs: list[Run], source: str, plus: list[Array | None], minus: list[Array | None]
+) -> Array:
+    """What moving the runs' headings (to ``plus`` and to ``minus``, one standard deviation
+    each way) adds to the tilt's covariance: the outer product of half the tilt's move."""
+    half = 0.5 * (
+        _solve(_headed(rs, plus), source)[0][:2] - _solve(_headed(rs, minus), source)[0][:2]
+    )
+    return np.asarray(np.outer(half, half), dtype=np.float64)
 
 
 def _headed(rs: list[Run], yaws: list[Array | None]) -> list[Run]:
@@ -602,14 +618,10 @@ def turn_sd(
     noise, at least). 180 where moving it costs nothing. Why: a reading in fitted frames is
     otherwise as sure of the slope's heading as if the frames had been given."""
     logs = sorted({r.log for r in rs})
-    w = np.array([1.0 / r.noise for r in rs]) if source == "slip" else np.ones(len(rs))
     base = np.radians(np.asarray(turns, dtype=np.float64))
 
     def rss(i: int, by: float) -> float:
-        moved = [
-            None if y is None else y + base[j] + (by if j == i else 0.0) for j, y in enumerate(yaws)
-        ]
-        return float(np.sum((_solve(_headed(rs, moved), source)[3] * w) ** 2))
+        return _misfit(rs, yaws, source, base + np.where(np.arange(len(base)) == i, by, 0.0))
 
     dof = len(rs) - 3 - max(len(logs) - 1, 0)
     r0 = rss(-1, 0.0)
@@ -646,18 +658,12 @@ def read_balance(
     # The headings' own uncertainty (logs without the pose's fixes): read again with them
     # moved along each principal direction of their fit, both ways; the tilt's moves add.
     for step in hd.steps():
-        ends = [_solve(_headed(rs, hd.yaw(sign * step)), source)[0][:2] for sign in (1, -1)]
-        half = 0.5 * (ends[0] - ends[1])
-        cov[:2, :2] += np.outer(half, half)
+        cov[:2, :2] += _both_ways(rs, source, hd.yaw(step), hd.yaw(-step))
     # Fitted frames' own uncertainty, the same way: each log's turned by its SD, both ways.
-    for i, turn in enumerate(turn_sd):
-        if turn > 0.0:
-            ends = [
-                _solve(_headed(rs, _turned(yaws, i, sign * math.radians(turn))), source)[0][:2]
-                for sign in (1, -1)
-            ]
-            half = 0.5 * (ends[0] - ends[1])
-            cov[:2, :2] += np.outer(half, half)
+    for i, sd in enumerate(np.radians(np.asarray(turn_sd, dtype=np.float64))):
+        if sd > 0.0:
+            one = np.where(np.arange(len(yaws)) == i, sd, 0.0)
+            cov[:2, :2] += _both_ways(rs, source, _turned(yaws, one), _turned(yaws, -one))
     weight = cfg.masses.total * GRAVITY
     # The tilt vector: its size from the force along it, its parts along the heading.
     size = math.degrees(math.asin(min(1.0, math.hypot(coef[0], coef[1]) / weight)))
