@@ -47,6 +47,7 @@ from scipy import stats
 from rover_env.calibration.heading import SOURCES as HEADING_SOURCES
 from rover_env.calibration.heading import Headings, has_heading, headings
 from rover_env.calibration.residuals import resolution
+from rover_env.calibration.size_profile import SizeProfile, profile
 from rover_env.config import DRIVEN_WHEELS, RoverConfig
 from rover_env.logs import DriveLog
 
@@ -189,6 +190,11 @@ class BalanceReading:
     stands. Why "fitted" too: on block 54000 (registered) 5 of 7 slopes named in fitted
     frames read their heading 31-132° off (54020: the mirror of the truth, each log's runs
     on about one line), while their sizes held."""
+    size_bounds: tuple[float, float] | None = None
+    """In fitted frames, the size's 95 % interval from its profile over the turns
+    (:func:`rover_env.calibration.size_profile.profile`; degrees, the high end ``inf``
+    where the runs bound it below only), the scale tolerance not yet added; None
+    elsewhere."""
 
     @property
     def tilt(self) -> float:
@@ -224,8 +230,15 @@ class BalanceReading:
         """95 % interval of the tilt's size: the vector's standard errors combined along its
         direction, as a fitted slope's (``Fit.physical``); from zero where level lies in the
         vector's own 95 % region (Hotelling's: its two parts' covariance, F over the runs'
-        degrees of freedom), since a size near zero is read above it more often than not."""
+        degrees of freedom), since a size near zero is read above it more often than not.
+        In fitted frames the ends are :attr:`size_bounds`' (each with the scale tolerance in
+        quadrature); from zero where level lies in the region as above."""
         t, (sx, sy) = self.tilt, self.tilt_se()
+        if self.size_bounds is not None:  # fitted frames: the profile's, the scale added
+            blo, bhi = self.size_bounds
+            pad = self.tolerance * t
+            lo = max(t - math.hypot(max(t - blo, 0.0), pad), 0.0)
+            return (0.0 if self.level_inside() else lo), t + math.hypot(max(bhi - t, 0.0), pad)
         if not (math.isfinite(sx) and math.isfinite(sy)):
             return 0.0, math.inf
         ux, uy = (self.tilt_x / t, self.tilt_y / t) if t > 0 else (1.0, 0.0)
@@ -291,6 +304,7 @@ class BalanceReading:
             lever=None if slip else self.lever,
             separated=self.separated,
             offset_slip=self.offset_slip,
+            size_bounds=None if self.size_bounds is None else list(self.size_bounds),
         )
         return {k: _finite(v) for k, v in out.items()}
 
@@ -486,12 +500,14 @@ def _solve(rs: list[Run], source: str) -> tuple[Array, Array, Array, Array, int]
 
 
 def turned_frames(
-    rs: list[Run], yaws: list[Array | None], source: str
+    rs: list[Run], yaws: list[Array | None], source: str, weight: float
 ) -> tuple[float, tuple[float, ...]]:
     """Whether the runs read the ground turned between logs: each log's heading turned by
     its own angle (the first log's held; a 5° grid, three sweeps over the logs, then 1°
-    steps), and the F ratio of what that explains over what is left, with the turns'
-    degrees of freedom.
+    steps; or the turns at the size profile's best (:func:`size_profile`) where those fit
+    better: a search log by log can stop in a mirror's valley), and the F ratio of what
+    that explains over what is left, with the turns' degrees of freedom. ``weight``:
+    ``m g`` (N).
     Logs that started facing different ways without saying so (``start_heading_deg``) read
     one slope in as many directions; but runs in few headings can fit better turned too
     (:data:`~rover_env.calibration.diagnosis.balance_stage.TURNED_F`; docs/calibration/
@@ -516,12 +532,25 @@ def turned_frames(
                 for g in (near if grid is None else grid)
             ]
             best, turn[i] = min(tries, key=lambda t: t[0])
+    beta = size_profile(rs, source, weight).angles
+    other = np.array([beta[j] - beta[logs[0]] if j in beta else 0.0 for j in range(len(yaws))])
+    if (got := rss(other)) < best:
+        best, turn = got, other
     k = len(logs) - 1
     dof = len(rs) - 3 - k
     if dof <= 0 or best <= 0.0:
         return 0.0, ()
     f = (before - best) / k / (best / dof)
     return max(f, 0.0), tuple(float(math.degrees(math.remainder(t, 2 * math.pi))) for t in turn)
+
+
+def size_profile(rs: list[Run], source: str, weight: float) -> SizeProfile:
+    """The tilt's size profiled over each log's free turn (:mod:`.size_profile`), the runs
+    weighed as :func:`_solve` weighs them. ``weight``: ``m g`` (N)."""
+    X = np.array([[r.cos_yaw, r.sin_yaw, r.direction] for r in rs])
+    w = np.array([1.0 / r.noise for r in rs]) if source == "slip" else np.ones(len(rs))
+    y = np.array([r.force for r in rs])
+    return profile(X, y, w, np.array([r.log for r in rs]), weight, source == "slip")
 
 
 def _turned(yaws: list[Array | None], turn: Array) -> list[Array | None]:
@@ -603,7 +632,7 @@ def frame_turns(logs: list[DriveLog], cfg: RoverConfig, source: str) -> Turns | 
     _, yaws, rs = _read_runs(logs, cfg, source)
     if len(rs) < MIN_RUNS:
         return None
-    f, turns = turned_frames(rs, yaws, source)
+    f, turns = turned_frames(rs, yaws, source, cfg.masses.total * GRAVITY)
     deg = turns or (0.0,) * len(logs)
     counts = tuple(sum(r.log == i for r in rs) for i in range(len(logs)))
     return Turns(f, deg, turn_sd(rs, yaws, source, deg), counts)
@@ -679,7 +708,9 @@ def read_balance(
     # Logs that give no start heading are read as facing alike: how much turning each frame
     # would explain tells a report that they did not (:func:`turned_frames`).
     told = any(log.meta.start_heading_deg is not None for log in logs)
-    tf, td = (0.0, ()) if told else turned_frames(rs, yaws, source)
+    tf, td = (0.0, ()) if told else turned_frames(rs, yaws, source, weight)
+    # Fitted frames: the size's interval from its profile over the turns.
+    prof = size_profile(rs, source, weight) if len(turn_sd) else None
     return (
         BalanceReading(
             runs=len(rs),
@@ -701,6 +732,7 @@ def read_balance(
             heading_from=", ".join(h for h in HEADING_SOURCES if h in used),
             turned_f=tf,
             turned_deg=td,
+            size_bounds=None if prof is None else (prof.lo, prof.hi),
         ),
         rs,
     )

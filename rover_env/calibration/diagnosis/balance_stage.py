@@ -23,6 +23,7 @@ on where the mass sits.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 from typing import Any
@@ -181,7 +182,7 @@ def record(
     rec["action"] = act
     if act in WHY_NOT:
         rec["why_not"] = WHY_NOT[act].format(allow=allow, wide=wide_at(allow, src))
-    if act in ("unseparated", "wide"):  # the drive that decides, for drive-plan and the bench
+    if act in ("unseparated", "wide", "open"):  # the drive that decides, for drive-plan, bench
         rec.update(plan=PLAN, seed=PLAN_SEED, duration=PLAN_DURATION)
     return act, rec
 
@@ -204,6 +205,9 @@ WHY_NOT = {
     " reaches {wide:g}° too (the runs read the slope across their headings poorly): drive"
     " the same line forwards and backwards, pivot long, and drive the crossing line",
     "withdraw": "the tilt's interval, less the {allow:g}° clean builds read, reaches level",
+    "open": "in fitted frames the runs bound the tilt below and not above (each log's runs"
+    " along about one line read only the tilt's part along it): drive the same line"
+    " forwards and backwards, pivot long, and drive the crossing line",
     "inside": "a slope is named with another effect; the reading is reported",
     "soil": "loose soil is named, and the slip balance assumes hard ground (a tire's slip"
     " stiffness; on soil the free wheels bulldoze differently forwards and backwards): the"
@@ -224,15 +228,16 @@ def action(
     ``inside``: named with another effect): "name" (the interval, less ``allow``, stays
     above level: the balance's slope replaces theirs), "inside" (a slope named in a pair:
     the reading is reported, either way), "withdraw" (it reaches level, and theirs lies
-    above its high end), "level", or "unseparated" (the runs do not tell a tilt from a
-    resistance: nothing either way)."""
+    above its high end), "level", "unseparated" (the runs do not tell a tilt from a
+    resistance: nothing either way) or "open" (above level, the interval open above: in
+    fitted frames the runs bound the size below only; nothing either way)."""
     lo, hi = tilt
     if not separated:
         return "unseparated"
     if inside:
         return "inside"
     if lo - allow > 0.0:
-        return "name"
+        return "name" if math.isfinite(hi) else "open"
     if windows_low is not None and windows_low > hi:
         return "withdraw"
     return "level"
@@ -240,9 +245,19 @@ def action(
 
 def balance_fit(cand: Any, r: BalanceReading, allow: float, seconds: float) -> Fit:
     """The slope as the balance reads it: the tilt vector with its standard errors (the
-    scale's tolerance folded in), and the clean builds' tilt as its allowance."""
+    scale's tolerance folded in), and the clean builds' tilt as its allowance. In fitted
+    frames the size's interval is the profile's (:meth:`BalanceReading.tilt_interval`): the
+    errors widened until the low end reaches it, the high end's reach set to it."""
     x = np.array([r.tilt_x, r.tilt_y])
     se = np.array(r.tilt_se())
+    reach = 0.0
+    if r.size_bounds is not None and r.tilt > 0.0:
+        lo, hi = r.tilt_interval()
+        g = x / r.tilt
+        along = math.sqrt(float(np.sum((g * se) ** 2)))
+        need = (r.tilt - lo) / Z
+        se = se * (need / along) if along > 0.0 and need > along else se
+        reach = hi - r.tilt
     fit = Fit(
         candidates=[cand],
         x=x,
@@ -257,6 +272,8 @@ def balance_fit(cand: Any, r: BalanceReading, allow: float, seconds: float) -> F
         method="balance",
     )
     fit.allowance = {NAME: (allow, 0.0)}  # below, above: clean builds read up to allow high
+    if reach > 0.0:
+        fit.reach = {NAME: reach}
     return fit
 
 
