@@ -22,7 +22,8 @@ from rover_env.calibration.balance import (
     size_profile,
 )
 from rover_env.calibration.candidates import catalogue
-from rover_env.calibration.diagnosis.balance_stage import action, balance_fit, record
+from rover_env.calibration.diagnosis.balance_stage import action, balance_fit, in_frames, record
+from rover_env.calibration.diagnosis.judge import fmt_phys
 from rover_env.calibration.size_profile import profile
 from rover_env.config import RoverConfig
 from rover_env.logs import DriveLog
@@ -136,14 +137,21 @@ def test_the_named_fit_carries_the_profiles_interval() -> None:
     logs[1] = bare(rover_log(1.2, -140.0, 0.02, seed=7, slip_offset=0.01))  # it crosses
     placed, sd = _in_fitted_frames(logs)
     r, _ = read_balance(placed, CFG, 0.2, "slip", sd)
+    r = in_frames(r, {"fitted": True})
     assert r is not None and r.size_bounds is not None
     lo, hi = r.tilt_interval()
     assert lo <= 1.2 <= hi and math.isfinite(hi)
     assert action((lo, hi), CLEAN_SLIP_TILT, None, False) == "name"
-    v, a, b = balance_fit(catalogue(["slope"])[0], r, CLEAN_SLIP_TILT, 0.0).physical()["slope"]["deg"]
+    fit = balance_fit(catalogue(["slope"])[0], r, CLEAN_SLIP_TILT, 0.0)
+    v, a, b = fit.physical()["slope"]["deg"]
     assert v == pytest.approx(r.tilt)
     assert a == pytest.approx(max(lo - CLEAN_SLIP_TILT, 0.0))
     assert hi - 1e-9 <= b <= max(hi, 2.0 * r.tilt - lo) + 1e-9
+    # Its heading is in the first log's frame and not known; the record and text say so.
+    assert not fit.heading_known and "heading_deg=" in fmt_phys(fit)
+    assert "(not known)" in fmt_phys(fit)
+    given = dataclasses.replace(r, frames_placed="given")
+    assert balance_fit(catalogue(["slope"])[0], given, CLEAN_SLIP_TILT, 0.0).heading_known
 
 
 @pytest.mark.parametrize("seed", range(4))

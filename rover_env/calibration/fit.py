@@ -106,6 +106,10 @@ class Fit:
     """Effect -> how far beyond its value, away from "off", the truth may sit: the floor of
     the reported interval's far end (:func:`~rover_env.calibration.form_allowance.reach_floor`;
     named effects only)."""
+    heading_known: bool = True
+    """A slope's heading: False where the balance read it in frames fitted or left unread
+    (``diagnose --frames fit``): the heading is then in the first log's frame, and which
+    way the ground rises there is not known (block 54000)."""
 
     @property
     def name(self) -> str:

@@ -27,7 +27,11 @@ def phys_text(s: Scored) -> str:
         for k, (v, lo, hi) in params.items():
             side = sides.get(eff, {}).get(k, "")
             if k == "heading_deg":
-                out.append(f"heading {v:.0f}°")
+                out.append(
+                    f"heading {v:.0f}°"
+                    if s.fit.heading_known
+                    else f"heading not known ({v:.0f}° in the first log's frame, frames fitted)"
+                )
             elif side == "upper":
                 out.append(f"{eff}.{k} < {hi:.3g} (95 %, one-sided; fitted {v:.3g})")
             elif side == "lower":

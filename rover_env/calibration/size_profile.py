@@ -100,9 +100,7 @@ def _at(
     return float(np.sum(w2 * res**2)), r, beta
 
 
-def profile(
-    X: Array, y: Array, w: Array, logs: Array, weight: float, floor: bool
-) -> SizeProfile:
+def profile(X: Array, y: Array, w: Array, logs: Array, weight: float, floor: bool) -> SizeProfile:
     """The size's profile over runs ``X`` (per run: cos and sin of its heading in its log's
     frame, its direction), ``y`` (the traction, N), weights ``w`` (1 over each run's known
     noise, or ones), ``logs`` (each run's log), ``weight`` (``m g``, N). ``floor``: the

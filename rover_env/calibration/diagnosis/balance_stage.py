@@ -274,6 +274,7 @@ def balance_fit(cand: Any, r: BalanceReading, allow: float, seconds: float) -> F
     fit.allowance = {NAME: (allow, 0.0)}  # below, above: clean builds read up to allow high
     if reach > 0.0:
         fit.reach = {NAME: reach}
+    fit.heading_known = r.frames_placed == "given"
     return fit
 
 

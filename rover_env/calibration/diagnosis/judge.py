@@ -472,7 +472,7 @@ def fmt_phys(f: Fit, only: set[str] | None = None) -> str:
             continue
         for k, (v, lo, hi) in params.items():
             if k == "heading_deg":
-                parts.append(f"{k}={v:.0f}")
+                parts.append(f"{k}={v:.0f}" + ("" if f.heading_known else " (not known)"))
             else:
                 parts.append(interval_text(k, v, lo, hi, sides.get(eff, {}).get(k, "")))
     parts += [
@@ -501,6 +501,7 @@ def fit_dict(s: Scored) -> dict[str, Any]:
         "sides": s.fit.sides(),
         "forms": {c.name: c.form for c in s.fit.candidates if c.form},
         "interval_method": s.fit.method,
+        "heading_known": s.fit.heading_known,
         "signal_groups": s.fit.groups,
         "between_groups_sd": s.fit.between,
         "form_mismatch": form_mismatch(s.fit),
