@@ -192,6 +192,7 @@ def fits(final: dict[str, Any], truth: Any) -> dict[str, dict[str, Any]]:
                     if name == "slope" and "heading_deg" in f["params"][name]:
                         row["heading"] = list(f["params"][name]["heading_deg"])
                         row["truth_heading"] = params.get("heading_deg", 0.0)
+                        row["heading_known"] = f.get("heading_known", True)
         out[name] = row
     return out
 
