@@ -110,7 +110,7 @@ def test_fitted_frames_on_single_lines_leave_the_size_open_and_name_nothing() ->
     drive; with the frames given the same runs decide the size (narrow, named)."""
     logs = _single_line_drives(1.5, 60.0)
     placed, sd = _in_fitted_frames(logs)
-    r, runs = read_balance(placed, CFG, 0.2, "slip", sd)
+    r, runs = read_balance(placed, CFG, 0.2, "slip", sd, free=True)
     assert r is not None and r.size_bounds is not None
     lo, hi = r.tilt_interval()
     assert lo <= 1.5 and math.isinf(hi) and lo > CLEAN_SLIP_TILT
@@ -136,7 +136,7 @@ def test_the_named_fit_carries_the_profiles_interval() -> None:
     logs = _single_line_drives(1.2, -40.0)
     logs[1] = bare(rover_log(1.2, -140.0, 0.02, seed=7, slip_offset=0.01))  # it crosses
     placed, sd = _in_fitted_frames(logs)
-    r, _ = read_balance(placed, CFG, 0.2, "slip", sd)
+    r, _ = read_balance(placed, CFG, 0.2, "slip", sd, free=True)
     r = in_frames(r, {"fitted": True})
     assert r is not None and r.size_bounds is not None
     lo, hi = r.tilt_interval()
@@ -170,3 +170,20 @@ def test_the_turns_found_fit_at_least_as_well_as_the_profiles(seed: int) -> None
     _, yaws, rs = _read_runs(logs, CFG, "slip")
     best = size_profile(rs, "slip", WEIGHT).rss
     assert _misfit(rs, yaws, "slip", np.radians(got.deg)) <= best * (1.0 + 1e-3) + 1e-9
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_frames_left_unread_read_the_size_free_of_them(seed: int) -> None:
+    """Drives started facing 0, 100 and -150° without saying so, read in one frame: taken
+    alike the runs read a mixture; read free of their frames (``--frames fit`` under its F
+    ratio) the size's interval holds the truth."""
+    logs = [
+        bare(rover_log(1.2, 60.0 - psi, 0.02, seed=10 * seed + s, slip_offset=0.01))
+        for s, psi in enumerate((0.0, 100.0, -150.0))
+    ]
+    alike, _ = read_balance(logs, CFG, 0.2, "slip")
+    free, _ = read_balance(logs, CFG, 0.2, "slip", free=True)
+    assert alike is not None and free is not None
+    lo, hi = free.tilt_interval()
+    assert lo <= 1.2 <= hi < 2.0 and free.tilt == pytest.approx(1.2, abs=0.2)
+    assert abs(alike.tilt - 1.2) > 0.3  # the mixture

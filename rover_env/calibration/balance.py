@@ -191,7 +191,8 @@ class BalanceReading:
     frames read their heading 31-132° off (54020: the mirror of the truth, each log's runs
     on about one line), while their sizes held."""
     size_bounds: tuple[float, float] | None = None
-    """In fitted frames, the size's 95 % interval from its profile over the turns
+    """In frames that share nothing (``diagnose --frames fit``, fitted or not), the size's
+    95 % interval from its profile over the turns
     (:func:`rover_env.calibration.size_profile.profile`; degrees, the high end ``inf``
     where the runs bound it below only), the scale tolerance not yet added; None
     elsewhere."""
@@ -231,14 +232,14 @@ class BalanceReading:
         direction, as a fitted slope's (``Fit.physical``); from zero where level lies in the
         vector's own 95 % region (Hotelling's: its two parts' covariance, F over the runs'
         degrees of freedom), since a size near zero is read above it more often than not.
-        In fitted frames the ends are :attr:`size_bounds`' (each with the scale tolerance in
-        quadrature); from zero where level lies in the region as above."""
+        In frames that share nothing the ends are :attr:`size_bounds`' (each with the scale
+        tolerance in quadrature; from zero where the profile does not reject level)."""
         t, (sx, sy) = self.tilt, self.tilt_se()
         if self.size_bounds is not None:  # fitted frames: the profile's, the scale added
             blo, bhi = self.size_bounds
             pad = self.tolerance * t
             lo = max(t - math.hypot(max(t - blo, 0.0), pad), 0.0)
-            return (0.0 if self.level_inside() else lo), t + math.hypot(max(bhi - t, 0.0), pad)
+            return lo, t + math.hypot(max(bhi - t, 0.0), pad)
         if not (math.isfinite(sx) and math.isfinite(sy)):
             return 0.0, math.inf
         ux, uy = (self.tilt_x / t, self.tilt_y / t) if t > 0 else (1.0, 0.0)
@@ -672,12 +673,16 @@ def read_balance(
     tolerance: float,
     source: str = "effort",
     turn_sd: tuple[float, ...] = (),
+    free: bool = False,
 ) -> tuple[BalanceReading | None, list[Run]]:
     """The force balance over ``logs`` (None where they lack the torque (for ``source``
     "effort"), the pose's yaw or :data:`MIN_RUNS` steady straight runs), and the runs it
     used. ``tolerance``: the scale of the torque (or the tires' slip stiffness) as a
     fraction. ``turn_sd``: per log, the standard deviation (degrees) of a start heading that
-    was fitted, not given (:class:`Turns`); the tilt's covariance carries it."""
+    was fitted, not given (:class:`Turns`); the tilt's covariance carries it. ``free``: the
+    logs share no frame (``diagnose --frames fit``, whether or not their turns were fitted):
+    the tilt's size and its interval are its profile's over each log's free turn
+    (:func:`size_profile`), the vector's direction kept."""
     hd, yaws, rs = _read_runs(logs, cfg, source)
     arm, cs = lever(cfg), stiffness(cfg)
     if len(rs) < MIN_RUNS:
@@ -709,8 +714,9 @@ def read_balance(
     # would explain tells a report that they did not (:func:`turned_frames`).
     told = any(log.meta.start_heading_deg is not None for log in logs)
     tf, td = (0.0, ()) if told else turned_frames(rs, yaws, source, weight)
-    # Fitted frames: the size's interval from its profile over the turns.
-    prof = size_profile(rs, source, weight) if len(turn_sd) else None
+    # Frames that share nothing: the size and its interval from its profile over the turns.
+    prof = size_profile(rs, source, weight) if free else None
+    size = size if prof is None else prof.deg
     return (
         BalanceReading(
             runs=len(rs),

@@ -107,7 +107,10 @@ def profile(X: Array, y: Array, w: Array, logs: Array, weight: float, floor: boo
     scatter counts only where it is larger than the known noise (the slip's runs, as
     :func:`rover_env.calibration.balance._solve`). Interval: sizes whose best misfit is
     within ``s^2 F(1, dof)`` of the best, ``dof`` the runs less the resistance, the size
-    and each log's angle; (0, inf) where that leaves none."""
+    and each log's angle; (0, inf) where that leaves none. From zero where level is not
+    rejected with the size and every log's angle counted (``s^2 (1 + k) F(1 + k, dof)``,
+    ``k`` the logs: under level the angles mean nothing, and a test of one degree of
+    freedom would find a tilt in noise that each log's free angle points its way)."""
     w2 = w**2
     out, res, r = [], [], 0.0
     for deg in SIZES:  # each size starts from the last one's resistance
@@ -125,9 +128,11 @@ def profile(X: Array, y: Array, w: Array, logs: Array, weight: float, floor: boo
     s2 = max(s2, 1.0) if floor else s2
     inside = SIZES[P <= P[best] + s2 * float(stats.f.ppf(0.95, 1, dof))]
     hi = float(inside.max())
+    k = 1 + len(np.unique(logs))
+    level = P[0] <= P[best] + s2 * k * float(stats.f.ppf(0.95, k, dof))
     return SizeProfile(
         deg=float(SIZES[best]),
-        lo=float(inside.min()),
+        lo=0.0 if level else float(inside.min()),
         hi=math.inf if hi >= CAP_DEG else hi,
         rss=float(P[best]),
         angles=beta,

@@ -72,6 +72,8 @@ print(
     f"H5 (at most {allowed} with a gap): clean {len(clean)}: a gap reported {gapped}:"
     f" {'passed' if gapped <= allowed else 'failed'}"
 )
+
+
 def frames(r, which):
     """The frames record of the first (0) or final (1) diagnosis, or {}."""
     f = r.get("frames_fit") or [None, None]
@@ -90,9 +92,7 @@ def holds(b, t):
     return (lo is None or lo <= t) and (hi is None or t <= hi)
 
 
-read_fitted = [
-    r for r in slopes if frames(r, 1).get("fitted") and balance(r, 1).get("read")
-]
+read_fitted = [r for r in slopes if frames(r, 1).get("fitted") and balance(r, 1).get("read")]
 h8 = [holds(balance(r, 1), deg(r)) for r in read_fitted]
 v8 = (
     "not decided (fewer than 5)"

@@ -93,7 +93,7 @@ def name_by_balance(d: Diagnosis) -> None:
     t0 = time.perf_counter()
     fr = d.frames  # fitted frames (:mod:`.frames`): their turns' uncertainty joins the tilt's
     sd = tuple(fr["turn_sd_deg"]) if fr and fr.get("fitted") else ()
-    reading, runs = read_balance(logs, d.base, tolerance, src, sd)
+    reading, runs = read_balance(logs, d.base, tolerance, src, sd, free=fr is not None)
     reading = in_frames(reading, fr)
     windows = [s for s in d.chosen if NAME in [c.name for c in s.fit.candidates]]
     alone = [s for s in windows if len(s.fit.candidates) == 1]
@@ -246,8 +246,9 @@ def action(
 def balance_fit(cand: Any, r: BalanceReading, allow: float, seconds: float) -> Fit:
     """The slope as the balance reads it: the tilt vector with its standard errors (the
     scale's tolerance folded in), and the clean builds' tilt as its allowance. In fitted
-    frames the size's interval is the profile's (:meth:`BalanceReading.tilt_interval`): the
-    errors widened until the low end reaches it, the high end's reach set to it."""
+    frames that share nothing the size's interval is the profile's
+    (:meth:`BalanceReading.tilt_interval`): the errors widened until the low end reaches it,
+    the high end's reach set to it."""
     x = np.array([r.tilt_x, r.tilt_y])
     se = np.array(r.tilt_se())
     reach = 0.0

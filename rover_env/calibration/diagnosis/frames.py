@@ -12,7 +12,9 @@ balances and the report all use it. Under :data:`FIT_F` (a small slope, runs in 
 headings, level ground) the logs are read as facing the same way, as with "given". Either
 way the balance gives a slope's size and no heading
 (:attr:`rover_env.calibration.balance.BalanceReading.frames_placed`): the turns decide the
-size, not the heading (block 54000, docs/calibration/studies.md).
+size, not the heading (block 54000, docs/calibration/studies.md); and the size and its
+interval are its profile's over each log's free turn
+(:mod:`rover_env.calibration.size_profile`), which needs no turn decided.
 """
 
 from __future__ import annotations
