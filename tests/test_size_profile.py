@@ -24,6 +24,7 @@ from rover_env.calibration.balance import (
 from rover_env.calibration.candidates import catalogue
 from rover_env.calibration.diagnosis.balance_stage import action, balance_fit, in_frames, record
 from rover_env.calibration.diagnosis.judge import fmt_phys
+from rover_env.calibration.report_notes import balance_lines
 from rover_env.calibration.size_profile import profile
 from rover_env.config import RoverConfig
 from rover_env.logs import DriveLog
@@ -111,12 +112,15 @@ def test_fitted_frames_on_single_lines_leave_the_size_open_and_name_nothing() ->
     logs = _single_line_drives(1.5, 60.0)
     placed, sd = _in_fitted_frames(logs)
     r, runs = read_balance(placed, CFG, 0.2, "slip", sd, free=True)
+    r = in_frames(r, {"fitted": True})
     assert r is not None and r.size_bounds is not None
     lo, hi = r.tilt_interval()
     assert lo <= 1.5 and math.isinf(hi) and lo > CLEAN_SLIP_TILT
     act, rec = record(r, len(runs), CLEAN_SLIP_TILT, None, False, "slip")
     assert act == "open" and rec["plan"] == "reversals" and "crossing line" in rec["why_not"]
     assert rec["size_bounds"][1] is None  # JSON: no infinity
+    text = "".join(balance_lines(rec))
+    assert "unbounded]" in text and "read free of the frames" in text and "reversals" in text
     told = [
         dataclasses.replace(lg, meta=dataclasses.replace(lg.meta, start_heading_deg=psi))
         for lg, psi in zip(logs, (0.0, 100.0, -150.0), strict=True)

@@ -292,8 +292,17 @@ def _across(r: dict[str, Any]) -> str:
     where the frames were fitted or left unread (``diagnose --frames fit``) that the heading
     is not known."""
     placed = r.get("frames_placed", "given")
+    free = (
+        "; its size read free of the frames, profiled over each log's turn"
+        if r.get("size_bounds") is not None
+        else ""
+    )
     if placed != "given":
-        return f" (not known: the frames were {'fitted' if placed == 'fitted' else 'not fitted'})"
+        return (
+            f" (not known: the frames were {'fitted' if placed == 'fitted' else 'not fitted'}"
+            + free
+            + ")"
+        )
     lo, hi = r.get("heading_interval") or (None, None)
     if lo is None or hi is None or hi - lo >= 360.0:
         return ""
