@@ -235,7 +235,7 @@ class BalanceReading:
         In frames that share nothing the ends are :attr:`size_bounds`' (each with the scale
         tolerance in quadrature; from zero where the profile does not reject level)."""
         t, (sx, sy) = self.tilt, self.tilt_se()
-        if self.size_bounds is not None:  # fitted frames: the profile's, the scale added
+        if self.size_bounds is not None:  # frames that share nothing: the profile's
             blo, bhi = self.size_bounds
             pad = self.tolerance * t
             lo = max(t - math.hypot(max(t - blo, 0.0), pad), 0.0)

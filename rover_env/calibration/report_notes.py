@@ -30,7 +30,8 @@ def phys_text(s: Scored) -> str:
                 out.append(
                     f"heading {v:.0f}°"
                     if s.fit.heading_known
-                    else f"heading not known ({v:.0f}° in the first log's frame, frames fitted)"
+                    else f"heading not known ({v:.0f}° in the first log's frame; the drives"
+                    " share no frame)"
                 )
             elif side == "upper":
                 out.append(f"{eff}.{k} < {hi:.3g} (95 %, one-sided; fitted {v:.3g})")

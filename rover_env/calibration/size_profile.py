@@ -7,7 +7,7 @@ only the tilt's part along that line, and two turns (a mirror pair) read it alik
 every log is so, the size is bounded below and barely above. The curvature about one fit
 (each turn moved alone) cannot see that valley, and a turn search log by log can stop in
 it: block 54000's 54008 (0.65°, registered, spent) read 3.44° [2.21, 4.68] in turns 129°
-and 160° off, where this profile's best is 0.68° [0.58, 3.64] (exploratory, after the
+and 160° off, where the balance now reads 0.68° [0.51, 3.66] (exploratory, after the
 look). The profile's interval is the likelihood ratio's: every size whose best misfit stays
 within an F quantile of the best.
 

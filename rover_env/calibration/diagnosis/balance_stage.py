@@ -205,9 +205,9 @@ WHY_NOT = {
     " reaches {wide:g}° too (the runs read the slope across their headings poorly): drive"
     " the same line forwards and backwards, pivot long, and drive the crossing line",
     "withdraw": "the tilt's interval, less the {allow:g}° clean builds read, reaches level",
-    "open": "in fitted frames the runs bound the tilt below and not above (each log's runs"
-    " along about one line read only the tilt's part along it): drive the same line"
-    " forwards and backwards, pivot long, and drive the crossing line",
+    "open": "in frames that share nothing the runs bound the tilt below and not above (each"
+    " log's runs along about one line read only the tilt's part along it): drive the same"
+    " line forwards and backwards, pivot long, and drive the crossing line",
     "inside": "a slope is named with another effect; the reading is reported",
     "soil": "loose soil is named, and the slip balance assumes hard ground (a tire's slip"
     " stiffness; on soil the free wheels bulldoze differently forwards and backwards): the"
@@ -230,7 +230,7 @@ def action(
     the reading is reported, either way), "withdraw" (it reaches level, and theirs lies
     above its high end), "level", "unseparated" (the runs do not tell a tilt from a
     resistance: nothing either way) or "open" (above level, the interval open above: in
-    fitted frames the runs bound the size below only; nothing either way)."""
+    frames that share nothing the runs bound the size below only; nothing either way)."""
     lo, hi = tilt
     if not separated:
         return "unseparated"
@@ -245,8 +245,8 @@ def action(
 
 def balance_fit(cand: Any, r: BalanceReading, allow: float, seconds: float) -> Fit:
     """The slope as the balance reads it: the tilt vector with its standard errors (the
-    scale's tolerance folded in), and the clean builds' tilt as its allowance. In fitted
-    frames that share nothing the size's interval is the profile's
+    scale's tolerance folded in), and the clean builds' tilt as its allowance. In frames
+    that share nothing the size's interval is the profile's
     (:meth:`BalanceReading.tilt_interval`): the errors widened until the low end reaches it,
     the high end's reach set to it."""
     x = np.array([r.tilt_x, r.tilt_y])
