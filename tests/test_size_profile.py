@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -24,6 +25,7 @@ from rover_env.calibration.balance import (
 from rover_env.calibration.candidates import catalogue
 from rover_env.calibration.diagnosis.balance_stage import action, balance_fit, in_frames, record
 from rover_env.calibration.diagnosis.judge import fmt_phys
+from rover_env.calibration.diagnosis.write import UNKNOWN_HEADING, rover_header
 from rover_env.calibration.report_notes import balance_lines
 from rover_env.calibration.size_profile import profile
 from rover_env.config import RoverConfig
@@ -155,7 +157,11 @@ def test_the_named_fit_carries_the_profiles_interval() -> None:
     assert not fit.heading_known and "heading_deg=" in fmt_phys(fit)
     assert "(not known)" in fmt_phys(fit)
     given = dataclasses.replace(r, frames_placed="given")
-    assert balance_fit(catalogue(["slope"])[0], given, CLEAN_SLIP_TILT, 0.0).heading_known
+    plain = balance_fit(catalogue(["slope"])[0], given, CLEAN_SLIP_TILT, 0.0)
+    assert plain.heading_known
+    # rover.yaml's comment says so where a named slope's heading is not known, only there.
+    assert UNKNOWN_HEADING in rover_header([SimpleNamespace(fit=fit)])  # type: ignore[list-item]
+    assert UNKNOWN_HEADING not in rover_header([SimpleNamespace(fit=plain)])  # type: ignore[list-item]
 
 
 @pytest.mark.parametrize("seed", range(4))

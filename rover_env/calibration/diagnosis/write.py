@@ -22,7 +22,7 @@ from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import Extensions, merge
 from rover_env.calibration.diagnosis.form import with_joint_zero
 from rover_env.calibration.diagnosis.judge import fit_dict, gap, strict_json, unexplained
-from rover_env.calibration.diagnosis.state import Diagnosis
+from rover_env.calibration.diagnosis.state import Diagnosis, Scored
 from rover_env.calibration.replay import SIGNALS, WindowResult, replay_config
 from rover_env.calibration.report import write_report
 from rover_env.config import JOINTS, RoverConfig, load_rover, to_dict
@@ -38,8 +38,7 @@ def write(d: Diagnosis) -> None:
         final_cfg = with_zeros(final_cfg, d.ev.zero_shift(final_ext))
     cfg_path = out / "rover.yaml"
     cfg_path.write_text(
-        "# Written by rover-env diagnose: the logs' rover plus the effects it found.\n"
-        + yaml.safe_dump(to_dict(final_cfg), sort_keys=False)
+        rover_header(d.chosen) + yaml.safe_dump(to_dict(final_cfg), sort_keys=False)
     )
     load_rover(cfg_path)  # must load as is
     held_log_objs = [d.logs[i] for i in sorted({w.log_index for w in d.held_w})]
@@ -59,6 +58,21 @@ def write(d: Diagnosis) -> None:
         f" {r['main_signal']} {r['main_rms_before']:.4g} -> {r['main_rms_after']:.4g};"
         f" wrote {out}/report.md, rover.yaml ({r['seconds']:.0f}s)"
     )
+
+
+UNKNOWN_HEADING = (
+    "# slope.heading_deg is in the first log's frame and not known: the drives share no frame\n"
+    "# (diagnose --frames fit), and a slope's runs fit mirrored turns alike.\n"
+)
+
+
+def rover_header(chosen: list[Scored]) -> str:
+    """``rover.yaml``'s comment: who wrote it, and where a named slope's heading is not known
+    (:attr:`~rover_env.calibration.fit.Fit.heading_known`) that its ``heading_deg`` only
+    gives the model a direction."""
+    head = "# Written by rover-env diagnose: the logs' rover plus the effects it found.\n"
+    blind = any(not s.fit.heading_known for s in chosen)
+    return head + (UNKNOWN_HEADING if blind else "")
 
 
 def final_extensions(d: Diagnosis) -> Extensions:
