@@ -53,6 +53,8 @@ POSE_NOISE_M = 0.005
 """External pose reference noise (m rms), e.g. a total station or motion capture."""
 POSE_NOISE_YAW = 0.005
 """Its heading noise (rad rms)."""
+HEADINGS = ("same", "drawn", "unlogged")
+"""Where each drive starts facing (:func:`make_logs`' ``headings``)."""
 EFFORT_NOISE = 0.02
 """The motors' reported torque's noise (N m rms, white): a driver's current sense, 1/150 of
 the limit (a choice; SPEC logs no torque)."""
@@ -99,6 +101,7 @@ def make_logs(
     progress: bool = True,
     first_index: int = 0,
     effort: bool = False,
+    headings: str = "same",
 ) -> list[Path]:
     """Write ``drives`` logs and ``truth.yaml`` to ``out``; return the CSV paths.
 
@@ -106,7 +109,16 @@ def make_logs(
     catalogue, e.g. a heavier rover); the logs still name ``rover``. ``effort``: the logs
     also carry the motors' torque (``effort_*``), with :data:`EFFORT_NOISE` drawn from a
     stream of its own (the other columns are the same with or without it).
+
+    ``headings``: where each drive starts facing. "same": every drive along the world's +x
+    (a slope's ``heading_deg`` then in every log's frame). "drawn": each drive's start
+    heading drawn from ``seed`` and its index (:func:`start_heading`), uniform over the
+    circle, and written to its YAML as ``start_heading_deg``. "unlogged": drawn alike, not
+    written (drives that share no frame: ``diagnose --frames fit``). A slope's
+    ``heading_deg`` is then in the world, and each log sees it turned by its start.
     """
+    if headings not in HEADINGS:
+        raise ValueError(f"headings must be one of {HEADINGS}, got {headings!r}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     nominal = load_rover(rover)
@@ -114,13 +126,15 @@ def make_logs(
     truth_cfg = replace(base, extensions={**base.extensions, **effects})
     sensors = SensorConfig()
     paths: list[Path] = []
+    starts: list[float] = []
     ss = np.random.SeedSequence(seed)
     kids = ss.spawn(first_index + drives)[first_index:]
     for i, kid in enumerate(kids):
         k = first_index + i
         # spawn(4)'s first three children are spawn(3)'s: effort's noise has the fourth.
         rng_plan, rng_sens, rng_pose, rng_eff = (np.random.default_rng(s) for s in kid.spawn(4))
-        sim = RoverSim(truth_cfg, "flat", backend="auto")
+        start = start_heading(seed, k) if headings != "same" else 0.0
+        sim = RoverSim(facing(truth_cfg, start), "flat", backend="auto")
         sim.reset(sunk=True)
         sched = drive_schedule(plan, rng_plan, duration, nominal.motor.max_wheel_speed)
         if progress:
@@ -141,7 +155,9 @@ def make_logs(
         pose[m, :2] += rng_pose.normal(0.0, POSE_NOISE_M, (int(m.sum()), 2))
         pose[m, 2] += rng_pose.normal(0.0, POSE_NOISE_YAW, int(m.sum()))
         tau = log.effort + rng_eff.normal(0.0, EFFORT_NOISE, log.effort.shape)  # NaN stays
-        log = DriveLog(log.t, log.cmd, log.phi, log.theta, pose, log.meta, effort=tau)
+        meta = replace(log.meta, start_heading_deg=start if headings == "drawn" else None)
+        log = DriveLog(log.t, log.cmd, log.phi, log.theta, pose, meta, effort=tau)
+        starts.append(start)
         paths.append(write_log(log, out / f"drive_{k:02d}.csv", overwrite=True))
     truth: dict[str, Any] = {
         "effects": effects,
@@ -156,6 +172,8 @@ def make_logs(
         "effort_noise_nm": EFFORT_NOISE if effort else None,
         "sensors": asdict(sensors),
         "rover": str(rover),
+        "headings": headings,
+        "start_headings_deg": starts,
     }
     if truth_rover is not None:
         truth["truth_rover"] = to_dict(truth_rover)
@@ -163,11 +181,30 @@ def make_logs(
     if first_index > 0 and tpath.is_file():
         old = yaml.safe_load(tpath.read_text()) or {}
         extra = old.get("extra_drives", [])
-        extra.append({"plan": plan, "seed": seed, "drives": truth["drives"]})
+        extra.append(
+            {"plan": plan, "seed": seed, "drives": truth["drives"], "start_headings_deg": starts}
+        )
         old["extra_drives"] = extra
         truth = old
     tpath.write_text(yaml.safe_dump(truth, sort_keys=False))
     return paths
+
+
+def start_heading(seed: int, k: int) -> float:
+    """Drive ``k``'s start heading in the world (degrees) where ``headings`` draws them: a
+    stream of its own, so the drives' other draws are the same with or without it."""
+    return round(float(np.random.default_rng([1998, 5, seed, k]).uniform(-180.0, 180.0)), 1)
+
+
+def facing(cfg: RoverConfig, start: float) -> RoverConfig:
+    """``cfg`` as a drive that started facing ``start`` (degrees) sees it: a slope rising
+    toward ``heading_deg`` in the world rises toward ``heading_deg - start`` in the log's
+    frame (segment 3 along +x at its start, SPEC §6). Other effects have no direction."""
+    slope = cfg.extensions.get("slope")
+    if not slope or start == 0.0:
+        return cfg
+    turned = {**slope, "heading_deg": float(slope.get("heading_deg", 0.0)) - start}
+    return replace(cfg, extensions={**cfg.extensions, "slope": turned})
 
 
 def _cli(args: argparse.Namespace) -> int:
@@ -189,6 +226,8 @@ def _cli(args: argparse.Namespace) -> int:
             raise ConfigError("--generator foreign: the pose reference is fixed at 1 Hz")
         if args.effort:
             raise ConfigError("--generator foreign logs no motor torque (--effort)")
+        if args.headings != "same":
+            raise ConfigError("--generator foreign: every drive starts along +x (--headings)")
         paths = make_foreign_logs(args.out, effects, **common)
     else:
         paths = make_logs(
@@ -197,6 +236,7 @@ def _cli(args: argparse.Namespace) -> int:
             pose_rate_hz=args.pose_rate,
             pose_end_only=args.pose_end_only,
             effort=args.effort,
+            headings=args.headings,
             **common,
         )
     for p in paths:
@@ -234,6 +274,13 @@ def add_cli(sub: Any) -> None:
         "--effort",
         action="store_true",
         help="also log the motors' torque (effort_1L .. effort_2R, N m; this simulator only)",
+    )
+    p.add_argument(
+        "--headings",
+        choices=HEADINGS,
+        default="same",
+        help="where each drive starts facing: same (+x), drawn (written to each YAML as"
+        " start_heading_deg), unlogged (drawn, not written: diagnose with --frames fit)",
     )
     p.add_argument("--out", required=True)
     p.add_argument("--quiet", action="store_true")
