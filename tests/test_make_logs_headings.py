@@ -67,6 +67,8 @@ def test_facing_turns_only_the_slope_and_bad_modes_are_refused(tmp_path: Path) -
     assert turned.extensions["rolling_resistance"] == {"c_rr": 0.05}
     assert cfg.extensions["slope"]["heading_deg"] == 40.0  # the original untouched
     assert facing(cfg, 0.0) is cfg
+    assert facing(cfg, -170.0).extensions["slope"]["heading_deg"] == pytest.approx(-150.0)
+    RoverConfig(extensions=facing(cfg, -170.0).extensions)  # within the key's range
     assert all(-180.0 <= start_heading(1, k) <= 180.0 for k in range(20))
     assert not math.isclose(start_heading(1, 0), start_heading(2, 0))
     with pytest.raises(ValueError, match="headings must be one of"):

@@ -31,6 +31,7 @@ Test plans (``--plan``), each 50 s by default, drawn with the seed:
 from __future__ import annotations
 
 import argparse
+import math
 from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
@@ -199,11 +200,13 @@ def start_heading(seed: int, k: int) -> float:
 def facing(cfg: RoverConfig, start: float) -> RoverConfig:
     """``cfg`` as a drive that started facing ``start`` (degrees) sees it: a slope rising
     toward ``heading_deg`` in the world rises toward ``heading_deg - start`` in the log's
-    frame (segment 3 along +x at its start, SPEC §6). Other effects have no direction."""
+    frame (segment 3 along +x at its start, SPEC §6), within +-180°. Other effects have no
+    direction."""
     slope = cfg.extensions.get("slope")
     if not slope or start == 0.0:
         return cfg
-    turned = {**slope, "heading_deg": float(slope.get("heading_deg", 0.0)) - start}
+    heading = math.remainder(float(slope.get("heading_deg", 0.0)) - start, 360.0)
+    turned = {**slope, "heading_deg": heading}
     return replace(cfg, extensions={**cfg.extensions, "slope": turned})
 
 
