@@ -25,7 +25,7 @@ from rover_env.calibration.balance import (
 from rover_env.calibration.candidates import catalogue
 from rover_env.calibration.diagnosis.balance_stage import action, balance_fit, in_frames, record
 from rover_env.calibration.diagnosis.judge import fmt_phys
-from rover_env.calibration.diagnosis.write import UNKNOWN_HEADING, rover_header
+from rover_env.calibration.diagnosis.write import UNKNOWN_HEADING, mark_headings, rover_header
 from rover_env.calibration.report_notes import balance_lines
 from rover_env.calibration.size_profile import profile
 from rover_env.config import RoverConfig
@@ -162,6 +162,18 @@ def test_the_named_fit_carries_the_profiles_interval() -> None:
     # rover.yaml's comment says so where a named slope's heading is not known, only there.
     assert UNKNOWN_HEADING in rover_header([SimpleNamespace(fit=fit)])  # type: ignore[list-item]
     assert UNKNOWN_HEADING not in rover_header([SimpleNamespace(fit=plain)])  # type: ignore[list-item]
+    # With --frames fit every slope fit is marked, the windows' too; other effects are not.
+    other = balance_fit(catalogue(["rolling_resistance"])[0], given, CLEAN_SLIP_TILT, 0.0)
+    d = SimpleNamespace(
+        frames={"fitted": False},
+        ranked=[SimpleNamespace(fit=plain), SimpleNamespace(fit=other)],
+        chosen=[],
+    )
+    mark_headings(d)  # type: ignore[arg-type]
+    assert not plain.heading_known and other.heading_known
+    given_fit = balance_fit(catalogue(["slope"])[0], given, CLEAN_SLIP_TILT, 0.0)
+    mark_headings(SimpleNamespace(frames=None, ranked=[SimpleNamespace(fit=given_fit)], chosen=[]))  # type: ignore[arg-type]
+    assert given_fit.heading_known
 
 
 @pytest.mark.parametrize("seed", range(4))

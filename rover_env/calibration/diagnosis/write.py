@@ -32,6 +32,7 @@ def write(d: Diagnosis) -> None:
     """Writes ``rover.yaml``, the held-out replays, ``result.json`` and the report; sets
     :attr:`Diagnosis.result`."""
     out, base, st = d.out, d.base, d.st
+    mark_headings(d)
     final_ext = final_extensions(d)
     final_cfg = replace(base, extensions=merge(base.extensions, final_ext))
     if d.ev.profile_zeros:  # the zeros the final model's fit carries
@@ -58,6 +59,18 @@ def write(d: Diagnosis) -> None:
         f" {r['main_signal']} {r['main_rms_before']:.4g} -> {r['main_rms_after']:.4g};"
         f" wrote {out}/report.md, rover.yaml ({r['seconds']:.0f}s)"
     )
+
+
+def mark_headings(d: Diagnosis) -> None:
+    """With ``--frames fit`` (:attr:`Diagnosis.frames` set) every slope fit's heading is in
+    the first log's frame and not known, the windows' as much as the balance's
+    (:attr:`~rover_env.calibration.fit.Fit.heading_known`): the record, the report and
+    ``rover.yaml``'s comment say so."""
+    if d.frames is None:
+        return
+    for s in [*d.ranked, *d.chosen]:
+        if any(c.name == "slope" for c in s.fit.candidates):
+            s.fit.heading_known = False
 
 
 UNKNOWN_HEADING = (
