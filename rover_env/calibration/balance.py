@@ -501,14 +501,19 @@ def _solve(rs: list[Run], source: str) -> tuple[Array, Array, Array, Array, int]
 
 
 def turned_frames(
-    rs: list[Run], yaws: list[Array | None], source: str, weight: float
+    rs: list[Run],
+    yaws: list[Array | None],
+    source: str,
+    weight: float,
+    prof: SizeProfile | None = None,
 ) -> tuple[float, tuple[float, ...]]:
     """Whether the runs read the ground turned between logs: each log's heading turned by
     its own angle (the first log's held; a 5° grid, three sweeps over the logs, then 1°
     steps; or the turns at the size profile's best (:func:`size_profile`) where those fit
     better: a search log by log can stop in a mirror's valley), and the F ratio of what
     that explains over what is left, with the turns' degrees of freedom. ``weight``:
-    ``m g`` (N).
+    ``m g`` (N); ``prof``: the runs' size profile where the caller has it (else read
+    here).
     Logs that started facing different ways without saying so (``start_heading_deg``) read
     one slope in as many directions; but runs in few headings can fit better turned too
     (:data:`~rover_env.calibration.diagnosis.balance_stage.TURNED_F`; docs/calibration/
@@ -533,7 +538,7 @@ def turned_frames(
                 for g in (near if grid is None else grid)
             ]
             best, turn[i] = min(tries, key=lambda t: t[0])
-    beta = size_profile(rs, source, weight).angles
+    beta = (prof or size_profile(rs, source, weight)).angles
     other = np.array([beta[j] - beta[logs[0]] if j in beta else 0.0 for j in range(len(yaws))])
     if (got := rss(other)) < best:
         best, turn = got, other
@@ -713,10 +718,11 @@ def read_balance(
     # Logs that give no start heading are read as facing alike: how much turning each frame
     # would explain tells a report that they did not (:func:`turned_frames`).
     told = any(log.meta.start_heading_deg is not None for log in logs)
-    tf, td = (0.0, ()) if told else turned_frames(rs, yaws, source, weight)
-    # Frames that share nothing: the size and its interval from its profile over the turns.
-    prof = size_profile(rs, source, weight) if free else None
-    size = size if prof is None else prof.deg
+    # Frames that share nothing: the size and its interval from its profile over the turns
+    # (which the turns' note reads too: one profile for both).
+    prof = size_profile(rs, source, weight) if free or not told else None
+    tf, td = (0.0, ()) if told else turned_frames(rs, yaws, source, weight, prof)
+    size = size if prof is None or not free else prof.deg
     return (
         BalanceReading(
             runs=len(rs),
@@ -738,7 +744,7 @@ def read_balance(
             heading_from=", ".join(h for h in HEADING_SOURCES if h in used),
             turned_f=tf,
             turned_deg=td,
-            size_bounds=None if prof is None else (prof.lo, prof.hi),
+            size_bounds=(prof.lo, prof.hi) if prof is not None and free else None,
         ),
         rs,
     )

@@ -38,6 +38,7 @@ on block 54000, then 0.25°."""
 GRID_STEP = math.radians(1.0)
 ANGLES = np.arange(0.0, 2.0 * math.pi, GRID_STEP)
 """Each log's ``beta`` grid (radians): 1° steps, each best refined (:func:`_angle`)."""
+COS, SIN = np.cos(ANGLES), np.sin(ANGLES)
 ROUNDS = 6
 """Alternations of the logs' angles and the resistance at each size (the misfit falls each
 round; the resistance moves by under 0.1 % of its own after four on block 54000's logs)."""
@@ -57,15 +58,37 @@ class SizeProfile:
     """Per log with runs, its ``beta`` (radians) at the best size."""
 
 
-def _angle(a: float, m: Array, X: Array, u: Array, w2: Array) -> float:
-    """The log's best ``beta`` at tilt force ``a`` (rows ``m``, targets ``u``): its misfit
-    ``f(beta)`` is a quadratic form in ``cos beta`` and ``sin beta`` over five sums; the
-    grid's best, then Newton's steps on ``f'`` (the grid alone moves a large tilt's part by
-    more than the runs' noise)."""
-    c, s, ww = X[m, 0], X[m, 1], w2[m]
-    S, T = float(np.sum(ww * u * c)), float(np.sum(ww * u * s))
-    cc, cs, ss = float(np.sum(ww * c * c)), float(np.sum(ww * c * s)), float(np.sum(ww * s * s))
-    cb, sb = np.cos(ANGLES), np.sin(ANGLES)
+@dataclass(frozen=True)
+class _Log:
+    """One log's runs (``m``: its rows) and the sums of its misfit's quadratic part."""
+
+    m: Array
+    wc: Array
+    """Each run's weight squared times its heading's cosine, and :attr:`ws` its sine."""
+    ws: Array
+    cc: float
+    cs: float
+    ss: float
+
+
+def _logs(X: Array, w2: Array, logs: Array) -> list[tuple[int, _Log]]:
+    """Per log with runs, what :func:`_angle` needs that does not change with the size."""
+    out = []
+    for k in np.unique(logs):
+        m = logs == k
+        c, s, ww = X[m, 0], X[m, 1], w2[m]
+        sums = (float(np.sum(ww * c * c)), float(np.sum(ww * c * s)), float(np.sum(ww * s * s)))
+        out.append((int(k), _Log(m, ww * c, ww * s, *sums)))
+    return out
+
+
+def _angle(a: float, lg: _Log, u: Array) -> float:
+    """The log's best ``beta`` at tilt force ``a`` (targets ``u``): its misfit ``f(beta)``
+    is a quadratic form in ``cos beta`` and ``sin beta`` over five sums; the grid's best,
+    then Newton's steps on ``f'`` (the grid alone moves a large tilt's part by more than
+    the runs' noise)."""
+    S, T, cc, cs, ss = float(lg.wc @ u), float(lg.ws @ u), lg.cc, lg.cs, lg.ss
+    cb, sb = COS, SIN
     f = -2.0 * a * (S * cb - T * sb) + a * a * (cc * cb**2 - 2.0 * cs * sb * cb + ss * sb**2)
     b = float(ANGLES[int(np.argmin(f))])
     for _ in range(3):
@@ -82,19 +105,18 @@ def _angle(a: float, m: Array, X: Array, u: Array, w2: Array) -> float:
 
 
 def _at(
-    a: float, X: Array, y: Array, w2: Array, logs: Array, r: float
+    a: float, X: Array, y: Array, w2: Array, each: list[tuple[int, _Log]], r: float
 ) -> tuple[float, float, dict[int, float]]:
     """At tilt force ``a``: the misfit, the resistance and each log's angle, alternated
     from the resistance ``r``."""
-    ids = [int(k) for k in np.unique(logs)]
     g = np.zeros(len(y))
     beta: dict[int, float] = {}
+    wd = w2 * X[:, 2]
     for _ in range(ROUNDS):
-        for k in ids:
-            m = logs == k
-            beta[k] = _angle(a, m, X, y[m] - r * X[m, 2], w2)
+        for k, lg in each:
+            m = lg.m
+            beta[k] = _angle(a, lg, y[m] - r * X[m, 2])
             g[m] = a * (X[m, 0] * math.cos(beta[k]) - X[m, 1] * math.sin(beta[k]))
-        wd = w2 * X[:, 2]
         r = float(np.sum(wd * (y - g)) / np.sum(wd * X[:, 2]))
     res = y - g - r * X[:, 2]
     return float(np.sum(w2 * res**2)), r, beta
@@ -112,23 +134,24 @@ def profile(X: Array, y: Array, w: Array, logs: Array, weight: float, floor: boo
     ``k`` the logs: under level the angles mean nothing, and a test of one degree of
     freedom would find a tilt in noise that each log's free angle points its way)."""
     w2 = w**2
+    each = _logs(X, w2, logs)
     out, res, r = [], [], 0.0
     for deg in SIZES:  # each size starts from the last one's resistance
-        rss, r, _ = _at(weight * math.sin(math.radians(deg)), X, y, w2, logs, r)
+        rss, r, _ = _at(weight * math.sin(math.radians(deg)), X, y, w2, each, r)
         out.append(rss)
         res.append(r)
     P = np.asarray(out)
     best = int(np.argmin(P))
     a = weight * math.sin(math.radians(SIZES[best]))
-    _, _, beta = _at(a, X, y, w2, logs, res[best])
-    dof = len(y) - 2 - len(np.unique(logs))
+    _, _, beta = _at(a, X, y, w2, each, res[best])
+    dof = len(y) - 2 - len(each)
     if dof <= 0:
         return SizeProfile(float(SIZES[best]), 0.0, math.inf, float(P[best]), beta)
     s2 = float(P[best]) / dof
     s2 = max(s2, 1.0) if floor else s2
     inside = SIZES[P <= P[best] + s2 * float(stats.f.ppf(0.95, 1, dof))]
     hi = float(inside.max())
-    k = 1 + len(np.unique(logs))
+    k = 1 + len(each)
     level = P[0] <= P[best] + s2 * k * float(stats.f.ppf(0.95, k, dof))
     return SizeProfile(
         deg=float(SIZES[best]),
