@@ -318,6 +318,35 @@ def test_an_unseparated_reading_asks_for_the_drive_both_ways(tmp_path: Path) -> 
         proposals_from_report(tmp_path)
 
 
+def test_a_named_reading_whose_size_is_not_known_asks_for_the_drive(tmp_path: Path) -> None:
+    """Named, and its interval's ends more than SPREAD apart (a flat valley: block 54100 read
+    2.48° as 8.00°): the slope is named and the crossing drive asked for; a narrow one asks
+    for nothing."""
+    from dataclasses import replace
+
+    from rover_env.calibration.diagnosis.balance_stage import SPREAD
+
+    sloped, runs = read_balance([rover_log(1.5, 0.0, 0.02, seed=s) for s in range(3)], CFG, 0.2)
+    assert sloped is not None
+    lo, hi = sloped.tilt_interval()
+    assert hi < SPREAD * lo  # runs that cross: the size known
+    for bounds, asks in (((1.0, 8.0), True), ((1.2, 1.9), False)):
+        r = replace(sloped, size_bounds=bounds)
+        act, rec = record(r, len(runs), 0.5, None, False)
+        lo, hi = r.tilt_interval()
+        assert act == "name" and (hi > SPREAD * lo) == asks
+        assert ("plan" in rec) == asks and ("why_drive" in rec) == asks
+    assert rec.get("plan") is None  # the narrow one, last
+    act, rec = record(replace(sloped, size_bounds=(1.0, 8.0)), len(runs), 0.5, None, False)
+    rec["named"] = True  # as name_by_balance records it
+    text = "\n".join(balance_lines(rec))
+    assert "named `slope` from it, but its size is not known" in text
+    assert f"drive-plan --plan {PLAN}" in text
+    (tmp_path / "result.json").write_text(json.dumps({"balance": rec}))
+    (prop,) = proposals_from_report(tmp_path)
+    assert prop.plan == PLAN and "size is not known" in prop.why[0]
+
+
 def test_runs_that_determine_nothing_are_read_unseparated_with_open_bounds() -> None:
     plan = [(4.0, 2.0, 2.0), (0.5, 0.0, 0.0)] * 4  # forwards in one heading, every run alike
     logs = [rover_log(1.0, 0.0, 0.02, plan=plan, seed=s, noise=0.0) for s in range(2)]

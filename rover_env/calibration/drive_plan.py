@@ -188,7 +188,7 @@ def parse_joint_names(text: str | None) -> tuple[str, ...]:
 def proposals_from_report(path: str | Path, untested: bool = True) -> list[Proposal]:
     """Every drive a diagnosis proposes (its tie, its evidence rows, the force balance's
     drive where its runs did not separate a tilt from a resistance or its interval is wide
-    and, with ``untested``, the drives for what its logs never tested), merged by (plan,
+    (named or not) and, with ``untested``, the drives for what its logs never tested), merged by (plan,
     seed, duration); reports from before the seed and duration were recorded used
     :data:`PLAN_SEED` and :data:`PLAN_DURATION`."""
     p = Path(path)
@@ -213,7 +213,8 @@ def proposals_from_report(path: str | Path, untested: bool = True) -> list[Propo
     bal = result.get("balance")
     if isinstance(bal, dict) and bal.get("plan"):
         on = "the wheels' slip" if bal.get("source") == "slip" else "the motors' torque"
-        raw.append((bal, f"the force balance on {on}: {bal.get('why_not', '')}", {"slope"}))
+        why = bal.get("why_not") or bal.get("why_drive", "")
+        raw.append((bal, f"the force balance on {on}: {why}", {"slope"}))
     for e in (result.get("untested") or []) if untested else []:
         if isinstance(e, dict) and e.get("plan"):
             why = f"untested {e['effect']} ({e.get('reason', '')}): {e.get('why', '')}"

@@ -234,7 +234,9 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
     lo, hi = r["tilt_interval"]
     clo, chi = r.get("c_rr_interval") or (None, None)  # null for the slip's
     verdict = (
-        "named `slope` from it"
+        f"named `slope` from it, but {r['why_drive']}"
+        if r.get("named") and r.get("why_drive")
+        else "named `slope` from it"
         if r.get("named")
         else f"no slope named from it: {r.get('why_not', 'see above')}"
     )
