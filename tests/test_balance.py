@@ -345,6 +345,14 @@ def test_a_named_reading_whose_size_is_not_known_asks_for_the_drive(tmp_path: Pa
     (tmp_path / "result.json").write_text(json.dumps({"balance": rec}))
     (prop,) = proposals_from_report(tmp_path)
     assert prop.plan == PLAN and "size is not known" in prop.why[0]
+    from rover_env.calibration.diagnosis.write import rover_header
+
+    lo, hi = rec["truth_interval"]
+    head = rover_header([], rec)  # rover.yaml's comment: the value is one of those allowed
+    assert "slope.deg is not known" in head and f"{lo:.2f}-{hi:.2f}" in head
+    assert f"--plan {PLAN} --seed {PLAN_SEED}" in head
+    assert "not known" not in rover_header([], {**rec, "why_drive": None})
+    assert "not known" not in rover_header([], {**rec, "named": False})
 
 
 def test_runs_that_determine_nothing_are_read_unseparated_with_open_bounds() -> None:

@@ -39,7 +39,7 @@ def write(d: Diagnosis) -> None:
         final_cfg = with_zeros(final_cfg, d.ev.zero_shift(final_ext))
     cfg_path = out / "rover.yaml"
     cfg_path.write_text(
-        rover_header(d.chosen) + yaml.safe_dump(to_dict(final_cfg), sort_keys=False)
+        rover_header(d.chosen, d.balance) + yaml.safe_dump(to_dict(final_cfg), sort_keys=False)
     )
     load_rover(cfg_path)  # must load as is
     held_log_objs = [d.logs[i] for i in sorted({w.log_index for w in d.held_w})]
@@ -79,13 +79,30 @@ UNKNOWN_HEADING = (
 )
 
 
-def rover_header(chosen: list[Scored]) -> str:
-    """``rover.yaml``'s comment: who wrote it, and where a named slope's heading is not known
+UNKNOWN_SIZE = (
+    "# slope.deg is not known: the force balance allows {lo:.2f}-{hi:.2f} degrees (the runs barely\n"
+    "# cross). Drive plan `{plan}` (rover-env drive-plan --plan {plan} --seed {seed}\n"
+    "# --duration {duration:g} --out DIR) and diagnose again with its log added.\n"
+)
+
+
+def rover_header(chosen: list[Scored], balance: dict[str, Any] | None = None) -> str:
+    """``rover.yaml``'s comment: who wrote it; where a named slope's heading is not known
     (:attr:`~rover_env.calibration.fit.Fit.heading_known`) that its ``heading_deg`` only
-    gives the model a direction."""
+    gives the model a direction; and where the balance named a slope whose size it could
+    not pin down (``why_drive``, :data:`~.balance_stage.SPREAD`) that ``deg`` is one of the
+    sizes its runs allow, and the drive that decides it. Why: a user who reads only
+    ``rover.yaml`` would otherwise take the value as measured."""
     head = "# Written by rover-env diagnose: the logs' rover plus the effects it found.\n"
     blind = any(not s.fit.heading_known for s in chosen)
-    return head + (UNKNOWN_HEADING if blind else "")
+    bal = balance or {}
+    loose = ""
+    if bal.get("named") and bal.get("why_drive"):
+        lo, hi = bal["truth_interval"]  # less the clean builds' allowance
+        loose = UNKNOWN_SIZE.format(
+            lo=lo, hi=hi, plan=bal["plan"], seed=bal["seed"], duration=bal["duration"]
+        )
+    return head + (UNKNOWN_HEADING if blind else "") + loose
 
 
 def final_extensions(d: Diagnosis) -> Extensions:
