@@ -187,9 +187,9 @@ def parse_joint_names(text: str | None) -> tuple[str, ...]:
 
 def proposals_from_report(path: str | Path, untested: bool = True) -> list[Proposal]:
     """Every drive a diagnosis proposes (its tie, its evidence rows, the force balance's
-    drive where its runs did not separate a tilt from a resistance or its interval is wide
-    (named or not) and, with ``untested``, the drives for what its logs never tested), merged by (plan,
-    seed, duration); reports from before the seed and duration were recorded used
+    drive where its runs did not separate a tilt from a resistance or its interval is wide,
+    named or not, and, with ``untested``, the drives for what its logs never tested), merged
+    by (plan, seed, duration); reports from before the seed and duration were recorded used
     :data:`PLAN_SEED` and :data:`PLAN_DURATION`."""
     p = Path(path)
     f = p / "result.json" if p.is_dir() else p

@@ -14,7 +14,8 @@ what clean builds read (:data:`rover_env.calibration.balance.CLEAN_TILT`; for th
 level names ``slope`` from the balance, in place of a slope the windows named alone; a
 balance that reads the ground level under a slope the windows named alone withdraws it;
 beside a slope named in a pair the reading is reported. Where the runs leave the tilt and
-the resistance one unknown it names nothing and asks for the :data:`PLAN` drive. Why a
+the resistance one unknown it names nothing and asks for the :data:`PLAN` drive; where it
+names a slope whose size its interval leaves loose (:data:`SPREAD`) it asks for it too. Why a
 stage of its own: the windows read a slope through this model's joints and springs, and
 clean builds of another implementation fit tilts up to 2.4° there (the clean-fit
 allowance), which a slope must clear to be named; the summed wheel torque does not depend
@@ -52,7 +53,7 @@ block 53600's soil case 53607 read 1.14° [0.82, 1.47] on level soil, forwards s
 and backwards 19.7 %; block 53700's one soil, 53707, was reported so, 0.24° [0, 0.84])."""
 PLAN = "reversals"
 """The drive asked for where the runs leave the tilt and the resistance one unknown, or the
-tilt's interval wide (:data:`UNDECIDED`): long runs forwards and backwards on one line, a
+tilt's interval wide (:data:`UNDECIDED`; named, :data:`SPREAD`): long runs forwards and backwards on one line, a
 long pivot, and the same on the crossing line."""
 TURNED_F = 100.0
 """The F ratio (:attr:`~rover_env.calibration.balance.BalanceReading.turned_f`) from which a
@@ -163,7 +164,7 @@ def record(
     :data:`UNDECIDED`: it asks for the drive too) and its record for ``result.json``: the
     reading, the interval for the truth with the allowance, what it did (``action``), why
     nothing was named, and the drive it asks for where its runs do not separate or its
-    interval is wide."""
+    interval is wide (named or not: ``why_drive`` where named, :data:`SPREAD`)."""
     rec: dict[str, Any] = {
         "runs": runs,
         "read": reading is not None,

@@ -80,9 +80,10 @@ UNKNOWN_HEADING = (
 
 
 UNKNOWN_SIZE = (
-    "# slope.deg is not known: the force balance allows {lo:.2f}-{hi:.2f} degrees (the runs barely\n"
-    "# cross). Drive plan `{plan}` (rover-env drive-plan --plan {plan} --seed {seed}\n"
-    "# --duration {duration:g} --out DIR) and diagnose again with its log added.\n"
+    "# slope.deg is not known: the force balance allows {lo:.2f}-{hi:.2f} degrees, the clean\n"
+    "# builds' allowance counted (the runs barely cross). Drive plan `{plan}`\n"
+    "# (rover-env drive-plan --plan {plan} --seed {seed} --duration {duration:g} --out DIR)\n"
+    "# and diagnose again with its log added.\n"
 )
 
 
