@@ -70,6 +70,12 @@ PLAN_DURATION = 50.0
 """Duration (s) of every proposed drive (evidence and ties)."""
 
 
+def plan_command(plan: str, seed: int, duration: float) -> str:
+    """The command that writes a proposed drive's commands, as the report and ``rover.yaml``
+    quote it."""
+    return f"rover-env drive-plan --plan {plan} --seed {seed} --duration {duration:g} --out DIR"
+
+
 def evidence_plan(name: str) -> tuple[str, str]:
     return EVIDENCE_PLANS.get(name, ("test", "a longer test drive with a new seed"))
 

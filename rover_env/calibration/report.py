@@ -14,6 +14,7 @@ from rover_env.calibration.diagnosis.state import (
     Diagnosis,
     Scored,
 )
+from rover_env.calibration.evidence import plan_command
 from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
 from rover_env.calibration.report_method import method_lines
 from rover_env.calibration.report_notes import (
@@ -351,10 +352,7 @@ def drive_it_text(plans: list[tuple[str, int, float]]) -> str:
 
     Never by simulation (``make-logs`` drives the nominal model: its log added to a real
     rover's would corrupt the diagnosis)."""
-    cmds = "".join(
-        f"    rover-env drive-plan --plan {plan} --seed {seed} --duration {duration:g} --out DIR\n"
-        for plan, seed, duration in plans
-    )
+    cmds = "".join(f"    {plan_command(plan, seed, duration)}\n" for plan, seed, duration in plans)
     return (
         "Drive it on the rover (not in simulation: a simulated log would corrupt the"
         " diagnosis of a real one). Write its commands (a CSV and a ROS 2 bag of wheel-speed"

@@ -10,6 +10,7 @@ import numpy as np
 
 from rover_env.calibration.diagnosis.state import Scored
 from rover_env.calibration.effort import EVENTS, LAG, SPREAD
+from rover_env.calibration.evidence import plan_command
 
 
 def p_text(p: float) -> str:
@@ -242,8 +243,8 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
     )
     drive = (
         f" Proposed drive `{r['plan']}` (seed {r['seed']}, {r['duration']:g} s): write it with"
-        f" `rover-env drive-plan --plan {r['plan']} --seed {r['seed']} --duration {r['duration']:g}"
-        " --out DIR`, drive it on the rover and diagnose again with its log added."
+        f" `{plan_command(r['plan'], r['seed'], r['duration'])}`, drive it on the rover and"
+        " diagnose again with its log added."
         if r.get("plan")
         else ""
     )

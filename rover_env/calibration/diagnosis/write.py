@@ -23,6 +23,7 @@ from rover_env.calibration.candidates import Extensions, merge
 from rover_env.calibration.diagnosis.form import with_joint_zero
 from rover_env.calibration.diagnosis.judge import fit_dict, gap, strict_json, unexplained
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
+from rover_env.calibration.evidence import plan_command
 from rover_env.calibration.replay import SIGNALS, WindowResult, replay_config
 from rover_env.calibration.report import write_report
 from rover_env.config import JOINTS, RoverConfig, load_rover, to_dict
@@ -82,7 +83,7 @@ UNKNOWN_HEADING = (
 UNKNOWN_SIZE = (
     "# slope.deg is not known: the force balance allows {lo:.2f}-{hi:.2f} degrees, the clean\n"
     "# builds' allowance counted (the runs barely cross). Drive plan `{plan}`\n"
-    "# (rover-env drive-plan --plan {plan} --seed {seed} --duration {duration:g} --out DIR)\n"
+    "# ({command})\n"
     "# and diagnose again with its log added.\n"
 )
 
@@ -100,9 +101,8 @@ def rover_header(chosen: list[Scored], balance: dict[str, Any] | None = None) ->
     loose = ""
     if bal.get("named") and bal.get("why_drive"):
         lo, hi = bal["truth_interval"]  # less the clean builds' allowance
-        loose = UNKNOWN_SIZE.format(
-            lo=lo, hi=hi, plan=bal["plan"], seed=bal["seed"], duration=bal["duration"]
-        )
+        cmd = plan_command(bal["plan"], bal["seed"], bal["duration"])
+        loose = UNKNOWN_SIZE.format(lo=lo, hi=hi, plan=bal["plan"], command=cmd)
     return head + (UNKNOWN_HEADING if blind else "") + loose
 
 
