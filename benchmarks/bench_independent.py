@@ -63,6 +63,8 @@ a 0.1-0.5 N m dragging brake on a free wheel (3L or 3R, drawn), battery sag 30-6
     # a lag with a delay, then each alone (seeds from 72900)
     python benchmarks/bench_independent.py --strong-pairs 10 --strong-from \
         command_lag,command_delay --strong-singles 8 --seed0 72900 --out out/timing
+    # a user who keeps driving what each diagnosis asks for: up to two rounds of drives
+    python benchmarks/bench_independent.py --balance-cases 8 --rounds 2 --out out/rounds
 
 It writes ``OUT/independent.md`` (acceptance figures, every case per effect) and
 ``OUT/independent.json`` (rows); logs and diagnoses go to ``--work`` (out/, not in git).
@@ -114,7 +116,7 @@ from rover_env.calibration.drive_plan import (
     command_rows,
     proposals_from_report,
 )
-from rover_env.independent.drive import Schedule
+from rover_env.independent.drive import KINDS, Schedule
 from rover_env.independent.generate import HEADINGS, SAMPLE_HZ, make_independent_logs
 from rover_env.logs import read_log, write_log
 
@@ -154,6 +156,15 @@ def proposals(out: Path, untested: bool = False) -> list[Proposal]:
         return props
     shown = {(p.plan, p.seed, p.duration) for p in read(False)}
     return props + [p for p in props if (p.plan, p.seed, p.duration) not in shown]
+
+
+def asked_record(res: dict[str, Any], props: list[Proposal]) -> dict[str, Any]:
+    """One diagnosis's proposals beside the draws its logs held (a proposal of a draw held
+    would ask the user to drive what they drove)."""
+    return {
+        "plans_held": res.get("plans_held") or {},
+        "asked": [{"plan": p.plan, "seed": p.seed, "for": sorted(p.effects)} for p in props],
+    }
 
 
 def fits(final: dict[str, Any], truth: Any) -> dict[str, dict[str, Any]]:
@@ -220,12 +231,14 @@ def drive_proposals(
     pose: str = "as-logged",
     effort: bool = False,
     headings: str = "same",
+    start: int = 0,
 ) -> list[Path]:
     """Each proposed drive driven by the case's rover (the same ``seed``: the same build)
     with the noise of drive ``DRIVES + j``, into ``d/followup_j`` (kept where it is
-    already there); the logs' paths."""
+    already there), ``j`` counted from ``start`` (the drives of earlier rounds); the logs'
+    paths."""
     extra: list[Path] = []
-    for j, prop in enumerate(props):
+    for j, prop in enumerate(props, start):
         more = sorted((d / f"followup_{j}").glob("drive_*.csv"))
         if not more:
             more = make_independent_logs(
@@ -252,6 +265,8 @@ def run_case(
     effort: bool = False,
     headings: str = "same",
     frames: str = "given",
+    rounds: int = 1,
+    kinds: tuple[str, ...] = (),
 ) -> dict[str, Any]:
     d = root / tag(case)
     if d.exists():  # a fresh start: no logs or reports of an interrupted run mixed in
@@ -266,16 +281,26 @@ def run_case(
         duration=DURATION,
         effort=effort,
         headings=headings,
+        kinds=kinds,
     )
     as_logged(paths, pose, case["seed"])
     t1 = time.perf_counter()
     res = diagnose([str(p) for p in paths], d / "out", opts)
     t2 = time.perf_counter()
     props = proposals(d / "out", untested)
-    extra = drive_proposals(d, case["effects"], case["seed"], props, pose, effort, headings)
-    followed = (
-        diagnose([str(p) for p in [*paths, *extra]], d / "out_followup", opts) if extra else None
-    )
+    asked, extra, followed = props, [], None
+    held = [asked_record(res, props)]
+    for r in range(rounds):  # each round drives what the last diagnosis asks for
+        if not asked:
+            break
+        more = drive_proposals(
+            d, case["effects"], case["seed"], asked, pose, effort, headings, len(extra)
+        )
+        extra += more
+        out_r = d / ("out_followup" if r == 0 else f"out_followup_{r + 1}")
+        followed = diagnose([str(p) for p in [*paths, *extra]], out_r, opts)
+        asked = proposals(out_r, untested)
+        held.append(asked_record(followed, asked))
     t3 = time.perf_counter()
     final = followed or res
     tie = res.get("tie")
@@ -286,6 +311,8 @@ def run_case(
         "pose": pose,
         "headings": headings,
         "frames": frames,
+        "drive_kinds": list(kinds),
+        "rounds_asked": rounds,
         "frames_fit": [x.get("frames") for x in (res, final)],
         "named": final["named"],
         "first_named": res["named"],
@@ -297,6 +324,7 @@ def run_case(
             {"plan": p.plan, "seed": p.seed, "duration": p.duration, "for": sorted(p.effects)}
             for p in props
         ],
+        "rounds": held,
         "main_signal": final["main_signal"],
         "main_reduction": final["main_reduction"],
         "unexplained": final["unexplained"],
@@ -340,10 +368,14 @@ def case_row(
     effort: bool = False,
     headings: str = "same",
     frames: str = "given",
+    rounds: int = 1,
+    kinds: tuple[str, ...] = (),
 ) -> dict[str, Any]:
     """``run_case``, or a row recording its error: one broken case must not stop the matrix."""
     try:
-        return run_case(case, root, workers, untested, pose, effort, headings, frames)
+        return run_case(
+            case, root, workers, untested, pose, effort, headings, frames, rounds, kinds
+        )
     except Exception as exc:  # recorded in the table, the matrix goes on
         return {
             **_identity(case),
@@ -422,6 +454,20 @@ def main() -> int:
     )
     ap.add_argument("--workers", type=int, default=1, help="diagnose's worker processes per case")
     ap.add_argument(
+        "--drive-kinds",
+        default="",
+        help="the independent generator's drive kinds for each case's logs, comma-separated,"
+        " drive i of the i-th in turn (e.g. reversals: each drive along one line); default:"
+        " its rotation",
+    )
+    ap.add_argument(
+        "--rounds",
+        type=int,
+        default=1,
+        help="rounds of proposed drives: each drives what the last diagnosis asked for"
+        " (default 1: the first diagnosis's proposals only)",
+    )
+    ap.add_argument(
         "--untested",
         action="store_true",
         help="also drive what a report proposes for what its logs never tested (the accel"
@@ -473,6 +519,11 @@ def main() -> int:
         f" (default {','.join(BALANCE_OTHERS)})",
     )
     args = ap.parse_args()
+    bad = [k for k in args.drive_kinds.split(",") if k and k not in KINDS]
+    if bad:
+        ap.error(f"--drive-kinds: unknown {bad}; known: {', '.join(KINDS)}")
+    if args.rounds < 0:
+        ap.error(f"--rounds must be >= 0, got {args.rounds}")
     out = Path(args.out)
     try:
         todo = (
@@ -535,6 +586,8 @@ def main() -> int:
             args.effort,
             args.headings,
             args.frames,
+            args.rounds,
+            tuple(k for k in args.drive_kinds.split(",") if k),
         )
         rows.append(row)
         _order(rows, todo)

@@ -39,6 +39,7 @@ from rover_env.calibration.diagnosis.balance_stage import (
 from rover_env.calibration.drive_plan import DrivePlanError, proposals_from_report
 from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
 from rover_env.calibration.heading import free_wheels, headings
+from rover_env.calibration.plans_held import ask
 from rover_env.calibration.report_notes import balance_lines
 from rover_env.cli import main
 from rover_env.config import RoverConfig
@@ -352,6 +353,10 @@ def test_a_named_reading_whose_size_is_not_known_asks_for_the_drive(tmp_path: Pa
     assert f"--plan {PLAN} --seed {PLAN_SEED}" in head
     assert "not known" not in rover_header([], {**rec, "why_drive": None})
     assert "not known" not in rover_header([], {**rec, "named": False})
+    again = ask(dict(rec), {PLAN: [{"seed": PLAN_SEED, "log": "drive_03.csv"}]})  # driven once
+    text = "\n".join(balance_lines(again))
+    assert f"--plan {PLAN} --seed {PLAN_SEED + 1} " in text and "(drive_03.csv)" in text
+    assert f"--plan {PLAN} --seed {PLAN_SEED + 1} " in rover_header([], again)
 
 
 def test_runs_that_determine_nothing_are_read_unseparated_with_open_bounds() -> None:

@@ -725,3 +725,48 @@ def test_the_stage_line_sums_each_case_s_passes_and_counts_the_reruns() -> None:
     assert "form 10, fit 50, select 20, again 0" in line  # two's fit: 100 s, the median 50
     assert "run again under re-judged forms in 1 of 3" in line
     assert t.stage_lines([{}, {"stage_seconds": None}]) == []
+
+
+def test_rounds_drive_what_each_diagnosis_asks_until_it_asks_nothing(
+    b: ModuleType, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--rounds 3``: the first diagnosis asks for the crossing drive, the second (its
+    logs holding that draw) for the plan's next draw, the third for nothing; so two drives
+    are driven, each last by file name, and the row records each diagnosis's asks beside
+    the draws its logs held."""
+    calls: list[list[str]] = []
+
+    def fake(paths: list[str], out: Path, opts: object) -> dict[str, object]:
+        calls.append(paths)
+        n = len(calls)
+        held = {"reversals": [{"seed": s, "log": f"drive_0{3 + s}.csv"} for s in range(n - 1)]}
+        bal = {"plan": "reversals", "seed": n - 1, "duration": 1.0, "why_not": "wide"}
+        res = {
+            "named": [],
+            "tie": None,
+            "evidence": [],
+            "untested": [],
+            "balance": bal if n < 3 else {"read": True},
+            "plans_held": held if n > 1 else {},
+            "main_signal": "wheel_1L",
+            "main_reduction": 0.5,
+            "unexplained": [],
+            "fits": {},
+            "final": {},
+        }
+        Path(out).mkdir(parents=True)
+        (Path(out) / "result.json").write_text(json.dumps(res))
+        return res
+
+    monkeypatch.setattr(b, "diagnose", fake)
+    monkeypatch.setattr(b, "DURATION", 1.0)
+    case = next(c for c in b.cases() if c["kind"] == "single")
+    row = b.run_case(case, tmp_path, rounds=3)
+    assert [len(c) for c in calls] == [3, 4, 5]
+    assert [Path(p).name for p in calls[2][3:]] == ["drive_03.csv", "drive_04.csv"]
+    asked = [[(a["plan"], a["seed"]) for a in r["asked"]] for r in row["rounds"]]
+    assert asked == [[("reversals", 0)], [("reversals", 1)], []]
+    assert row["rounds"][1]["plans_held"] == {"reversals": [{"seed": 0, "log": "drive_03.csv"}]}
+    calls.clear()
+    b.run_case(case, tmp_path, rounds=1)  # the default: the first diagnosis's asks only
+    assert [len(c) for c in calls] == [3, 4]

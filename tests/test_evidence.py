@@ -155,7 +155,8 @@ def test_a_limit_the_drives_never_reach_gets_the_drive_that_asks_for_it(monkeypa
 
     def propose(base, name, ext, noise, held, **kw):
         asked.append(ext)
-        return {"effect": name, "plan": "accel", "best_signal": "wheel_1L", "best_floor_units": 7.0}
+        return {"effect": name, "plan": "accel", "seed": kw["seed"], "best_signal": "wheel_1L",
+                "best_floor_units": 7.0}  # fmt: skip
 
     monkeypatch.setattr(evidence, "propose", propose)
     (c,) = catalogue(["torque_limit"])
@@ -163,7 +164,7 @@ def test_a_limit_the_drives_never_reach_gets_the_drive_that_asks_for_it(monkeypa
     tl = Scored(fit.Fit([c], z, z, z, z, 1.0, 3, {}, 0.0, "train"), 1.0, z, 0.0, 0.5, 2.0, 2.0, 16)
 
     def d(
-        thr: dict, chosen=(), ev_list=(), res: float = 0.05, rotor_range: float = 2.0
+        thr: dict, chosen=(), ev_list=(), res: float = 0.05, rotor_range: float = 2.0, held=None
     ) -> SimpleNamespace:
         tl.threshold = thr
         opts = Options(progress=False, limit_resolution=res, rotor_range=rotor_range)
@@ -171,6 +172,7 @@ def test_a_limit_the_drives_never_reach_gets_the_drive_that_asks_for_it(monkeypa
             opts=opts, chosen=list(chosen),
             evidence=list(ev_list), ranked=[tl], base=RoverConfig(), noise={},
             ev=SimpleNamespace(settings=ReplaySettings()), say=lambda m: None, effort=None,
+            held_plans=held or {},
         )  # fmt: skip
 
     (p,) = untested_limit(d({"-": 0.30, "+": 2.0}))  # type: ignore[arg-type]
@@ -196,6 +198,11 @@ def test_a_limit_the_drives_never_reach_gets_the_drive_that_asks_for_it(monkeypa
     (r,) = untested_limit(read)  # type: ignore[arg-type]
     assert "log the motors' torque" not in r["reason"]  # they were logged
     assert "log the motors' torque (effort_* columns" in p["reason"]  # not logged: say so
+    assert p["seed"] == 0 and "held" not in p
+    # The logs hold the accel drive's first draw (driven once, the limit still unreached).
+    once = {"accel": [{"seed": 0, "log": "drive_03.csv"}]}
+    (again,) = untested_limit(d({"-": 0.30}, held=once))  # type: ignore[arg-type]
+    assert again["seed"] == 1 and again["held"] == once["accel"]
 
 
 def test_the_rotor_floor_is_the_cut_a_heavier_rotor_mimics_where_the_limit_binds() -> None:

@@ -250,6 +250,26 @@ def test_a_given_schedule_is_driven_as_held_rows(tmp_path: Path) -> None:
     )
 
 
+def test_drive_kinds_given_replace_the_rotation(tmp_path: Path) -> None:
+    """``kinds``: drive i is of kinds[i % len]; the reversals kind runs along one line,
+    forwards and back, never turning."""
+    paths = make_independent_logs(
+        tmp_path, {}, drives=3, seed=7, duration=12.0, kinds=["reversals"]
+    )
+    truth = yaml.safe_load((tmp_path / "truth.yaml").read_text())
+    assert [d["kind"] for d in truth["drives"]] == ["reversals"] * 3
+    for path in paths:
+        cmd = read_log(path).cmd
+        assert np.array_equal(cmd[:, 0], cmd[:, 1]) and cmd.min() < 0 < cmd.max()
+    rotated = make_independent_logs(tmp_path / "r", {}, drives=3, seed=7, duration=2.0)
+    kinds = [
+        d["kind"] for d in yaml.safe_load((rotated[0].parent / "truth.yaml").read_text())["drives"]
+    ]
+    assert len(set(kinds)) == 3
+    with pytest.raises(ValueError, match="unknown drive kind"):
+        make_independent_logs(tmp_path / "x", {}, drives=1, duration=1.0, kinds=["spin"])
+
+
 def test_given_manoeuvres_and_the_cli_plan_csv(tmp_path: Path) -> None:
     from rover_env.independent.__main__ import main
 

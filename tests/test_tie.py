@@ -73,6 +73,7 @@ def _diagnosis(winner: Scored, ranked: list[Scored], rev: bool, **opts: Any) -> 
             prepared=[_log([False] * 20 + [rev] * 5)],
             held_w=[Window(0, 0, 24)],
             say=said.append,
+            held_plans={},
         ),
     )
 

@@ -15,6 +15,7 @@ from rover_env.calibration.diagnosis.state import (
     Scored,
 )
 from rover_env.calibration.evidence import plan_command
+from rover_env.calibration.plans_held import held_text
 from rover_env.calibration.replay import SIGNALS, PreparedLog, WindowResult
 from rover_env.calibration.report_method import method_lines
 from rover_env.calibration.report_notes import (
@@ -377,7 +378,7 @@ def tie_text(tie: dict[str, Any]) -> str:
         f"{100 * tie['held_gain'][0]:.0f} % vs {100 * tie['held_gain'][1]:.0f} %; one-sided"
         f" Wilcoxon p that {a} is better: {p_text(tie['p_winner_better'])}){but}."
         f" Separating drive: plan `{tie['plan']}` (seed {seed}, {duration:g} s):"
-        f" {tie['why']}. " + drive_it_text([(tie["plan"], seed, duration)])
+        f" {tie['why']}.{held_text(tie)} " + drive_it_text([(tie["plan"], seed, duration)])
     )
 
 
@@ -428,7 +429,7 @@ def untested_lines(props: list[dict[str, Any]]) -> list[str]:
         L.append(
             f"- **{e['effect']}**: {e['reason']}. Proposed drive `{e['plan']}` (seed {seed},"
             f" {duration:g} s): {e['why']}; in simulation it moves {e['best_signal']} by"
-            f" {e['best_floor_units']:.1f}× its floor over the drive."
+            f" {e['best_floor_units']:.1f}× its floor over the drive.{held_text(e)}"
         )
     plans = [(e["plan"], *_seed_duration(e)) for e in props]
     return [*L, "", drive_it_text(plans), ""]
@@ -458,7 +459,7 @@ def evidence_lines(ev_list: list[dict[str, Any]]) -> list[str]:
             plans.append((e["plan"], seed, duration))
         L.append(
             f"| {e['effect']} | {e['reason']} | `{e['plan']}` (seed {seed}, {duration:g} s):"
-            f" {e['why']} |"
+            f" {e['why']}{held_text(e)} |"
             f" {e['best_signal']} {e['best_per_window']:.1f}×; {e['best_floor_units']:.1f}× |"
             f" {e['held_out_best_signal']} {e['held_out_floor_units']:.1f}× |"
             f" {'yes' if e['separates'] else 'no'} |"

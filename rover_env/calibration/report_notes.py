@@ -11,6 +11,7 @@ import numpy as np
 from rover_env.calibration.diagnosis.state import Scored
 from rover_env.calibration.effort import EVENTS, LAG, SPREAD
 from rover_env.calibration.evidence import plan_command
+from rover_env.calibration.plans_held import held_text
 
 
 def p_text(p: float) -> str:
@@ -244,7 +245,7 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
     drive = (
         f" Proposed drive `{r['plan']}` (seed {r['seed']}, {r['duration']:g} s): write it with"
         f" `{plan_command(r['plan'], r['seed'], r['duration'])}`, drive it on the rover and"
-        " diagnose again with its log added."
+        f" diagnose again with its log added.{held_text(r)}"
         if r.get("plan")
         else ""
     )

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 Array = NDArray[np.float64]
 
-__all__ = ["PLANS", "drive_schedule"]
+__all__ = ["PLANS", "drive_schedule", "drive_targets"]
 
 PLANS = ("test", "reversals", "turn-accel", "steps", "speeds", "straight", "accel")
 
@@ -124,20 +124,36 @@ _PLANS: dict[str, Callable[[np.random.Generator, float], list[Segment]]] = {
 }
 
 
-def drive_schedule(
+def _timed(
     plan: str, rng: np.random.Generator, duration: float, vmax: float
-) -> Callable[[float], Array]:
-    """Speed targets (1L 1R 2L 2R) as a function of time for one drive of ``plan``."""
+) -> tuple[Array, Array]:
+    """The plan's segments stretched to ``duration``: (each segment's end, its (left, right))."""
     if plan not in _PLANS:
         raise ValueError(f"unknown drive plan {plan!r}; have {', '.join(PLANS)}")
     segs = _PLANS[plan](rng, vmax)
     scale = duration / sum(s[0] for s in segs)  # stretch or squeeze the plan to the duration
     ends = np.cumsum([s[0] * scale for s in segs])
-    lr = np.array([s[1] for s in segs])
+    return ends, np.array([s[1] for s in segs])
+
+
+def drive_schedule(
+    plan: str, rng: np.random.Generator, duration: float, vmax: float
+) -> Callable[[float], Array]:
+    """Speed targets (1L 1R 2L 2R) as a function of time for one drive of ``plan``."""
+    ends, lr = _timed(plan, rng, duration, vmax)
 
     def schedule(t: float) -> Array:
-        k = min(int(np.searchsorted(ends, t, side="right")), len(segs) - 1)
+        k = min(int(np.searchsorted(ends, t, side="right")), len(lr) - 1)
         left, right = lr[k]
         return np.array([left, right, left, right])
 
     return schedule
+
+
+def drive_targets(
+    plan: str, rng: np.random.Generator, duration: float, vmax: float, t: Array
+) -> Array:
+    """(len(t), 4) speed targets of ``drive_schedule`` at every time of ``t`` at once."""
+    ends, lr = _timed(plan, rng, duration, vmax)
+    k = np.minimum(np.searchsorted(ends, np.asarray(t, dtype=float), side="right"), len(lr) - 1)
+    return np.tile(lr[k], (1, 2))

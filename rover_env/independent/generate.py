@@ -58,11 +58,14 @@ def make_independent_logs(
     first_index: int = 0,
     effort: bool = False,
     headings: str = "same",
+    kinds: Sequence[str] = (),
 ) -> list[Path]:
     """Write ``drives`` logs of ``duration`` seconds (or ``plan``'s) into ``out``; returns the
     CSV paths. ``nuisance``: the build drawn from ``seed`` (True), built to drawing (False),
     or drawn in the named part or parts only (:data:`~rover_env.independent.nuisance.GROUPS`).
-    ``effort``: the logs also carry the drivers' reported motor torque (``effort_*`` columns)."""
+    ``effort``: the logs also carry the drivers' reported motor torque (``effort_*`` columns).
+    ``kinds``: drive ``i`` is of kind ``kinds[i % len(kinds)]`` (:data:`.drive.KINDS`; empty:
+    the kinds rotate with the index and the seed)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     eff = resolve(effects)
@@ -70,6 +73,9 @@ def make_independent_logs(
         raise ValueError(f"headings must be one of {HEADINGS}, got {headings!r}")
     if first_index < 0:
         raise ValueError(f"first_index must be >= 0, got {first_index}")
+    unknown = [k for k in kinds if k not in drive.KINDS]
+    if unknown:
+        raise ValueError(f"unknown drive kind(s) {unknown}; known: {', '.join(drive.KINDS)}")
     if isinstance(plan, drive.Schedule):
         duration = plan.duration
     elif plan is not None:
@@ -89,7 +95,7 @@ def make_independent_logs(
     paths: list[Path] = []
     plans: list[dict[str, Any]] = []
     for i in range(first_index, first_index + drives):
-        kind, record, cmd = _targets(plan, i, seed, duration, t)
+        kind, record, cmd = _targets(plan, i, seed, duration, t, tuple(kinds))
         start = start_heading(seed, i) if headings != "same" else 0.0
         seen = dataclasses.replace(eff, slope_heading_deg=eff.slope_heading_deg - start)
         truth = simulate(params, seen, t, cmd)
@@ -147,6 +153,7 @@ def _targets(
     seed: int,
     duration: float,
     t: np.ndarray,
+    kinds: tuple[str, ...] = (),
 ) -> tuple[str, dict[str, Any], np.ndarray]:
     """Drive ``i``'s plan kind, its record for truth.yaml, and its (N, 4) targets at ``t``."""
     if isinstance(plan, drive.Schedule):
@@ -154,6 +161,6 @@ def _targets(
         return "given schedule", {"schedule": rows}, plan.at(t)
     if plan is not None:
         return "given manoeuvres", {"manoeuvres": [list(m) for m in plan]}, drive.targets(plan, t)
-    kind = drive.drive_kind(i, seed)
+    kind = kinds[i % len(kinds)] if kinds else drive.drive_kind(i, seed)
     manoeuvres = drive.plan(kind, duration, seed * 1000 + i)
     return kind, {"manoeuvres": [list(m) for m in manoeuvres]}, drive.targets(manoeuvres, t)

@@ -45,6 +45,7 @@ from rover_env.calibration.diagnosis.judge import scored_beside
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
 from rover_env.calibration.fit import Fit, to_ext
+from rover_env.calibration.plans_held import ask
 
 NAME = "slope"
 SOIL = "loose_soil"
@@ -110,7 +111,7 @@ def name_by_balance(d: Diagnosis) -> None:
     wlo = alone[0].fit.physical()[NAME]["deg"][1] if alone else None
     soil = any(c.name == SOIL for s in d.chosen for c in s.fit.candidates)
     act, rec = record(reading, len(runs), allow, wlo, len(windows) > len(alone), src, soil)
-    d.balance = rec
+    d.balance = ask(rec, d.held_plans) if "plan" in rec else rec
     if reading is None or act not in ("withdraw", "name"):
         return
     d.chosen = [s for s in d.chosen if s not in alone]

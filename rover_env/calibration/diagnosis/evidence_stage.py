@@ -17,6 +17,7 @@ from rover_env.calibration import evidence, fit
 from rover_env.calibration.diagnosis.rotor import rotor_floor, traction_torque
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.fit import Evaluator
+from rover_env.calibration.plans_held import HeldPlans, ask, seed_for
 from rover_env.config import RoverConfig
 
 
@@ -24,7 +25,7 @@ def seek_evidence(d: Diagnosis) -> None:
     """Sets :attr:`Diagnosis.evidence`."""
     read = {"slope"} if balance_settled(d) else set()
     d.evidence = missing_evidence(
-        d.ev, d.ranked, d.chosen, d.noise, d.base, d.opts, d.say, frozenset(read)
+        d.ev, d.ranked, d.chosen, d.noise, d.base, d.opts, d.say, frozenset(read), d.held_plans
     )
     d.untested = untested_limit(d)
 
@@ -55,9 +56,11 @@ def missing_evidence(
     opts: Options,
     say: Any,
     read: frozenset[str] = frozenset(),
+    held: HeldPlans | None = None,
 ) -> list[dict[str, Any]]:
     """Candidates the training drives support but the held-out drive cannot confirm (none
-    of ``read``: effects a direct reading settled).
+    of ``read``: effects a direct reading settled); each drive a draw the logs do not hold
+    (``held``, :mod:`~rover_env.calibration.plans_held`).
 
     A candidate qualifies when it is not named, lowers the training BIC, moves some training
     signal by at least one replay floor, and on the held-out drive either moves no signal
@@ -81,8 +84,8 @@ def missing_evidence(
         train = fit.signal_change(ev, s.fit.ext, {}, s.fit.which, noise)
         if max(train.values()) < 1.0:
             continue
-        held = fit.signal_change(ev, s.fit.ext, {}, "held", noise)
-        strong = [k for k, v in held.items() if v >= 1.0]
+        held_change = fit.signal_change(ev, s.fit.ext, {}, "held", noise)
+        strong = [k for k, v in held_change.items() if v >= 1.0]
         sparse = bool(strong) and all(k.startswith("pose_") for k in strong)
         # The held-out drive leans towards it (better by the window test's margin) but its
         # few windows cannot confirm it at alpha: more of the drive that excites it decides.
@@ -107,8 +110,12 @@ def missing_evidence(
             )
         else:
             why = "the held-out drive does not excite it"
-        p = evidence.propose(base, name, s.fit.ext, noise, held, ground=ev.settings.terrain)
+        seed = seed_for(evidence.evidence_plan(name)[0], held or {})
+        p = evidence.propose(
+            base, name, s.fit.ext, noise, held_change, seed=seed, ground=ev.settings.terrain
+        )
         p["reason"] = why
+        ask(p, held or {})
         out.append(p)
         say(
             f"evidence missing for {name} ({why}): propose a drive of plan {p['plan']!r}; in"
@@ -146,7 +153,11 @@ def untested_limit(d: Diagnosis) -> list[dict[str, Any]]:
         return []
     (c,) = tl.fit.candidates
     ext = c.to_ext(np.array([-res]))
-    p = evidence.propose(d.base, c.name, ext, d.noise, {}, ground=d.ev.settings.terrain)
+    seed = seed_for(evidence.evidence_plan(c.name)[0], d.held_plans)
+    p = ask(
+        evidence.propose(d.base, c.name, ext, d.noise, {}, seed=seed, ground=d.ev.settings.terrain),
+        d.held_plans,
+    )
     seen = (
         "no cut moved a signal by its floor"
         if thr is None

@@ -19,6 +19,7 @@ from rover_env.calibration.diagnosis.procedure import check_options, differences
 from rover_env.calibration.diagnosis.state import STRAIGHT, Diagnosis
 from rover_env.calibration.ground import common_ground
 from rover_env.calibration.heading import check_frames
+from rover_env.calibration.plans_held import held_plans
 from rover_env.calibration.replay import Window, make_windows, prepare, straight_windows
 from rover_env.config import RoverConfig, load_rover, resolve_path
 from rover_env.logs import DriveLog, LogError, read_log
@@ -68,6 +69,12 @@ def split(d: Diagnosis) -> None:
     d.files, d.logs, d.base, d.st, d.prepared, d.split = files, logs, base, st, prepared, text
     d.all_w, d.train_w, d.held_w, d.sets = all_w, train_w, held_w, sets
     d.say(f"{len(logs)} log(s), {text}; windows {len(train_w)} training, {len(held_w)} held out")
+    d.held_plans = held_plans(logs, [f.name for f in files], base.motor.max_wheel_speed)
+    for plan, have in d.held_plans.items():
+        d.say(
+            f"the logs hold plan {plan!r}: "
+            + ", ".join(f"seed {h['seed']} ({h['log']})" for h in have)
+        )
     table = d.opts.form_allowance
     if d.allowance is not None and table is not None and d.allowance_differs is None:
         check_options(d.allowance, resolve_path(table, "calibration"))

@@ -22,6 +22,7 @@ from rover_env.calibration.candidates import Candidate
 from rover_env.calibration.fit import Evaluator, Fit
 from rover_env.calibration.form_allowance import FormAllowance, load_allowance
 from rover_env.calibration.noise_interval import DRAWS as NOISE_DRAWS
+from rover_env.calibration.plans_held import HeldPlans
 from rover_env.calibration.replay import PreparedLog, ReplaySettings, Window, WindowResult
 from rover_env.calibration.residuals import Cell
 from rover_env.config import RoverConfig
@@ -655,6 +656,8 @@ class Diagnosis:
     held_w: list[Window] = field(init=False)
     sets: dict[str, list[Window]] = field(init=False)
     split: str = field(init=False)
+    held_plans: HeldPlans = field(default_factory=dict)
+    """The proposed drives' draws the logs already hold (:mod:`~rover_env.calibration.plans_held`)."""
     frames: dict[str, Any] | None = None
     """Each log's frame as fitted (:func:`.frames.fit_frames`; None: the frames as given)."""
     # form (:mod:`.form`)

@@ -31,6 +31,7 @@ from rover_env.calibration.candidates import separating_plan
 from rover_env.calibration.diagnosis.judge import p_improved
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
 from rover_env.calibration.evidence import PLAN_DURATION, PLAN_SEED
+from rover_env.calibration.plans_held import ask
 from rover_env.calibration.replay import PreparedLog, Window
 
 WORLD_FIXED = frozenset({"slope"})
@@ -104,7 +105,7 @@ def tie(d: Diagnosis) -> dict[str, Any] | None:
         p_diff, unseparated = p_improved(ru.held_losses, winner.held_losses), UNSEPARATED
     plan, why = separating_plan(winner.fit.name, ru.fit.name)
     d.say(f"tie: {winner.fit.name} vs {ru.fit.name} (p={p_diff:.2g}); separate with plan {plan!r}")
-    return {
+    rec = {
         "effects": [winner.fit.name, ru.fit.name],
         "p_winner_better": p_diff,
         "held_gain": [winner.gain, ru.gain],
@@ -115,6 +116,7 @@ def tie(d: Diagnosis) -> dict[str, Any] | None:
         "seed": PLAN_SEED,
         "duration": PLAN_DURATION,
     }
+    return ask(rec, d.held_plans)  # a draw the logs do not hold yet
 
 
 def reopen(d: Diagnosis) -> None:

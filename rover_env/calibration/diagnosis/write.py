@@ -168,6 +168,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "above_floor": unexplained(table_held_after, final_floor),
         "evidence": d.evidence,
         "untested": d.untested,
+        "plans_held": d.held_plans,
         "rotor_alternative": d.rotor,
         "rotor_profile": d.rotor_profile,
         "rotor_withdrawn": d.rotor_withdrawn,
