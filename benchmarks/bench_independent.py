@@ -164,6 +164,9 @@ def asked_record(res: dict[str, Any], props: list[Proposal]) -> dict[str, Any]:
     return {
         "plans_held": res.get("plans_held") or {},
         "asked": [{"plan": p.plan, "seed": p.seed, "for": sorted(p.effects)} for p in props],
+        "untested": [
+            {"plan": e.get("plan"), "seed": e.get("seed")} for e in res.get("untested", [])
+        ],
     }
 
 
