@@ -37,14 +37,19 @@ COVER = 0.95
 """Share of the plan's duration the log must span after the plan's first move."""
 
 
-def _agreement(t: Array, cmd: Array, want: Array, vmax: float) -> float:
+def _agreement(cmd: Array, want: Array, vmax: float) -> float:
     """Share of samples whose targets agree with ``want`` at that sample or a neighbour's
     time: a recorder that samples the held command one sample early or late still agrees."""
-    ok = np.max(np.abs(cmd - want), axis=1) <= TOL * vmax
-    near = ok.copy()
-    near[1:] |= ok[:-1] & (np.max(np.abs(cmd[1:] - want[:-1]), axis=1) <= TOL * vmax)
-    near[:-1] |= np.max(np.abs(cmd[:-1] - want[1:]), axis=1) <= TOL * vmax
-    return float(np.mean(near)) if t.size else 0.0
+    if not len(cmd):
+        return 0.0
+
+    def agree(a: Array, b: Array) -> NDArray[np.bool_]:
+        return np.max(np.abs(a - b), axis=1) <= TOL * vmax
+
+    near = agree(cmd, want)
+    near[1:] |= agree(cmd[1:], want[:-1])  # the sample shows the target before it: late
+    near[:-1] |= agree(cmd[:-1], want[1:])  # or the one after it: early
+    return float(np.mean(near))
 
 
 def _first_move(moving: Array) -> int | None:
@@ -74,7 +79,7 @@ def match(log: DriveLog, vmax: float, duration: float = PLAN_DURATION) -> tuple[
             if rel[-1] < COVER * duration:
                 continue
             want = drive_targets(plan, np.random.default_rng(seed), duration, vmax, rel[inside])
-            share = _agreement(rel[inside], cmd[inside], np.clip(want, -vmax, vmax), vmax)
+            share = _agreement(cmd[inside], np.clip(want, -vmax, vmax), vmax)
             if share >= AGREE and (best is None or share > best[0]):
                 best = (share, plan, seed)
     return None if best is None else (best[1], best[2])
