@@ -234,6 +234,17 @@ def _torque_note(
     ]
 
 
+CANDIDATES_NOTE = (
+    "Each candidate is fitted alone on the training drives: its value and interval are what"
+    " they would be were it the only effect missing. Only a named effect's interval (under"
+    " **Named**, widened by the replay's bias and by what clean drives fit) is one for the"
+    " truth; an unnamed candidate's can lie far from it, even on the other side of zero."
+)
+"""Why the candidates' intervals are not the truth's (stop 128: unnamed fits of blocks 54200
+and 54400 lay on the wrong side of their truth, a friction of +0.131 fitted -0.175
+[-0.204, -0.138])."""
+
+
 def write_report(d: Diagnosis) -> Path:
     """``report.md`` and its figures in ``d.out``, from a finished diagnosis (its
     :attr:`~Diagnosis.result` and the fits, tables and replays behind it)."""
@@ -279,7 +290,7 @@ def write_report(d: Diagnosis) -> Path:
     ]
     L += [f"| {s} | {_f(sensor_noise[s])} | {_f(noise[s])} |" for s in SIGNALS]
     L += ["", *_ratio_table(table_before, SIGNALS), ""]
-    L += ["![residual map](residual_map.png)", "", "## Candidates", ""]
+    L += ["![residual map](residual_map.png)", "", "## Candidates", "", CANDIDATES_NOTE, ""]
     L += [
         "| rank | effect | fitted (95 % interval) | training cost | held-out change | p | ΔAIC | ΔBIC | significant |",
         "|---|---|---|---|---|---|---|---|---|",
