@@ -292,7 +292,7 @@ def run_case(
     t2 = time.perf_counter()
     props = proposals(d / "out", untested)
     asked, extra, followed = props, [], None
-    held = [asked_record(res, props)]
+    records = [asked_record(res, props)]
     for r in range(rounds):  # each round drives what the last diagnosis asks for
         if not asked:
             break
@@ -303,7 +303,7 @@ def run_case(
         out_r = d / ("out_followup" if r == 0 else f"out_followup_{r + 1}")
         followed = diagnose([str(p) for p in [*paths, *extra]], out_r, opts)
         asked = proposals(out_r, untested)
-        held.append(asked_record(followed, asked))
+        records.append(asked_record(followed, asked))
     t3 = time.perf_counter()
     final = followed or res
     tie = res.get("tie")
@@ -327,7 +327,7 @@ def run_case(
             {"plan": p.plan, "seed": p.seed, "duration": p.duration, "for": sorted(p.effects)}
             for p in props
         ],
-        "rounds": held,
+        "rounds": records,
         "main_signal": final["main_signal"],
         "main_reduction": final["main_reduction"],
         "unexplained": final["unexplained"],
@@ -522,7 +522,8 @@ def main() -> int:
         f" (default {','.join(BALANCE_OTHERS)})",
     )
     args = ap.parse_args()
-    bad = [k for k in args.drive_kinds.split(",") if k and k not in KINDS]
+    kinds = tuple(k for k in args.drive_kinds.split(",") if k)
+    bad = [k for k in kinds if k not in KINDS]
     if bad:
         ap.error(f"--drive-kinds: unknown {bad}; known: {', '.join(KINDS)}")
     if args.rounds < 0:
@@ -590,7 +591,7 @@ def main() -> int:
             args.headings,
             args.frames,
             args.rounds,
-            tuple(k for k in args.drive_kinds.split(",") if k),
+            kinds,
         )
         rows.append(row)
         _order(rows, todo)

@@ -106,11 +106,6 @@ def ask(rec: dict[str, Any], held: HeldPlans) -> dict[str, Any]:
     return rec
 
 
-def seed_for(plan: str, held: HeldPlans) -> int:
-    """The seed :func:`ask` gives a proposal of ``plan``."""
-    return int(ask({"plan": plan}, held)["seed"])
-
-
 def held_text(rec: dict[str, Any]) -> str:
     """The report's words on a proposal whose plan the logs already hold ("" where none)."""
     have = rec.get("held") or []
@@ -133,5 +128,4 @@ __all__ = [
     "held_plans",
     "held_text",
     "match",
-    "seed_for",
 ]

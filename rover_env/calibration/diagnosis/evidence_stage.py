@@ -17,7 +17,7 @@ from rover_env.calibration import evidence, fit
 from rover_env.calibration.diagnosis.rotor import rotor_floor, traction_torque
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.fit import Evaluator
-from rover_env.calibration.plans_held import HeldPlans, ask, seed_for
+from rover_env.calibration.plans_held import HeldPlans, ask
 from rover_env.config import RoverConfig
 
 
@@ -110,12 +110,11 @@ def missing_evidence(
             )
         else:
             why = "the held-out drive does not excite it"
-        seed = seed_for(evidence.evidence_plan(name)[0], held or {})
+        drew = ask({"plan": evidence.evidence_plan(name)[0]}, held or {})  # a draw not held
         p = evidence.propose(
-            base, name, s.fit.ext, noise, held_change, seed=seed, ground=ev.settings.terrain
+            base, name, s.fit.ext, noise, held_change, seed=drew["seed"], ground=ev.settings.terrain
         )
-        p["reason"] = why
-        ask(p, held or {})
+        p.update(drew, reason=why)
         out.append(p)
         say(
             f"evidence missing for {name} ({why}): propose a drive of plan {p['plan']!r}; in"
@@ -153,11 +152,11 @@ def untested_limit(d: Diagnosis) -> list[dict[str, Any]]:
         return []
     (c,) = tl.fit.candidates
     ext = c.to_ext(np.array([-res]))
-    seed = seed_for(evidence.evidence_plan(c.name)[0], d.held_plans)
-    p = ask(
-        evidence.propose(d.base, c.name, ext, d.noise, {}, seed=seed, ground=d.ev.settings.terrain),
-        d.held_plans,
+    drew = ask({"plan": evidence.evidence_plan(c.name)[0]}, d.held_plans)  # a draw not held
+    p = evidence.propose(
+        d.base, c.name, ext, d.noise, {}, seed=drew["seed"], ground=d.ev.settings.terrain
     )
+    p.update(drew)
     seen = (
         "no cut moved a signal by its floor"
         if thr is None
