@@ -167,6 +167,10 @@ def asked_record(res: dict[str, Any], props: list[Proposal]) -> dict[str, Any]:
         "untested": [
             {"plan": e.get("plan"), "seed": e.get("seed")} for e in res.get("untested", [])
         ],
+        "judged": [
+            {"effect": e.get("effect"), "why": e.get("why")}
+            for e in res.get("evidence_judged") or []
+        ],
     }
 
 

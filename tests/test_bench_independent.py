@@ -748,6 +748,7 @@ def test_rounds_drive_what_each_diagnosis_asks_until_it_asks_nothing(
             "untested": [],
             "balance": bal if n < 3 else {"read": True},
             "plans_held": held if n > 1 else {},
+            "evidence_judged": [{"effect": "torque_limit", "why": "allowance"}] if n == 3 else [],
             "main_signal": "wheel_1L",
             "main_reduction": 0.5,
             "unexplained": [],
@@ -767,6 +768,8 @@ def test_rounds_drive_what_each_diagnosis_asks_until_it_asks_nothing(
     asked = [[(a["plan"], a["seed"]) for a in r["asked"]] for r in row["rounds"]]
     assert asked == [[("reversals", 0)], [("reversals", 1)], []]
     assert row["rounds"][1]["plans_held"] == {"reversals": [{"seed": 0, "log": "drive_03.csv"}]}
+    judged = [r["judged"] for r in row["rounds"]]  # what each diagnosis judged not worth a drive
+    assert judged == [[], [], [{"effect": "torque_limit", "why": "allowance"}]]
     calls.clear()
     b.run_case(case, tmp_path, rounds=1)  # the default: the first diagnosis's asks only
     assert [len(c) for c in calls] == [3, 4]

@@ -337,6 +337,7 @@ def write_report(d: Diagnosis) -> Path:
             "",
         ]
     L += evidence_lines(result.get("evidence") or [])
+    L += judged_lines(result.get("evidence_judged") or [])
     L += untested_lines(result.get("untested") or [])
     L += visibility_lines(result.get("fits") or {})
     L += ["## Held-out drive before / after (RMS residual / replay floor)", "", "Before:", ""]
@@ -477,6 +478,40 @@ def evidence_lines(ev_list: list[dict[str, Any]]) -> list[str]:
         )
     L += ["", drive_it_text(plans), ""]
     return L
+
+
+def judged_lines(judged: list[dict[str, Any]]) -> list[str]:
+    """Candidates no drive is asked for, and why: no drive could make them nameable, or
+    their own deciding drive, held out, judged them."""
+    if not judged:
+        return []
+    L = ["## Drives not asked for", ""]
+    for e in judged:
+        if e["why"] == "held_out":
+            L.append(
+                f"- **{e['effect']}**: the held-out drive is a draw of its deciding plan"
+                f" (`{e['plan']}` seed {e['seed']}, {e['log']}) and the fit is"
+                f" {100 * e['gain']:.1f} % better there at p {e['p']:.2g}: no lean that more of"
+                " that drive would confirm. What the training drives show of it, the drive"
+                " that asks for it most does not."
+            )
+        elif e["why"] == "allowance":
+            L.append(
+                f"- **{e['effect']}**: fitted {e['fit']}; its whole interval lies within what"
+                f" clean builds of another implementation fit (the clean-fit allowance,"
+                f" {e['edge']:.3g}), so no drive (`{e['plan']}` or another) could make it"
+                " nameable."
+            )
+        else:
+            L.append(
+                f"- **{e['effect']}**: these drives reach the motors' limit for every cut beyond"
+                f" {100 * e['threshold']:.0f} %, and no cut under the clean-fit allowance's"
+                f" {100 * e['edge']:.0f} % is named from the wheel angles whatever the drive"
+                f" (`{e['plan']}` included). Smaller cuts are read from the motors' logged"
+                " torque (effort_* columns) or with the rotor's datasheet inertia"
+                " (`motor.armature`)."
+            )
+    return [*L, ""]
 
 
 def _free_gain_lines(g: float | None, c: float | None = None) -> list[str]:

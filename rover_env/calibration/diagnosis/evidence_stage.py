@@ -9,25 +9,70 @@ it says what to drive next.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from rover_env.calibration import evidence, fit
+from rover_env.calibration import residuals as rs
+from rover_env.calibration.candidates import Extensions, merge
+from rover_env.calibration.diagnosis.judge import (
+    fit_budget,
+    fmt_phys,
+    passes_window_test,
+    score,
+)
 from rover_env.calibration.diagnosis.rotor import rotor_floor, traction_torque
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.fit import Evaluator
+from rover_env.calibration.form_allowance import FormAllowance
 from rover_env.calibration.plans_held import HeldPlans, ask
 from rover_env.config import RoverConfig
+from rover_env.effects import CATALOGUE
+
+Beside = Callable[[Scored], Scored]
+"""A candidate's single fit, refitted and judged beside the named effects."""
 
 
 def seek_evidence(d: Diagnosis) -> None:
     """Sets :attr:`Diagnosis.evidence`."""
     read = {"slope"} if balance_settled(d) else set()
+    beside = (lambda s: beside_named(d, s)) if d.chosen else None
+    ctx = Asking(d.held_plans, held_out_log(d), beside, d.allowance)
     d.evidence = missing_evidence(
-        d.ev, d.ranked, d.chosen, d.noise, d.base, d.opts, d.say, frozenset(read), d.held_plans
+        d.ev, d.ranked, d.chosen, d.noise, d.base, d.opts, d.say, frozenset(read), ctx
     )
+    d.evidence_judged = ctx.judged
     d.untested = untested_limit(d)
+
+
+def held_out_log(d: Diagnosis) -> str | None:
+    """The held-out drive's file name, where one whole log is held out."""
+    return d.files[-1].name if len(d.files) >= 2 and not d.opts.interleave else None
+
+
+def named_ext(chosen: list[Scored]) -> Extensions:
+    """The named effects' extensions, as the configuration gets them."""
+    return merge(*(s.fit.ext for s in chosen))
+
+
+def beside_named(d: Diagnosis, s: Scored) -> Scored:
+    """``s``'s candidates refitted with the named effects held as named (from its single
+    fit), judged against the named model: what the candidate adds to them. Why (stop 129):
+    fitted alone, a candidate also explains what a named effect explains, and its held-out
+    lead then asks for a drive round after round (block 54400: a torque cut of about 50 %
+    beside every named slope led the `accel` drive by 11-39 %)."""
+    ref = named_ext(d.chosen)
+    cands = s.fit.candidates
+    f = fit.fit(
+        d.ev, cands, s.fit.which, x_start=s.fit.x, max_nfev=fit_budget(cands, d.opts),
+        probe=False, hold=ref,
+    )  # fmt: skip
+    b = score(d, f, rs.window_losses(d.ev.run(ref, "held"), d.noise), ref, k=s.fit.k)
+    b.significant = passes_window_test(b, d.opts)
+    return b
 
 
 def balance_settled(d: Diagnosis) -> bool:
@@ -47,6 +92,75 @@ def balance_settled(d: Diagnosis) -> bool:
     return hi is not None and hi <= edge
 
 
+@dataclass
+class Asking:
+    """What decides whether a drive is worth asking for (stop 129)."""
+
+    held: HeldPlans = field(default_factory=dict)
+    """The plans' draws the logs hold (:mod:`~rover_env.calibration.plans_held`)."""
+    held_out: str | None = None
+    """The held-out drive's file name, where one whole log is held out."""
+    beside: Beside | None = None
+    """With effects named: a candidate refitted and judged beside them (:func:`beside_named`)."""
+    allowance: FormAllowance | None = None
+    """The clean-fit allowance (:attr:`Diagnosis.allowance`)."""
+    judged: list[dict[str, Any]] = field(default_factory=list)
+    """Candidates asked for nothing, and why (``result.json``'s ``evidence_judged``)."""
+
+
+READ_APART = frozenset({"slope", "rolling_radius"})
+"""Effects a reading of their own names (the balance, dead reckoning), not the windows:
+the windows' allowance does not bound what their drives can show."""
+
+
+def within_allowance(s: Scored, allowance: FormAllowance | None) -> float | None:
+    """The clean-fit allowance's edge (:meth:`FormAllowance.edge`) where the whole of
+    ``s``'s 95 % interval lies within it, else None: confirmed by any drive, the fit would
+    still be withdrawn (what a clean build of another implementation fits reaches as far).
+    One continuous parameter, not :data:`READ_APART`."""
+    if allowance is None or len(s.fit.candidates) != 1:
+        return None
+    (c,) = s.fit.candidates
+    if c.discrete or c.name in READ_APART or len(c.labels) != 1:
+        return None
+    v, lo, hi = next(iter(s.fit.physical(allow=False)[c.name].values()))
+    off = CATALOGUE[c.name].params[0].off
+    side = "+" if v > off else "-"
+    edge = allowance.edge(c.name, side)
+    far = hi - off if side == "+" else off - lo
+    return edge if edge > 0.0 and far <= edge else None
+
+
+def not_worth_asking(
+    s: Scored, plan: str, leaning: bool, sparse: bool, ctx: Asking, say: Any
+) -> dict[str, Any] | None:
+    """Why no drive is asked for ``s`` (a record for :attr:`Asking.judged`), or None.
+
+    Its interval lies within the clean-fit allowance (:func:`within_allowance`): no drive
+    can make it nameable. Or the held-out drive is a draw of its deciding ``plan`` and does
+    not lean towards it (better by the window test's margin): that drive judged it, and
+    another draw of it would not. Block 54400 asked ``accel`` for torque cuts of about
+    50 % (what clean builds fit) 21 times, 5 of them after a draw of it was driven."""
+    name = s.fit.name
+    edge = within_allowance(s, ctx.allowance)
+    if edge is not None:
+        say(
+            f"evidence: {name} {fmt_phys(s.fit)} lies within the clean-fit allowance"
+            f" ({edge:.3g}): no drive could make it nameable, none asked"
+        )
+        return {"effect": name, "plan": plan, "why": "allowance", "edge": edge,
+                "fit": fmt_phys(s.fit)}  # fmt: skip
+    mine = [h for h in ctx.held.get(plan, []) if h["log"] == ctx.held_out]
+    if sparse or leaning or not mine:
+        return None
+    say(
+        f"evidence: {name}'s deciding drive {plan!r} ({ctx.held_out}, held out) is"
+        f" {100 * s.gain:.1f} % better at p {s.p:.2g}, short of the lean another draw would"
+        " need: not asked again"
+    )
+    return {"effect": name, "plan": plan, "why": "held_out", **mine[0], "gain": s.gain, "p": s.p}
+
+
 def missing_evidence(
     ev: Evaluator,
     ranked: list[Scored],
@@ -56,11 +170,13 @@ def missing_evidence(
     opts: Options,
     say: Any,
     read: frozenset[str] = frozenset(),
-    held: HeldPlans | None = None,
+    ctx: Asking | None = None,
 ) -> list[dict[str, Any]]:
     """Candidates the training drives support but the held-out drive cannot confirm (none
     of ``read``: effects a direct reading settled); each drive a draw the logs do not hold
-    (``held``, :mod:`~rover_env.calibration.plans_held`).
+    (:attr:`Asking.held`). With effects named, each candidate is judged by what it adds
+    beside them (:attr:`Asking.beside`), not by its fit alone; one no drive could decide
+    is recorded in :attr:`Asking.judged` instead (:func:`not_worth_asking`).
 
     A candidate qualifies when it is not named, lowers the training BIC, moves some training
     signal by at least one replay floor, and on the held-out drive either moves no signal
@@ -71,7 +187,9 @@ def missing_evidence(
     For each (at most ``opts.evidence``, best training BIC first) the drive that would
     decide is proposed and simulated (:func:`rover_env.calibration.evidence.propose`).
     """
+    ctx = ctx or Asking()
     named = {c.name for s in chosen for c in s.fit.candidates}
+    ref = named_ext(chosen)
     out: list[dict[str, Any]] = []
     for s in sorted(ranked, key=lambda s: s.d_bic):
         if len(out) >= opts.evidence:
@@ -79,12 +197,18 @@ def missing_evidence(
         name = s.fit.name
         if name in named or name in read or s.d_bic >= 0 or s.fit.x.size == 0:
             continue
+        if ctx.beside is not None:
+            s = ctx.beside(s)
+            if s.d_bic >= 0:
+                say(f"evidence: {name} adds nothing beside {', '.join(sorted(named))}"
+                    f" (dBIC {s.d_bic:+.1f})")  # fmt: skip
+                continue
         if all(v == 0.0 for v in s.fit.x):
             continue
-        train = fit.signal_change(ev, s.fit.ext, {}, s.fit.which, noise)
+        train = fit.signal_change(ev, s.fit.ext, ref, s.fit.which, noise)
         if max(train.values()) < 1.0:
             continue
-        held_change = fit.signal_change(ev, s.fit.ext, {}, "held", noise)
+        held_change = fit.signal_change(ev, s.fit.ext, ref, "held", noise)
         strong = [k for k, v in held_change.items() if v >= 1.0]
         sparse = bool(strong) and all(k.startswith("pose_") for k in strong)
         # The held-out drive leans towards it (better by the window test's margin) but its
@@ -92,9 +216,14 @@ def missing_evidence(
         # So does strong training evidence (ΔBIC at or below Options.strong_bic) that the
         # held-out drive does not contradict (better at all) but did not confirm.
         strong_bic = s.d_bic <= opts.strong_bic and s.gain > 0.0 and not s.significant
-        leaning = (s.gain >= opts.min_gain and s.p >= opts.alpha) or strong_bic
-        if strong and not sparse and not leaning:
+        lean = s.gain >= opts.min_gain and s.p >= opts.alpha
+        if strong and not sparse and not (lean or strong_bic):
             continue  # the held-out drive could judge it, and did
+        plan = evidence.evidence_plan(name)[0]
+        rec = not_worth_asking(s, plan, lean, sparse, ctx, say)
+        if rec is not None:
+            ctx.judged.append(rec)
+            continue
         if sparse:
             why = "only the 1 Hz pose carries it on the held-out drive"
         elif strong and s.gain >= opts.min_gain:
@@ -110,9 +239,11 @@ def missing_evidence(
             )
         else:
             why = "the held-out drive does not excite it"
-        drew = ask({"plan": evidence.evidence_plan(name)[0]}, held or {})  # a draw not held
+        drew = ask({"plan": plan}, ctx.held)  # a draw not held
+        own = {k: v for k, v in s.fit.ext.items() if k not in ref}  # the named are in the base
+        base_named = replace(base, extensions=merge(base.extensions, ref))
         p = evidence.propose(
-            base, name, s.fit.ext, noise, held_change, seed=drew["seed"], ground=ev.settings.terrain
+            base_named, name, own, noise, held_change, seed=drew["seed"], ground=ev.settings.terrain
         )
         p.update(drew, reason=why)
         out.append(p)
@@ -132,7 +263,13 @@ def untested_limit(d: Diagnosis) -> list[dict[str, Any]]:
     drive, and the torque limit's noise threshold on these drives (the smallest cut that
     moves a signal by one replay floor) exceeds :attr:`Options.limit_resolution`: the logs
     then reach the limit only for cuts beyond it. Simulated like an evidence drive, with a
-    cut of that resolution. Kept apart from the evidence: it is about what these drives did
+    cut of that resolution. Not when the logs hold a draw of that plan (stop 129): the
+    threshold is read on the training drives, and a draw held is the held-out drive or
+    among them, so the limit was asked for; another draw tests no more (block 54400 asked
+    it again in 9 of 24 cases). Nor, without the motors' torque logged, when the drives
+    reach every cut beyond the clean-fit allowance's edge: a cut under it is not named from
+    the wheel angles whatever the drive (block 54400: 17 of 24 first diagnoses asked, each
+    reaching cuts beyond 6-52 % against an edge of 62 %). Kept apart from the evidence: it is about what these drives did
     not test, not about a candidate they support. Where the limit is above the tires'
     traction, the reason also says below which cut (``rotor_floor``,
     :func:`.rotor.rotor_floor`) a cut acts, wherever the limit binds, as the rotor inertia's
@@ -141,7 +278,7 @@ def untested_limit(d: Diagnosis) -> list[dict[str, Any]]:
     """
     res = d.opts.limit_resolution
     named = {c.name for s in d.chosen for c in s.fit.candidates}
-    asked = {e["effect"] for e in d.evidence}
+    asked = {e["effect"] for e in [*d.evidence, *d.evidence_judged]}  # or judged not worth it
     tl = next((s for s in d.ranked if s.fit.name == "torque_limit"), None)
     if res <= 0 or tl is None or "torque_limit" in named | asked:
         return []
@@ -150,9 +287,29 @@ def untested_limit(d: Diagnosis) -> list[dict[str, Any]]:
     thr = (tl.threshold or {}).get("-")
     if thr is not None and thr <= res:
         return []
+    edge = d.allowance.edge("torque_limit", "-") if d.allowance is not None else 0.0
+    if d.effort is None and thr is not None and thr <= edge:
+        d.say(
+            f"torque limit: these drives reach every cut beyond {100 * thr:.0f} %, and the wheel"
+            f" angles name none under the clean-fit allowance's {100 * edge:.0f} % whatever the"
+            " drive: none asked (the rotor's datasheet inertia or the motors' logged torque"
+            " reads smaller cuts)"
+        )
+        d.evidence_judged.append({"effect": "torque_limit", "plan": "accel",
+                                  "why": "untested_allowance", "threshold": thr, "edge": edge})  # fmt: skip
+        return []
     (c,) = tl.fit.candidates
+    plan = evidence.evidence_plan(c.name)[0]
+    if d.held_plans.get(plan):
+        logs = ", ".join(h["log"] for h in d.held_plans[plan])
+        d.say(
+            f"torque limit: the logs hold the drive that asks the motors for it ({plan!r}:"
+            f" {logs}); what it leaves unread another draw leaves too (the rotor's datasheet"
+            " inertia or the motors' logged torque reads it)"
+        )
+        return []
     ext = c.to_ext(np.array([-res]))
-    drew = ask({"plan": evidence.evidence_plan(c.name)[0]}, d.held_plans)  # a draw not held
+    drew = ask({"plan": plan}, d.held_plans)  # nothing held: its first draw
     p = evidence.propose(
         d.base, c.name, ext, d.noise, {}, seed=drew["seed"], ground=d.ev.settings.terrain
     )

@@ -718,6 +718,8 @@ class Diagnosis:
     it withdrew the name (:func:`.one_wheel.withdraw_one_wheel`)."""
     # evidence (:mod:`.evidence_stage`)
     evidence: list[dict[str, Any]] = field(default_factory=list)
+    evidence_judged: list[dict[str, Any]] = field(default_factory=list)
+    """Candidates their own deciding drive, held out, judged: not asked again."""
     rotor: dict[str, Any] | None = None
     """Beside a named torque limit, the rotor inertia fitted in its place (:mod:`.rotor`)."""
     rotor_withdrawn: dict[str, Any] | None = None

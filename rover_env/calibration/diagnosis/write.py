@@ -167,6 +167,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "unexplained": gap(table_held_after, final_floor),
         "above_floor": unexplained(table_held_after, final_floor),
         "evidence": d.evidence,
+        "evidence_judged": d.evidence_judged,
         "untested": d.untested,
         "plans_held": d.held_plans,
         "rotor_alternative": d.rotor,
