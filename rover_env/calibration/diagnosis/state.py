@@ -719,7 +719,8 @@ class Diagnosis:
     # evidence (:mod:`.evidence_stage`)
     evidence: list[dict[str, Any]] = field(default_factory=list)
     evidence_judged: list[dict[str, Any]] = field(default_factory=list)
-    """Candidates their own deciding drive, held out, judged: not asked again."""
+    """Candidates no drive is asked for, and why (:func:`.evidence_stage.not_worth_asking`,
+    :func:`.evidence_stage.untested_limit`)."""
     rotor: dict[str, Any] | None = None
     """Beside a named torque limit, the rotor inertia fitted in its place (:mod:`.rotor`)."""
     rotor_withdrawn: dict[str, Any] | None = None
