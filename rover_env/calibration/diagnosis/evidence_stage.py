@@ -16,13 +16,12 @@ from typing import Any
 import numpy as np
 
 from rover_env.calibration import evidence, fit
-from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import Extensions, merge
 from rover_env.calibration.diagnosis.judge import (
     fit_budget,
     fmt_phys,
     passes_window_test,
-    score,
+    scored_beside,
 )
 from rover_env.calibration.diagnosis.rotor import rotor_floor, traction_torque
 from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
@@ -71,7 +70,7 @@ def beside_named(d: Diagnosis, s: Scored) -> Scored:
         d.ev, cands, s.fit.which, x_start=s.fit.x, max_nfev=fit_budget(cands, d.opts),
         probe=False, hold=ref,
     )  # fmt: skip
-    b = score(d, f, rs.window_losses(d.ev.run(ref, "held"), d.noise), ref, k=s.fit.k)
+    b, _ = scored_beside(d, f, ref, k=s.fit.k)
     b.significant = passes_window_test(b, d.opts)
     return b
 
@@ -133,7 +132,7 @@ def within_allowance(s: Scored, allowance: FormAllowance | None) -> float | None
 
 
 def not_worth_asking(
-    s: Scored, plan: str, leaning: bool, sparse: bool, ctx: Asking, say: Any
+    s: Scored, plan: str, lean: bool, sparse: bool, ctx: Asking, say: Any
 ) -> dict[str, Any] | None:
     """Why no drive is asked for ``s`` (a record for :attr:`Asking.judged`), or None.
 
@@ -152,7 +151,7 @@ def not_worth_asking(
         return {"effect": name, "plan": plan, "why": "allowance", "edge": edge,
                 "fit": fmt_phys(s.fit)}  # fmt: skip
     mine = [h for h in ctx.held.get(plan, []) if h["log"] == ctx.held_out]
-    if sparse or leaning or not mine:
+    if sparse or lean or not mine:
         return None
     say(
         f"evidence: {name}'s deciding drive {plan!r} ({ctx.held_out}, held out) is"
