@@ -163,6 +163,7 @@ def asked_record(res: dict[str, Any], props: list[Proposal]) -> dict[str, Any]:
     would ask the user to drive what they drove)."""
     return {
         "plans_held": res.get("plans_held") or {},
+        "provisional": bool(res.get("provisional")),
         "asked": [{"plan": p.plan, "seed": p.seed, "for": sorted(p.effects)} for p in props],
         "untested": [
             {"plan": e.get("plan"), "seed": e.get("seed")} for e in res.get("untested", [])

@@ -148,6 +148,7 @@ def test_a_limit_the_drives_never_reach_gets_the_drive_that_asks_for_it(monkeypa
     from rover_env.calibration import evidence, fit
     from rover_env.calibration.candidates import catalogue
     from rover_env.calibration.diagnosis.evidence_stage import untested_limit
+    from rover_env.calibration.report import judged_lines
     from rover_env.calibration.diagnosis.state import Options, Scored
     from rover_env.config import RoverConfig
 
@@ -212,6 +213,10 @@ def test_a_limit_the_drives_never_reach_gets_the_drive_that_asks_for_it(monkeypa
     held.say = lines.append
     assert untested_limit(held) == []  # type: ignore[arg-type]
     assert "'accel': drive_03.csv" in lines[0]
+    assert held.evidence_judged == [{"effect": "torque_limit", "plan": "accel",
+        "why": "untested_held", "logs": ["drive_03.csv"]}]  # fmt: skip
+    text = "\n".join(judged_lines(held.evidence_judged))
+    assert "hold the drive that asks the motors for it (`accel`: drive_03.csv)" in text
     # Another plan held asks for nothing: the accel drive is still proposed.
     (other,) = untested_limit(d({"-": 0.30}, held={"steps": once["accel"]}))  # type: ignore[arg-type]
     assert other["seed"] == 0 and "held" not in other
@@ -417,3 +422,51 @@ def test_a_candidate_its_own_held_out_drive_judged_is_not_asked_again(monkeypatc
         assert [(e["effect"], e["seed"]) for e in got] == want
         assert [j["why"] for j in judged] == (["allowance"] if not want else [])
         assert ("within the clean-fit allowance (0.62)" in lines[0]) == (not want)
+
+
+def test_a_candidate_still_unconfirmed_after_max_draws_asks_for_no_other(monkeypatch) -> None:
+    """Stop 130: a lean short of alpha asks for the next draw of its plan only while the logs
+    hold fewer than ``Options.max_draws`` draws of it (clean case 54509 asked for seeds 0, 1
+    and 2 of ``steps``); the report says so, and 0 lifts the cap."""
+    import numpy as np
+
+    from rover_env.calibration import evidence, fit
+    from rover_env.calibration.candidates import catalogue
+    from rover_env.calibration.diagnosis.evidence_stage import Asking, missing_evidence
+    from rover_env.calibration.diagnosis.state import Options, Scored
+    from rover_env.calibration.report import judged_lines
+    from rover_env.config import RoverConfig
+
+    (c,) = catalogue(["command_delay"])
+    monkeypatch.setattr(fit, "signal_change", lambda *a, **k: {"wheel_2R": 5.0})
+    monkeypatch.setattr(
+        evidence, "propose", lambda base, name, *a, **kw: {"effect": name, "plan": "steps",
+        "best_signal": "wheel_2R", "best_per_window": 3.0, "best_floor_units": 9.0,
+        "held_out_best_signal": "wheel_2R", "held_out_floor_units": 5.0},
+    )  # fmt: skip
+    f = fit.Fit(
+        [c], np.array([0.034]), np.array([0.028]), np.array([0.041]), np.array([0.003]),
+        1.0, 3, {"command_delay": {"delay": 0.034}}, 0.0, "train",
+    )  # fmt: skip
+    lean = Scored(f, 1.0, np.ones(16), 0.33, 0.03, -12.0, -12.0, 32)  # 54509's lean
+    ev = SimpleNamespace(settings=ReplaySettings())
+    two = {"steps": [{"seed": 0, "log": "drive_03.csv"}, {"seed": 1, "log": "drive_05.csv"}]}
+    for held, cap, want in ((two, 2, []), (two, 0, [2]), (two, 3, [2]), ({"steps": two["steps"][:1]}, 2, [1])):  # fmt: skip
+        ctx = Asking(held=held, held_out="drive_05.csv", max_draws=cap)
+        lines: list[str] = []
+        got = missing_evidence(
+            ev,
+            [lean],
+            [],
+            {},
+            RoverConfig(),
+            Options(progress=False),
+            lines.append,
+            ctx=ctx,  # type: ignore[arg-type]
+        )
+        assert [e["seed"] for e in got] == want
+        assert [j["why"] for j in ctx.judged] == ([] if want else ["draws"])
+    text = "\n".join(judged_lines([{"effect": "command_delay", "plan": "steps", "why": "draws",
+                                    "draws": 2, "gain": 0.33, "p": 0.03}]))  # fmt: skip
+    assert "holds 2 draws" not in text and "hold 2 draws of its deciding plan (`steps`)" in text
+    assert "33.0 % better" in text and "p 0.03" in text

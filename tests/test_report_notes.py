@@ -210,3 +210,37 @@ def test_the_allowance_note_says_what_became_of_the_pairs_other_effect() -> None
     after = allowance_note({**w, "next": "rolling_resistance"}, beside=True)
     assert "rolling_resistance, next in the naming order, is named by its own fit." in after
     assert "next in the naming order" not in plain
+
+
+def test_a_name_is_provisional_while_the_diagnosis_asks_for_a_drive() -> None:
+    """Stop 130: with a drive asked for (here the balance's crossing drive and an evidence
+    drive), ``result.json``'s ``provisional`` lists them and the headline says the names
+    can change; with none asked, or nothing named, nothing is provisional. Block 54500's
+    clean 54505 was named a friction at first and withdrawn after the crossing drive."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from rover_env.calibration.candidates import catalogue
+    from rover_env.calibration.diagnosis.write import pending_drives
+    from rover_env.calibration.fit import Fit
+    from rover_env.calibration.report import _headline
+
+    (c,) = catalogue(["friction"])
+    x = np.array([-0.277])
+    s = SimpleNamespace(fit=Fit([c], x, x - 0.03, x + 0.03, x * 0 + 0.01, 0.0, 0, c.to_ext(x), 0.0, "train"))  # fmt: skip
+    asks = {
+        "balance": {"plan": "reversals", "seed": 0, "duration": 50.0, "why_drive": "wide"},
+        "evidence": [{"plan": "steps", "seed": 1, "effect": "command_delay", "why": "w"}],
+    }
+    pending = pending_drives(asks)
+    assert [(p["plan"], p["seed"], p["for"]) for p in pending] == [
+        ("steps", 1, ["command_delay"]), ("reversals", 0, ["slope"])
+    ]  # fmt: skip
+    assert pending_drives({}) == []
+    base = {"unexplained": [], "above_floor": [], "named": ["friction"]}
+    text = "\n".join(_headline({**base, "provisional": pending}, [s], [], None))  # type: ignore[list-item]
+    assert text.startswith("**Named, provisionally:** friction")
+    assert "`reversals` seed 0 for slope" in text and "`steps` seed 1 for command_delay" in text
+    final = "\n".join(_headline({**base, "provisional": []}, [s], [], None))  # type: ignore[list-item]
+    assert final.startswith("**Named:** friction") and "can change" not in final

@@ -55,6 +55,7 @@ __all__ = [
     "ground",
     "parse_joint_names",
     "proposals_from_report",
+    "proposals_from_result",
     "read_csv",
     "write_plan",
 ]
@@ -186,11 +187,8 @@ def parse_joint_names(text: str | None) -> tuple[str, ...]:
 
 
 def proposals_from_report(path: str | Path, untested: bool = True) -> list[Proposal]:
-    """Every drive a diagnosis proposes (its tie, its evidence rows, the force balance's
-    drive where its runs did not separate a tilt from a resistance or its interval is wide,
-    named or not, and, with ``untested``, the drives for what its logs never tested), merged
-    by (plan, seed, duration); reports from before the seed and duration were recorded used
-    :data:`PLAN_SEED` and :data:`PLAN_DURATION`."""
+    """Every drive a diagnosis proposes (:func:`proposals_from_result`) from its
+    ``result.json`` (or the folder holding it); an error where it proposes none."""
     p = Path(path)
     f = p / "result.json" if p.is_dir() else p
     if not f.is_file():
@@ -201,6 +199,20 @@ def proposals_from_report(path: str | Path, untested: bool = True) -> list[Propo
         raise DrivePlanError(f"--report {f}: not a diagnose result.json ({exc})") from None
     if not isinstance(result, dict):
         raise DrivePlanError(f"--report {f}: not a diagnose result.json")
+    props = proposals_from_result(result, untested)
+    if not props:
+        raise DrivePlanError(
+            f"--report {f}: the diagnosis proposes no drive (no tie, no evidence, nothing untested)"
+        )
+    return props
+
+
+def proposals_from_result(result: dict[str, Any], untested: bool = True) -> list[Proposal]:
+    """Every drive a diagnosis result proposes (its tie, its evidence rows, the force
+    balance's drive where its runs did not separate a tilt from a resistance or its interval
+    is wide, named or not, and, with ``untested``, the drives for what its logs never
+    tested), merged by (plan, seed, duration); results from before the seed and duration
+    were recorded used :data:`PLAN_SEED` and :data:`PLAN_DURATION`."""
     raw: list[tuple[dict[str, Any], str, set[str]]] = []
     tie = result.get("tie")
     if isinstance(tie, dict) and tie.get("plan"):
@@ -219,10 +231,6 @@ def proposals_from_report(path: str | Path, untested: bool = True) -> list[Propo
         if isinstance(e, dict) and e.get("plan"):
             why = f"untested {e['effect']} ({e.get('reason', '')}): {e.get('why', '')}"
             raw.append((e, why, {e["effect"]}))
-    if not raw:
-        raise DrivePlanError(
-            f"--report {f}: the diagnosis proposes no drive (no tie, no evidence, nothing untested)"
-        )
     out: dict[tuple[str, int, float], Proposal] = {}
     for d, why, effects in raw:
         key = (

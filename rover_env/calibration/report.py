@@ -153,7 +153,9 @@ def _headline(
     )
     lead = "**Not named with confidence:**" if named else "**Nothing named with confidence.**"
     if named:
-        L.append(f"**Named:** {' + '.join(named)} — {'; '.join(phys_text(s) for s in chosen)}.")
+        head = "**Named, provisionally:**" if result.get("provisional") else "**Named:**"
+        L.append(f"{head} {' + '.join(named)} — {'; '.join(phys_text(s) for s in chosen)}.")
+        L += provisional_lines(result.get("provisional") or [])
         if result.get("trade_excused"):
             L.append("\n" + trade_note(result["trade_excused"]))
     if nn:
@@ -194,6 +196,20 @@ def _headline(
             " own form against the logs' implementation, not an effect)."
         )
     return L
+
+
+def provisional_lines(pending: list[dict[str, Any]]) -> list[str]:
+    """Why a name is provisional: the drives asked for below can change it (stop 130)."""
+    if not pending:
+        return []
+    asks = "; ".join(f"`{p['plan']}` seed {p['seed']} for {', '.join(p['for'])}" for p in pending)
+    return [
+        f"\nThe drives asked for below ({asks}) can change what is named, this effect"
+        " included: drive them and diagnose all the logs together before trusting the"
+        " names or loading the updated configuration. (In the project's own blocks the"
+        " names changed after the asked drives in about one case in eight, clean builds"
+        " named at first and withdrawn after the drive among them; docs/calibration/studies.md.)"
+    ]
 
 
 def _torque_note(
@@ -494,6 +510,21 @@ def judged_lines(judged: list[dict[str, Any]]) -> list[str]:
                 f" {100 * e['gain']:.1f} % better there at p {e['p']:.2g}: no lean that more of"
                 " that drive would confirm. What the training drives show of it, the drive"
                 " that asks for it most does not."
+            )
+        elif e["why"] == "draws":
+            L.append(
+                f"- **{e['effect']}**: the logs hold {e['draws']} draws of its deciding plan"
+                f" (`{e['plan']}`) and it is still unconfirmed ({100 * e['gain']:.1f} % better"
+                f" on the held-out drive at p {e['p']:.2g}): no further draw is asked for"
+                " (`Options.max_draws`). It is not named; whether more draws would confirm"
+                " it is left open."
+            )
+        elif e["why"] == "untested_held":
+            L.append(
+                f"- **{e['effect']}**: the logs hold the drive that asks the motors for it"
+                f" (`{e['plan']}`: {', '.join(e['logs'])}); what it leaves unread another draw"
+                " leaves too. Smaller cuts are read from the motors' logged torque (effort_*"
+                " columns) or with the rotor's datasheet inertia (`motor.armature`)."
             )
         elif e["why"] == "allowance":
             L.append(

@@ -39,7 +39,7 @@ def seek_evidence(d: Diagnosis) -> None:
     """Sets :attr:`Diagnosis.evidence`."""
     read = {"slope"} if balance_settled(d) else set()
     beside = (lambda s: beside_named(d, s)) if d.chosen else None
-    ctx = Asking(d.held_plans, held_out_log(d), beside, d.allowance)
+    ctx = Asking(d.held_plans, held_out_log(d), beside, d.allowance, max_draws=d.opts.max_draws)
     d.evidence = missing_evidence(
         d.ev, d.ranked, d.chosen, d.noise, d.base, d.opts, d.say, frozenset(read), ctx
     )
@@ -106,6 +106,8 @@ class Asking:
     """The clean-fit allowance (:attr:`Diagnosis.allowance`)."""
     judged: list[dict[str, Any]] = field(default_factory=list)
     """Candidates asked for nothing, and why (``result.json``'s ``evidence_judged``)."""
+    max_draws: int = 0
+    """:attr:`Options.max_draws` (0: no cap)."""
 
 
 READ_APART = frozenset({"slope", "rolling_radius"})
@@ -139,7 +141,8 @@ def not_worth_asking(
     Its interval lies within the clean-fit allowance (:func:`within_allowance`): no drive
     can make it nameable. Or the held-out drive is a draw of its deciding ``plan`` and does
     not lean towards it (better by the window test's margin): that drive judged it, and
-    another draw of it would not. Block 54400 asked ``accel`` for torque cuts of about
+    another draw of it would not. Or the logs hold :attr:`Asking.max_draws` draws of that
+    plan already: a user's patience, not a test. Block 54400 asked ``accel`` for torque cuts of about
     50 % (what clean builds fit) 21 times, 5 of them after a draw of it was driven."""
     name = s.fit.name
     edge = within_allowance(s, ctx.allowance)
@@ -150,7 +153,16 @@ def not_worth_asking(
         )
         return {"effect": name, "plan": plan, "why": "allowance", "edge": edge,
                 "fit": fmt_phys(s.fit)}  # fmt: skip
-    mine = [h for h in ctx.held.get(plan, []) if h["log"] == ctx.held_out]
+    drawn = ctx.held.get(plan, [])
+    if 0 < ctx.max_draws <= len(drawn):
+        say(
+            f"evidence: the logs hold {len(drawn)} draws of {name}'s deciding drive {plan!r}"
+            f" and leave it unconfirmed ({100 * s.gain:.1f} % better at p {s.p:.2g} held"
+            f" out): no other draw asked (at most {ctx.max_draws})"
+        )
+        return {"effect": name, "plan": plan, "why": "draws", "draws": len(drawn),
+                "gain": s.gain, "p": s.p}  # fmt: skip
+    mine = [h for h in drawn if h["log"] == ctx.held_out]
     if sparse or lean or not mine:
         return None
     say(
@@ -307,6 +319,8 @@ def untested_limit(d: Diagnosis) -> list[dict[str, Any]]:
             f" {logs}); what it leaves unread another draw leaves too (the rotor's datasheet"
             " inertia or the motors' logged torque reads it)"
         )
+        d.evidence_judged.append({"effect": "torque_limit", "plan": plan, "why": "untested_held",
+                                  "logs": [h["log"] for h in d.held_plans[plan]]})  # fmt: skip
         return []
     ext = c.to_ext(np.array([-res]))
     drew = ask({"plan": plan}, d.held_plans)  # nothing held: its first draw

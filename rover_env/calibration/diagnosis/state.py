@@ -194,6 +194,11 @@ class Options:
     ray_address: str | None = None
     evidence: int = 2
     """Candidates for which a deciding drive is proposed and simulated, at most."""
+    max_draws: int = 2
+    """Draws of a candidate's deciding plan after which, still unconfirmed, it asks for no
+    other (``evidence_judged``: ``draws``; 0: no cap). Why (stop 130): a lean short of
+    alpha asks for the next draw, and clean case 54509 asked for seeds 0, 1 and 2 of
+    ``steps`` for a command delay at the allowance's edge, 50 s of driving each."""
     strong_bic: float = -6.0
     """Training ΔBIC at or below which a candidate that is not named, but improves the
     held-out drive at all, is given a deciding drive (:mod:`.evidence_stage`; Kass and

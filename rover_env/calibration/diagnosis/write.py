@@ -23,6 +23,7 @@ from rover_env.calibration.candidates import Extensions, merge
 from rover_env.calibration.diagnosis.form import with_joint_zero
 from rover_env.calibration.diagnosis.judge import fit_dict, gap, strict_json, unexplained
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
+from rover_env.calibration.drive_plan import proposals_from_result
 from rover_env.calibration.evidence import plan_command
 from rover_env.calibration.replay import SIGNALS, WindowResult, replay_config
 from rover_env.calibration.report import write_report
@@ -136,7 +137,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
     elapsed = time.perf_counter() - d.t_start
     named = [n for s in d.chosen for n in (c.name for c in s.fit.candidates)]
     free_g, free_c = d.ev.free_gains(final_extensions(d))
-    return {
+    res: dict[str, Any] = {
         "logs": [str(f) for f in d.files],
         "start_headings": [lg.meta.start_heading_deg for lg in d.logs],
         "frames": d.frames,
@@ -192,6 +193,21 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "effort": d.effort,
         "balance": d.balance,
     }
+    res["provisional"] = pending_drives(res) if named else []
+    return res
+
+
+def pending_drives(result: dict[str, Any]) -> list[dict[str, Any]]:
+    """The drives a diagnosis asks for (:func:`~rover_env.calibration.drive_plan.proposals_from_result`),
+    each with the effects it is for: while any is pending, what is named is provisional.
+    Why (stop 130): in blocks 54400-54600 the names changed after the drives asked for in
+    10 of 78 cases, and 2 of 6 clean builds of block 54500 were named at the first
+    diagnosis and withdrawn after the crossing drive asked for a slope; a user who stops
+    at the first report must be told."""
+    return [
+        {"plan": p.plan, "seed": p.seed, "duration": p.duration, "for": sorted(p.effects)}
+        for p in proposals_from_result(result)
+    ]
 
 
 def median_window_rms(results: list[WindowResult], j: int) -> float:
