@@ -148,8 +148,8 @@ def test_a_limit_the_drives_never_reach_gets_the_drive_that_asks_for_it(monkeypa
     from rover_env.calibration import evidence, fit
     from rover_env.calibration.candidates import catalogue
     from rover_env.calibration.diagnosis.evidence_stage import untested_limit
-    from rover_env.calibration.report import judged_lines
     from rover_env.calibration.diagnosis.state import Options, Scored
+    from rover_env.calibration.report import judged_lines
     from rover_env.config import RoverConfig
 
     asked: list[dict] = []
