@@ -540,6 +540,19 @@ def test_a_bad_trade_share_is_refused_naming_the_flag(
     assert "--trade-share" in err and bad in err, err
 
 
+@pytest.mark.parametrize("bad", ["-1", "1.5", "two"])
+def test_a_bad_max_draws_is_refused_naming_the_flag(
+    bad: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--max-draws`` takes a whole number of 0 or more (stop 130); anything else stops
+    before any log is read, with the flag and the value named."""
+    with pytest.raises(SystemExit) as exit_:
+        main(["diagnose", str(tmp_path / "none.csv"), "--out", str(tmp_path), "--max-draws", bad])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert "--max-draws" in err and bad in err, err
+
+
 @pytest.mark.parametrize("bad", ["0", "1.5", "nan", "-0.05", "five percent"])
 def test_a_bad_rotor_alpha_is_refused_naming_the_flag(
     bad: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]

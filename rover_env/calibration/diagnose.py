@@ -87,6 +87,17 @@ def _tolerance(text: str) -> float:
     return v
 
 
+def _count(text: str) -> int:
+    """A whole number of 0 or more, for argparse."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text}")
+    return v
+
+
 def _cli(args: argparse.Namespace) -> int:
     st = ReplaySettings(window=args.window, burn_in=args.burn_in)
     opts = Options(
@@ -109,6 +120,7 @@ def _cli(args: argparse.Namespace) -> int:
         balance_allowance=None if args.no_balance else args.balance_allowance,
         slip_allowance=None if args.no_slip_balance else args.slip_allowance,
         frames=args.frames,
+        max_draws=args.max_draws,
         **{name: getattr(args, name) for name, _ in SWITCHES},
     )
     try:
@@ -322,6 +334,14 @@ def add_cli(sub: Any) -> None:
         help="a named torque limit's interval holds its refits with the rotor inertia"
         f" (motor.armature) divided and multiplied by FACTOR (default {Options.rotor_range:g};"
         " 1: off; see Options.rotor_range)",
+    )
+    p.add_argument(
+        "--max-draws",
+        type=_count,
+        default=Options.max_draws,
+        metavar="N",
+        help="ask for no further draw of a drive plan for a candidate the logs' N draws of it"
+        f" leave unconfirmed (default {Options.max_draws}; 0: no cap; see Options.max_draws)",
     )
     p.add_argument(
         "--rotor-alpha",

@@ -204,11 +204,12 @@ def provisional_lines(pending: list[dict[str, Any]]) -> list[str]:
         return []
     asks = "; ".join(f"`{p['plan']}` seed {p['seed']} for {', '.join(p['for'])}" for p in pending)
     return [
-        f"\nThe drives asked for below ({asks}) can change what is named, this effect"
-        " included: drive them and diagnose all the logs together before trusting the"
-        " names or loading the updated configuration. (In the project's own blocks the"
-        " names changed after the asked drives in about one case in eight, clean builds"
-        " named at first and withdrawn after the drive among them; docs/calibration/studies.md.)"
+        f"\nThe drives asked for below ({asks}) can change any name, not only those of the"
+        " effects they are asked for: drive them and diagnose all the logs together before"
+        " trusting the names or loading the updated configuration. (In the project's own"
+        " blocks the names changed after the asked drives in about one case in eight, clean"
+        " builds named at first and withdrawn after the drive among them;"
+        " docs/calibration/studies.md, stop 130.)"
     ]
 
 
@@ -516,7 +517,7 @@ def judged_lines(judged: list[dict[str, Any]]) -> list[str]:
                 f"- **{e['effect']}**: the logs hold {e['draws']} draws of its deciding plan"
                 f" (`{e['plan']}`) and it is still unconfirmed ({100 * e['gain']:.1f} % better"
                 f" on the held-out drive at p {e['p']:.2g}): no further draw is asked for"
-                " (`Options.max_draws`). It is not named; whether more draws would confirm"
+                " (`--max-draws`). It is not named; whether more draws would confirm"
                 " it is left open."
             )
         elif e["why"] == "untested_held":

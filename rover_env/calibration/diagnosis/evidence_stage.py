@@ -142,8 +142,9 @@ def not_worth_asking(
     can make it nameable. Or the held-out drive is a draw of its deciding ``plan`` and does
     not lean towards it (better by the window test's margin): that drive judged it, and
     another draw of it would not. Or the logs hold :attr:`Asking.max_draws` draws of that
-    plan already: a user's patience, not a test. Block 54400 asked ``accel`` for torque cuts of about
-    50 % (what clean builds fit) 21 times, 5 of them after a draw of it was driven."""
+    plan already: a user's patience, not a test. Block 54400 asked ``accel`` for torque
+    cuts of about 50 % (what clean builds fit) 21 times, 5 of them after a draw of it was
+    driven."""
     name = s.fit.name
     edge = within_allowance(s, ctx.allowance)
     if edge is not None:
