@@ -15,6 +15,17 @@ FLOOR = {s: 0.003 for s in SIGNALS[:6]} | {s: 0.002 for s in SIGNALS[6:11]}
 FLOOR |= {"pose_x": 0.012, "pose_y": 0.012, "pose_yaw": 0.017}
 
 
+def _fake_drives(monkeypatch, fit, evidence, plan: str) -> None:
+    """Every candidate moves a training signal by 5 floors, and every proposed drive is
+    ``plan`` with fixed separations: the asking rules alone decide what is asked."""
+    monkeypatch.setattr(fit, "signal_change", lambda *a, **k: {"wheel_2R": 5.0})
+    monkeypatch.setattr(
+        evidence, "propose", lambda base, name, *a, **kw: {"effect": name, "plan": plan,
+        "best_signal": "wheel_2R", "best_per_window": 3.0, "best_floor_units": 9.0,
+        "held_out_best_signal": "wheel_2R", "held_out_floor_units": 5.0},
+    )  # fmt: skip
+
+
 def test_hard_accelerations_separate_a_torque_limit() -> None:
     """The proposed drive, replayed as diagnose replays, moves the driven wheels by many
     floors with a lowered torque limit."""
@@ -105,12 +116,7 @@ def test_strong_training_evidence_the_held_out_drive_does_not_contradict_asks_fo
     from rover_env.config import RoverConfig
 
     cand = {c.name: c for c in catalogue()}
-    monkeypatch.setattr(fit, "signal_change", lambda *a, **k: {"wheel_2R": 5.0})
-    monkeypatch.setattr(
-        evidence, "propose", lambda base, name, *a, **kw: {"effect": name, "plan": "accel",
-        "best_signal": "wheel_2R", "best_per_window": 3.0, "best_floor_units": 9.0,
-        "held_out_best_signal": "wheel_2R", "held_out_floor_units": 5.0},
-    )  # fmt: skip
+    _fake_drives(monkeypatch, fit, evidence, "accel")
 
     def scored(name: str, gain: float, d_bic: float) -> Scored:
         f = fit.Fit(
@@ -438,12 +444,7 @@ def test_a_candidate_still_unconfirmed_after_max_draws_asks_for_no_other(monkeyp
     from rover_env.config import RoverConfig
 
     (c,) = catalogue(["command_delay"])
-    monkeypatch.setattr(fit, "signal_change", lambda *a, **k: {"wheel_2R": 5.0})
-    monkeypatch.setattr(
-        evidence, "propose", lambda base, name, *a, **kw: {"effect": name, "plan": "steps",
-        "best_signal": "wheel_2R", "best_per_window": 3.0, "best_floor_units": 9.0,
-        "held_out_best_signal": "wheel_2R", "held_out_floor_units": 5.0},
-    )  # fmt: skip
+    _fake_drives(monkeypatch, fit, evidence, "steps")
     f = fit.Fit(
         [c], np.array([0.034]), np.array([0.028]), np.array([0.041]), np.array([0.003]),
         1.0, 3, {"command_delay": {"delay": 0.034}}, 0.0, "train",
