@@ -376,12 +376,7 @@ def test_a_candidate_its_own_held_out_drive_judged_is_not_asked_again(monkeypatc
     from rover_env.config import RoverConfig
 
     (c,) = catalogue(["torque_limit"])
-    monkeypatch.setattr(fit, "signal_change", lambda *a, **k: {"wheel_2R": 5.0})
-    monkeypatch.setattr(
-        evidence, "propose", lambda base, name, *a, **kw: {"effect": name, "plan": "accel",
-        "best_signal": "wheel_2R", "best_per_window": 3.0, "best_floor_units": 9.0,
-        "held_out_best_signal": "wheel_2R", "held_out_floor_units": 5.0},
-    )  # fmt: skip
+    _fake_drives(monkeypatch, fit, evidence, "accel")
 
     def scored(gain: float, p: float) -> Scored:
         f = fit.Fit(
