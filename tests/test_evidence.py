@@ -390,7 +390,7 @@ def test_a_candidate_its_own_held_out_drive_judged_is_not_asked_again(monkeypatc
     opts = Options(progress=False)
 
     def run(s: Scored, held_out: str, allowance=None) -> tuple[list[dict], list[dict], list[str]]:
-        ctx = Asking(held=held, held_out=held_out, allowance=allowance)
+        ctx = Asking(held=held, held_out=("drive_02.csv", held_out), allowance=allowance)
         lines: list[str] = []
         got = missing_evidence(ev, [s], [], {}, RoverConfig(), opts, lines.append, ctx=ctx)  # type: ignore[arg-type]
         return got, ctx.judged, lines
@@ -448,7 +448,7 @@ def test_a_candidate_still_unconfirmed_after_max_draws_asks_for_no_other(monkeyp
     ev = SimpleNamespace(settings=ReplaySettings())
     two = {"steps": [{"seed": 0, "log": "drive_03.csv"}, {"seed": 1, "log": "drive_05.csv"}]}
     for held, cap, want in ((two, 2, []), (two, 0, [2]), (two, 3, [2]), ({"steps": two["steps"][:1]}, 2, [1])):  # fmt: skip
-        ctx = Asking(held=held, held_out="drive_05.csv", max_draws=cap)
+        ctx = Asking(held=held, held_out=("drive_05.csv",), max_draws=cap)
         lines: list[str] = []
         got = missing_evidence(
             ev,

@@ -97,3 +97,32 @@ def test_the_diagnosis_knows_which_draws_its_logs_hold(tmp_path: Path, seed: int
     json.dumps(d.held_plans)  # as result.json writes it
     rec = ask({"read": True, "plan": "reversals", "duration": PLAN_DURATION}, d.held_plans)
     assert rec["seed"] == (1 if seed == 0 else 0)
+
+
+def test_asked_drives_join_the_held_out_drive_and_training_stays(tmp_path: Path) -> None:
+    """Stop 131: a drive a diagnosis asked for is held out beside the last of the user's
+    own drives, not instead of it (block 54700's crossing drive, asked for a slope, took
+    back command delays the user's held-out drive had confirmed)."""
+    from rover_env.calibration.diagnosis.evidence_stage import held_out_logs
+    from rover_env.calibration.diagnosis.split import held_out_logs as held_idx
+
+    own = [("test", 40), ("test", 41), ("test", 42)]
+    names = ["drive_00.csv", "drive_01.csv", "drive_02.csv", "a_asked.csv"]
+    paths = [write_log(driven(p, s), tmp_path / n) for (p, s), n in zip(own, names, strict=False)]
+    paths.append(write_log(driven("reversals", 0), tmp_path / names[3]))  # sorts first
+    d = Diagnosis([str(p) for p in paths], tmp_path / "out", Options(progress=False))
+    split(d)
+    assert d.split == "training: drive_00.csv, drive_01.csv; held out: a_asked.csv, drive_02.csv"
+    held = {d.files[w.log_index].name for w in d.held_w}
+    assert held == {"a_asked.csv", "drive_02.csv"} == set(held_out_logs(d))
+    assert {d.files[w.log_index].name for w in d.train_w} == {"drive_00.csv", "drive_01.csv"}
+    # Without an asked drive, or with fewer than two own drives: the last log alone.
+    assert held_idx(["a", "b", "c"], set()) == [2]
+    assert held_idx(["a", "b"], {"b"}) == [1]
+    assert held_idx(["a", "b", "c", "d"], {"b", "d"}) == [1, 2, 3]
+    # --interleave: every log alternates its windows, as before.
+    d = Diagnosis(
+        [str(p) for p in paths], tmp_path / "o2", Options(progress=False, interleave=True)
+    )
+    split(d)
+    assert d.split.startswith("every log") and held_out_logs(d) == ()

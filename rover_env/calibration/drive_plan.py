@@ -508,7 +508,7 @@ def add_cli(sub: Any) -> None:
         description="Writes DIR/<plan>.csv (t, cmd_1L..cmd_2R, zero-order hold, last row a"
         " stop), DIR/<plan>_bag/ (a ROS 2 bag of the same commands at --rate) and"
         " DIR/<plan>.md (why, peak speeds, the ground it needs). Drive it, record it, import"
-        " it (rover-env import-bag) and add it last to rover-env diagnose.",
+        " it (rover-env import-bag) and add it to rover-env diagnose's logs.",
     )
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--plan", metavar="NAME", help=f"one of {', '.join(PLANS)}")

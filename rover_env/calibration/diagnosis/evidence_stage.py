@@ -39,7 +39,7 @@ def seek_evidence(d: Diagnosis) -> None:
     """Sets :attr:`Diagnosis.evidence`."""
     read = {"slope"} if balance_settled(d) else set()
     beside = (lambda s: beside_named(d, s)) if d.chosen else None
-    ctx = Asking(d.held_plans, held_out_log(d), beside, d.allowance, max_draws=d.opts.max_draws)
+    ctx = Asking(d.held_plans, held_out_logs(d), beside, d.allowance, max_draws=d.opts.max_draws)
     d.evidence = missing_evidence(
         d.ev, d.ranked, d.chosen, d.noise, d.base, d.opts, d.say, frozenset(read), ctx
     )
@@ -47,9 +47,12 @@ def seek_evidence(d: Diagnosis) -> None:
     d.untested = untested_limit(d)
 
 
-def held_out_log(d: Diagnosis) -> str | None:
-    """The held-out drive's file name, where one whole log is held out."""
-    return d.files[-1].name if len(d.files) >= 2 and not d.opts.interleave else None
+def held_out_logs(d: Diagnosis) -> tuple[str, ...]:
+    """The held-out drives' file names, where whole logs are held out (none with one log
+    or ``--interleave``)."""
+    if len(d.files) < 2 or d.opts.interleave:
+        return ()
+    return tuple(sorted({d.files[w.log_index].name for w in d.held_w}))
 
 
 def named_ext(chosen: list[Scored]) -> Extensions:
@@ -98,8 +101,8 @@ class Asking:
 
     held: HeldPlans = field(default_factory=dict)
     """The plans' draws the logs hold (:mod:`~rover_env.calibration.plans_held`)."""
-    held_out: str | None = None
-    """The held-out drive's file name, where one whole log is held out."""
+    held_out: tuple[str, ...] = ()
+    """The held-out drives' file names, where whole logs are held out."""
     beside: Beside | None = None
     """With effects named: a candidate refitted and judged beside them (:func:`beside_named`)."""
     allowance: FormAllowance | None = None
@@ -163,11 +166,11 @@ def not_worth_asking(
         )
         return {"effect": name, "plan": plan, "why": "draws", "draws": len(drawn),
                 "gain": s.gain, "p": s.p}  # fmt: skip
-    mine = [h for h in drawn if h["log"] == ctx.held_out]
+    mine = [h for h in drawn if h["log"] in ctx.held_out]
     if sparse or lean or not mine:
         return None
     say(
-        f"evidence: {name}'s deciding drive {plan!r} ({ctx.held_out}, held out) is"
+        f"evidence: {name}'s deciding drive {plan!r} ({mine[0]['log']}, held out) is"
         f" {100 * s.gain:.1f} % better at p {s.p:.2g}, short of the lean another draw would"
         " need: not asked again"
     )

@@ -3,7 +3,13 @@ ground, cut them into windows and split those into training and held-out sets.
 
 Owns the split rule: the last log (by file name) is held out, the others train; a single
 log alternates its windows. Why a whole held-out drive: windows of one drive share its
-conditions, so a candidate must explain a drive it was not fitted on. With
+conditions, so a candidate must explain a drive it was not fitted on. A drive a diagnosis
+asked for (a log holding a proposed plan's draw, :mod:`~rover_env.calibration.plans_held`)
+joins the held-out set beside the last of the user's own drives, and the training drives
+stay the first diagnosis's: every candidate is judged on both. Why (stop 131): held out
+alone, a drive asked for one question judged every candidate; in block 54700 the crossing
+drive asked for a slope took back right command delays and lags that the user's held-out
+drive had confirmed. With
 ``Options.interleave`` (``--interleave``) every drive alternates its windows instead: an
 effect that only one drive excites (a torque limit only its reversals reach) is then in
 both sets, where the default split either cannot fit it (held out) or cannot confirm it.
@@ -19,7 +25,7 @@ from rover_env.calibration.diagnosis.procedure import check_options, differences
 from rover_env.calibration.diagnosis.state import STRAIGHT, Diagnosis
 from rover_env.calibration.ground import common_ground
 from rover_env.calibration.heading import check_frames
-from rover_env.calibration.plans_held import held_plans
+from rover_env.calibration.plans_held import HeldPlans, held_plans
 from rover_env.calibration.replay import Window, make_windows, prepare, straight_windows
 from rover_env.config import RoverConfig, load_rover, resolve_path
 from rover_env.logs import DriveLog, LogError, read_log
@@ -28,6 +34,29 @@ from rover_env.logs import DriveLog, LogError, read_log
 def rover_of(log: DriveLog) -> RoverConfig:
     """The rover a log names: a file beside the log, or a configuration name."""
     return load_rover(log.beside(log.meta.rover))
+
+
+def asked_logs(held: HeldPlans) -> set[str]:
+    """The logs that hold a proposed plan's draw: drives a diagnosis asked for."""
+    return {h["log"] for draws in held.values() for h in draws}
+
+
+def held_out_logs(names: list[str], asked: set[str]) -> list[int]:
+    """Indices of the held-out logs (``names`` sorted): the last of the user's own drives
+    and every asked drive, where at least two own drives leave one to train on; else the
+    last log. Why not the asked drives in training: a tie's separating drive must judge
+    the tie, and the first diagnosis's fits stay what they were."""
+    own = [i for i, n in enumerate(names) if n not in asked]
+    if len(own) < 2 or len(own) == len(names):
+        return [len(names) - 1]
+    return sorted([own[-1], *(i for i, n in enumerate(names) if n in asked)])
+
+
+def split_text(names: list[str], held: list[int]) -> str:
+    """The split in words, for the progress and the report."""
+    train = ", ".join(n for i, n in enumerate(names) if i not in held)
+    out = ", ".join(names[i] for i in held)
+    return f"training: {train}; held out: {out}"
 
 
 def split(d: Diagnosis) -> None:
@@ -49,11 +78,13 @@ def split(d: Diagnosis) -> None:
     st = replace(d.opts.settings, terrain=common_ground(logs))
     prepared = [prepare(lg, base, f.name, st) for lg, f in zip(logs, files, strict=True)]
     all_w = make_windows(prepared, st)
+    names = [f.name for f in files]
+    d.held_plans = held_plans(logs, names, base.motor.max_wheel_speed)
     if len(logs) >= 2 and not d.opts.interleave:
-        held_logs = [len(logs) - 1]
+        held_logs = held_out_logs(names, asked_logs(d.held_plans))
         train_w = [w for w in all_w if w.log_index not in held_logs]
         held_w = [w for w in all_w if w.log_index in held_logs]
-        text = f"training: {', '.join(f.name for f in files[:-1])}; held out: {files[-1].name}"
+        text = split_text(names, held_logs)
     else:  # one log, or --interleave: each log's even windows train, its odd ones are held out
         by_log = [[w for w in all_w if w.log_index == i] for i in range(len(logs))]
         train_w = [w for ws in by_log for w in ws[0::2]]
@@ -69,7 +100,6 @@ def split(d: Diagnosis) -> None:
     d.files, d.logs, d.base, d.st, d.prepared, d.split = files, logs, base, st, prepared, text
     d.all_w, d.train_w, d.held_w, d.sets = all_w, train_w, held_w, sets
     d.say(f"{len(logs)} log(s), {text}; windows {len(train_w)} training, {len(held_w)} held out")
-    d.held_plans = held_plans(logs, [f.name for f in files], base.motor.max_wheel_speed)
     for plan, have in d.held_plans.items():
         d.say(
             f"the logs hold plan {plan!r}: "
