@@ -506,9 +506,10 @@ def judged_lines(judged: list[dict[str, Any]]) -> list[str]:
     for e in judged:
         if e["why"] == "held_out":
             L.append(
-                f"- **{e['effect']}**: the held-out drive is a draw of its deciding plan"
+                f"- **{e['effect']}**: a held-out drive is a draw of its deciding plan"
                 f" (`{e['plan']}` seed {e['seed']}, {e['log']}) and the fit is"
-                f" {100 * e['gain']:.1f} % better there at p {e['p']:.2g}: no lean that more of"
+                f" {100 * e['gain']:.1f} % better on the held-out drives at p {e['p']:.2g}:"
+                " no lean that more of"
                 " that drive would confirm. What the training drives show of it, the drive"
                 " that asks for it most does not."
             )
