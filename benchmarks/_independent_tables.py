@@ -55,7 +55,8 @@ def acceptance(rows: list[dict[str, Any]]) -> list[str]:
         else:
             below.append(name in r["named"])
     # The same, judged on the first diagnosis (before any proposed drive was added): the
-    # follow-up drive becomes the held-out one (the last log), so it can also lose an effect.
+    # follow-up drive is held out (beside drive_02 since stop 131), so it can also lose an
+    # effect.
     first = [
         name in r["first_named"]
         for r in single

@@ -176,7 +176,7 @@ def test_report_text_says_drive_it_never_simulate_it() -> None:
     for text in (tie, ev):
         assert "make-logs" not in text
         assert "rover-env drive-plan --report OUT --out DIR" in text
-        assert "rover-env import-bag" in text and "LAST" in text
+        assert "rover-env import-bag" in text and "held out beside your last own drive" in text
     assert evidence_lines([]) == []
     # a result from before the seed and duration were recorded: diagnose's convention
     old = {k: v for k, v in _tie().items() if k not in ("seed", "duration")}
@@ -211,7 +211,7 @@ def test_report_mode_writes_every_proposed_drive(tmp_path: Path) -> None:
     md = (out / "reversals.md").read_text()
     assert "tie between slope and rolling_resistance" in md and "evidence for slope" in md
     assert "seed 4, 6 s" in md and "slope in question" in md
-    assert "rover-env import-bag" in md and "LAST" in md
+    assert "rover-env import-bag" in md and "beside your last own drive" in md
     assert "slope in question" not in (out / "accel.md").read_text()
     # the same again (into the same folder) replaces the files
     assert _run(["drive-plan", "--report", str(res / "result.json"), "--out", str(out)]) == 0

@@ -3,7 +3,8 @@
 Steps (each printed as it runs):
 
 1. Read the logs (SPEC §6) and the rover they name. Split: the last log (by file name) is
-   held out, the others are training; with a single log, alternate windows are held out.
+   held out, the others are training (a drive a report asked for is held out beside it);
+   with a single log, alternate windows are held out.
 2. Replay every drive by multiple shooting (:mod:`.replay`) with the current model; estimate
    the sensor noise from the logs and tabulate residuals per signal and regime with a test
    against that noise (:mod:`.residuals`).

@@ -411,9 +411,9 @@ def plan_markdown(
         "3. Import the recording with `rover-env import-bag` (a SPEC §6 log). Where the earlier"
         " logs give `start_heading_deg`, this one must too: `import-bag` writes it from a"
         " shared-frame pose or yaw reference, or add the heading the rover started at.",
-        "4. Run `rover-env diagnose` again with the earlier logs and this one added LAST, so"
-        " that it is the held-out drive, and the same options (`--frames fit` where the"
-        " drives share no frame).",
+        "4. Run `rover-env diagnose` again with the earlier logs and this one, and the same"
+        " options (`--frames fit` where the drives share no frame). It recognises this drive"
+        " by its commands and holds it out beside your last own drive.",
         "",
         "Do not simulate it instead (`make-logs` drives the nominal model: its log added to a"
         " real rover's would corrupt the diagnosis).",

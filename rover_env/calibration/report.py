@@ -391,7 +391,8 @@ def drive_it_text(plans: list[tuple[str, int, float]]) -> str:
         "(or `rover-env drive-plan --report OUT --out DIR`, OUT this diagnosis's folder, for"
         " every drive it proposes), drive it with the rover's usual recording running, import"
         " the recording with `rover-env import-bag` and run `rover-env diagnose` again with"
-        " the new log added LAST, so that it is the held-out drive."
+        " the new log added: it is recognised by its commands and held out beside your last"
+        " own drive."
     )
 
 
