@@ -112,7 +112,8 @@ def test_asked_drives_join_the_held_out_drive_and_training_stays(tmp_path: Path)
     paths.append(write_log(driven("reversals", 0), tmp_path / names[3]))  # sorts first
     d = Diagnosis([str(p) for p in paths], tmp_path / "out", Options(progress=False))
     split(d)
-    assert d.split == "training: drive_00.csv, drive_01.csv; held out: a_asked.csv, drive_02.csv"
+    want = "training: drive_00.csv, drive_01.csv; held out: a_asked.csv (asked), drive_02.csv"
+    assert d.split == want
     held = {d.files[w.log_index].name for w in d.held_w}
     assert held == {"a_asked.csv", "drive_02.csv"} == set(held_out_logs(d))
     assert {d.files[w.log_index].name for w in d.train_w} == {"drive_00.csv", "drive_01.csv"}

@@ -17,6 +17,7 @@ both sets, where the default split either cannot fit it (held out) or cannot con
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import replace
 from pathlib import Path
 
@@ -52,10 +53,11 @@ def held_out_logs(names: list[str], asked: set[str]) -> list[int]:
     return sorted([own[-1], *(i for i, n in enumerate(names) if n in asked)])
 
 
-def split_text(names: list[str], held: list[int]) -> str:
-    """The split in words, for the progress and the report."""
+def split_text(names: list[str], held: list[int], asked: Collection[str] = ()) -> str:
+    """The split in words, for the progress and the report; an asked drive is marked so
+    that a user sees why a log that is not the last is held out."""
     train = ", ".join(n for i, n in enumerate(names) if i not in held)
-    out = ", ".join(names[i] for i in held)
+    out = ", ".join(names[i] + (" (asked)" if names[i] in asked else "") for i in held)
     return f"training: {train}; held out: {out}"
 
 
@@ -81,10 +83,11 @@ def split(d: Diagnosis) -> None:
     names = [f.name for f in files]
     d.held_plans = held_plans(logs, names, base.motor.max_wheel_speed)
     if len(logs) >= 2 and not d.opts.interleave:
-        held_logs = held_out_logs(names, asked_logs(d.held_plans))
+        asked = asked_logs(d.held_plans)
+        held_logs = held_out_logs(names, asked)
         train_w = [w for w in all_w if w.log_index not in held_logs]
         held_w = [w for w in all_w if w.log_index in held_logs]
-        text = split_text(names, held_logs)
+        text = split_text(names, held_logs, asked)
     else:  # one log, or --interleave: each log's even windows train, its odd ones are held out
         by_log = [[w for w in all_w if w.log_index == i] for i in range(len(logs))]
         train_w = [w for ws in by_log for w in ws[0::2]]
