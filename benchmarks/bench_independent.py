@@ -140,8 +140,8 @@ def proposals(out: Path, untested: bool = False) -> list[Proposal]:
     unreached torque limit) only with ``untested`` (``--untested``): they would make
     nearly every case's held-out drive a hard acceleration (34 of block 50200's 40 cases
     proposed one), so the matrix records them (``untested``) and drives them only in a
-    run that measures what they decide. Those are driven twice, last, as the report
-    advises (docs/calibration, step 6): an asked drive is held out, and an
+    run that measures what they decide. Those are driven twice, as the report advises
+    (docs/calibration, step 6): an asked drive is held out, and an
     effect is named only if the training drives support it too (stop 64: driven once, a
     cut of -0.30 stayed beyond the training drives' reach, threshold 2.45)."""
 

@@ -104,7 +104,7 @@ def test_asked_drives_join_the_held_out_drive_and_training_stays(tmp_path: Path)
     own drives, not instead of it (block 54700's crossing drive, asked for a slope, took
     back command delays the user's held-out drive had confirmed)."""
     from rover_env.calibration.diagnosis.evidence_stage import held_out_logs
-    from rover_env.calibration.diagnosis.split import held_out_logs as held_idx
+    from rover_env.calibration.diagnosis.split import held_out_indices as held_idx
 
     own = [("test", 40), ("test", 41), ("test", 42)]
     names = ["drive_00.csv", "drive_01.csv", "drive_02.csv", "a_asked.csv"]

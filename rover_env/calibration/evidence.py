@@ -14,8 +14,9 @@ wheels, so what it can see differs from what an open-loop run shows.
 Each proposal records its seed and duration (:data:`PLAN_SEED`, :data:`PLAN_DURATION`): the
 real rover must DRIVE that very schedule (``rover-env drive-plan --report OUT --out DIR``
 writes it as commands), be logged, imported (``rover-env import-bag``) and added to the logs
-``diagnose`` reads, which hold it out beside the user's last own drive. Never simulate it: ``make-logs`` drives the nominal model, and its log added
-to a real rover's would corrupt the diagnosis.
+``diagnose`` reads, which hold it out beside the user's last own drive. Never simulate it:
+``make-logs`` drives the nominal model, and its log added to a real rover's would corrupt
+the diagnosis.
 """
 
 from __future__ import annotations

@@ -510,8 +510,7 @@ def judged_lines(judged: list[dict[str, Any]]) -> list[str]:
                 f"- **{e['effect']}**: a held-out drive is a draw of its deciding plan"
                 f" (`{e['plan']}` seed {e['seed']}, {e['log']}) and the fit is"
                 f" {100 * e['gain']:.1f} % better on the held-out drives at p {e['p']:.2g}:"
-                " no lean that more of"
-                " that drive would confirm. What the training drives show of it, the drive"
+                " no lean that more of that drive would confirm. What the training drives show of it, the drive"
                 " that asks for it most does not."
             )
         elif e["why"] == "draws":

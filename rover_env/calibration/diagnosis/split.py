@@ -42,7 +42,7 @@ def asked_logs(held: HeldPlans) -> set[str]:
     return {h["log"] for draws in held.values() for h in draws}
 
 
-def held_out_logs(names: list[str], asked: set[str]) -> list[int]:
+def held_out_indices(names: list[str], asked: set[str]) -> list[int]:
     """Indices of the held-out logs (``names`` sorted): the last of the user's own drives
     and every asked drive, where at least two own drives leave one to train on; else the
     last log. Why not the asked drives in training: a tie's separating drive must judge
@@ -84,7 +84,7 @@ def split(d: Diagnosis) -> None:
     d.held_plans = held_plans(logs, names, base.motor.max_wheel_speed)
     if len(logs) >= 2 and not d.opts.interleave:
         asked = asked_logs(d.held_plans)
-        held_logs = held_out_logs(names, asked)
+        held_logs = held_out_indices(names, asked)
         train_w = [w for w in all_w if w.log_index not in held_logs]
         held_w = [w for w in all_w if w.log_index in held_logs]
         text = split_text(names, held_logs, asked)
