@@ -358,6 +358,7 @@ def run_case(
         "below_limit": sorted(set(below_limit(res)) | set(below_limit(followed or {}))),
         "rotor_withdrawn": [x.get("rotor_withdrawn") for x in (res, final)],
         "allowance_withdrawn": [x.get("allowance_withdrawn") for x in (res, final)],
+        "named_on_windows": [x.get("named_on_windows") for x in (res, final)],
         "passed_over": [x.get("passed_over") for x in (res, final)],
         "one_wheel": [x.get("one_wheel") for x in (res, final)],
         "odometry": odometry(final),

@@ -276,7 +276,7 @@ def test_an_interval_the_allowance_takes_to_off_is_named_no_more() -> None:
 
     def diag(chosen: list[Any], on: bool = True) -> Any:
         return SimpleNamespace(
-            opts=SimpleNamespace(name_beyond_allowance=on),
+            opts=SimpleNamespace(name_beyond_allowance=on, presence_on_windows=False),
             chosen=list(chosen),
             demoted=[],
             allowance_withdrawn=None,
@@ -321,7 +321,7 @@ def test_each_effect_of_a_pair_is_judged_by_its_own_allowance(monkeypatch: Any) 
 
     def diag(chosen: list[Any]) -> Any:
         return SimpleNamespace(
-            opts=_finishing(name_beyond_allowance=True),
+            opts=_finishing(name_beyond_allowance=True, presence_on_windows=False),
             ev=None,
             chosen=list(chosen),
             demoted=[],
@@ -409,7 +409,7 @@ def test_after_a_withdrawal_the_next_candidate_is_tried_alone(monkeypatch: Any) 
     def diag(ranked: list[Any], on: bool = True) -> Any:
         slope = ranked[0]
         return SimpleNamespace(
-            opts=_finishing(next_after_withdrawn=on, pegged_last=False),
+            opts=_finishing(next_after_withdrawn=on, pegged_last=False, presence_on_windows=False),
             ev=None,
             ranked=ranked,
             winner=slope,

@@ -157,6 +157,11 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "name an effect only if its interval with the clean-fit allowance keeps clear of off",
     ),
     (
+        "presence_on_windows",
+        "judge the clean-fit allowance's reach to off on the windows' interval, without the"
+        " signal groups' spread (stop 132; block 54900)",
+    ),
+    (
         "next_after_withdrawn",
         "when the clean-fit allowance withdraws every name, try the next candidate alone"
         " (off: block 52400)",

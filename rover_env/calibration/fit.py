@@ -90,6 +90,9 @@ class Fit:
     own noise (random effects, DerSimonian-Laird), added to the interval (0: they agree)."""
     curve: tuple[Array, Array] | None = None
     """One parameter: the evaluated values and their per-window losses (values, windows)."""
+    windows_ci: tuple[Array, Array] | None = None
+    """One parameter: the interval before :attr:`between` widened it (sensor noise in it;
+    None: nothing widened it): what ``diagnose --presence-on-windows`` judges "off" on."""
     form_pad: tuple[float, float] = (0.0, 0.0)
     """One parameter: how far forms moved the interval beyond the chosen form's own (below,
     above): the candidate's own forms the windows cannot reject, and the model's forms
@@ -119,14 +122,20 @@ class Fit:
     def k(self) -> int:
         return sum(c.k for c in self.candidates)
 
-    def physical(self, allow: bool = True) -> dict[str, dict[str, tuple[float, float, float]]]:
+    def physical(
+        self, allow: bool = True, groups: bool = True
+    ) -> dict[str, dict[str, tuple[float, float, float]]]:
         """Effect -> parameter -> (value, 95 % low, 95 % high) in the effect's own terms
-        (with the :attr:`allowance`, unless ``allow`` is False)."""
+        (with the :attr:`allowance`, unless ``allow`` is False; without the signal groups'
+        widening, :attr:`windows_ci`, if ``groups`` is False)."""
         out: dict[str, dict[str, tuple[float, float, float]]] = {}
+        ci_lo, ci_hi = (
+            self.windows_ci if not groups and self.windows_ci else (self.ci_lo, self.ci_hi)
+        )
         i = 0
         for c in self.candidates:
             n = len(c.labels)
-            x, lo, hi = self.x[i : i + n], self.ci_lo[i : i + n], self.ci_hi[i : i + n]
+            x, lo, hi = self.x[i : i + n], ci_lo[i : i + n], ci_hi[i : i + n]
             if c.discrete:
                 out[c.name] = {k: (v, v, v) for k, v in c.reported(x).items()}
             elif c.name == "slope":
@@ -325,6 +334,8 @@ def widen_by_groups(f: Fit) -> None:
         return
     c = f.candidates[0]
     est = float(f.x[0])
+    if f.windows_ci is None:
+        f.windows_ci = (f.ci_lo.copy(), f.ci_hi.copy())
     f.ci_lo = np.array([max(c.lo[0], est - math.hypot(est - f.ci_lo[0], 1.96 * f.between))])
     f.ci_hi = np.array([min(c.hi[0], est + math.hypot(f.ci_hi[0] - est, 1.96 * f.between))])
     f.se = np.sqrt(f.se**2 + f.between**2)

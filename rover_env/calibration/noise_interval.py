@@ -167,6 +167,10 @@ def widen_by_noise(f: Fit, se: NoiseSE, z: float = 1.96) -> bool:
             f.ci_lo[i], moved = new_lo, True
         if sided[i] != "lower" and new_hi > f.ci_hi[i]:
             f.ci_hi[i], moved = new_hi, True
+        if f.windows_ci is not None:  # the interval the groups did not widen, the same way
+            w_lo, w_hi = f.windows_ci
+            w_lo[i] = min(w_lo[i], new_lo) if sided[i] != "upper" else w_lo[i]
+            w_hi[i] = max(w_hi[i], new_hi) if sided[i] != "lower" else w_hi[i]
         f.se[i] = max(float(f.se[i]), float(total[i]))
     f.noise_se = total
     return moved

@@ -22,6 +22,7 @@ from rover_env.calibration.report_notes import (
     allowance_note,
     balance_lines,
     effort_lines,
+    groups_note,
     one_wheel_note,
     p_text,
     passed_over_note,
@@ -155,6 +156,7 @@ def _headline(
     if named:
         head = "**Named, provisionally:**" if result.get("provisional") else "**Named:**"
         L.append(f"{head} {' + '.join(named)} — {'; '.join(phys_text(s) for s in chosen)}.")
+        L += groups_note(chosen)
         L += provisional_lines(result.get("provisional") or [])
         if result.get("trade_excused"):
             L.append("\n" + trade_note(result["trade_excused"]))

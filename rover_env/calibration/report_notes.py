@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from rover_env.calibration.diagnosis.judge import allowance_reaches_off
 from rover_env.calibration.diagnosis.state import Scored
 from rover_env.calibration.effort import EVENTS, LAG, SPREAD
 from rover_env.calibration.evidence import plan_command
@@ -342,3 +343,23 @@ def balance_method(allowance: float | None, read: bool, source: str = "effort") 
         " direction of travel; a tilt whose interval clears"
         f" {allowance:g}° (what clean builds of another implementation read) names the slope."
     ]
+
+
+def groups_note(chosen: list[Scored]) -> list[str]:
+    """For each named effect whose interval for the truth reaches "off" only through its
+    signal groups' disagreement (named on its windows' interval,
+    :attr:`~rover_env.calibration.diagnosis.state.Options.presence_on_windows`): why it is
+    named, and that its size is what is loose."""
+    out = []
+    for s in chosen:
+        wide = set(allowance_reaches_off(s.fit)) - set(allowance_reaches_off(s.fit, False))
+        if not wide or not s.fit.groups:
+            continue
+        apart = ", ".join(f"{g} {v:.3g}" for g, v in sorted(s.fit.groups.items()))
+        out.append(
+            f"{s.fit.name} is named on its windows' interval, which, less what clean drives"
+            " of another implementation fit, stays clear of off; its interval above reaches"
+            f" off only because its signal groups disagree on its size ({apart}): the effect"
+            " is there, its size is loose (the model's form differs from the rover's)."
+        )
+    return out

@@ -360,13 +360,15 @@ def pegged(f: Fit) -> list[str]:
     return out
 
 
-def allowance_reaches_off(f: Fit) -> list[str]:
+def allowance_reaches_off(f: Fit, groups: bool = True) -> list[str]:
     """``effect.parameter`` for each effect of ``f`` with a clean-fit allowance
     (:attr:`.fit.Fit.allowance`, each effect of a pair by its own) whose widened 95 %
     interval for the truth reaches "off": what the model's own form gives on clean drives
     does not exclude its absence. A :data:`.form_allowance.FACTOR` effect (a soil's
-    stiffness) is not judged: its factor never reaches hard ground."""
-    shown = f.physical(allow=True)
+    stiffness) is not judged: its factor never reaches hard ground. ``groups`` False: the
+    interval before the signal groups' disagreement widened it
+    (:attr:`.state.Options.presence_on_windows`)."""
+    shown = f.physical(allow=True, groups=groups)
     out = []
     for c in f.candidates:
         if c.discrete or c.name in FACTOR or not any(f.allowance.get(c.name, (0.0, 0.0))):

@@ -55,7 +55,7 @@ from rover_env.calibration.diagnosis.motion import MOTION_GROUP, from_motion
 from rover_env.calibration.diagnosis.parallel import map_parallel
 from rover_env.calibration.diagnosis.rotor import profile_rotor, rotor_test
 from rover_env.calibration.diagnosis.shared import shared_partners, shared_refits
-from rover_env.calibration.diagnosis.state import Diagnosis, Scored
+from rover_env.calibration.diagnosis.state import Diagnosis, Options, Scored
 from rover_env.calibration.diagnosis.straight import SINKAGE_GROUP, from_straight
 from rover_env.calibration.diagnosis.tie import reopen, tie
 from rover_env.calibration.fit import Evaluator, carry_form_pad, fit, stack_fits, widen_by_groups
@@ -243,7 +243,7 @@ def name_next(d: Diagnosis) -> None:
             continue
         d.chosen = [s]
         finish_chosen(d)
-        off = effects_off(s)
+        off = effects_off(s, d.opts)
         if not off:
             w["next"], d.final_floor = s.fit.name, floor
             d.say(f"{s.fit.name}, next in the naming order: named {fmt_phys(s.fit)}")
@@ -641,7 +641,7 @@ def withdraw_within_allowance(d: Diagnosis) -> None:
     same way). Other named fits stay as they are; the final floor is the kept effects'."""
     if not d.opts.name_beyond_allowance:
         return
-    out = [(s, effects_off(s)) for s in d.chosen]
+    out = [(s, effects_off(s, d.opts)) for s in d.chosen]
     gone = [(s, off) for s, off in out if off]
     if not gone:
         return
@@ -671,7 +671,7 @@ def withdraw(d: Diagnosis, gone: list[Scored], beside: list[str], w: dict[str, A
         partner, floor = alone
         d.chosen = [partner]
         finish_chosen(d)
-        if allowance_reaches_off(partner.fit):
+        if allowance_reaches_off(partner.fit, not d.opts.presence_on_windows):
             d.say(f"{partner.fit.name} alone {fmt_phys(partner.fit)}: within its allowance too")
             d.chosen, alone = [], None
         else:
@@ -681,9 +681,10 @@ def withdraw(d: Diagnosis, gone: list[Scored], beside: list[str], w: dict[str, A
         w["beside"] = beside  # not named: fitted beside what was withdrawn
 
 
-def effects_off(s: Scored) -> set[str]:
-    """The effects of ``s`` whose interval, the clean-fit allowance in it, reaches "off"."""
-    return {n.split(".")[0] for n in allowance_reaches_off(s.fit)}
+def effects_off(s: Scored, opts: Options) -> set[str]:
+    """The effects of ``s`` whose interval, the clean-fit allowance in it, reaches "off"
+    (:attr:`.state.Options.presence_on_windows`: the windows' interval)."""
+    return {n.split(".")[0] for n in allowance_reaches_off(s.fit, not opts.presence_on_windows)}
 
 
 def withdrawn_test(off: set[str]) -> str:

@@ -21,7 +21,13 @@ from numpy.typing import NDArray
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import Extensions, merge
 from rover_env.calibration.diagnosis.form import with_joint_zero
-from rover_env.calibration.diagnosis.judge import fit_dict, gap, strict_json, unexplained
+from rover_env.calibration.diagnosis.judge import (
+    allowance_reaches_off,
+    fit_dict,
+    gap,
+    strict_json,
+    unexplained,
+)
 from rover_env.calibration.diagnosis.state import Diagnosis, Scored
 from rover_env.calibration.drive_plan import proposals_from_result
 from rover_env.calibration.evidence import plan_command
@@ -175,6 +181,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
         "rotor_profile": d.rotor_profile,
         "rotor_withdrawn": d.rotor_withdrawn,
         "allowance_withdrawn": d.allowance_withdrawn,
+        "named_on_windows": on_windows(d.chosen),
         "passed_over": d.passed_over,
         "allowance_differs": d.allowance_differs,
         "one_wheel": d.one_wheel,
@@ -195,6 +202,16 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
     }
     res["provisional"] = pending_drives(res) if named else []
     return res
+
+
+def on_windows(chosen: list[Scored]) -> list[str]:
+    """The named effects whose interval for the truth reaches "off" only through the signal
+    groups' disagreement (named on the windows' interval: ``Options.presence_on_windows``)."""
+    return sorted(
+        n.split(".")[0]
+        for s in chosen
+        for n in set(allowance_reaches_off(s.fit)) - set(allowance_reaches_off(s.fit, False))
+    )
 
 
 def pending_drives(result: dict[str, Any]) -> list[dict[str, Any]]:
