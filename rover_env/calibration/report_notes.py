@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from rover_env.calibration.diagnosis.judge import allowance_reaches_off
+from rover_env.calibration.diagnosis.judge import off_by_groups
 from rover_env.calibration.diagnosis.state import Scored
 from rover_env.calibration.effort import EVENTS, LAG, SPREAD
 from rover_env.calibration.evidence import plan_command
@@ -352,8 +352,7 @@ def groups_note(chosen: list[Scored]) -> list[str]:
     named, and that its size is what is loose."""
     out = []
     for s in chosen:
-        wide = set(allowance_reaches_off(s.fit)) - set(allowance_reaches_off(s.fit, False))
-        if not wide or not s.fit.groups:
+        if not off_by_groups(s.fit) or not s.fit.groups:
             continue
         apart = ", ".join(f"{g} {v:.3g}" for g, v in sorted(s.fit.groups.items()))
         out.append(

@@ -380,6 +380,14 @@ def allowance_reaches_off(f: Fit, groups: bool = True) -> list[str]:
     return out
 
 
+def off_by_groups(f: Fit) -> list[str]:
+    """The effects of ``f`` whose interval for the truth reaches "off" only through the
+    signal groups' disagreement (:func:`allowance_reaches_off` with and without it): named
+    on the windows' interval (:attr:`.state.Options.presence_on_windows`)."""
+    spread = set(allowance_reaches_off(f)) - set(allowance_reaches_off(f, False))
+    return sorted(n.split(".")[0] for n in spread)
+
+
 def magnitude(c: Candidate, x: NDArray[np.float64]) -> tuple[str, float]:
     """The side of "off" ("+", "-"; a slope: "deg") of ``c`` at ``x`` and its magnitude
     there (distance from "off"; a slope's tilt in degrees)."""

@@ -254,8 +254,8 @@ class Options:
     clean builds' fits reach, the model's form already in it; the groups' spread is that form
     again, growing with the effect's size. Spent 54809's rolling resistance of 0.068 (61 %
     better held out) was fitted 0.097 [0.078, 0.102] by its windows; free wheels 0.135 and
-    joints 0.036 widened it to [0, 0.239], and it was not named. Scored on fresh cases by
-    block 54900 (registered, stop 132; docs/calibration/studies.md)."""
+    joints 0.036 widened it to [0, 0.239], and it was not named. On fresh block 54900
+    (registered) it made no name in 55 cases; no clean build was named (0/10)."""
     next_after_withdrawn: bool = False
     """When the clean-fit allowance withdraws every named effect, try the next significant
     candidate in the naming order, named only by its own fit and judged the same way

@@ -22,9 +22,9 @@ from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import Extensions, merge
 from rover_env.calibration.diagnosis.form import with_joint_zero
 from rover_env.calibration.diagnosis.judge import (
-    allowance_reaches_off,
     fit_dict,
     gap,
+    off_by_groups,
     strict_json,
     unexplained,
 )
@@ -207,11 +207,7 @@ def result_of(d: Diagnosis, cfg_path: str) -> dict[str, Any]:
 def on_windows(chosen: list[Scored]) -> list[str]:
     """The named effects whose interval for the truth reaches "off" only through the signal
     groups' disagreement (named on the windows' interval: ``Options.presence_on_windows``)."""
-    return sorted(
-        n.split(".")[0]
-        for s in chosen
-        for n in set(allowance_reaches_off(s.fit)) - set(allowance_reaches_off(s.fit, False))
-    )
+    return sorted(n for s in chosen for n in off_by_groups(s.fit))
 
 
 def pending_drives(result: dict[str, Any]) -> list[dict[str, Any]]:
