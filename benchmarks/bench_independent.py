@@ -200,6 +200,8 @@ def fits(final: dict[str, Any], truth: Any) -> dict[str, dict[str, Any]]:
                     row["value"], row["lo"], row["hi"] = f["params"][name][param]
                     raw = (f.get("params_without_allowance") or f["params"])[name][param]
                     row["lo_raw"], row["hi_raw"] = raw[1], raw[2]
+                    win = (f.get("params_on_windows") or f["params"])[name][param]
+                    row["lo_windows"], row["hi_windows"] = win[1], win[2]  # what decides off
                     row["side"] = (f.get("sides") or {}).get(name, {}).get(param, "")
                     read = f.get("read_from") or {}
                     row["read_from"] = read.get("rule")  # a soil read off the fit (None: the fit)

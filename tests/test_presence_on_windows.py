@@ -110,3 +110,18 @@ def test_the_result_lists_the_names_made_on_the_windows() -> None:
     clear.allowance = {"rolling_resistance": PAD}
     assert on_windows([SimpleNamespace(fit=f)]) == ["rolling_resistance"]  # type: ignore[list-item]
     assert on_windows([SimpleNamespace(fit=clear)]) == []  # type: ignore[list-item]
+
+
+def test_the_result_keeps_the_interval_the_decision_was_made_on() -> None:
+    from rover_env.calibration.diagnosis.judge import fit_dict
+    from rover_env.calibration.diagnosis.state import Scored
+
+    f = _rr(0.097, 0.078, 0.102, 0.068)
+    s = Scored(f, 1.0, np.ones(4), 0.6, 1e-4, -27.6, -26.1, 32)
+    assert fit_dict(s)["params_on_windows"] is None  # nothing widened it yet
+    widen_by_groups(f)
+    f.allowance = {"rolling_resistance": PAD}
+    d = fit_dict(s)
+    _, lo, hi = d["params_on_windows"]["rolling_resistance"]["c_rr"]
+    assert lo == pytest.approx(0.078 - 0.0316) and hi == pytest.approx(0.102)
+    assert d["params"]["rolling_resistance"]["c_rr"][1] == 0.0  # the one the user reads

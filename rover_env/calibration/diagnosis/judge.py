@@ -522,6 +522,13 @@ def fit_dict(s: Scored) -> dict[str, Any]:
         "params_without_allowance": {
             e: {k: list(v) for k, v in p.items()} for e, p in s.fit.physical(allow=False).items()
         },
+        # The interval the allowance's reach to "off" is judged on, where the groups widened
+        # the one above (Options.presence_on_windows; None: the same as "params").
+        "params_on_windows": None
+        if s.fit.windows_ci is None
+        else {
+            e: {k: list(v) for k, v in p.items()} for e, p in s.fit.physical(groups=False).items()
+        },
         "train_cost": s.fit.cost,
         "held_cost": s.held_cost,
         "held_gain": s.gain,
