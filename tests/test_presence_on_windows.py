@@ -65,7 +65,7 @@ def test_sensor_noise_widens_the_windows_interval_too() -> None:
     assert w_hi[0] == pytest.approx(0.097 + 1.96 * nse.total[0])
 
 
-def test_the_option_decides_which_interval_withdraws(monkeypatch: Any) -> None:
+def test_the_option_decides_which_interval_withdraws() -> None:
     def diag(on: bool) -> Any:
         f = _rr(0.097, 0.078, 0.102, 0.068)
         widen_by_groups(f)
