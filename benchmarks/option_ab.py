@@ -13,6 +13,9 @@ A row per case (what each named, the fits, seconds) goes to ``--json`` after eac
 
     python benchmarks/option_ab.py --option forms-beside-rival --seed0 71600 --torque 8 \\
         --others 8 --work out/option_ab --json out/option_ab/rows.json
+    # loose soils alone, then clean builds
+    python benchmarks/option_ab.py --option no-screen-middle --seed0 74100 --torque 0 \\
+        --others 16 --others-from loose_soil --dry-sand --clean 8 --work out/soil_ab
     # what one candidate fits on clean builds, with the option and without
     # (--untested: after the drives a first diagnosis proposes)
     python benchmarks/option_ab.py --option torque-forms --seed0 74044 --torque 0 \\
@@ -58,11 +61,18 @@ CLEAN = "clean"
 
 
 def plan(
-    seed0: int, torque: int, others: int, clean: int = 0
+    seed0: int,
+    torque: int,
+    others: int,
+    clean: int = 0,
+    pool: tuple[str, ...] = OTHERS,
+    dry_sand: bool = False,
 ) -> list[tuple[int, str, dict[str, float]]]:
     """(seed, effect, the generator's parameters) of every case, from the seeds alone: a
-    torque cut and another effect in turn (a run stopped early keeps both kinds), then the
-    clean builds, whose seeds follow theirs."""
+    torque cut and another effect (of ``pool``, in its order) in turn (a run stopped early
+    keeps both kinds), then the clean builds, whose seeds follow theirs. ``dry_sand``: every
+    second loose soil is the generator's dry sand (else each is its regolith)."""
+    soils = 0
     kinds = ["torque"] * torque + ["other"] * others
     order = sorted(range(len(kinds)), key=lambda k: (k if k < torque else k - torque, k))
     out = []
@@ -74,8 +84,10 @@ def plan(
             rng = np.random.default_rng([seed, 97])
             out.append((seed, "torque_limit", {"fraction": float(rng.uniform(-0.8, -0.5))}))
         else:
-            eff = OTHERS[(k - torque) % len(OTHERS)]
-            out.append((seed, eff, generator_params(eff, seed)))
+            eff = pool[(k - torque) % len(pool)]
+            sand = dry_sand and eff == "loose_soil" and soils % 2 == 1
+            soils += eff == "loose_soil"
+            out.append((seed, eff, generator_params(eff, seed, sand=sand)))
     return out
 
 
@@ -152,6 +164,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--torque", type=int, default=8)
     ap.add_argument("--others", type=int, default=8)
     ap.add_argument("--clean", type=int, default=0, help="clean builds after the others")
+    ap.add_argument(
+        "--others-from",
+        default=",".join(OTHERS),
+        help="the other effects, comma-separated, drawn in this order (default: all)",
+    )
+    ap.add_argument(
+        "--dry-sand", action="store_true", help="every second loose soil the generator's dry sand"
+    )
     ap.add_argument("--candidates", default=None, help="diagnose's --candidates, both arms")
     ap.add_argument(
         "--untested", action="store_true", help="first add the drives a diagnosis proposes"
@@ -160,7 +180,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", type=Path, default=None)
     a = ap.parse_args(argv)
     rows = []
-    cases = plan(a.seed0, a.torque, a.others, a.clean)
+    pool = tuple(e.strip() for e in a.others_from.split(",") if e.strip())
+    unknown = [e for e in pool if e not in OTHERS]
+    if unknown or not pool:
+        ap.error(f"--others-from: unknown {unknown or 'nothing'}; known: {', '.join(OTHERS)}")
+    cases = plan(a.seed0, a.torque, a.others, a.clean, pool, a.dry_sand)
     common = [] if a.candidates is None else ["--candidates", a.candidates]
     for k, (seed, effect, params) in enumerate(cases, 1):
         row = run_case(a.work, a.option, seed, effect, params, common, a.untested)

@@ -276,6 +276,24 @@ def test_the_report_says_what_was_read() -> None:
     )
 
 
+def test_unseparated_runs_print_no_tilt() -> None:
+    """Runs that do not tell a tilt from a resistance give a degenerate solve (block 54900's
+    54917: 90° [0, 17783]); the report says they were not read and proposes the drive."""
+    logs = [rover_log(1.5, 30.0, 0.02, seed=s) for s in range(3)]
+    r, runs = read_balance(logs, CFG, 0.1)
+    assert r is not None
+    rec = {"runs": len(runs), "read": True, "named": False, "allowance": 0.5, **r.as_json()}
+    rec |= {"tilt": 90.0, "tilt_interval": [0.0, 17783.4], "separated": False}
+    rec |= {"why_not": "the runs do not tell a tilt from a resistance", "plan": "reversals"}
+    rec |= {"seed": 0, "duration": 50.0}
+    text = "\n".join(balance_lines(rec))
+    assert "not read: the runs do not tell a tilt from a resistance" in text
+    assert "90.00°" not in text and "17783" not in text
+    assert "Proposed drive `reversals`" in text
+    rec["separated"] = True
+    assert "90.00°" in "\n".join(balance_lines(rec))
+
+
 @pytest.mark.parametrize("flag", ["--balance-allowance", "--slip-allowance"])
 @pytest.mark.parametrize("bad", ["-0.1", "25", "nan", "level"])
 def test_a_bad_balance_allowance_is_refused_naming_the_flag(
@@ -371,7 +389,8 @@ def test_runs_that_determine_nothing_are_read_unseparated_with_open_bounds() -> 
     assert rec["tilt_interval"][1] is None and rec["inflation"] is None
     json.dumps(rec, allow_nan=False)  # no infinity in result.json
     act, out = record(r, len(runs), 0.5, None, False)
-    assert act == "unseparated" and "unbounded" in "\n".join(balance_lines(out))
+    text = "\n".join(balance_lines(out))  # no degenerate numbers printed (stop 133)
+    assert act == "unseparated" and "not read" in text and "rises" not in text
 
 
 def test_a_heading_far_from_every_fix_is_not_known() -> None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -163,3 +164,52 @@ def test_each_effect_meets_more_than_one_set_of_drive_kinds() -> None:
         kinds.setdefault(name, set()).add(tuple(drive_kind(k, seed0 + i) for k in range(3)))
     assert len(kinds) == n
     assert all(len(k) == 3 for k in kinds.values()), kinds
+
+
+@pytest.mark.parametrize("middle", [True, False])
+def test_soil_forms_screened_at_the_middle_rung_too(
+    monkeypatch: pytest.MonkeyPatch, middle: bool
+) -> None:
+    """A form whose basin lies far from the first form's best point is still screened where
+    it fits (stop 133: dry sand 54917 under the regolith constants, best near the middle of
+    the ladder while the mars-sand forms were best near hard ground)."""
+    (soil,) = catalogue(["loose_soil"])
+    ladder = [float(p[0]) for p in soil.ladder or ()]
+    stiff, mid = ladder[0], ladder[len(ladder) // 2]
+    far = soil.forms[-1][0]
+
+    def cost(label: str, x: float) -> float:
+        # The last form fits best at the middle rung and poorly at the others' best point.
+        if label == far:
+            return 1.0 if x == mid else 9.0
+        return 3.0 if x == stiff else 6.0
+
+    table = {
+        json.dumps(soil.with_form(lab).to_ext(np.array([x])), sort_keys=True): cost(lab, x)
+        for lab, _ in soil.forms
+        for x in (stiff, mid)
+    }
+
+    class _Ev:
+        scale: ClassVar[dict[str, float]] = {}
+        screen_middle = middle  # Options.screen_middle, through the evaluator
+
+        def run(self, ext, which):  # type: ignore[no-untyped-def]
+            return [ext]
+
+        def log(self, msg: str) -> None:
+            pass
+
+    def losses(res, scale):  # type: ignore[no-untyped-def]
+        return np.array([[table[json.dumps(res[0], sort_keys=True)]]])
+
+    monkeypatch.setattr(fit_mod, "group_losses", losses)
+    xs = np.array([soil.off[0], stiff, mid])
+    first_curve = np.array([[5.0], [cost(soil.forms[0][0], stiff)], [cost(soil.forms[0][0], mid)]])
+    z = np.zeros(1)
+    first = fit_mod.Fit([soil], z + stiff, z, z + 1, z, 3.0, 3, {}, 0.0, "train")
+    first.curve = (xs, first_curve)
+    screen, rung, off_cost = fit_mod._screen_forms(_Ev(), soil, "train", {}, first)  # type: ignore[arg-type]
+    assert rung == stiff and off_cost == 5.0
+    assert screen[far] == (1.0 if middle else 9.0)
+    assert min(screen, key=lambda lab: screen[lab]) == (far if middle else soil.forms[0][0])

@@ -218,6 +218,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
         "a screen searches the ladder alone (several parameters: half the local budget)",
     ),
     (
+        "screen_middle",
+        "screen a candidate's forms (the soil's) at its ladder's middle rung too",
+    ),
+    (
         "screen_shared",
         "a lag and a delay fitted together are screened on half the training windows first",
     ),

@@ -75,6 +75,10 @@ class Evaluator:
     is profiled: the common part is the rolling radius, the slip and the soil, the effects'
     own signature."""
 
+    screen_middle: bool = True
+    """Screen a candidate's forms at its ladder's middle rung too
+    (:attr:`~rover_env.calibration.diagnosis.state.Options.screen_middle`)."""
+
     def config(self, ext: Extensions) -> RoverConfig:
         from dataclasses import replace
 

@@ -229,10 +229,20 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
         return []
     slip = r.get("source") == "slip"
     what = "the wheels' slip, forwards against backwards" if slip else "the logs' `effort_*`"
-    if not r.get("read"):
+    drive = (
+        f" Proposed drive `{r['plan']}` (seed {r['seed']}, {r['duration']:g} s): write it with"
+        f" `{plan_command(r['plan'], r['seed'], r['duration'])}`, drive it on the rover and"
+        f" diagnose again with its log added.{held_text(r)}"
+        if r.get("plan")
+        else ""
+    )
+    if not r.get("read") or r.get("separated") is False:
+        # Unseparated runs give a degenerate solve (block 54900's 54917 printed a tilt of
+        # 90° [0, 17783]): the numbers are not a reading (stop 133).
         return [
             "",
-            f"Force balance ({what}): {r['runs']} steady straight runs; not read: {r['why_not']}.",
+            f"Force balance ({what}): {r['runs']} steady straight runs; not read: {r['why_not']}."
+            + drive,
         ]
     lo, hi = r["tilt_interval"]
     clo, chi = r.get("c_rr_interval") or (None, None)  # null for the slip's
@@ -242,13 +252,6 @@ def balance_lines(r: dict[str, Any] | None) -> list[str]:
         else "named `slope` from it"
         if r.get("named")
         else f"no slope named from it: {r.get('why_not', 'see above')}"
-    )
-    drive = (
-        f" Proposed drive `{r['plan']}` (seed {r['seed']}, {r['duration']:g} s): write it with"
-        f" `{plan_command(r['plan'], r['seed'], r['duration'])}`, drive it on the rover and"
-        f" diagnose again with its log added.{held_text(r)}"
-        if r.get("plan")
-        else ""
     )
     moved = "".join(
         f" It {k} the windows' slope of {w['deg']:.2f}° [{w['interval'][0]:.2f}, {w['interval'][1]:.2f}]."

@@ -135,6 +135,7 @@ def judge_again(d: Diagnosis) -> Options | None:
             profile_zeros=d.ev.profile_zeros,
             profile_free_gain=d.ev.profile_free_gain,
             free_common_max=d.ev.free_common_max,
+            screen_middle=d.ev.screen_middle,
         )
         verdict = form_judge.form_rejudgement(
             d.ev, ev0, winner, d.ranked, adopted, d.noise, opts, d.say

@@ -179,7 +179,9 @@ def bias_correct(
         else p
         for i, p in enumerate(ev.logs)
     ]
-    tev = Evaluator(ev.base, st, twins, {which: ev.sets[which]}, scale=ev.scale)
+    tev = Evaluator(
+        ev.base, st, twins, {which: ev.sets[which]}, scale=ev.scale, screen_middle=ev.screen_middle
+    )
     ft = fit(tev, f.candidates, which, x_start=f.x, max_nfev=3, probe=False)
     ev.replays += tev.replays
     ev.seconds += tev.seconds

@@ -35,6 +35,7 @@ def baseline(d: Diagnosis) -> None:
         and (d.opts.model_form or d.opts.forms_reverted is not None),
         profile_free_gain=d.opts.fit_free_gain,
         free_common_max=d.opts.free_common,
+        screen_middle=d.opts.screen_middle,
     )
     # Replay floor: what a perfect model leaves, from the model's own twin of each drive.
     d.noise = replay_floor(d.base, d.prepared, d.all_w, d.sensor_noise, d.st)

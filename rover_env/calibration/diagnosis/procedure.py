@@ -26,6 +26,7 @@ PROCEDURE = (
     "numpy_every",
     "screen",
     "screen_coarse",
+    "screen_middle",
     "screen_shared",
     "max_nfev",
     "second",

@@ -138,6 +138,11 @@ class Options:
     windows: 5 Brent evaluations and 2 stencil points on 6-11 ladder rungs, in each of
     about 15 screens of a named case (a lag case's profile: the Brent search 21 of 100
     replay seconds)."""
+    screen_middle: bool = True
+    """A candidate with several forms (the soil's) screens each at the ladder's middle rung
+    too, not only where its first form fits best (:func:`rover_env.calibration.fit.
+    _screen_forms`). Why (stop 133): dry sand 54917's regolith-constant basin lay far from
+    the mars-sand forms' and was never searched; a slope was named instead of the soil."""
     screen_shared: bool = True
     """A lag and a delay fitted together (:attr:`shared_refit`) are first fitted once on the
     screening subset with half the evaluations, not reweighed, and fitted in full only where
