@@ -74,6 +74,7 @@ class _FakeEvaluator:
     scale: dict[str, float] = field(default_factory=lambda: dict.fromkeys(SIGNALS, 1.0))
     sets: dict[str, list[int]] = field(default_factory=lambda: {"train": list(range(8))})
     runs: int = 0
+    screen_middle: bool = True
 
     def log(self, msg: str) -> None:
         pass
@@ -133,3 +134,33 @@ def test_hard_ground_stops_after_the_screen() -> None:
     alone = Hard()
     fit_mod.fit(alone, [soil.with_form(SOIL_FORMS[0][0])], "train", max_nfev=4)  # type: ignore[arg-type]
     assert ev.runs == alone.runs + len(SOIL_FORMS) - 1
+
+
+@pytest.mark.parametrize("middle", [True, False])
+def test_a_form_whose_basin_lies_far_from_the_first_forms_is_searched(middle: bool) -> None:
+    """Stop 133 (dry sand 54917): the mars-sand forms fit best near hard ground, the regolith
+    form near the ladder's middle. Screened only where the first form fits best, the regolith
+    form loses there and is never searched; screened at the middle rung too, it is."""
+
+    class Apart(_FakeEvaluator):
+        def run(self, ext: dict[str, Any], which: str) -> list[_Res]:
+            res = super().run(ext, which)
+            soil = ext.get("loose_soil", {})
+            k = soil.get("k_phi", 0.0)
+            u = 1e6 / k if k else 0.0
+            if soil.get("preset") == 1.0 and soil.get("lam") == 0.6:
+                level = 0.05 + 0.1 * abs(np.log(u / 1.2)) if k else 0.25
+            else:
+                level = 0.15 + 0.1 * abs(np.log(u / 0.1)) if k else 0.25
+            for r in res:
+                r.resid[:, 4:6] = level
+            return res
+
+    (soil,) = catalogue(["loose_soil"])
+    f = fit_mod.fit(Apart(screen_middle=middle), [soil], "train", max_nfev=4)  # type: ignore[arg-type]
+    (c,) = f.candidates
+    u = float(f.x[0])
+    if middle:
+        assert c.form == "SOIL.md's regolith, lambda 0.6, no memory" and 0.8 < u < 1.8, (c.form, u)
+    else:
+        assert c.form in {lab for lab, _ in SOIL_FORMS[:4]} and u < 0.3, (c.form, u)
