@@ -58,8 +58,8 @@ def _fake_fit(c, best_at_off: bool) -> fit_mod.Fit:
 def test_soil_forms_searched_in_full_only_where_the_screen_finds_soil(
     monkeypatch: pytest.MonkeyPatch, best_at_off: bool
 ) -> None:
-    """The first form is searched in full, every other one screened at one rung; none more
-    when no form beats hard ground there, else the :data:`FORMS_FITTED` best."""
+    """The first form is searched in full, every other one screened (:func:`_screen_forms`);
+    none more when no form beats hard ground there, else the :data:`FORMS_FITTED` best."""
     (soil,) = catalogue(["loose_soil"])
     assert len(soil.forms) > fit_mod.FORMS_FITTED
     calls: list[str] = []

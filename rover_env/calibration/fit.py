@@ -504,9 +504,9 @@ def _screen_forms(
 
     Why the middle rung too (stop 133): a form's basin can lie far from the first form's.
     Dry sand 54917 (k_phi 2.1e6): on the training drives the mars-sand forms were best near
-    1/k_phi 0.03 and the regolith constants, screened there, came fourth and were never
-    searched; on the screen's half of the windows they were best at 1.1-1.8, a third lower
-    in cost, and a slope was named instead of the soil."""
+    1/k_phi 0.03 and the regolith constants, screened there, came third and fourth and were
+    never searched; on the screen's half of the windows they were best at 1.1-1.8, a quarter
+    lower in cost, and a slope was named instead of the soil."""
     xs0, l0 = first.curve if first.curve is not None else (np.zeros(0), np.zeros((0, 0)))
     ladder = [float(p[0]) for p in (c.ladder or ())]
     best = float(xs0[int(np.argmin(l0.sum(axis=1)))]) if xs0.size else c.off[0]
