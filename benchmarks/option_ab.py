@@ -16,6 +16,9 @@ A row per case (what each named, the fits, seconds) goes to ``--json`` after eac
     # loose soils alone, then clean builds
     python benchmarks/option_ab.py --option no-screen-middle --seed0 74100 --torque 0 \\
         --others 16 --others-from loose_soil --dry-sand --clean 8 --work out/soil_ab
+    # strong rolling resistances alone (c_rr 0.065-0.12)
+    python benchmarks/option_ab.py --option no-presence-on-windows --seed0 74130 --torque 0 \\
+        --others 14 --others-from rolling_resistance --strong --work out/rr_ab
     # what one candidate fits on clean builds, with the option and without
     # (--untested: after the drives a first diagnosis proposes)
     python benchmarks/option_ab.py --option torque-forms --seed0 74044 --torque 0 \\
@@ -38,7 +41,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _independent_plan import DRIVES, catalogue_truth, generator_params
+from _independent_plan import DRIVES, STRONG, catalogue_truth, generator_params, strong_params
 from bench_independent import drive_proposals, proposals
 
 from rover_env.independent import make_independent_logs
@@ -67,11 +70,18 @@ def plan(
     clean: int = 0,
     pool: tuple[str, ...] = OTHERS,
     dry_sand: bool = False,
+    strong: bool = False,
 ) -> list[tuple[int, str, dict[str, float]]]:
     """(seed, effect, the generator's parameters) of every case, from the seeds alone: a
     torque cut and another effect (of ``pool``, in its order) in turn (a run stopped early
     keeps both kinds), then the clean builds, whose seeds follow theirs. ``dry_sand``: every
-    second loose soil is the generator's dry sand (else each is its regolith)."""
+    second loose soil is the generator's dry sand (else each is its regolith). ``strong``:
+    the other effects drawn over :data:`~_independent_plan.STRONG`'s ranges (about twice
+    their usual "named from" to their ranges' top), each of ``pool`` one of STRONG's."""
+    if strong and not set(pool) <= set(STRONG):
+        raise ValueError(
+            f"strong: {sorted(set(pool) - set(STRONG))} not in STRONG ({', '.join(STRONG)})"
+        )
     soils = 0
     kinds = ["torque"] * torque + ["other"] * others
     order = sorted(range(len(kinds)), key=lambda k: (k if k < torque else k - torque, k))
@@ -87,7 +97,8 @@ def plan(
             eff = pool[(k - torque) % len(pool)]
             sand = dry_sand and eff == "loose_soil" and soils % 2 == 1
             soils += eff == "loose_soil"
-            out.append((seed, eff, generator_params(eff, seed, sand=sand)))
+            params = strong_params(eff, seed) if strong else generator_params(eff, seed, sand=sand)
+            out.append((seed, eff, params))
     return out
 
 
@@ -172,6 +183,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--dry-sand", action="store_true", help="every second loose soil the generator's dry sand"
     )
+    ap.add_argument(
+        "--strong",
+        action="store_true",
+        help="the other effects over STRONG's ranges (bench_independent --strong-pairs')",
+    )
     ap.add_argument("--candidates", default=None, help="diagnose's --candidates, both arms")
     ap.add_argument(
         "--untested", action="store_true", help="first add the drives a diagnosis proposes"
@@ -184,7 +200,10 @@ def main(argv: list[str] | None = None) -> int:
     unknown = [e for e in pool if e not in OTHERS]
     if unknown or not pool:
         ap.error(f"--others-from: unknown {unknown or 'nothing'}; known: {', '.join(OTHERS)}")
-    cases = plan(a.seed0, a.torque, a.others, a.clean, pool, a.dry_sand)
+    try:
+        cases = plan(a.seed0, a.torque, a.others, a.clean, pool, a.dry_sand, a.strong)
+    except ValueError as exc:
+        ap.error(f"--strong with --others-from: {exc}")
     common = [] if a.candidates is None else ["--candidates", a.candidates]
     for k, (seed, effect, params) in enumerate(cases, 1):
         row = run_case(a.work, a.option, seed, effect, params, common, a.untested)

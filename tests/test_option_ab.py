@@ -3,6 +3,7 @@ the effects without reusing a seed (a clean case's logs must not be an effect ca
 
 from __future__ import annotations
 
+import pytest
 from _bench import load_bench
 
 
@@ -33,3 +34,15 @@ def test_plan_draws_the_other_effects_from_the_pool_given() -> None:
     sands = ab.plan(900, 0, 4, pool=("loose_soil",), dry_sand=True)
     assert [p["sand"] for _, _, p in sands] == [0.0, 1.0, 0.0, 1.0]
     assert [p["k_phi"] for _, _, p in sands] == [p["k_phi"] for _, _, p in soils[:4]]
+
+
+def test_plan_draws_strong_effects_over_their_strong_ranges() -> None:
+    ab = load_bench("option_ab")
+    rr = ab.plan(950, 0, 6, pool=("rolling_resistance",), strong=True)
+    _, lo, hi, _ = ab.STRONG["rolling_resistance"]
+    assert all(lo <= p["c_rr"] <= hi for _, _, p in rr)
+    assert [p for _, _, p in rr] == [
+        ab.strong_params("rolling_resistance", 950 + k) for k in range(6)
+    ]
+    with pytest.raises(ValueError, match="friction"):
+        ab.plan(950, 0, 2, pool=("friction",), strong=True)
