@@ -18,7 +18,7 @@ A row per case (what each named, the fits, seconds) goes to ``--json`` after eac
         --others 16 --others-from loose_soil --dry-sand --clean 8 --work out/soil_ab
     # strong rolling resistances alone (c_rr 0.065-0.12)
     python benchmarks/option_ab.py --option no-presence-on-windows --seed0 74130 --torque 0 \\
-        --others 14 --others-from rolling_resistance --strong --work out/rr_ab
+        --others 12 --others-from rolling_resistance --strong --work out/rr_ab
     # what one candidate fits on clean builds, with the option and without
     # (--untested: after the drives a first diagnosis proposes)
     python benchmarks/option_ab.py --option torque-forms --seed0 74044 --torque 0 \\
@@ -75,7 +75,8 @@ def plan(
     """(seed, effect, the generator's parameters) of every case, from the seeds alone: a
     torque cut and another effect (of ``pool``, in its order) in turn (a run stopped early
     keeps both kinds), then the clean builds, whose seeds follow theirs. ``dry_sand``: every
-    second loose soil is the generator's dry sand (else each is its regolith). ``strong``:
+    second loose soil is the generator's dry sand (else each is its regolith; with ``strong``
+    each soil draws its own, as :func:`~_independent_plan.strong_params` does). ``strong``:
     the other effects drawn over :data:`~_independent_plan.STRONG`'s ranges (about twice
     their usual "named from" to their ranges' top), each of ``pool`` one of STRONG's."""
     if strong and not set(pool) <= set(STRONG):
@@ -181,7 +182,9 @@ def main(argv: list[str] | None = None) -> int:
         help="the other effects, comma-separated, drawn in this order (default: all)",
     )
     ap.add_argument(
-        "--dry-sand", action="store_true", help="every second loose soil the generator's dry sand"
+        "--dry-sand",
+        action="store_true",
+        help="every second loose soil the generator's dry sand (with --strong each soil draws its own)",
     )
     ap.add_argument(
         "--strong",
