@@ -141,6 +141,10 @@ SWITCHES: tuple[tuple[str, str], ...] = (
     ("fit_free_gain", "profile the free wheels' left/right reading difference out of every fit"),
     ("fit_yaw_spring", "fit the yaw joints' leaf-spring stiffness as model form"),
     ("fit_joint_height", "fit the height of the joints between segments as model form"),
+    (
+        "height_beside_soil",
+        "adopt no joint height before the effects where a loose soil explains more",
+    ),
     ("fit_com_height", "fit the segments' centre-of-mass height as model form"),
     ("fit_speed_loop", "fit the speed loop's proportional and integral gains as model form"),
     (

@@ -99,6 +99,7 @@ from rover_env.calibration.diagnosis.form_loop import (
     with_integral_gain,
     with_speed_gain,
 )
+from rover_env.calibration.diagnosis.form_soil import height_beside_soil
 from rover_env.calibration.diagnosis.judge import better_worse
 from rover_env.calibration.diagnosis.rotor import with_armature
 from rover_env.calibration.diagnosis.state import Diagnosis, FormFit, Options
@@ -511,6 +512,7 @@ def form_text(form: FormFit) -> str:
         f" p {form.p:.2g}, dBIC {form.d_bic:+.1f}):"
         f" {'adopted' if form.adopted else 'kept nominal'}"
         + (" (the end of its range: not adopted)" if form.at_end else "")
+        + (f" (not adopted: {form.beaten_by} explains more)" if form.beaten_by else "")
     )
 
 
@@ -640,6 +642,8 @@ def fit_forms(
     ]
     for fit_form in stages:
         form = fit_form(base, prepared, train_w, st, sensor_noise)
+        if fit_form is fit_joint_height and opts.height_beside_soil:
+            form = height_beside_soil(form, base, prepared, train_w, st, sensor_noise)
         forms.append(form)
         show(form)
         if form.adopted:

@@ -40,6 +40,7 @@ PROCEDURE = (
     "free_common",
     "fit_yaw_spring",
     "fit_joint_height",
+    "height_beside_soil",
     "fit_com_height",
     "fit_speed_loop",
     "joint_motor_loop",

@@ -421,6 +421,10 @@ class Options:
     (:func:`.form.fit_joint_height`; stop 64: the independent generator's slopes were fitted
     below the truth, 0.48-0.98 x in all 8 spent cases of 4 deg or more; its joints sit 5 cm
     above the axles, this model's on the axle line)."""
+    height_beside_soil: bool = True
+    """Adopt no joint height before the effects where a loose soil at the configured height
+    explains the training windows better (:mod:`.form_soil`; stop 134: a very soft soil's
+    roll swings took the joints 3 cm below the axles, and no soil was fitted then)."""
     fit_com_height: bool = False
     """Fit the segments' centre-of-mass height as model form (:func:`.form.fit_com_height`;
     stop 64: the independent generator's centres of mass sit 5 cm lower than this model's).
@@ -554,6 +558,9 @@ class FormFit:
     """Whether diagnose uses ``value``: it differs from the nominal one and ``d_bic`` < 0."""
     labels: tuple[str, ...] = ()
     """A choice's names (``value`` and ``nominal`` index them), empty for a number."""
+    beaten_by: str = ""
+    """What explains the windows better than the adopted value would, which is therefore
+    not adopted (:func:`.form_soil.height_beside_soil`); empty: nothing."""
     at_end: bool = False
     """The best value pays its BIC but is an open end of the form's ladder, so it is not
     adopted (the windows ask for more than the form's range: :func:`.form_ladder.fit_ladder`)."""
@@ -590,6 +597,8 @@ class FormFit:
             out["choices"] = list(self.labels)
         if self.at_end:
             out["at_end"] = True
+        if self.beaten_by:
+            out["beaten_by"] = self.beaten_by
         return out
 
 
