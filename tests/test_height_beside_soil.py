@@ -65,7 +65,7 @@ def test_the_soil_explains_more_and_the_height_is_not_adopted(
 ) -> None:
     fitted, judged = on_soil
     assert not judged.adopted, judged
-    assert judged.beaten_by.startswith("loose_soil"), judged.beaten_by
+    assert judged.beaten_by.startswith("the loose soil explains more"), judged.beaten_by
     assert judged.value == fitted.value  # the fit is reported as found
 
 

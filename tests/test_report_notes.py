@@ -3,6 +3,8 @@ through the wheel's acceleration, so it is only as good as the configured rotor 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from rover_env.calibration.report import _torque_note
 
 
@@ -93,6 +95,21 @@ def test_a_form_at_the_end_of_its_range_is_said_so() -> None:
     line = model_form_line({"yaw_spring": form(True, -2.6)})
     assert "the end of the range tried" in line and "40 N m/rad" in line, line
     assert "end of the range" not in model_form_line({"yaw_spring": form(False, 1.2)})
+
+
+def test_a_height_the_soil_explains_better_is_said_so() -> None:
+    """A joint height that paid its BIC but was not adopted because the loose soil explains
+    more (``form_soil.height_beside_soil``) says so in the report's model-form line; an
+    adopted one does not."""
+    from rover_env.calibration.diagnosis.state import FormFit
+    from rover_env.calibration.report_method import model_form_line
+
+    said = "the loose soil explains more, loose_soil k_phi 3e+05 (x) at -0.755"
+    f = FormFit("joint_height", "m", 0.0, -0.031, {-0.031: -0.133}, 0.125, 0.006, -0.8, False)
+    line = model_form_line({"joint_height": replace(f, beaten_by=said).as_json()})
+    assert "-31 mm" in line and "not adopted before the effects: " + said in line, line
+    adopted = model_form_line({"joint_height": replace(f, adopted=True).as_json()})
+    assert "adopted" in adopted and "soil" not in adopted, adopted
 
 
 def test_a_small_trade_is_reported_beside_the_named_effect() -> None:

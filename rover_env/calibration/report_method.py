@@ -315,6 +315,8 @@ def model_form_line(
                 " (the end of the range tried: the windows ask for more than this form gives,"
                 " so something else must supply it)"
             )
+        if f.get("beaten_by"):
+            verdict += f" (not adopted before the effects: {f['beaten_by']})"
         if f.get("choices"):  # a choice (the anti-windup form): names, no unit
             fitted, nominal = f"{f['fitted']}", f"{f['nominal']}"
         else:

@@ -512,7 +512,7 @@ def form_text(form: FormFit) -> str:
         f" p {form.p:.2g}, dBIC {form.d_bic:+.1f}):"
         f" {'adopted' if form.adopted else 'kept nominal'}"
         + (" (the end of its range: not adopted)" if form.at_end else "")
-        + (f" (not adopted: {form.beaten_by} explains more)" if form.beaten_by else "")
+        + (f" (not adopted: {form.beaten_by})" if form.beaten_by else "")
     )
 
 

@@ -87,6 +87,5 @@ def height_beside_soil(
     soil, where = soil_screen(cfg, prepared, windows, settings, sensor_noise)
     if soil >= own:
         return form
-    return replace(
-        form, adopted=False, beaten_by=f"{where}: {soil:+.3g} against the height's {own:+.3g}"
-    )
+    said = f"the loose soil explains more, {where} at {soil:+.3g} against the height's {own:+.3g}"
+    return replace(form, adopted=False, beaten_by=said)
