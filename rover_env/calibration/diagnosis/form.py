@@ -89,6 +89,7 @@ from rover_env.calibration.diagnosis.form_ladder import (
     baseline,
     fit_ladder,
     judged,
+    log_ratio,
     reprepare,
     reprepared,
 )
@@ -295,7 +296,7 @@ def fit_joint_zeros(
         l0, l1 = l0[ok], l1[ok]
         eps = 1e-12 * max(float(np.mean(l0)), 1e-300)
         n, z = float(nominal[i]), float(zeros[i])
-        crit = float(np.mean(np.log((l1 + eps) / (l0 + eps))))
+        crit = log_ratio(l1, l0, eps)
         out.append(judged(ZERO_PREFIX + j, "rad", n, z, {n: 0.0, z: crit}, l0, l1))
     return out
 
@@ -500,7 +501,7 @@ def fit_anti_windup(
             c = with_anti_windup(cfg, form)
             res = Replayer(c, settings).run(reprepare(prepared, c, settings), windows)
             losses[float(i)] = rs.window_losses(res, scale)
-    tried = {x: float(np.mean(np.log((v + eps) / (l0 + eps)))) for x, v in losses.items()}
+    tried = {x: log_ratio(v, l0, eps) for x, v in losses.items()}
     best = min(tried, key=lambda x: (tried[x], x != nominal))
     return judged("anti_windup", "", nominal, best, tried, l0, losses[best], tuple(forms))
 

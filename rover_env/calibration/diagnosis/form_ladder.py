@@ -62,6 +62,12 @@ def baseline(
     return scale, l0, 1e-12 * max(float(np.mean(l0)), 1e-300)
 
 
+def log_ratio(losses: Array, l0: Array, eps: float) -> float:
+    """The form stage's criterion: the mean over windows of log(loss / nominal loss); < 0
+    is better. Every form and the soil screen (:mod:`.form_soil`) are judged by it."""
+    return float(np.mean(np.log((losses + eps) / (l0 + eps))))
+
+
 def fit_ladder(
     name: str,
     unit: str,
@@ -92,7 +98,7 @@ def fit_ladder(
         return rs.window_losses(Replayer(c, settings).run(p, windows), scale)
 
     def crit(losses: Array) -> float:
-        return float(np.mean(np.log((losses + eps) / (l0 + eps))))
+        return log_ratio(losses, l0, eps)
 
     xs = sorted({*ladder, nominal})
     losses = {x: l0 if x == nominal else losses_at(x) for x in xs}

@@ -16,6 +16,7 @@ from rover_env.calibration.diagnosis.form_ladder import (
     baseline,
     fit_ladder,
     judged,
+    log_ratio,
     reprepare,
     reprepared,
 )
@@ -192,7 +193,7 @@ def fit_motor_loop(
             c = with_loop(cfg, x)
             res = Replayer(c, settings).run(reprepare(prepared, c, settings), windows)
             loss = rs.window_losses(res, scale)
-            seen[x] = (float(np.mean(np.log((loss + eps) / (l0 + eps)))), loss)
+            seen[x] = (log_ratio(loss, l0, eps), loss)
         return seen[x][0]
 
     ladders = (

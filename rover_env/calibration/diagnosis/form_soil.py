@@ -22,7 +22,7 @@ import numpy as np
 
 from rover_env.calibration import residuals as rs
 from rover_env.calibration.candidates import catalogue, merge
-from rover_env.calibration.diagnosis.form_ladder import baseline
+from rover_env.calibration.diagnosis.form_ladder import baseline, log_ratio
 from rover_env.calibration.diagnosis.state import FormFit
 from rover_env.calibration.replay import PreparedLog, Replayer, ReplaySettings, Window
 from rover_env.config import RoverConfig
@@ -55,7 +55,7 @@ def soil_screen(
         ext = soil.with_form(label).to_ext(np.array([ladder[rung]]))
         c = replace(cfg, extensions=merge(cfg.extensions, ext))
         losses = rs.window_losses(Replayer(c, settings).run(prepared, windows), scale)
-        return float(np.mean(np.log((losses + eps) / (l0 + eps))))
+        return log_ratio(losses, l0, eps)
 
     tried = {(label, mid): crit(label, mid) for label, _ in soil.forms}
     form = min(tried, key=lambda k: tried[k])[0]
